@@ -1,0 +1,3 @@
+from agents.node import main
+
+main()

@@ -1,0 +1,14 @@
+"""Frontier allocators, one per module, registered by name (``make_allocator({"type": "minpos"})``)."""
+
+from agents.allocators import minpos, nearest  # noqa: F401  (registration)
+from agents.allocators.base import (
+    Allocation,
+    Allocator,
+    AllocStatus,
+    Problem,
+    argmin_first,
+    make_allocator,
+    robot_order,
+)
+
+__all__ = ["AllocStatus", "Allocation", "Allocator", "Problem", "argmin_first", "make_allocator", "robot_order"]

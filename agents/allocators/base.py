@@ -1,0 +1,158 @@
+"""The allocator interface: a :class:`Problem` in, a typed :class:`Allocation` out, a registry by name.
+
+An allocator is a pure function of (belief grid, frontier clusters, wavefront distances, known teammate poses,
+its own protocol state). It never touches Zenoh, clocks or files; radio messages it wants to send go out in
+``Allocation.outbox`` and the ones addressed to it come back through ``inbox``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import functools
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+
+from agents.frontiers import Cluster
+from core.grid import FREE, Cell
+from core.kernels import wavefront
+from core.messages import RadioMsg
+
+INF = np.inf
+
+
+class AllocStatus(enum.Enum):
+    """What an allocation says: a cluster was assigned, there is no reachable frontier, or the robot waits
+    (a protocol round is under way)."""
+
+    ASSIGNED = "assigned"
+    NO_FRONTIER = "no_frontier"
+    WAITING = "waiting"
+
+
+@dataclasses.dataclass(frozen=True)
+class Allocation:
+    """The result of one call: ``cluster`` indexes ``Problem.clusters``; ``target`` is that cluster's target."""
+
+    status: AllocStatus
+    cluster: int | None = None
+    target: Cell | None = None
+    outbox: tuple[RadioMsg, ...] = ()
+
+    @staticmethod
+    def assigned(problem: Problem, j: int, outbox: tuple[RadioMsg, ...] = ()) -> Allocation:
+        return Allocation(AllocStatus.ASSIGNED, j, problem.clusters[j].target, outbox)
+
+    @staticmethod
+    def none(outbox: tuple[RadioMsg, ...] = ()) -> Allocation:
+        return Allocation(AllocStatus.NO_FRONTIER, None, None, outbox)
+
+
+@dataclasses.dataclass
+class Problem:
+    """One robot's view at one tick. ``poses`` holds the robot's own cell and its teammates' last known
+    cells (sorted by robot id). Wavefronts and the cost matrix are computed lazily, so that an allocator
+    that needs less (MinPos with stopping) pays less, and the decision time measures what it used."""
+
+    me: str
+    poses: dict[str, Cell]
+    belief: np.ndarray
+    clusters: list[Cluster]
+    tick: int = 0
+    heard: dict[str, int] = dataclasses.field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.poses = dict(sorted(self.poses.items(), key=lambda kv: robot_order(kv[0])))
+
+    @property
+    def robots(self) -> list[str]:
+        """Every robot with a known pose, the deciding one included, in id order."""
+        return list(self.poses)
+
+    @property
+    def index(self) -> int:
+        """Row of the deciding robot in :attr:`costs`."""
+        return self.robots.index(self.me)
+
+    @functools.cached_property
+    def passable(self) -> np.ndarray:
+        """Known-free cells: the only ones a wavefront crosses."""
+        return self.belief == FREE
+
+    @functools.cached_property
+    def wavefronts(self) -> list[np.ndarray]:
+        """BFS distance from each cluster's cells over known-free cells (MinPos section 4.2); -1 unreached."""
+        return [wavefront(self.passable, c.cells.astype(np.int64), -1) for c in self.clusters]
+
+    @functools.cached_property
+    def costs(self) -> np.ndarray:
+        """The cost matrix C (robots x clusters): wavefront distance, ``inf`` where unreachable."""
+        c = np.full((len(self.poses), len(self.clusters)), INF)
+        for j, wf in enumerate(self.wavefronts):
+            for i, cell in enumerate(self.poses.values()):
+                d = wf[cell]
+                if d >= 0:
+                    c[i, j] = d
+        return c
+
+
+def robot_order(robot: str) -> tuple[int, str]:
+    """Sort key of robot ids: ``r2`` before ``r10``; anything else (``base``) after, by name."""
+    return (int(robot[1:]), "") if robot[:1] == "r" and robot[1:].isdigit() else (1 << 30, robot)
+
+
+class Allocator:
+    """Base class: subclasses register with ``class X(Allocator, plugin_name="x")`` and implement
+    :meth:`allocate`. Parameters are keyword arguments of ``__init__``; :meth:`to_dict` gives them back in
+    the scenario's shape ``{"type": name, **params}``."""
+
+    plugin_name: ClassVar[str] = ""
+    registry: ClassVar[dict[str, type[Allocator]]] = {}
+
+    def __init_subclass__(cls, plugin_name: str = "", **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if plugin_name:
+            if plugin_name in Allocator.registry:
+                raise TypeError(f"allocator {plugin_name!r} registered twice")
+            cls.plugin_name = plugin_name
+            Allocator.registry[plugin_name] = cls
+
+    def __init__(self, **params: Any) -> None:
+        if params:
+            raise TypeError(f"allocator {self.plugin_name!r} takes no parameter {sorted(params)[0]!r}")
+        self.rng = np.random.default_rng(0)
+
+    def params(self) -> dict[str, Any]:
+        """The allocator's parameters (overridden by allocators that have some)."""
+        return {}
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"type": self.plugin_name, **self.params()}
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """Start afresh; every random draw comes from ``rng``."""
+        self.rng = rng
+
+    def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
+        raise NotImplementedError
+
+
+def make_allocator(config: dict[str, Any]) -> Allocator:
+    """``{"type": "minpos", ...params}`` to an allocator; an unknown name or parameter fails loudly."""
+    params = dict(config)
+    name = params.pop("type", None)
+    cls = Allocator.registry.get(name) if isinstance(name, str) else None
+    if cls is None:
+        known = ", ".join(sorted(Allocator.registry))
+        raise ValueError(f"unknown allocator {name!r} (known: {known})")
+    try:
+        return cls(**params)
+    except TypeError as exc:
+        raise ValueError(f"allocator {name!r}: {exc}") from None
+
+
+def argmin_first(values: Sequence[float] | np.ndarray) -> int:
+    """Index of the smallest value, the lowest index on ties (every tie-break is deterministic)."""
+    return int(np.argmin(np.asarray(values)))

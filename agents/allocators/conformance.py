@@ -1,0 +1,114 @@
+"""Checks every registered allocator must pass, after PettingZoo's ``api_test`` and ``seed_test``.
+
+``api_test`` drives an allocator through drawn problems (frontiers in several directions, none at all,
+an unreachable one) and checks the typed contract; ``seed_test`` checks that the same generator gives the
+same decisions. Both raise AssertionError with a message naming what broke.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from agents.allocators.base import Allocation, Allocator, AllocStatus, Problem, make_allocator
+from agents.frontiers import find_clusters
+from core.grid import FREE, UNKNOWN, from_ascii
+
+CROSS = """
+???????.???????
+???????.???????
+???????.???????
+.......0.......
+???????1???????
+???????.???????
+???????2.3.....
+"""
+
+CLOSED = """
+#######
+#0...1#
+#.....#
+#######
+"""
+
+WALLED = """
+?##?????
+#..#....
+#0.#.2..
+#..#....
+"""
+
+
+def _problem(art: str, me: str, tick: int = 0) -> Problem:
+    grid, robots = from_ascii(art)
+    return Problem(me=me, poses=robots, belief=grid, clusters=find_clusters(grid, 4), tick=tick)
+
+
+def random_problem(rng: np.random.Generator, me: str = "r0", size: int = 24, robots: int = 4) -> Problem:
+    """A random belief: free space with walls, a band of unknown, robots on free cells."""
+    grid = np.where(rng.random((size, size)) < 0.12, 100, FREE).astype(np.int8)
+    grid[:, size // 2 + int(rng.integers(0, size // 3)):] = UNKNOWN
+    grid[rng.random((size, size)) < 0.05] = UNKNOWN
+    free = np.argwhere(grid == FREE)
+    picks = rng.choice(len(free), size=robots, replace=False)
+    poses = {f"r{k}": (int(free[p][0]), int(free[p][1])) for k, p in enumerate(picks)}
+    return Problem(me=me, poses=poses, belief=grid, clusters=find_clusters(grid, 6))
+
+
+def _check(problem: Problem, a: Any, name: str) -> None:
+    assert isinstance(a, Allocation), f"{name}: allocate returned {type(a).__name__}, not Allocation"
+    assert isinstance(a.status, AllocStatus), f"{name}: status is not an AllocStatus"
+    if a.status is AllocStatus.ASSIGNED:
+        assert a.cluster is not None and 0 <= a.cluster < len(problem.clusters), f"{name}: cluster out of range"
+        assert a.target == problem.clusters[a.cluster].target, f"{name}: target is not the cluster's target"
+        me = problem.poses[problem.me]
+        assert problem.wavefronts[a.cluster][me] >= 0, f"{name}: assigned an unreachable cluster"
+    else:
+        assert a.cluster is None or a.status is AllocStatus.WAITING, f"{name}: a cluster without ASSIGNED"
+    assert isinstance(a.outbox, tuple), f"{name}: outbox is not a tuple"
+    for m in a.outbox:
+        assert m.encode(), f"{name}: an outbox message does not encode"
+
+
+def api_test(config: dict[str, Any], rounds: int = 6) -> None:
+    """The typed contract of one allocator configuration."""
+    name = config["type"]
+    alloc = make_allocator(config)
+    assert isinstance(alloc, Allocator)
+    assert alloc.to_dict()["type"] == name, f"{name}: to_dict lost the type"
+    assert make_allocator(alloc.to_dict()).to_dict() == alloc.to_dict(), f"{name}: to_dict does not round-trip"
+    alloc.reset(np.random.default_rng(0))
+    for tick in range(rounds):  # a protocol may need a few rounds; each answer must still be well-formed
+        for me in ("r0", "r1", "r3"):
+            p = _problem(CROSS, me, tick)
+            _check(p, alloc.allocate(p, ()), name)
+    closed = _problem(CLOSED, "r0")
+    a = alloc.allocate(closed, ())
+    _check(closed, a, name)
+    assert a.status is not AllocStatus.ASSIGNED, f"{name}: assigned a frontier where there is none"
+    walled = _problem(WALLED, "r0")
+    _check(walled, alloc.allocate(walled, ()), name)
+    rng = np.random.default_rng(1)
+    for _ in range(10):
+        p = random_problem(rng)
+        _check(p, alloc.allocate(p, ()), name)
+
+
+def seed_test(config: dict[str, Any], seed: int = 7, rounds: int = 12) -> None:
+    """Same seed, same decisions: two fresh allocators fed the same problems agree on every call."""
+    name = config["type"]
+
+    def run() -> list[tuple[str, int | None]]:
+        alloc = make_allocator(config)
+        alloc.reset(np.random.default_rng(seed))
+        rng = np.random.default_rng(seed + 1)
+        out = []
+        for t in range(rounds):
+            p = random_problem(rng, me=f"r{t % 4}")
+            p.tick = t
+            a = alloc.allocate(p, ())
+            out.append((a.status.name, a.cluster))
+        return out
+
+    assert run() == run(), f"{name}: the same seed gave different decisions"

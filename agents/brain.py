@@ -1,0 +1,135 @@
+"""One robot's decision for one tick, as a pure function of what it sensed and what the radio delivered.
+
+Per tick (MinPos section 4: identify and cluster frontiers, compute distances, assign, navigate):
+merge the observation and delivered map deltas into the belief, update teammates' last known poses,
+cluster frontiers, run the allocator, and step down the wavefront of the assigned cluster. It then
+broadcasts a pose beacon and a map delta of what it newly learned; a teammate heard again after a silence
+also gets the whole known map. No Zenoh, no files: the node shell does the I/O and passes a clock in.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from agents.allocators import Allocator, AllocStatus, Problem
+from agents.belief import Belief
+from agents.frontiers import find_clusters
+from agents.navigation import next_move
+from core.grid import FREE, MOVES, Cell
+from core.messages import Command, MapDelta, Observation, PoseBeacon, RadioMsg
+
+STAY: Cell = (0, 0)
+
+
+@dataclasses.dataclass(frozen=True)
+class BrainConfig:
+    """``cluster_max``: frontier cells one sensing covers (MinPos 4.1); ``resync_after``: ticks of silence
+    after which a teammate heard again gets the whole known map; ``map_ttl``: hops for map deltas."""
+
+    cluster_max: int = 16
+    resync_after: int = 10
+    map_ttl: int = 0
+    unstick_after: int = 2
+
+
+@dataclasses.dataclass
+class Teammate:
+    cell: Cell
+    heard: int
+
+
+class Brain:
+    """The functional core of one agent; ``step`` is called once per tick."""
+
+    def __init__(self, me: str, allocator: Allocator, rng: np.random.Generator, config: BrainConfig,
+                 clock: Callable[[], float] = time.perf_counter) -> None:
+        self.me = me
+        self.allocator = allocator
+        self.rng = rng
+        self.config = config
+        self.clock = clock
+        self.allocator.reset(rng)
+        self.belief: Belief | None = None
+        self.teammates: dict[str, Teammate] = {}
+        self.seq = 0
+        self.last_cell: Cell | None = None
+        self.last_move: Cell = STAY
+        self.stuck = 0
+        self.decision_ms: list[float] = []
+
+    def _seq(self) -> int:
+        self.seq += 1
+        return self.seq
+
+    def step(self, obs: Observation, inbox: Sequence[RadioMsg]) -> tuple[Command, tuple[RadioMsg, ...]]:
+        """Decide the move for ``obs.tick`` and the radio messages to send."""
+        t = obs.tick
+        if self.belief is None:
+            self.belief = Belief(obs.shape)
+        belief = self.belief
+        belief.merge(obs.cells, obs.values)
+        outbox: list[RadioMsg] = []
+        protocol: list[RadioMsg] = []
+        for msg in inbox:
+            if msg.src == self.me:
+                continue
+            if isinstance(msg, PoseBeacon):
+                self._heard(msg, t, outbox)
+            elif isinstance(msg, MapDelta):
+                belief.merge(msg.cells, msg.values)
+            else:
+                protocol.append(msg)
+        poses = {self.me: obs.cell} | {r: tm.cell for r, tm in sorted(self.teammates.items())}
+        problem = Problem(me=self.me, poses=poses, belief=belief.grid,
+                          clusters=find_clusters(belief.grid, self.config.cluster_max), tick=t,
+                          heard={r: tm.heard for r, tm in self.teammates.items()})
+        t0 = self.clock()
+        alloc = self.allocator.allocate(problem, protocol)
+        self.decision_ms.append((self.clock() - t0) * 1000.0)
+        move = STAY
+        if alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None:
+            blocked = {tm.cell for tm in self.teammates.values() if tm.heard >= t - 1}
+            move = next_move(problem.wavefronts[alloc.cluster], obs.cell, blocked)
+        move = self._unstick(obs.cell, move, belief.grid)
+        outbox.extend(alloc.outbox)
+        outbox.insert(0, PoseBeacon(src=self.me, tick=t, seq=self._seq(), dst="*", ttl=0, cell=obs.cell))
+        cells, values = belief.take_news()
+        if len(cells):
+            outbox.insert(1, MapDelta(src=self.me, tick=t, seq=self._seq(), dst="*", ttl=self.config.map_ttl,
+                                      cells=cells, values=values))
+        cmd = Command(src=self.me, tick=t, seq=self._seq(), move=move, target=alloc.target,
+                      status=alloc.status.name, decision_ms=round(self.decision_ms[-1], 4))
+        return cmd, tuple(outbox)
+
+    def _heard(self, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> None:
+        """A teammate's pose; one heard for the first time, or again after a silence, gets our whole map."""
+        prev = self.teammates.get(beacon.src)
+        if prev is not None and beacon.tick < prev.heard:
+            return
+        if prev is None or t - prev.heard > self.config.resync_after:
+            assert self.belief is not None
+            cells, values = self.belief.known()
+            outbox.append(MapDelta(src=self.me, tick=t, seq=self._seq(), dst=beacon.src, ttl=0,
+                                   cells=cells, values=values))
+        self.teammates[beacon.src] = Teammate(cell=beacon.cell, heard=max(t, beacon.tick))
+
+    def _unstick(self, cell: Cell, move: Cell, grid: np.ndarray) -> Cell:
+        """A robot whose commanded moves keep failing (a teammate in the way) tries a random free step."""
+        if self.last_cell == cell and self.last_move != STAY:
+            self.stuck += 1
+        else:
+            self.stuck = 0
+        if move != STAY and self.stuck >= self.config.unstick_after:
+            options = [m for m in MOVES if _free(grid, (cell[0] + m[0], cell[1] + m[1]))]
+            if options:
+                move = options[int(self.rng.integers(len(options)))]
+        self.last_cell, self.last_move = cell, move
+        return move
+
+
+def _free(grid: np.ndarray, cell: Cell) -> bool:
+    return 0 <= cell[0] < grid.shape[0] and 0 <= cell[1] < grid.shape[1] and grid[cell] == FREE

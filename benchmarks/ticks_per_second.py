@@ -1,0 +1,53 @@
+"""Lockstep speed and agent memory, multi-process, on the office map.
+
+    python benchmarks/ticks_per_second.py [--robots 4 16] [--ticks 300] [--repeat 1]
+
+Prints a table: robots, ticks run, wall seconds, ticks per second, and the peak RSS of the agent processes
+(max and mean over agents, from getrusage in each agent). Timings are of the whole system (world, netem and N
+agents sharing this machine's cores), measured by the launcher from first spawn to the end of the run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run_once(robots: int, ticks: int, allocator: str, extra: list[str]) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run"
+        cmd = [sys.executable, "-m", "launch", "run", "--map", "office", "--robots", str(robots),
+               "--max-ticks", str(ticks), "--target-coverage", "1.0", "--allocator", allocator,
+               "--quiet", "--no-record", "--out", str(out), *extra]
+        subprocess.run(cmd, cwd=ROOT, check=False, capture_output=True)
+        return json.loads((out / "result.json").read_text())
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--robots", type=int, nargs="+", default=[4, 16])
+    p.add_argument("--ticks", type=int, default=300)
+    p.add_argument("--allocator", default="minpos")
+    p.add_argument("--repeat", type=int, default=1)
+    p.add_argument("--in-process", action="store_true")
+    a = p.parse_args()
+    extra = ["--in-process"] if a.in_process else []
+    print(f"{'robots':>6} {'ticks':>6} {'wall s':>8} {'ticks/s':>8} {'coverage':>9} "
+          f"{'agent RSS max MB':>17} {'mean MB':>8} {'decision ms':>12}")
+    for n in a.robots:
+        for _ in range(a.repeat):
+            r = run_once(n, a.ticks, a.allocator, extra)
+            rss = list(r["agent_peak_rss_kb"].values()) or [0]
+            print(f"{n:>6} {r['ticks']:>6} {r['wall_seconds']:>8.1f} {r['ticks_per_second']:>8.1f} "
+                  f"{r['coverage']:>9.3f} {max(rss) / 1024:>17.1f} {sum(rss) / len(rss) / 1024:>8.1f} "
+                  f"{r['decision_ms']['mean']:>12.3f}")
+
+
+if __name__ == "__main__":
+    main()

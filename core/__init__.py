@@ -1,0 +1,1 @@
+"""What every process of the fleet shares: grid type and kernels, messages, keys, scenario, session helpers."""

@@ -1,0 +1,164 @@
+"""Compiled grid kernels: BFS wavefront, 360-degree ray casting, wall counting along a segment.
+
+Compiled with numba (``cache=True``, so each process loads the machine code from ``__pycache__``
+instead of recompiling). All kernels take plain numpy arrays and flat row-major indices.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+UNREACHED: int = -1
+
+
+@numba.njit(cache=True)
+def wavefront(passable: np.ndarray, sources: np.ndarray, stop: int = -1) -> np.ndarray:
+    """BFS distance (4-connected, unit cost) from every source over ``passable`` cells.
+
+    ``passable`` is a 2-D bool array, ``sources`` flat indices (impassable ones are still seeded:
+    a frontier cell next to the unknown is a valid source). Unreached cells hold ``-1``.
+    With ``stop >= 0`` the propagation ends as soon as that flat index is assigned its distance
+    (MinPos section 4.3, "wavefront propagation stopping").
+    """
+    rows, cols = passable.shape
+    n = rows * cols
+    dist = np.full(n, -1, dtype=np.int32)
+    queue = np.empty(n, dtype=np.int64)
+    head = 0
+    tail = 0
+    flat_pass = passable.ravel()
+    for s in sources:
+        if 0 <= s < n and dist[s] < 0:
+            dist[s] = 0
+            queue[tail] = s
+            tail += 1
+            if s == stop:
+                return dist.reshape(rows, cols)
+    while head < tail:
+        cur = queue[head]
+        head += 1
+        r = cur // cols
+        c = cur - r * cols
+        d = dist[cur] + 1
+        for k in range(4):
+            if k == 0:
+                if r == 0:
+                    continue
+                nxt = cur - cols
+            elif k == 1:
+                if r == rows - 1:
+                    continue
+                nxt = cur + cols
+            elif k == 2:
+                if c == 0:
+                    continue
+                nxt = cur - 1
+            else:
+                if c == cols - 1:
+                    continue
+                nxt = cur + 1
+            if dist[nxt] < 0 and flat_pass[nxt]:
+                dist[nxt] = d
+                if nxt == stop:
+                    return dist.reshape(rows, cols)
+                queue[tail] = nxt
+                tail += 1
+    return dist.reshape(rows, cols)
+
+
+@numba.njit(cache=True)
+def _trace(occupied, r0, c0, r1, c1, radius2, mark, out, count):
+    """Bresenham from (r0, c0) toward (r1, c1); marks cells until the first occupied one (included)."""
+    dr = abs(r1 - r0)
+    dc = abs(c1 - c0)
+    sr = 1 if r1 > r0 else -1
+    sc = 1 if c1 > c0 else -1
+    err = dc - dr
+    r = r0
+    c = c0
+    rows, cols = occupied.shape
+    while True:
+        if r < 0 or r >= rows or c < 0 or c >= cols:
+            return count
+        if (r - r0) * (r - r0) + (c - c0) * (c - c0) > radius2:
+            return count
+        idx = r * cols + c
+        if not mark[idx]:
+            mark[idx] = True
+            out[count] = idx
+            count += 1
+        if occupied[r, c]:
+            return count
+        if r == r1 and c == c1:
+            return count
+        e2 = 2 * err
+        if e2 > -dr:
+            err -= dr
+            c += sc
+        if e2 < dc:
+            err += dc
+            r += sr
+
+
+@numba.njit(cache=True)
+def visible_cells(occupied: np.ndarray, row: int, col: int, radius: float) -> np.ndarray:
+    """Flat indices of the cells a 360-degree range sensor at ``(row, col)`` sees.
+
+    Rays go from the sensor to every cell on the border of the square of half-side ``ceil(radius)``;
+    each ray stops at the first occupied cell (which is seen) or beyond ``radius`` cells (Euclidean).
+    Sorted ascending.
+    """
+    rows, cols = occupied.shape
+    mark = np.zeros(rows * cols, dtype=np.bool_)
+    R = int(np.ceil(radius))
+    out = np.empty((2 * R + 1) * (2 * R + 1) + 1, dtype=np.int64)
+    radius2 = radius * radius
+    count = 0
+    for k in range(-R, R + 1):
+        count = _trace(occupied, row, col, row - R, col + k, radius2, mark, out, count)
+        count = _trace(occupied, row, col, row + R, col + k, radius2, mark, out, count)
+        count = _trace(occupied, row, col, row + k, col - R, radius2, mark, out, count)
+        count = _trace(occupied, row, col, row + k, col + R, radius2, mark, out, count)
+    return np.sort(out[:count])
+
+
+@numba.njit(cache=True)
+def count_walls(occupied: np.ndarray, r0: int, c0: int, r1: int, c1: int) -> int:
+    """Number of walls the straight segment between two cells crosses.
+
+    A wall is a maximal run of occupied cells along the Bresenham line (DESIGN.md, radio model).
+    """
+    dr = abs(r1 - r0)
+    dc = abs(c1 - c0)
+    sr = 1 if r1 > r0 else -1
+    sc = 1 if c1 > c0 else -1
+    err = dc - dr
+    r = r0
+    c = c0
+    walls = 0
+    inside = False
+    while True:
+        if occupied[r, c]:
+            if not inside:
+                walls += 1
+                inside = True
+        else:
+            inside = False
+        if r == r1 and c == c1:
+            return walls
+        e2 = 2 * err
+        if e2 > -dr:
+            err -= dr
+            c += sc
+        if e2 < dc:
+            err += dc
+            r += sr
+
+
+def warm_up() -> None:
+    """Compile (or load from cache) every kernel once, so the first tick does not pay for it."""
+    occ = np.zeros((3, 3), dtype=np.bool_)
+    wavefront(~occ, np.array([0], dtype=np.int64), -1)
+    visible_cells(occ, 1, 1, 1.5)
+    count_walls(occ, 0, 0, 2, 2)

@@ -1,0 +1,93 @@
+"""What every node shell shares: counted drops of malformed messages, the ready handshake, liveliness.
+
+The node shells (world, netem, agents) are the only code that touches Zenoh; they build on this.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+from typing import TypeVar
+
+import zenoh
+
+from core.bus import Inbox, publisher
+from core.codec import Context, DecodeError, Message, decode
+from core.keys import Keys
+from core.messages import Hello, Ready
+
+M = TypeVar("M", bound=Message)
+
+log = logging.getLogger("fleet")
+
+
+class NodeBase:
+    """A node of one run: its id, its keys, a drop counter and the answer to the world's hello."""
+
+    role: str = "node"
+
+    def __init__(self, keys: Keys, node_id: str) -> None:
+        self.keys = keys
+        self.node_id = node_id
+        self.dropped = 0
+        self._seq = 0
+
+    def next_seq(self) -> int:
+        self._seq += 1
+        return self._seq
+
+    def decode(self, key: str, data: bytes, expected: type[M], ctx: Context | None = None) -> M | None:
+        """Decode or count-and-drop: a malformed message is never fatal."""
+        try:
+            msg = decode(data, ctx, expected)
+        except DecodeError as exc:
+            self.drop(key, str(exc))
+            return None
+        return msg  # type: ignore[return-value]
+
+    def drop(self, key: str, why: str) -> None:
+        self.dropped += 1
+        if self.dropped <= 5 or self.dropped % 100 == 0:
+            log.warning("%s %s: dropped message #%d on %s: %s", self.role, self.node_id, self.dropped, key, why)
+
+    def declare_presence(self, session: zenoh.Session, inbox: Inbox) -> list[object]:
+        """Subscribe to the hello, then declare the liveliness token (after every other subscription)."""
+        self._ready_pub = publisher(session, self.keys.ready(self.node_id))
+        sub = inbox.subscribe(session, self.keys.hello)
+        token = session.liveliness().declare_token(self.keys.alive(self.role, self.node_id))
+        return [self._ready_pub, sub, token]
+
+    def answer_hello(self, key: str, data: bytes) -> None:
+        if self.decode(key, data, Hello) is not None:
+            self._ready_pub.put(Ready(src=self.node_id, tick=0, seq=self.next_seq(), role=self.role,
+                                      pid=os.getpid()).encode())
+
+
+def setup_logging() -> None:
+    """One-line warnings on stderr for every process."""
+    logging.basicConfig(stream=sys.stderr, level=logging.WARNING, format="%(name)s: %(message)s")
+
+
+async def watch_parent(period: float = 0.5) -> None:
+    """Exit the process when the launcher that spawned it dies (no orphan is left behind)."""
+    import asyncio
+
+    parent = os.getppid()
+    while True:
+        await asyncio.sleep(period)
+        if os.getppid() != parent:
+            log.warning("launcher %d is gone; exiting", parent)
+            os._exit(3)
+
+
+async def run_node(node_coro, watch: bool = True) -> None:  # type: ignore[no-untyped-def]
+    """Run a node's coroutine with the parent watchdog beside it."""
+    import asyncio
+
+    watchdog = asyncio.create_task(watch_parent()) if watch else None
+    try:
+        await node_coro
+    finally:
+        if watchdog is not None:
+            watchdog.cancel()

@@ -1,0 +1,108 @@
+"""``fleet``: the user's entry point (DESIGN.md "CLI and the result contract").
+
+Bad input gets one line on stderr (``fleet: error: ...``) and exit code 2; Ctrl-C exits 130 after writing
+what was recorded.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import NoReturn
+
+from core.scenario import ConfigError, Scenario, load_scenario, with_overrides
+
+DEFAULT_SCENARIO = Path(__file__).resolve().parent / "scenarios" / "default.toml"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:  # one line, exit 2 (argparse's default prints usage too)
+        _fail(message)
+
+
+def _fail(message: str, code: int = 2) -> NoReturn:
+    print(f"fleet: error: {message}", file=sys.stderr)
+    raise SystemExit(code)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="fleet", description="Multi-robot exploration under realistic radio, over Eclipse Zenoh.")
+    sub = p.add_subparsers(dest="command", parser_class=_Parser)
+    r = sub.add_parser("run", help="run one scenario (the default one with no arguments)")
+    r.add_argument("--scenario", type=Path, help="scenario TOML (see launch/scenarios/)")
+    r.add_argument("--map", help="built-in map name (see `fleet maps`) or a PNG/PGM/ROS YAML path")
+    r.add_argument("--robots", type=int)
+    r.add_argument("--allocator", help="allocator name (nearest, minpos, ...)")
+    r.add_argument("--loss", type=float, help="per-message loss probability on an existing link")
+    r.add_argument("--comm-range", type=float, help="nominal range c in metres (P = 0 dB in free space)")
+    r.add_argument("--sensor-range", type=float, help="sensor range in metres")
+    r.add_argument("--cell-size", type=float, help="metres per cell")
+    r.add_argument("--seed", type=int)
+    r.add_argument("--max-ticks", type=int)
+    r.add_argument("--target-coverage", type=float)
+    r.add_argument("--comm", choices=("wall", "ideal"), help="wall-attenuation radio, or an ideal channel")
+    r.add_argument("--out", type=Path, help="output directory (default runs/<run id>)")
+    r.add_argument("--in-process", action="store_true", help="all nodes in this process (one session each)")
+    r.add_argument("--no-record", action="store_true", help="do not write run.mcap")
+    r.add_argument("--connect", help="use an external Zenoh router, e.g. tcp/192.0.2.1:7447")
+    r.add_argument("--run-id", help="the <run> of the key expressions (default: a timestamp)")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    sub.add_parser("maps", help="list the built-in maps")
+    return p
+
+
+def scenario_from_args(args: argparse.Namespace) -> Scenario:
+    base = load_scenario(args.scenario) if args.scenario else load_scenario(DEFAULT_SCENARIO)
+    return with_overrides(
+        base, map=args.map, robots=args.robots, allocator=args.allocator, loss=args.loss,
+        comm_range=args.comm_range, sensor_range=args.sensor_range, cell_size=args.cell_size, seed=args.seed,
+        max_ticks=args.max_ticks, target_coverage=args.target_coverage, comm=args.comm).validate()
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from launch.progress import console, summary_table
+    from launch.runner import RunError, RunOptions, new_run_id, run_fleet
+    from world.maps import MapError
+    from world.sim import StartAreaError
+
+    try:
+        scenario = scenario_from_args(args)
+        run_id = args.run_id or new_run_id()
+        out = args.out or Path("runs") / run_id
+        opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
+                          connect=args.connect, quiet=args.quiet, run_id=run_id)
+        result = run_fleet(scenario, opts)
+    except (ConfigError, MapError, StartAreaError) as exc:
+        _fail(str(exc))
+    except RunError as exc:
+        _fail(str(exc), code=1)
+    except KeyboardInterrupt:
+        print(f"fleet: interrupted; what was recorded is in {out}", file=sys.stderr)
+        return 130
+    if not args.quiet:
+        console.print(summary_table(result, str(out)))
+    else:
+        print(out / "result.json")
+    return 0 if result["completed"] else 3
+
+
+def cmd_maps(_: argparse.Namespace) -> int:
+    from world.maps import BUILTIN_MAPS
+
+    for name, desc in BUILTIN_MAPS.items():
+        print(f"{name:10s} {desc}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
+    command = args.command or "run"
+    if args.command is None:
+        args = build_parser().parse_args(["run", *(argv or [])])
+    handlers = {"run": cmd_run, "maps": cmd_maps}
+    raise SystemExit(handlers[command](args))
+
+
+if __name__ == "__main__":
+    main()

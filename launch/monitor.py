@@ -1,0 +1,123 @@
+"""What the launcher learns from the bus during a run, and the ``result.json`` it makes of it.
+
+A pure fold over decoded messages (state, links, commands, reports, stop), so the same code can recompute a
+result from a recording.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from core.codec import DecodeError, decode
+from core.messages import AgentReport, Command, Links, Message, Stop, WorldState
+
+
+@dataclasses.dataclass
+class Monitor:
+    """Folds the run's messages; ``result()`` gives the DESIGN.md result keys."""
+
+    robots: tuple[str, ...]
+    state: WorldState | None = None
+    links: Links | None = None
+    t90: int | None = None
+    t99: int | None = None
+    connected_ticks: int = 0
+    link_ticks: int = 0
+    decision_ms: list[float] = dataclasses.field(default_factory=list)
+    reports: dict[str, AgentReport] = dataclasses.field(default_factory=dict)
+    stop: Stop | None = None
+    malformed: int = 0
+    coverage_curve: list[tuple[int, float]] = dataclasses.field(default_factory=list)
+    first_state_ns: int | None = None
+    last_state_ns: int | None = None
+
+    def feed(self, key: str, data: bytes, wall_ns: int | None = None) -> Message | None:
+        """Decode and fold one sample; returns the message (None if it is not one the monitor uses)."""
+        kind = key.split("/", 2)[-1]
+        if not (kind.startswith(("world/state", "netem/links", "ctl/stop", "ctl/report")) or kind.endswith("/cmd")):
+            return None
+        try:
+            msg = decode(data)
+        except DecodeError:
+            self.malformed += 1
+            return None
+        self.fold(msg)
+        if isinstance(msg, WorldState) and wall_ns is not None:
+            self.first_state_ns = self.first_state_ns or wall_ns
+            self.last_state_ns = wall_ns
+        return msg
+
+    def fold(self, msg: Message) -> None:
+        if isinstance(msg, WorldState) and msg.src == "world":
+            if self.state is None or msg.tick >= self.state.tick:
+                self.state = msg
+            self.coverage_curve.append((msg.tick, msg.coverage))
+            if self.t90 is None and msg.coverage >= 0.90:
+                self.t90 = msg.tick
+            if self.t99 is None and msg.coverage >= 0.99:
+                self.t99 = msg.tick
+        elif isinstance(msg, Links) and msg.src == "netem":
+            self.link_ticks += 1
+            self.connected_ticks += int(msg.connected)
+            if self.links is None or msg.tick >= self.links.tick:
+                self.links = msg
+        elif isinstance(msg, Command):
+            self.decision_ms.append(msg.decision_ms)
+        elif isinstance(msg, AgentReport):
+            self.reports[msg.src] = msg
+        elif isinstance(msg, Stop) and msg.src == "world":
+            self.stop = msg
+
+    @property
+    def tick(self) -> int:
+        return self.state.tick if self.state else 0
+
+    @property
+    def coverage(self) -> float:
+        return self.state.coverage if self.state else 0.0
+
+    def result(self, scenario: dict[str, Any], run_id: str, target: float) -> dict[str, Any]:
+        """The ``result.json`` contract of DESIGN.md (plus a few extra keys)."""
+        st = self.state
+        lk = self.links
+        ms = np.array(self.decision_ms) if self.decision_ms else np.zeros(1)
+        completed = bool(st is not None and st.coverage >= target)
+        return {
+            "run_id": run_id,
+            "seed": scenario["seed"],
+            "map": scenario["map"],
+            "allocator": scenario["allocator"]["type"],
+            "allocator_params": scenario["allocator"],
+            "robots": scenario["robots"],
+            "loss": scenario["radio"]["loss"],
+            "comm": scenario["radio"]["comm"],
+            "ticks": st.tick if st else 0,
+            "completed": completed,
+            "reason": (self.stop.reason if self.stop else None) or (st.reason if st else None),
+            "coverage": round(st.coverage, 6) if st else 0.0,
+            "t90": self.t90,
+            "t99": self.t99,
+            "path_length": [st.path_length.get(r, 0) if st else 0 for r in self.robots],
+            "connected_fraction": round(self.connected_ticks / self.link_ticks, 6) if self.link_ticks else None,
+            "radio": {
+                "sent": lk.sent if lk else 0,
+                "delivered": lk.delivered if lk else 0,
+                "dropped_loss": lk.dropped_loss if lk else 0,
+                "dropped_signal": lk.dropped_signal if lk else 0,
+                "bytes_sent": lk.bytes_sent if lk else 0,
+            },
+            "decision_ms": {"mean": round(float(ms.mean()), 4), "p95": round(float(np.percentile(ms, 95)), 4)},
+            "failed": sorted(set(self.robots) - set(st.live)) if st else [],
+            "malformed_dropped": self.malformed + sum(r.dropped for r in self.reports.values()),
+            "agent_peak_rss_kb": {r: rep.peak_rss_kb for r, rep in sorted(self.reports.items())},
+            "ticks_per_second": self.ticks_per_second(),
+        }
+
+    def ticks_per_second(self) -> float | None:
+        """Lockstep speed from the first state to the last (start-up excluded)."""
+        if self.state is None or not self.first_state_ns or self.last_state_ns == self.first_state_ns:
+            return None
+        return round(self.state.tick / ((self.last_state_ns - self.first_state_ns) / 1e9), 3)

@@ -1,0 +1,70 @@
+"""The user's view of a run: a live progress bar (coverage and tick) and the closing summary table."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rich.console import Console
+from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
+from rich.progress import Progress as RichProgress
+from rich.table import Table
+
+from core.scenario import Scenario
+from launch.monitor import Monitor
+
+console = Console(stderr=True)
+
+
+class Progress:
+    """Coverage bar to the target, with the tick; silent with ``quiet`` or when stderr is not a terminal."""
+
+    def __init__(self, scenario: Scenario, run_id: str, quiet: bool = False) -> None:
+        self.scenario = scenario
+        self.enabled = not quiet
+        self._bar = RichProgress(
+            TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("coverage {task.fields[cov]:6.1%}"),
+            TextColumn("tick {task.fields[tick]:>5}/{task.fields[max]}"), TimeElapsedColumn(),
+            console=console, transient=False, disable=quiet)
+        self._task = self._bar.add_task(f"{scenario.allocator['type']} x{scenario.robots} on {scenario.map}",
+                                        total=scenario.target_coverage, cov=0.0, tick=0, max=scenario.max_ticks)
+        if self.enabled:
+            console.print(f"[dim]run {run_id}[/dim]")
+
+    def __enter__(self) -> Progress:
+        self._bar.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._bar.__exit__(*exc)
+
+    def update(self, monitor: Monitor) -> None:
+        self._bar.update(self._task, completed=min(monitor.coverage, self.scenario.target_coverage),
+                         cov=monitor.coverage, tick=monitor.tick)
+
+
+def summary_table(result: dict[str, Any], out_dir: str) -> Table:
+    """The closing table of ``fleet run``."""
+    t = Table(title=f"run {result['run_id']}", show_header=False, title_justify="left")
+    t.add_column("metric", style="bold")
+    t.add_column("value")
+    radio = result["radio"]
+    rows = [
+        ("map / allocator", f"{result['map']} / {result['allocator']}"),
+        ("robots / seed", f"{result['robots']} / {result['seed']}"),
+        ("radio", f"{result['comm']}, loss {result['loss']}"),
+        ("completed", f"{result['completed']} ({result['reason']})"),
+        ("coverage", f"{result['coverage']:.1%}"),
+        ("ticks", str(result["ticks"])),
+        ("t90 / t99", f"{result['t90']} / {result['t99']}"),
+        ("path length", f"{sum(result['path_length'])} cells ({', '.join(map(str, result['path_length']))})"),
+        ("connected", "-" if result["connected_fraction"] is None else f"{result['connected_fraction']:.1%}"),
+        ("radio msgs", f"sent {radio['sent']}, delivered {radio['delivered']}, lost {radio['dropped_loss']}, "
+                       f"out of range {radio['dropped_signal']}, {radio['bytes_sent'] / 1e6:.2f} MB"),
+        ("decision ms", f"mean {result['decision_ms']['mean']:.2f}, p95 {result['decision_ms']['p95']:.2f}"),
+        ("speed", f"{result['ticks_per_second']} ticks/s ({result['wall_seconds']} s)"),
+        ("recording", f"{result['recording']['messages']} messages" if result["recording"]["path"] else "off"),
+        ("output", out_dir),
+    ]
+    for k, v in rows:
+        t.add_row(k, v)
+    return t

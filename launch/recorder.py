@@ -1,0 +1,100 @@
+"""The recorder: every sample on ``fleet/<run>/**`` into ``run.mcap``, one channel per key expression.
+
+Messages keep their msgpack bytes (message encoding ``msgpack``, no schema). Log times follow the sim tick
+(``tick * TICK_NS``), so scrubbing a viewer's timeline moves through ticks; publish times are wall-clock.
+The writer closes a chunk and flushes at least once a second, so a recording cut by a crash still reads up
+to the last flush.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from mcap.writer import CompressionType, Writer
+
+from core.codec import peek_tick
+
+TICK_NS = 100_000_000  # one tick is shown as 100 ms of log time
+FLUSH_SECONDS = 1.0
+
+
+class Recorder:
+    """Thread-safe MCAP writer; ``record`` may be called from any thread, ``close`` once at the end."""
+
+    def __init__(self, path: Path, metadata: dict[str, Any]) -> None:
+        self.path = path
+        self._file = open(path, "wb")  # noqa: SIM115 (closed in close())
+        self._writer = Writer(self._file, compression=CompressionType.ZSTD)
+        self._writer.start(profile="", library="fleet-emu")
+        self._writer.add_metadata("scenario", {k: _text(v) for k, v in metadata.items()})
+        self._channels: dict[str, int] = {}
+        self._lock = threading.Lock()
+        self._last_flush = time.monotonic()
+        self._last_tick = 0
+        self.messages = 0
+        self.closed = False
+
+    def record(self, key: str, data: bytes, wall_ns: int | None = None) -> None:
+        wall_ns = wall_ns if wall_ns is not None else time.time_ns()
+        tick = peek_tick(data)
+        with self._lock:
+            if self.closed:
+                return
+            if tick is None:  # a message without a tick (malformed, say) is logged at the latest tick
+                tick = self._last_tick
+            self._last_tick = tick
+            channel = self._channels.get(key)
+            if channel is None:
+                channel = self._writer.register_channel(topic=key, message_encoding="msgpack", schema_id=0)
+                self._channels[key] = channel
+            self._writer.add_message(channel_id=channel, log_time=tick * TICK_NS, data=data,
+                                     publish_time=wall_ns, sequence=self.messages)
+            self.messages += 1
+            self._maybe_flush()
+
+    def add_channel_message(self, topic: str, schema_id: int, encoding: str, data: bytes, tick: int) -> None:
+        """A derived message (e.g. a viewer channel with a schema) on its own topic."""
+        with self._lock:
+            if self.closed:
+                return
+            channel = self._channels.get(topic)
+            if channel is None:
+                channel = self._writer.register_channel(topic=topic, message_encoding=encoding, schema_id=schema_id)
+                self._channels[topic] = channel
+            self._writer.add_message(channel_id=channel, log_time=tick * TICK_NS, data=data,
+                                     publish_time=time.time_ns(), sequence=self.messages)
+            self.messages += 1
+            self._maybe_flush()
+
+    def register_schema(self, name: str, encoding: str, data: bytes) -> int:
+        with self._lock:
+            return self._writer.register_schema(name=name, encoding=encoding, data=data)
+
+    def _maybe_flush(self) -> None:
+        now = time.monotonic()
+        if now - self._last_flush >= FLUSH_SECONDS:
+            self._writer.flush()
+            self._last_flush = now
+
+    def flush(self) -> None:
+        with self._lock:
+            if not self.closed:
+                self._writer.flush()
+                self._last_flush = time.monotonic()
+
+    def close(self) -> int:
+        """Finish the file (summary and index); returns the number of messages written."""
+        with self._lock:
+            if not self.closed:
+                self.closed = True
+                self._writer.finish()
+                self._file.close()
+            return self.messages
+
+
+def _text(value: Any) -> str:
+    return value if isinstance(value, str) else json.dumps(value)

@@ -1,0 +1,78 @@
+"""Spawning and tearing down the fleet's processes: each child in its own process group, killed on every
+exit path (normal end, Ctrl-C, an exception, interpreter exit)."""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+class Supervisor:
+    """Owns the child processes of one run."""
+
+    def __init__(self, log_dir: Path | None = None) -> None:
+        self.children: dict[str, subprocess.Popen[bytes]] = {}
+        self.log_dir = log_dir
+        self._logs: list[object] = []
+        atexit.register(self.kill_all)
+
+    def spawn(self, name: str, module: str, args: list[str]) -> subprocess.Popen[bytes]:
+        """Start ``python -m module args`` in a new session (its own process group)."""
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH", "")) if p)
+        stderr = None
+        if self.log_dir is not None:
+            stderr = open(self.log_dir / f"{name}.log", "wb")  # noqa: SIM115 (closed in kill_all)
+            self._logs.append(stderr)
+        proc = subprocess.Popen([sys.executable, "-m", module, *args], stdin=subprocess.DEVNULL,
+                                stdout=stderr, stderr=stderr, env=env, start_new_session=True)
+        self.children[name] = proc
+        return proc
+
+    def pids(self) -> dict[str, int]:
+        return {name: p.pid for name, p in self.children.items()}
+
+    def dead(self) -> dict[str, int]:
+        """Children that exited, with their exit codes."""
+        return {n: p.returncode for n, p in self.children.items() if p.poll() is not None}
+
+    def wait_all(self, timeout: float) -> bool:
+        """Wait for every child to exit by itself; True if they all did."""
+        deadline = time.monotonic() + timeout
+        for p in self.children.values():
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                p.wait(max(0.0, deadline - time.monotonic()))
+        return all(p.poll() is not None for p in self.children.values())
+
+    def kill_all(self, grace: float = 2.0) -> None:
+        """SIGTERM every child's process group, then SIGKILL what is left after ``grace`` seconds."""
+        alive = [p for p in self.children.values() if p.poll() is None]
+        for p in alive:
+            _signal_group(p, signal.SIGTERM)
+        deadline = time.monotonic() + grace
+        for p in alive:
+            try:
+                p.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                _signal_group(p, signal.SIGKILL)
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    p.wait(2.0)
+        for p in self.children.values():  # also any grandchildren left in the groups
+            _signal_group(p, signal.SIGKILL)
+        for f in self._logs:
+            with contextlib.suppress(OSError):
+                f.close()  # type: ignore[attr-defined]
+        self._logs.clear()
+
+
+def _signal_group(p: subprocess.Popen[bytes], sig: signal.Signals) -> None:
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(p.pid, sig)

@@ -1,0 +1,3 @@
+from netem.node import main
+
+main()

@@ -1,0 +1,155 @@
+"""The netem process shell: the radio between robots, in lockstep with the world.
+
+Each tick t: on the world's state for t, compute the link graph from the true poses, publish it and every live
+robot's rx bundle for t; then wait for every live robot's tx bundle for t and schedule its deliveries.
+The channel itself is :class:`netem.channel.Channel`; the signal model is :mod:`netem.signal`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import time
+
+import numpy as np
+import zenoh
+
+from core.bus import Inbox, client_config, publisher
+from core.codec import Context
+from core.kernels import warm_up
+from core.keys import Keys, robot_ids
+from core.messages import Links, RxBundle, Stop, TxBundle, WorldState
+from core.node import NodeBase, run_node, setup_logging
+from core.rng import generator
+from core.scenario import Scenario
+from netem.channel import Channel
+from netem.signal import RadioParams, connected, link_matrix
+from world.maps import load_map
+
+
+def radio_params(scenario: Scenario) -> RadioParams:
+    r = scenario.radio
+    return RadioParams(comm_range=r.comm_range, path_loss=r.path_loss, waf=r.waf, max_walls=r.max_walls,
+                       threshold=r.threshold, ideal=r.comm == "ideal")
+
+
+class NetemNode(NodeBase):
+    role = "netem"
+
+    def __init__(self, scenario: Scenario, run: str) -> None:
+        super().__init__(Keys(run), "netem")
+        warm_up()  # compile (or load) the kernels before the first tick, not inside it
+        self.scenario = scenario
+        self.robots = robot_ids(scenario.robots)
+        md = load_map(scenario.map, scenario.cell_size, scenario.seed)
+        self.occupied = md.grid > 0
+        self.params = radio_params(scenario)
+        loss = 0.0 if self.params.ideal else scenario.radio.loss
+        self.channel = Channel(loss, generator(scenario.seed, "netem"), scenario.radio.latency)
+        self.ctx_tx = Context(senders=frozenset(self.robots), shape=md.grid.shape)
+        self.ctx_world = Context(senders=frozenset({"world"}))
+
+    async def run(self, session: zenoh.Session) -> None:
+        keys = self.keys
+        inbox = Inbox()
+        handles = [
+            inbox.subscribe(session, keys.state),
+            inbox.subscribe(session, keys.wildcard("radio", "tx", "*")),
+            inbox.subscribe(session, keys.stop),
+        ]
+        self.pub_rx = {r: publisher(session, keys.rx(r)) for r in self.robots}
+        self.pub_links = publisher(session, keys.links)
+        handles += self.declare_presence(session, inbox)
+        self.states: dict[int, WorldState] = {}
+        self.tx: dict[int, dict[str, TxBundle]] = {}
+        self.stopped = False
+        tick = 0
+        while not self.stopped:
+            state = await self._await_state(inbox, tick)
+            if state is None:
+                break
+            live = tuple(r for r in self.robots if r in state.live)
+            link = self._publish_tick(state, live)
+            if state.done:
+                break
+            bundles = await self._await_tx(inbox, tick, live)
+            if bundles is None:
+                break
+            self.channel.transmit(tick, live, link, bundles)
+            tick += 1
+        while not self.stopped:  # wait for the world's stop so the final links are recorded first
+            if await self._next(inbox, timeout=5.0) is None:
+                break
+        del handles
+
+    async def _next(self, inbox: Inbox, timeout: float | None = None) -> bool | None:
+        """Handle one incoming item; None on timeout."""
+        item = await inbox.get(timeout)
+        if item is None:
+            return None
+        key, data, _ = item
+        if key.endswith("/ctl/hello"):
+            self.answer_hello(key, data)
+        elif key == self.keys.stop:
+            if self.decode(key, data, Stop) is not None:
+                self.stopped = True
+        elif key == self.keys.state:
+            st = self.decode(key, data, WorldState, self.ctx_world)
+            if st is not None:
+                self.states[st.tick] = st
+        elif "/radio/tx/" in key:
+            b = self.decode(key, data, TxBundle, self.ctx_tx)
+            if b is not None and b.src != Keys.last(key):
+                self.drop(key, f"tx bundle from {b.src} on another robot's key")
+            elif b is not None:
+                self.tx.setdefault(b.tick, {})[b.src] = b
+        return True
+
+    async def _await_state(self, inbox: Inbox, tick: int) -> WorldState | None:
+        while tick not in self.states:
+            if self.stopped:
+                return None
+            await self._next(inbox)
+        for t in [t for t in self.states if t <= tick]:
+            st = self.states.pop(t)
+        return st
+
+    async def _await_tx(self, inbox: Inbox, tick: int, live: tuple[str, ...]) -> dict | None:
+        deadline = time.monotonic() + self.scenario.barrier_timeout
+        while not set(live) <= set(self.tx.get(tick, {})):
+            if self.stopped:
+                return None
+            if await self._next(inbox, timeout=max(0.0, deadline - time.monotonic())) is None:
+                break  # silent robots send nothing this tick; the world fails them
+            if tick + 1 in self.states:  # the world moved on: a robot was failed
+                break
+        got = self.tx.pop(tick, {})
+        return {r: got[r].msgs for r in live if r in got}
+
+    def _publish_tick(self, state: WorldState, live: tuple[str, ...]) -> np.ndarray:
+        cells = [state.poses[r] for r in live]
+        strength, link = link_matrix(self.occupied, cells, self.scenario.cell_size, self.params)
+        c = self.channel.counters
+        t = state.tick
+        self.pub_links.put(Links(
+            src="netem", tick=t, seq=self.next_seq(), robots=live, strength=strength.astype(np.float32),
+            link=link, connected=bool(connected(link)), sent=c.sent, delivered=c.delivered,
+            dropped_loss=c.dropped_loss, dropped_signal=c.dropped_signal, bytes_sent=c.bytes_sent).encode())
+        if state.done:
+            return link
+        arriving = self.channel.deliver(t)
+        for r in live:
+            self.pub_rx[r].put(RxBundle(src="netem", tick=t, seq=self.next_seq(), dst=r,
+                                        msgs=tuple(arriving.get(r, ()))).encode())
+        return link
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m netem --run RUN --connect ENDPOINT --scenario FILE.json``."""
+    from launch.childargs import parse_child
+
+    args = parse_child(argparse.ArgumentParser(prog="netem"), argv)
+    setup_logging()
+    node = NetemNode(args.scenario, args.run)
+    with zenoh.open(client_config(args.connect)) as session:
+        asyncio.run(run_node(node.run(session)))

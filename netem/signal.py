@@ -1,0 +1,69 @@
+"""The radio's signal model (DESIGN.md "The radio model"; Benavides et al. 2016, eq. 4, after RADAR).
+
+    P_ij = -10 * PL * log10(d_ij / c) - min(nW_ij, C) * WAF
+
+``d_ij`` is the Euclidean distance in metres between the two cells, ``c`` the nominal range (P = 0 dB in
+free space), ``nW_ij`` the walls the straight segment crosses on the map (maximal runs of occupied cells),
+``C`` the cap on counted walls and ``WAF`` the attenuation per wall. A link exists when ``P_ij >= threshold``.
+Pure functions of arrays: netem uses them on the true map, agents on their belief (Benavides eq. 8).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from core.grid import Cell
+from core.kernels import count_walls
+
+
+@dataclasses.dataclass(frozen=True)
+class RadioParams:
+    comm_range: float = 10.0
+    path_loss: float = 2.0
+    waf: float = 3.1
+    max_walls: int = 4
+    threshold: float = 0.0
+    ideal: bool = False
+
+
+def signal_db(distance_m: float, walls: int, p: RadioParams) -> float:
+    """Benavides eq. 4 for one pair; ``distance_m`` is clamped to a millimetre (same-cell pairs)."""
+    d = max(distance_m, 1e-3)
+    return -10.0 * p.path_loss * math.log10(d / p.comm_range) - min(walls, p.max_walls) * p.waf
+
+
+def link_matrix(occupied: np.ndarray, cells: Sequence[Cell], cell_size: float,
+                p: RadioParams) -> tuple[np.ndarray, np.ndarray]:
+    """Signal strength (dB, symmetric, ``inf`` on the diagonal) and links (bool, no self-links) between
+    robots at ``cells`` on a map whose walls are ``occupied``. An ideal channel links every pair."""
+    n = len(cells)
+    strength = np.full((n, n), np.inf)
+    for i in range(n):
+        for j in range(i + 1, n):
+            (r0, c0), (r1, c1) = cells[i], cells[j]
+            d = math.hypot(r1 - r0, c1 - c0) * cell_size
+            walls = int(count_walls(occupied, r0, c0, r1, c1))
+            strength[i, j] = strength[j, i] = signal_db(d, walls, p)
+    link = np.ones((n, n), dtype=bool) if p.ideal else strength >= p.threshold
+    np.fill_diagonal(link, False)
+    return strength, link
+
+
+def connected(link: np.ndarray) -> bool:
+    """Whether the undirected link graph is connected (one robot, or none, counts as connected)."""
+    n = len(link)
+    if n <= 1:
+        return True
+    seen = np.zeros(n, dtype=bool)
+    seen[0] = True
+    frontier = [0]
+    while frontier:
+        i = frontier.pop()
+        for j in np.flatnonzero(link[i] & ~seen):
+            seen[j] = True
+            frontier.append(int(j))
+    return bool(seen.all())

@@ -1,0 +1,115 @@
+"""The codec: every message round-trips, and anything malformed is rejected with DecodeError only."""
+
+from __future__ import annotations
+
+import contextlib
+
+import msgpack
+import numpy as np
+import pytest
+
+from core.messages import (
+    AgentReport,
+    Command,
+    Context,
+    DecodeError,
+    Hello,
+    Links,
+    MapDelta,
+    Observation,
+    PoseBeacon,
+    Ready,
+    RxBundle,
+    Stop,
+    TxBundle,
+    WorldState,
+    decode,
+    peek_tick,
+)
+
+CTX = Context(senders=frozenset({"r0", "r1"}), shape=(4, 5))
+
+
+def _samples() -> list:
+    cells = np.array([0, 7, 19], dtype=np.int32)
+    values = np.array([0, 100, -1], dtype=np.int8)
+    beacon = PoseBeacon(src="r0", tick=2, seq=1, dst="*", ttl=0, cell=(1, 2))
+    delta = MapDelta(src="r0", tick=2, seq=2, dst="r1", ttl=1, cells=cells, values=values)
+    return [
+        Observation(src="r0", tick=1, seq=3, robot="r0", cell=(0, 0), shape=(4, 5), cell_size=0.5,
+                    cells=cells, values=values),
+        WorldState(src="r0", tick=1, seq=4, poses={"r0": (0, 1)}, live=("r0",), coverage=0.5,
+                   path_length={"r0": 3}, done=True, reason="coverage"),
+        Command(src="r1", tick=1, seq=5, move=(0, -1), target=(3, 4), status="ASSIGNED", decision_ms=1.5),
+        beacon, delta,
+        TxBundle(src="r0", tick=2, seq=6, msgs=(beacon, delta)),
+        RxBundle(src="r1", tick=3, seq=7, dst="r1", msgs=(beacon,)),
+        Links(src="r0", tick=3, seq=8, robots=("r0", "r1"), strength=np.zeros((2, 2), np.float32),
+              link=np.eye(2, dtype=bool), connected=False, sent=4, delivered=2, dropped_loss=1,
+              dropped_signal=1, bytes_sent=99),
+        Hello(src="r0", tick=0, seq=9), Ready(src="r1", tick=0, seq=1, role="agent", pid=42),
+        Stop(src="r0", tick=9, seq=2, reason="coverage"),
+        AgentReport(src="r1", tick=9, seq=3, decisions=9, decision_ms_mean=1.0, decision_ms_p95=2.0,
+                    dropped=0, peak_rss_kb=1000),
+    ]
+
+
+@pytest.mark.parametrize("msg", _samples(), ids=lambda m: m.KIND)
+def test_round_trip(msg) -> None:
+    back = decode(msg.encode(), CTX)
+    assert type(back) is type(msg)
+    assert repr(back.to_obj()) == repr(msg.to_obj())
+    assert peek_tick(msg.encode()) == msg.tick
+
+
+def _obj(msg) -> dict:
+    return msgpack.unpackb(msg.encode())
+
+
+@pytest.mark.parametrize("data", [
+    b"", b"\xc1", b"random bytes \x00\xff", msgpack.packb([1, 2, 3]), msgpack.packb({"kind": "nope"}),
+    msgpack.packb({"kind": "cmd", "src": "r0", "tick": 1, "seq": 1}),  # missing move
+    msgpack.packb({"kind": "cmd", "src": "r0", "tick": "1", "seq": 1, "move": [0, 1]}),  # tick of wrong type
+    msgpack.packb({"kind": "cmd", "src": "r0", "tick": 1, "seq": 1, "move": [0, 1], "extra": 1}),
+    msgpack.packb({"kind": "cmd", "src": "r0", "tick": True, "seq": 1, "move": [0, 1]}),  # bool is not an int
+    msgpack.packb({"kind": "cmd", "src": "r7", "tick": 1, "seq": 1, "move": [0, 1]}),  # unknown robot
+    msgpack.packb({"kind": "cmd", "src": "r0", "tick": 1, "seq": 1, "move": [2, 0]}),  # not a 4-step
+    msgpack.packb({"kind": "cmd", "src": "r0", "tick": -1, "seq": 1, "move": [0, 1]}),
+    msgpack.packb({"kind": "cmd", "src": "r0", "tick": 1, "seq": 1, "move": [0, 1], "target": [9, 9]}),
+])
+def test_rejects_malformed(data: bytes) -> None:
+    with pytest.raises(DecodeError):
+        decode(data, CTX)
+
+
+def test_rejects_bad_arrays_and_cells() -> None:
+    obs = _obj(_samples()[0])
+    bad_shape = dict(obs, cells={"dtype": "int32", "shape": [5], "data": b"\x00" * 12})
+    bad_dtype = dict(obs, cells={"dtype": "object", "shape": [3], "data": b"\x00" * 24})
+    out_of_range = dict(obs, cells={"dtype": "int32", "shape": [3],
+                                    "data": np.array([0, 1, 20], np.int32).tobytes()})
+    bad_value = dict(obs, values={"dtype": "int8", "shape": [3], "data": np.array([0, 5, 0], np.int8).tobytes()})
+    for obj in (bad_shape, bad_dtype, out_of_range, bad_value):
+        with pytest.raises(DecodeError):
+            decode(msgpack.packb(obj), CTX)
+
+
+def test_bundle_rejects_foreign_message_and_wrong_expected_kind() -> None:
+    beacon = PoseBeacon(src="r1", tick=2, seq=1, dst="*", ttl=0, cell=(1, 2))
+    with pytest.raises(DecodeError, match="src"):
+        decode(TxBundle(src="r0", tick=2, seq=1, msgs=(beacon,)).encode(), CTX)
+    with pytest.raises(DecodeError, match="expected"):
+        decode(beacon.encode(), CTX, expected=Command)
+    with pytest.raises(DecodeError, match="outside"):
+        decode(PoseBeacon(src="r1", tick=2, seq=1, dst="*", ttl=0, cell=(4, 0)).encode(), CTX)
+
+
+def test_random_garbage_never_raises_anything_else() -> None:
+    rng = np.random.default_rng(0)
+    valid = [m.encode() for m in _samples()]
+    for i in range(2000):
+        data = bytearray(valid[i % len(valid)])
+        for _ in range(int(rng.integers(1, 4))):
+            data[int(rng.integers(len(data)))] = int(rng.integers(256))
+        with contextlib.suppress(DecodeError):  # anything else propagates and fails the test
+            decode(bytes(data), CTX)

@@ -1,0 +1,70 @@
+"""Helpers for the end-to-end tests: they start real routers and real processes."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+ROOT = Path(__file__).resolve().parents[2]
+
+# A small two-room map (white free, black walls), drawn like the tests' ASCII grids.
+SMALL = """
+########################
+#..........#...........#
+#..........#...........#
+#......................#
+#..........#...........#
+#..........#...........#
+####.#######.......#####
+#..........#...........#
+#..........#...........#
+#......................#
+#..........#...........#
+########################
+"""
+
+
+@pytest.fixture(scope="session")
+def small_map(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    rows = [ln.strip() for ln in SMALL.strip().splitlines()]
+    img = np.array([[0 if ch == "#" else 255 for ch in row] for row in rows], dtype=np.uint8)
+    path = tmp_path_factory.mktemp("maps") / "two_rooms.png"
+    Image.fromarray(img, mode="L").save(path)
+    return path
+
+
+def fleet(*args: str, timeout: float = 240, check: bool = True) -> subprocess.CompletedProcess[str]:
+    """Run the ``fleet`` CLI as a user would (``python -m launch`` is the console script's module)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.run([sys.executable, "-m", "launch", *args], capture_output=True, text=True,
+                          timeout=timeout, env=env, cwd=ROOT)
+    if check and proc.returncode not in (0, 3):
+        raise AssertionError(f"fleet {' '.join(args)} exited {proc.returncode}:\n{proc.stderr[-3000:]}")
+    return proc
+
+
+def result(out: Path) -> dict:
+    return json.loads((out / "result.json").read_text())
+
+
+def pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:  # a zombie is not alive
+        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def all_pids(res: dict) -> list[int]:
+    return sorted({res["pids"]["world"], res["pids"]["netem"], *res["pids"]["agents"]})

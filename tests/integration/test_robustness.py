@@ -1,0 +1,167 @@
+"""Bad input, malformed traffic, a failed robot, and teardown on Ctrl-C — with real processes."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import msgpack
+import pytest
+import zenoh
+from mcap.reader import make_reader
+
+from core.bus import client_config, router_config, router_locators
+from core.messages import Command, PoseBeacon, TxBundle
+
+from .conftest import ROOT, all_pids, fleet, pid_alive, result
+
+
+@pytest.mark.parametrize("args, match", [
+    (["--map", "/no/such/map.png"], "not found"),
+    (["--map", "nowhere"], "unknown map"),
+    (["--robots", "0"], "robots"),
+    (["--robots", "60"], "start area"),
+    (["--loss", "1.5"], "loss"),
+    (["--sensor-range", "-2"], "sensor-range"),
+    (["--comm-range", "-1"], "comm-range"),
+    (["--allocator", "telepathy"], "telepathy"),
+    (["--robots", "three"], "invalid int"),
+    (["--scenario", "/no/such.toml"], "not found"),
+])
+def test_bad_input_is_one_line_and_nonzero(args: list[str], match: str, tmp_path: Path) -> None:
+    proc = fleet("run", *args, "--out", str(tmp_path / "x"), "--quiet", check=False, timeout=60)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("fleet: error:") and match in lines[0], proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_unparseable_map_file(tmp_path: Path) -> None:
+    bad = tmp_path / "garbage.png"
+    bad.write_bytes(b"this is not a png")
+    proc = fleet("run", "--map", str(bad), "--quiet", "--out", str(tmp_path / "x"), check=False, timeout=60)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def _inject(session: zenoh.Session, run: str, stop_at: float) -> int:
+    """Random bytes, wrong shapes and an unknown robot on every key the nodes listen to."""
+    garbage = [
+        os.urandom(40), b"", msgpack.packb({"kind": "cmd", "tick": "x"}), msgpack.packb([1, 2]),
+        Command(src="r9", tick=1, seq=1, move=(0, 1)).encode(),
+        TxBundle(src="r7", tick=1, seq=1, msgs=(PoseBeacon(src="r7", tick=1, seq=1, dst="*", ttl=0,
+                                                           cell=(1, 1)),)).encode(),
+        msgpack.packb({"kind": "state", "src": "world", "tick": 1, "seq": 1, "poses": 5}),
+    ]
+    keys = [f"fleet/{run}/{k}" for k in ("robot/r0/cmd", "radio/tx/r1", "radio/rx/r0", "world/obs/r1",
+                                         "world/state", "ctl/hello", "ctl/stop", "ctl/ready/netem")]
+    sent = 0
+    while time.monotonic() < stop_at:
+        for k in keys:
+            for g in garbage:
+                session.put(k, g)
+                sent += 1
+        time.sleep(0.05)
+    return sent
+
+
+def test_malformed_messages_are_dropped_and_counted(small_map: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    with zenoh.open(router_config()) as router, zenoh.open(client_config(router_locators(router)[0])) as s:
+        endpoint = router_locators(router)[0]
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "launch", "run", "--map", str(small_map), "--robots", "3", "--quiet",
+             "--connect", endpoint, "--run-id", "inject", "--out", str(out)],
+            cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)), stderr=subprocess.PIPE, text=True)
+        sent = _inject(s, "inject", time.monotonic() + 6.0)
+        _, err = proc.communicate(timeout=240)
+    assert proc.returncode == 0, err[-2000:]
+    res = result(out)
+    assert sent > 100
+    assert res["completed"] and res["failed"] == []
+    assert res["malformed_dropped"] > 0
+    assert "Traceback" not in err
+    for name in ("world", "netem", "r0", "r1", "r2"):
+        log = (out / f"{name}.log").read_text()
+        assert "Traceback" not in log, f"{name}: {log[-1500:]}"
+        assert "dropped message" in log, f"{name} saw no malformed message"
+
+
+def _wait_for(predicate, timeout: float) -> None:  # type: ignore[no-untyped-def]
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError("timed out waiting")
+        time.sleep(0.1)
+
+
+def _start(out: Path, *extra: str) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "launch", "run", "--map", "office", "--robots", "3", "--max-ticks", "100000",
+         "--out", str(out), "--quiet", *extra],
+        cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)), stderr=subprocess.PIPE, text=True)
+
+
+def _children(pid: int) -> list[int]:
+    found = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                if int((d / "stat").read_text().split(")")[-1].split()[1]) == pid:
+                    found.append(int(d.name))
+            except (OSError, ValueError, IndexError):
+                pass
+    return found
+
+
+def test_sigint_tears_down_and_keeps_the_recording(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = _start(out)
+    _wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
+    children = _children(proc.pid)
+    assert len(children) == 5
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err[-2000:]
+    assert "Traceback" not in err
+    res = result(out)
+    assert res["reason"] == "interrupted" and res["completed"] is False
+    with open(out / "run.mcap", "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and sum(summary.statistics.channel_message_counts.values()) == \
+        res["recording"]["messages"] > 0
+    _wait_for(lambda: not any(pid_alive(p) for p in all_pids(res)), 10)
+
+
+def test_children_exit_when_the_launcher_is_killed(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = _start(out)
+    _wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
+    children = _children(proc.pid)
+    assert len(children) == 5
+    proc.kill()
+    proc.wait(10)
+    _wait_for(lambda: not any(pid_alive(p) for p in children), 15)
+
+
+def test_a_killed_robot_is_failed_and_the_run_goes_on(small_map: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "launch", "run", "--map", str(small_map), "--robots", "3", "--out", str(out),
+         "--quiet", "--comm", "ideal"],
+        cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)), stderr=subprocess.PIPE, text=True)
+    _wait_for(lambda: len(_children(proc.pid)) == 5 and (out / "run.mcap").exists(), 60)
+    scenario = json.loads((out / "scenario.json").read_text())
+    assert scenario["robots"] == 3
+    time.sleep(1.0)
+    victim = sorted(_children(proc.pid))[-1]  # the last spawned: agent r2
+    os.kill(victim, signal.SIGKILL)
+    _, err = proc.communicate(timeout=240)
+    res = result(out)
+    assert res["failed"] == ["r2"], err[-2000:]
+    assert res["coverage"] > 0.5

@@ -1,0 +1,113 @@
+"""The world simulation on drawn maps: start placement, sensing, motion conflicts, coverage and the end."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from core.grid import FREE, OCCUPIED, flat, from_ascii
+from world.maps import MapData
+from world.sim import StartAreaError, World, WorldConfig
+
+ROOMS = """
+###########
+#....#....#
+#.........#
+#....#....#
+###########
+"""
+
+
+def _world(art: str, robots: int, **cfg: object) -> World:
+    grid, marks = from_ascii(art)
+    start = marks.get("r0", (2, 2))
+    md = MapData(name="test", grid=grid, cell_size=0.5, start=start)
+    return World(md, [f"r{i}" for i in range(robots)], WorldConfig(**cfg))  # type: ignore[arg-type]
+
+
+def test_start_placement_is_deterministic_and_around_the_start() -> None:
+    w = _world(ROOMS, 3, sensor_range=2.0)
+    w.reset()
+    assert w.poses == {"r0": (2, 2), "r1": (1, 2), "r2": (2, 1)}  # BFS distance, then row-major
+    assert len(set(w.poses.values())) == 3
+    with pytest.raises(StartAreaError, match="start area"):
+        _world(ROOMS, 20, start_radius=2).reset()
+
+
+def test_sensing_returns_true_values_and_stops_at_walls() -> None:
+    w = _world(ROOMS, 1, sensor_range=4.0)
+    rd = w.reset()["r0"]
+    assert rd.cell == (2, 2)
+    assert np.array_equal(rd.values, w.grid.ravel()[rd.cells])
+    seen = set(rd.cells.tolist())
+    assert flat(w.shape, (1, 5)) in seen  # the wall between the rooms is seen
+    assert flat(w.shape, (1, 7)) not in seen  # the room behind it is not (from (2,2) the wall hides it)
+    assert 0 < w.coverage < 1
+
+
+def test_moves_respect_walls_and_other_robots() -> None:
+    w = _world("""
+    #######
+    #0....#
+    #######
+    """, 2)
+    w.reset()
+    assert w.poses == {"r0": (1, 1), "r1": (1, 2)}
+    w.step({"r0": (-1, 0), "r1": (0, -1)})  # into a wall; into r0's cell
+    assert w.poses == {"r0": (1, 1), "r1": (1, 2)} and w.path_length == {"r0": 0, "r1": 0}
+    w.step({"r0": (0, 1), "r1": (0, 1)})  # a line advances together (r0 follows r1 in the same tick)
+    assert w.poses == {"r0": (1, 2), "r1": (1, 3)} and w.path_length == {"r0": 1, "r1": 1}
+    w.step({"r0": (0, 1), "r1": (0, -1)})  # a swap never happens
+    assert w.poses == {"r0": (1, 2), "r1": (1, 3)}
+    assert w.tick == 3
+
+
+def test_two_robots_into_one_cell_lowest_id_wins() -> None:
+    w = _world("""
+    #####
+    #...#
+    #.0.#
+    #...#
+    #####
+    """, 3)
+    w.reset()
+    # r0 at (2,2); r1 at (1,2); r2 at (2,1). Both r1 and r2 aim at (1,1).
+    w.step({"r1": (0, -1), "r2": (-1, 0)})
+    assert w.poses["r1"] == (1, 1) and w.poses["r2"] == (2, 1)
+
+
+def test_coverage_counts_reachable_free_cells_and_the_run_ends() -> None:
+    art = """
+    #########
+    #0......#
+    #########
+    #.......#
+    #########
+    """
+    w = _world(art, 1, sensor_range=1.0, max_ticks=100, target_coverage=1.0)
+    w.reset()
+    reachable = 7  # the lower corridor is walled off: it does not count
+    for _ in range(6):
+        w.step({"r0": (0, 1)})
+    assert w.coverage == pytest.approx(1.0) and w.done and w.reason == "coverage"
+    assert w._total == reachable
+    assert (w.grid == FREE).sum() == 14 and (w.grid == OCCUPIED).any()
+
+
+def test_tick_limit_stall_and_failure_end_the_run() -> None:
+    w = _world(ROOMS, 1, sensor_range=1.0, max_ticks=3, stall_ticks=100)
+    w.reset()
+    for _ in range(3):
+        w.step({"r0": (0, 1)})
+    assert w.done and w.reason == "max_ticks"
+    s = _world(ROOMS, 1, sensor_range=1.0, stall_ticks=4)
+    s.reset()
+    for _ in range(4):
+        s.step({})
+    assert s.done and s.reason == "stall"
+    f = _world(ROOMS, 2, sensor_range=1.0)
+    f.reset()
+    f.fail("r1")
+    assert f.live == ["r0"] and not f.done
+    f.fail("r0")
+    assert f.done and f.reason == "no_robots"

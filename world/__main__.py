@@ -1,0 +1,3 @@
+from world.node import main
+
+main()

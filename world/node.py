@@ -1,0 +1,183 @@
+"""The world process shell: ground truth, sensing and motion over Zenoh, and the lockstep clock.
+
+Each tick t (DESIGN.md "Time"): publish every live robot's observation and the state, wait for every live
+robot's command for t (a robot silent past the barrier timeout, or whose liveliness token goes, is failed),
+apply the moves, advance. All the simulation is :class:`world.sim.World`; this module only does I/O.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import time
+
+import zenoh
+
+from core.bus import Inbox, client_config, publisher
+from core.codec import Context
+from core.kernels import warm_up
+from core.keys import Keys, robot_ids
+from core.messages import Command, Hello, Observation, Ready, Stop, WorldState
+from core.node import NodeBase, run_node, setup_logging
+from core.scenario import Scenario
+from world.maps import MapData, load_map
+from world.sim import Reading, World, WorldConfig
+
+HELLO_PERIOD = 0.1
+
+
+def build_world(scenario: Scenario, map_data: MapData | None = None) -> World:
+    """The world of a scenario (the map is loaded with the run seed unless given)."""
+    if map_data is None:
+        map_data = load_map(scenario.map, scenario.cell_size, scenario.seed)
+    config = WorldConfig(
+        sensor_range=scenario.sensor_cells,
+        target_coverage=scenario.target_coverage,
+        max_ticks=scenario.max_ticks,
+        stall_ticks=scenario.stall_ticks,
+        start=scenario.start,
+    )
+    return World(map_data, robot_ids(scenario.robots), config)
+
+
+class WorldNode(NodeBase):
+    role = "world"
+
+    def __init__(self, scenario: Scenario, run: str, startup_timeout: float = 120.0) -> None:
+        super().__init__(Keys(run), "world")
+        warm_up()  # compile (or load) the kernels before the first tick, not inside it
+        self.scenario = scenario
+        self.world = build_world(scenario)
+        self.robots = robot_ids(scenario.robots)
+        self.startup_timeout = startup_timeout
+        self.stopped_early = False
+        self.interrupted = False
+
+    async def run(self, session: zenoh.Session) -> str:
+        """Run the whole episode; returns the reason it ended."""
+        keys = self.keys
+        inbox = Inbox()
+        handles = [
+            inbox.subscribe(session, keys.wildcard("robot", "*", "cmd")),
+            inbox.subscribe(session, keys.ready_all),
+            inbox.subscribe(session, keys.stop),
+            inbox.watch_liveliness(session, keys.wildcard("alive", "agent", "*")),
+        ]
+        self.pub_obs = {r: publisher(session, keys.obs(r)) for r in self.robots}
+        self.pub_state = publisher(session, keys.state)
+        pub_hello = publisher(session, keys.hello)
+        pub_stop = publisher(session, keys.stop)
+        handles.append(session.liveliness().declare_token(keys.alive("world", "world")))
+        self.ctx = Context(senders=frozenset(self.robots), shape=self.world.shape)
+
+        if not await self._handshake(inbox, pub_hello):
+            pub_stop.put(Stop(src="world", tick=0, seq=self.next_seq(), reason="startup").encode())
+            return "startup"
+        if self.stopped_early:
+            return "interrupted"
+        readings = self.world.reset()
+        while True:
+            self._publish(readings)
+            if self.world.done:
+                break
+            moves = await self._barrier(inbox)
+            if self.interrupted:
+                break
+            readings = self.world.step(moves)
+        reason = "interrupted" if self.interrupted else (self.world.reason or "done")
+        pub_stop.put(Stop(src="world", tick=self.world.tick, seq=self.next_seq(), reason=reason).encode())
+        await asyncio.sleep(0.05)
+        del handles
+        return reason
+
+    async def _handshake(self, inbox: Inbox, pub_hello: zenoh.Publisher) -> bool:
+        """Repeat the hello until the launcher (its recorder), netem and every agent answered: their
+        subscriptions are then in place, so nothing of tick 0 is published into the void."""
+        waiting = {"launcher", "netem", *self.robots}
+        deadline = time.monotonic() + self.startup_timeout
+        next_hello = 0.0
+        while waiting:
+            now = time.monotonic()
+            if now > deadline:
+                self.drop("ctl/ready", f"startup timed out waiting for {sorted(waiting)}")
+                return False
+            if now >= next_hello:
+                pub_hello.put(Hello(src="world", tick=0, seq=self.next_seq()).encode())
+                next_hello = now + HELLO_PERIOD
+            item = await inbox.get(timeout=HELLO_PERIOD)
+            if item is None:
+                continue
+            key, data, _ = item
+            if self._interrupted(key, data):
+                self.stopped_early = True
+                return True
+            if "/ctl/ready/" in key:
+                ready = self.decode(key, data, Ready)
+                if ready is not None and ready.src == Keys.last(key):
+                    waiting.discard(ready.src)
+        return True
+
+    def _interrupted(self, key: str, data: bytes) -> bool:
+        """The launcher's stop (Ctrl-C) ends the run at once."""
+        if key != self.keys.stop:
+            return False
+        stop = self.decode(key, data, Stop)
+        return stop is not None and stop.src == "launcher"
+
+    def _publish(self, readings: dict[str, Reading]) -> None:
+        w = self.world
+        t = w.tick
+        for r in () if w.done else w.live:  # no observations once the run is over: nobody acts again
+            rd = readings[r]
+            self.pub_obs[r].put(Observation(
+                src="world", tick=t, seq=self.next_seq(), robot=r, cell=rd.cell, shape=w.shape,
+                cell_size=self.scenario.cell_size, cells=rd.cells, values=rd.values).encode())
+        self.pub_state.put(WorldState(
+            src="world", tick=t, seq=self.next_seq(), poses=dict(w.poses), live=tuple(w.live),
+            coverage=float(w.coverage), path_length=dict(w.path_length), done=w.done, reason=w.reason).encode())
+
+    async def _barrier(self, inbox: Inbox) -> dict[str, tuple[int, int]]:
+        """Wait for every live robot's command for this tick; fail the silent ones."""
+        t = self.world.tick
+        waiting = set(self.world.live)
+        moves: dict[str, tuple[int, int]] = {}
+        deadline = time.monotonic() + self.scenario.barrier_timeout
+        while waiting:
+            item = await inbox.get(timeout=max(0.0, deadline - time.monotonic()))
+            if item is None:
+                for r in sorted(waiting):
+                    self.world.fail(r)
+                break
+            key, data, is_put = item
+            if self._interrupted(key, data):
+                self.interrupted = True
+                break
+            if "/alive/agent/" in key:
+                robot = Keys.last(key)
+                if not is_put and robot in waiting:
+                    waiting.discard(robot)
+                    self.world.fail(robot)
+                continue
+            if "/robot/" not in key:
+                continue
+            robot = key.rsplit("/", 2)[-2]
+            cmd = self.decode(key, data, Command, self.ctx)
+            if cmd is None:
+                continue
+            if cmd.src != robot:
+                self.drop(key, f"cmd from {cmd.src} on {robot}'s key")
+            elif cmd.tick == t and robot in waiting:
+                moves[robot] = cmd.move
+                waiting.discard(robot)
+        return moves
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m world --run RUN --connect ENDPOINT --scenario FILE.json``."""
+    from launch.childargs import parse_child
+
+    args = parse_child(argparse.ArgumentParser(prog="world"), argv)
+    setup_logging()
+    node = WorldNode(args.scenario, args.run)
+    with zenoh.open(client_config(args.connect)) as session:
+        asyncio.run(run_node(node.run(session)))

@@ -1,0 +1,164 @@
+"""Ground truth: the map, true poses, the 360-degree range sensor, motion, coverage and the end of the run.
+
+A plain simulation with no I/O; :mod:`world.node` drives it over Zenoh. Tick ``t``: :meth:`World.reset`
+gives the readings of tick 0, and each :meth:`World.step` applies the robots' moves and gives the next
+tick's readings.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from core.grid import FREE, MOVES, OCCUPIED, Cell, flat
+from core.kernels import visible_cells, wavefront
+from world.maps import MapData
+
+STAY: Cell = (0, 0)
+
+
+class StartAreaError(ValueError):
+    """More robots than the free start area holds (one line for the user)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class WorldConfig:
+    """``sensor_range`` in cells; ``start_radius``: the start area is the free cells within this BFS
+    distance of the start cell; ``stall_ticks``: ticks without any move or new sensed cell that end the run."""
+
+    sensor_range: float = 8.0
+    target_coverage: float = 0.99
+    max_ticks: int = 2000
+    stall_ticks: int = 30
+    start: Cell | None = None
+    start_radius: int = 4
+
+
+@dataclasses.dataclass(frozen=True)
+class Reading:
+    """What one robot's sensor returned: its true cell, and the flat indices and true values it saw."""
+
+    cell: Cell
+    cells: np.ndarray
+    values: np.ndarray
+
+
+class World:
+    """The simulation of one run."""
+
+    def __init__(self, map_data: MapData, robots: list[str], config: WorldConfig) -> None:
+        self.map = map_data
+        self.grid = map_data.grid
+        self.occupied = self.grid == OCCUPIED
+        self.robots = list(robots)
+        self.config = config
+        self.start = config.start if config.start is not None else map_data.start
+        self.tick = 0
+        self.poses: dict[str, Cell] = {}
+        self.live: list[str] = []
+        self.path_length: dict[str, int] = {}
+        self.done = False
+        self.reason: str | None = None
+        self.coverage = 0.0
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.grid.shape  # type: ignore[return-value]
+
+    def start_cells(self) -> list[Cell]:
+        """Free cells around the start, nearest first (BFS distance, then row-major): deterministic."""
+        s = self.start
+        if not (0 <= s[0] < self.shape[0] and 0 <= s[1] < self.shape[1]) or self.grid[s] != FREE:
+            raise StartAreaError(f"start cell {tuple(s)} is not a free cell of the map")
+        dist = wavefront(~self.occupied, np.array([flat(self.shape, s)], np.int64), -1)
+        area = np.flatnonzero((dist.ravel() >= 0) & (dist.ravel() <= self.config.start_radius))
+        area = area[np.lexsort((area, dist.ravel()[area]))]
+        return [(int(i) // self.shape[1], int(i) % self.shape[1]) for i in area]
+
+    def reset(self) -> dict[str, Reading]:
+        """Place the robots around the start and sense; the readings of tick 0."""
+        cells = self.start_cells()
+        if len(self.robots) > len(cells):
+            raise StartAreaError(f"{len(self.robots)} robots do not fit the start area around {tuple(self.start)} "
+                                 f"({len(cells)} free cells within {self.config.start_radius} steps)")
+        self.tick = 0
+        self.poses = dict(zip(self.robots, cells, strict=False))
+        self.live = list(self.robots)
+        self.path_length = {r: 0 for r in self.robots}
+        self.done, self.reason = False, None
+        self._reachable = wavefront(~self.occupied, np.array([flat(self.shape, self.start)], np.int64), -1) >= 0
+        self._reachable &= self.grid == FREE
+        self._total = int(self._reachable.sum())
+        self._sensed = np.zeros(self.shape, dtype=bool)
+        self._idle = 0
+        readings = self._sense()
+        self._check_end(progress=True)
+        return readings
+
+    def fail(self, robot: str) -> None:
+        """A robot that stopped answering leaves the run (its body stays where it stopped)."""
+        if robot in self.live:
+            self.live.remove(robot)
+            if not self.live and not self.done:
+                self.done, self.reason = True, "no_robots"
+
+    def step(self, moves: dict[str, Cell]) -> dict[str, Reading]:
+        """Apply the moves of the live robots, advance to the next tick, sense; the readings of that tick.
+
+        A robot cannot enter a wall, leave the grid, or enter a cell another robot holds. Conflicts are
+        resolved in passes in robot order: a move goes through when its target is free of every robot's
+        current cell; passes repeat until nothing changes, so a line of robots can advance together, and
+        two robots never swap or meet.
+        """
+        pending = {r: m for r, m in moves.items() if r in self.live and m != STAY and m in MOVES}
+        held = set(self.poses.values())
+        moved = False
+        changed = True
+        while changed and pending:
+            changed = False
+            for r in list(pending):
+                dr, dc = pending[r]
+                cur = self.poses[r]
+                nxt = (cur[0] + dr, cur[1] + dc)
+                if not (0 <= nxt[0] < self.shape[0] and 0 <= nxt[1] < self.shape[1]) or self.occupied[nxt]:
+                    del pending[r]
+                    continue
+                if nxt in held:
+                    continue
+                held.discard(cur)
+                held.add(nxt)
+                self.poses[r] = nxt
+                self.path_length[r] += 1
+                del pending[r]
+                changed = moved = True
+        self.tick += 1
+        before = int(self._sensed.sum())
+        readings = self._sense()
+        self._check_end(progress=moved or int(self._sensed.sum()) > before)
+        return readings
+
+    def _sense(self) -> dict[str, Reading]:
+        out: dict[str, Reading] = {}
+        flat_grid = self.grid.ravel()
+        sensed = self._sensed.ravel()
+        for r in self.live:
+            cell = self.poses[r]
+            cells = visible_cells(self.occupied, cell[0], cell[1], self.config.sensor_range)
+            sensed[cells] = True
+            out[r] = Reading(cell=cell, cells=cells.astype(np.int32), values=flat_grid[cells].copy())
+        self.coverage = float((self._sensed & self._reachable).sum() / self._total) if self._total else 1.0
+        return out
+
+    def _check_end(self, progress: bool) -> None:
+        self._idle = 0 if progress else self._idle + 1
+        if self.done:
+            return
+        if self.coverage >= self.config.target_coverage:
+            self.done, self.reason = True, "coverage"
+        elif not self.live:
+            self.done, self.reason = True, "no_robots"
+        elif self.tick >= self.config.max_ticks:
+            self.done, self.reason = True, "max_ticks"
+        elif self._idle >= self.config.stall_ticks:
+            self.done, self.reason = True, "stall"
