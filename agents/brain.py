@@ -91,10 +91,13 @@ class Brain:
         alloc = self.allocator.allocate(problem, protocol)
         self.decision_ms.append((self.clock() - t0) * 1000.0)
         move = STAY
+        wants = False  # the robot wants to move but a teammate stands on every way down the wavefront
         if alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None:
             blocked = {tm.cell for tm in self.teammates.values() if tm.heard >= t - 1}
-            move = next_move(problem.wavefronts[alloc.cluster], obs.cell, blocked)
-        move = self._unstick(obs.cell, move, belief.grid)
+            dist = problem.wavefronts[alloc.cluster]
+            move = next_move(dist, obs.cell, blocked)
+            wants = move == STAY and dist[obs.cell] > 0
+        move = self._unstick(obs.cell, move, wants, belief.grid)
         outbox.extend(alloc.outbox)
         outbox.insert(0, PoseBeacon(src=self.me, tick=t, seq=self._seq(), dst="*", ttl=0, cell=obs.cell))
         cells, values = belief.take_news()
@@ -117,14 +120,17 @@ class Brain:
                                    cells=cells, values=values))
         self.teammates[beacon.src] = Teammate(cell=beacon.cell, heard=max(t, beacon.tick))
 
-    def _unstick(self, cell: Cell, move: Cell, grid: np.ndarray) -> Cell:
-        """A robot whose commanded moves keep failing (a teammate in the way) tries a random free step."""
-        if self.last_cell == cell and self.last_move != STAY:
+    def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray) -> Cell:
+        """A robot whose moves keep failing, or that keeps waiting for a teammate to clear its way (two
+        robots head-on in a corridor), tries a random free step, drawn from its own generator."""
+        if (self.last_cell == cell and self.last_move != STAY) or wants:
             self.stuck += 1
         else:
             self.stuck = 0
-        if move != STAY and self.stuck >= self.config.unstick_after:
-            options = [m for m in MOVES if _free(grid, (cell[0] + m[0], cell[1] + m[1]))]
+        if (move != STAY or wants) and self.stuck >= self.config.unstick_after:
+            occupied = {tm.cell for tm in self.teammates.values()}
+            options = [m for m in MOVES if _free(grid, (cell[0] + m[0], cell[1] + m[1]))
+                       and (cell[0] + m[0], cell[1] + m[1]) not in occupied]
             if options:
                 move = options[int(self.rng.integers(len(options)))]
         self.last_cell, self.last_move = cell, move

@@ -26,6 +26,18 @@ def brain_config(scenario: Scenario) -> BrainConfig:
     return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_ttl=scenario.map_delta_ttl)
 
 
+def allocator_config(scenario: Scenario) -> dict:
+    """The scenario's allocator config; a radio-aware allocator predicts links with the scenario's radio
+    and cell size unless its config sets its own."""
+    config = dict(scenario.allocator)
+    if config.get("type") == "connectivity":
+        r = scenario.radio
+        for k, v in (("comm_range", r.comm_range), ("cell_size", scenario.cell_size), ("path_loss", r.path_loss),
+                     ("waf", r.waf), ("max_walls", r.max_walls)):
+            config.setdefault(k, v)
+    return config
+
+
 class AgentNode(NodeBase):
     role = "agent"
 
@@ -34,7 +46,7 @@ class AgentNode(NodeBase):
         warm_up()  # compile (or load) the kernels before the first tick, not inside it
         self.scenario = scenario
         self.robot = robot
-        allocator = make_allocator(scenario.allocator)
+        allocator = make_allocator(allocator_config(scenario))
         self.brain = Brain(robot, allocator, generator(scenario.seed, robot), brain_config(scenario))
         self.ctx_world = Context(senders=frozenset({"world"}))
         self.ctx_rx: Context | None = None

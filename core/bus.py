@@ -72,8 +72,9 @@ class Inbox:
         return session.declare_subscriber(key_expr, self.callback)
 
     def watch_liveliness(self, session: zenoh.Session, key_expr: str) -> zenoh.Subscriber:
-        """Liveliness changes under ``key_expr`` arrive as items with ``is_put`` False on deletion."""
-        return session.liveliness().declare_subscriber(key_expr, self.callback)
+        """Liveliness changes under ``key_expr`` arrive as items with ``is_put`` False on deletion (tokens
+        declared before this subscriber are announced too, so a later deletion is never missed)."""
+        return session.liveliness().declare_subscriber(key_expr, self.callback, history=True)
 
     async def get(self, timeout: float | None = None) -> tuple[str, bytes, bool] | None:
         """The next item, or None after ``timeout`` seconds."""

@@ -162,3 +162,142 @@ def warm_up() -> None:
     wavefront(~occ, np.array([0], dtype=np.int64), -1)
     visible_cells(occ, 1, 1, 1.5)
     count_walls(occ, 0, 0, 2, 2)
+
+
+_NO_KEY = np.int64(1) << np.int64(62)
+
+
+@numba.njit(cache=True)
+def _grown(a: np.ndarray, cap: int) -> np.ndarray:
+    out = np.empty(cap, dtype=a.dtype)
+    out[:len(a)] = a
+    return out
+
+
+@numba.njit(cache=True)
+def _expand_layer(flat_pass, rows, cols, seen, base, crowd, me, cell, link, spare, head, tail, j, count,
+                  used, nspare):
+    """Pop the ``count`` cells of wavefront j's current layer and queue their unseen passable neighbours.
+    Returns (me found, robots met in the layer, cells queued, used, nspare)."""
+    found = 0
+    fresh = 0
+    for _ in range(count):
+        idx = head[j]
+        cur = cell[idx]
+        head[j] = link[idx]
+        spare[nspare] = idx
+        nspare += 1
+        if cur == me:
+            return True, found, fresh, used, nspare
+        found += crowd[cur]
+        r = cur // cols
+        c = cur - r * cols
+        for k in range(4):
+            if k == 0:
+                if r == 0:
+                    continue
+                nxt = cur - cols
+            elif k == 1:
+                if r == rows - 1:
+                    continue
+                nxt = cur + cols
+            elif k == 2:
+                if c == 0:
+                    continue
+                nxt = cur - 1
+            else:
+                if c == cols - 1:
+                    continue
+                nxt = cur + 1
+            if flat_pass[nxt] and not seen[base + nxt]:
+                seen[base + nxt] = True
+                if nspare > 0:
+                    nspare -= 1
+                    slot = spare[nspare]
+                else:
+                    slot = used
+                    used += 1
+                cell[slot] = nxt
+                link[slot] = -1
+                if head[j] < 0:
+                    head[j] = slot
+                else:
+                    link[tail[j]] = slot
+                tail[j] = slot
+                fresh += 1
+    return False, found, fresh, used, nspare
+
+
+@numba.njit(cache=True)
+def minpos_parallel(passable: np.ndarray, sources: np.ndarray, offsets: np.ndarray, me: int,
+                    robots: np.ndarray) -> tuple[int, int, int]:
+    """MinPos with parallel wavefronts (Bautin et al. 2012, section 4.3, "Parallel computation of wavefronts").
+
+    One BFS per frontier cluster ``j`` (its cells are ``sources[offsets[j]:offsets[j + 1]]``, seeded like
+    :func:`wavefront`), all advanced one distance layer at a time. A wavefront's key is (robots it has met, next
+    layer): a layer holding a teammate (``robots``, flat indices) raises the count, which pauses that wavefront
+    behind every one that has met fewer robots; among equals the lowest layer goes first ("restarted
+    sequentially from the lowest to the highest potential"), then the lowest cluster index. The first wavefront
+    whose layer holds ``me`` is the answer: its key then is (P_ij, C_ij), so the result is Algorithm 3's
+    argmin of position, then cost, then cluster index. Returns ``(j, P_ij, C_ij)``, or ``(-1, -1, -1)`` when
+    no wavefront reaches ``me``. Queues share one pool of linked slots, recycled when popped.
+    """
+    rows, cols = passable.shape
+    n = rows * cols
+    m = len(offsets) - 1
+    flat_pass = passable.ravel()
+    crowd = np.zeros(n, dtype=np.int64)
+    for r in robots:
+        if 0 <= r < n:
+            crowd[r] += 1
+    width = max(m, 1)
+    seen = np.zeros(width * n, dtype=np.bool_)
+    cap = 2 * len(sources) + 1024
+    cell = np.empty(cap, dtype=np.int64)
+    link = np.empty(cap, dtype=np.int64)
+    spare = np.empty(cap, dtype=np.int64)
+    nspare = 0
+    used = 0
+    head = np.full(width, -1, dtype=np.int64)
+    tail = np.full(width, -1, dtype=np.int64)
+    size = np.zeros(width, dtype=np.int64)
+    met = np.zeros(width, dtype=np.int64)
+    depth = np.zeros(width, dtype=np.int64)
+    key = np.full(width, _NO_KEY, dtype=np.int64)
+    stride = np.int64(n + 1)
+    for j in range(m):
+        base = j * n
+        for t in range(offsets[j], offsets[j + 1]):
+            s = sources[t]
+            if 0 <= s < n and not seen[base + s]:
+                seen[base + s] = True
+                cell[used] = s
+                link[used] = -1
+                if head[j] < 0:
+                    head[j] = used
+                else:
+                    link[tail[j]] = used
+                tail[j] = used
+                used += 1
+                size[j] += 1
+        if size[j] > 0:
+            key[j] = 0
+    while m > 0:
+        j = np.argmin(key)
+        if key[j] >= _NO_KEY:
+            break
+        need = used + 4 * size[j]
+        if need > cap:  # room for every cell this layer may queue, grown out of the hot loop
+            cap = 2 * need
+            cell = _grown(cell, cap)
+            link = _grown(link, cap)
+            spare = _grown(spare, cap)
+        hit, found, fresh, used, nspare = _expand_layer(flat_pass, rows, cols, seen, j * n, crowd, me, cell,
+                                                        link, spare, head, tail, j, size[j], used, nspare)
+        if hit:
+            return j, met[j], depth[j]
+        met[j] += found
+        depth[j] += 1
+        size[j] = fresh
+        key[j] = met[j] * stride + depth[j] if fresh > 0 else _NO_KEY
+    return -1, -1, -1

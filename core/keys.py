@@ -44,6 +44,9 @@ class Keys:
     def ready(self, node: str) -> str:
         return key(self.run, "ctl", "ready", node)
 
+    def failed(self, robot: str) -> str:
+        return key(self.run, "ctl", "failed", robot)
+
     def report(self, robot: str) -> str:
         return key(self.run, "ctl", "report", robot)
 

@@ -16,8 +16,8 @@ from core.grid import MOVES, Cell
 __all__ = [
     "Context", "DecodeError", "Message", "decode", "peek_tick",
     "Observation", "WorldState", "Command", "RadioMsg", "PoseBeacon", "MapDelta",
-    "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Stop", "AgentReport", "BeliefSnapshot",
-    "Assignment",
+    "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Failed", "Stop", "AgentReport", "BeliefSnapshot",
+    "Assignment", "TradeNumber", "TradePurchase", "TradeAllocation", "TradeDone",
 ]
 
 VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
@@ -151,6 +151,65 @@ class Assignment(RadioMsg):
             _check_cell(cell, ctx.shape if ctx else None, "assign")
 
 
+# --- trade-based allocation (Yan et al. 2011, section 4) ------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class TradeNumber(RadioMsg):
+    """Role allocation (Algorithm 1): a robot not in a task broadcasts its number every tick."""
+
+    KIND = "trade_num"
+    number: int
+
+    def validate(self, ctx: Context | None) -> None:
+        super().validate(ctx)
+        if self.number < 0:
+            raise DecodeError("trade_num: negative robot number")
+
+
+@dataclasses.dataclass(frozen=True)
+class TradePurchase(RadioMsg):
+    """A buyer's purchase message ``pums_r = {r, m, c}`` (eq. 3) to the seller: ``r`` is ``src``, ``m`` the
+    task (a frontier cluster's target cell), ``c`` its wavefront cost (eq. 2)."""
+
+    KIND = "trade_buy"
+    task: Cell
+    cost: float
+
+    def validate(self, ctx: Context | None) -> None:
+        super().validate(ctx)
+        _check_cell(self.task, ctx.shape if ctx else None, "trade_buy")
+        if not (0.0 <= self.cost < 1e9):
+            raise DecodeError("trade_buy: cost out of range")
+
+
+@dataclasses.dataclass(frozen=True)
+class TradeAllocation(RadioMsg):
+    """A seller's task-allocation messages ``tams = {r, m}`` (eq. 4) of one round, as one broadcast:
+    ``src`` is the seller, ``awards`` maps each robot allocated a task to that task's cell."""
+
+    KIND = "trade_alloc"
+    awards: dict[str, Cell]
+
+    def validate(self, ctx: Context | None) -> None:
+        super().validate(ctx)
+        for robot, cell in self.awards.items():
+            if ctx is not None and ctx.senders is not None and robot not in ctx.senders:
+                raise DecodeError(f"trade_alloc: unknown robot {robot!r}")
+            _check_cell(cell, ctx.shape if ctx else None, "trade_alloc")
+
+
+@dataclasses.dataclass(frozen=True)
+class TradeDone(RadioMsg):
+    """A completed (or abandoned) task, broadcast so that teammates update their task lists (section 4.2)."""
+
+    KIND = "trade_done"
+    task: Cell
+
+    def validate(self, ctx: Context | None) -> None:
+        super().validate(ctx)
+        _check_cell(self.task, ctx.shape if ctx else None, "trade_done")
+
+
 @dataclasses.dataclass(frozen=True)
 class TxBundle(Message):
     """Everything one robot sends at ``tick`` (radio/tx/<robot>); sent even when empty."""
@@ -207,6 +266,16 @@ class Ready(Message):
     KIND = "ready"
     role: str
     pid: int
+
+
+@dataclasses.dataclass(frozen=True)
+class Failed(Message):
+    """The launcher saw a robot's process exit (ctl/failed/<robot>): the world fails it at once, even
+    before its liveliness token existed."""
+
+    KIND = "failed"
+    robot: str
+    reason: str
 
 
 @dataclasses.dataclass(frozen=True)

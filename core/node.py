@@ -32,10 +32,17 @@ class NodeBase:
         self.node_id = node_id
         self.dropped = 0
         self._seq = 0
+        self._ctl_seq = 0
 
     def next_seq(self) -> int:
+        """Sequence number of the lockstep traffic (deterministic for a seed)."""
         self._seq += 1
         return self._seq
+
+    def next_ctl_seq(self) -> int:
+        """Sequence number of the start handshake, whose retries depend on timing."""
+        self._ctl_seq += 1
+        return self._ctl_seq
 
     def decode(self, key: str, data: bytes, expected: type[M], ctx: Context | None = None) -> M | None:
         """Decode or count-and-drop: a malformed message is never fatal."""
@@ -60,7 +67,7 @@ class NodeBase:
 
     def answer_hello(self, key: str, data: bytes) -> None:
         if self.decode(key, data, Hello) is not None:
-            self._ready_pub.put(Ready(src=self.node_id, tick=0, seq=self.next_seq(), role=self.role,
+            self._ready_pub.put(Ready(src=self.node_id, tick=0, seq=self.next_ctl_seq(), role=self.role,
                                       pid=os.getpid()).encode())
 
 

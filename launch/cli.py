@@ -48,7 +48,14 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--connect", help="use an external Zenoh router, e.g. tcp/192.0.2.1:7447")
     r.add_argument("--run-id", help="the <run> of the key expressions (default: a timestamp)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--grid-every", type=int, metavar="K",
+                   help="Foxglove map/coverage/belief grids in run.mcap every K ticks (default: belief_every)")
     sub.add_parser("maps", help="list the built-in maps")
+    rep = sub.add_parser("report", help="metrics.json, plots and a table from a recording (RUN_DIR or RUN.mcap)")
+    rep.add_argument("paths", nargs="+", type=Path, metavar="RUN", help="a run directory or its run.mcap")
+    rep.add_argument("--compare", action="store_true", help="one table and overlaid coverage curves of the runs")
+    rep.add_argument("--out", type=Path, help="where --compare writes its PNG (default ./compare.png)")
+    rep.add_argument("--no-plots", action="store_true", help="metrics.json and the table only")
     return p
 
 
@@ -70,8 +77,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         scenario = scenario_from_args(args)
         run_id = args.run_id or new_run_id()
         out = args.out or Path("runs") / run_id
+        if args.grid_every is not None and args.grid_every < 1:
+            raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
         opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
-                          connect=args.connect, quiet=args.quiet, run_id=run_id)
+                          connect=args.connect, quiet=args.quiet, run_id=run_id, grid_every=args.grid_every)
         result = run_fleet(scenario, opts)
     except (ConfigError, MapError, StartAreaError) as exc:
         _fail(str(exc))
@@ -95,12 +104,22 @@ def cmd_maps(_: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_report(args: argparse.Namespace) -> int:
+    from launch.report import ReportError, report
+
+    try:
+        report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
+    except ReportError as exc:
+        _fail(str(exc))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> None:
     args = build_parser().parse_args(argv)
     command = args.command or "run"
     if args.command is None:
         args = build_parser().parse_args(["run", *(argv or [])])
-    handlers = {"run": cmd_run, "maps": cmd_maps}
+    handlers = {"run": cmd_run, "maps": cmd_maps, "report": cmd_report}
     raise SystemExit(handlers[command](args))
 
 

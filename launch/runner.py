@@ -12,6 +12,7 @@ import queue
 import secrets
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -20,8 +21,9 @@ import zenoh
 from agents.allocators import make_allocator
 from core.bus import client_config, publisher, router_config, router_locators
 from core.keys import Keys, robot_ids
-from core.messages import Ready, Stop
+from core.messages import Failed, Ready, Stop
 from core.scenario import ConfigError, Scenario
+from launch.foxglove import FoxgloveFold, FoxgloveWriter
 from launch.monitor import Monitor
 from launch.progress import Progress
 from launch.recorder import Recorder
@@ -40,6 +42,7 @@ class RunOptions:
     connect: str | None = None
     quiet: bool = False
     run_id: str = ""
+    grid_every: int | None = None  # Foxglove grids every k ticks (default: the scenario's belief_every)
 
 
 class RunError(RuntimeError):
@@ -64,7 +67,7 @@ def check(scenario: Scenario) -> MapData:
 
 def run_fleet(scenario: Scenario, opts: RunOptions) -> dict[str, Any]:
     """Run one scenario to its end; returns the result (also written to ``out_dir/result.json``)."""
-    check(scenario)
+    map_data = check(scenario)
     run_id = opts.run_id or new_run_id()
     out = opts.out_dir
     out.mkdir(parents=True, exist_ok=True)
@@ -75,6 +78,8 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> dict[str, Any]:
     monitor = Monitor(robots)
     mcap_path = out / "run.mcap"
     recorder = Recorder(mcap_path, {"run_id": run_id, "scenario": scenario.to_dict()}) if opts.record else None
+    viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id)) \
+        if recorder else None
     sup = Supervisor(log_dir=out)
     pids: dict[str, Any] = {}
     t_start = time.monotonic()
@@ -93,7 +98,7 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> dict[str, Any]:
         pub_ready = publisher(session, keys.ready("launcher"))
         pub_stop = publisher(session, keys.stop)
         token = session.liveliness().declare_token(keys.alive("launcher", "launcher"))
-        consumer = _Consumer(samples, monitor, recorder, pub_ready, robots)
+        consumer = _Consumer(samples, monitor, recorder, pub_ready, robots, viz)
         consumer.start()
         nodes_thread: threading.Thread | None = None
         progress = Progress(scenario, run_id, quiet=opts.quiet)
@@ -110,7 +115,10 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> dict[str, Any]:
                 p = sup.pids()
                 pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
             with progress:
-                error = _wait(monitor, consumer, sup, nodes_thread, progress)
+                error = _wait(monitor, consumer, sup, nodes_thread, progress,
+                              lambda r: session.put(keys.failed(r), Failed(
+                                  src="launcher", tick=monitor.tick, seq=0, robot=r, reason="process exited").encode(),
+                                  congestion_control=zenoh.CongestionControl.BLOCK))
         except KeyboardInterrupt:
             interrupted = True
         finally:
@@ -128,6 +136,8 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> dict[str, Any]:
             samples.put(None)
             consumer.join()
             del token
+    if viz is not None:
+        viz.finish()
     messages = recorder.close() if recorder else 0
     result = monitor.result(scenario.to_dict(), run_id, scenario.target_coverage)
     if interrupted:
@@ -151,9 +161,11 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> dict[str, Any]:
 
 
 def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: threading.Thread | None,
-          progress: Progress) -> str | None:
-    """Until the world's stop and every live agent's report; returns an error line, or None."""
+          progress: Progress, notify_failed: Callable[[str], None]) -> str | None:
+    """Until the world's stop and every live agent's report; returns an error line, or None.
+    An agent process that exits early is announced to the world, which goes on without it."""
     stop_seen: float | None = None
+    announced: set[str] = set()
     while True:
         progress.update(monitor)
         if monitor.stop is not None:
@@ -162,6 +174,11 @@ def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: 
             if live <= set(monitor.reports) or time.monotonic() - stop_seen > STOP_GRACE:
                 return None if monitor.stop.reason != "startup" else "startup timed out: see the logs in --out"
         dead = sup.dead()
+        new = set(dead) - announced - {"world", "netem"}
+        announced |= new
+        if monitor.stop is None:  # repeated until the first tick: the world may not be listening yet
+            for name in sorted(announced if monitor.state is None else new):
+                notify_failed(name)
         if "world" in dead and monitor.stop is None:
             return f"the world process exited with code {dead['world']} (see world.log in --out)"
         if "netem" in dead and monitor.stop is None:
@@ -176,11 +193,12 @@ class _Consumer(threading.Thread):
     """Takes samples off the subscriber's queue: records them, folds them, and answers the world's hello."""
 
     def __init__(self, samples: queue.Queue, monitor: Monitor, recorder: Recorder | None,
-                 pub_ready: zenoh.Publisher, robots: tuple[str, ...]) -> None:
+                 pub_ready: zenoh.Publisher, robots: tuple[str, ...], viz: FoxgloveWriter | None = None) -> None:
         super().__init__(daemon=True, name="recorder")
         self.samples = samples
         self.monitor = monitor
         self.recorder = recorder
+        self.viz = viz
         self.pub_ready = pub_ready
         self.changed = threading.Event()
         self._seq = 0
@@ -195,7 +213,10 @@ class _Consumer(threading.Thread):
                 self.pub_ready.put(Ready(src="launcher", tick=0, seq=self._seq, role="launcher",
                                          pid=os.getpid()).encode())
                 continue
-            if self.monitor.feed(key, data, wall_ns) is not None:
+            msg = self.monitor.feed(key, data, wall_ns)
+            if self.viz is not None:
+                self.viz.feed(key, data, msg)
+            if msg is not None:
                 self.changed.set()
 
 

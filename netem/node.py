@@ -26,6 +26,8 @@ from netem.channel import Channel
 from netem.signal import RadioParams, connected, link_matrix
 from world.maps import load_map
 
+STATE_GRACE = 2.0  # seconds to wait, after a stop, for the states it announced
+
 
 def radio_params(scenario: Scenario) -> RadioParams:
     r = scenario.radio
@@ -63,8 +65,10 @@ class NetemNode(NodeBase):
         self.states: dict[int, WorldState] = {}
         self.tx: dict[int, dict[str, TxBundle]] = {}
         self.stopped = False
+        self.stop_tick = -1
+        self.abort = False
         tick = 0
-        while not self.stopped:
+        while True:
             state = await self._await_state(inbox, tick)
             if state is None:
                 break
@@ -91,8 +95,11 @@ class NetemNode(NodeBase):
         if key.endswith("/ctl/hello"):
             self.answer_hello(key, data)
         elif key == self.keys.stop:
-            if self.decode(key, data, Stop) is not None:
+            stop = self.decode(key, data, Stop)
+            if stop is not None:
                 self.stopped = True
+                self.stop_tick = stop.tick
+                self.abort = stop.src != "world"  # the launcher's stop (Ctrl-C) ends at once
         elif key == self.keys.state:
             st = self.decode(key, data, WorldState, self.ctx_world)
             if st is not None:
@@ -106,23 +113,27 @@ class NetemNode(NodeBase):
         return True
 
     async def _await_state(self, inbox: Inbox, tick: int) -> WorldState | None:
+        """The world's state of ``tick``; after a stop, only the states up to the stop's tick (which may
+        arrive after the stop itself: they travel on another key)."""
         while tick not in self.states:
-            if self.stopped:
+            if self.abort or (self.stopped and tick > self.stop_tick):
                 return None
-            await self._next(inbox)
+            if await self._next(inbox, timeout=STATE_GRACE if self.stopped else None) is None:
+                return None
         for t in [t for t in self.states if t <= tick]:
             st = self.states.pop(t)
         return st
 
     async def _await_tx(self, inbox: Inbox, tick: int, live: tuple[str, ...]) -> dict | None:
         deadline = time.monotonic() + self.scenario.barrier_timeout
-        while not set(live) <= set(self.tx.get(tick, {})):
-            if self.stopped:
+        needed = set(live)
+        while not needed <= set(self.tx.get(tick, {})):
+            if self.abort:
                 return None
             if await self._next(inbox, timeout=max(0.0, deadline - time.monotonic())) is None:
                 break  # silent robots send nothing this tick; the world fails them
-            if tick + 1 in self.states:  # the world moved on: a robot was failed
-                break
+            if tick + 1 in self.states:  # the world moved on: only robots it failed may stay silent
+                needed &= set(self.states[tick + 1].live)
         got = self.tx.pop(tick, {})
         return {r: got[r].msgs for r in live if r in got}
 

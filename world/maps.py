@@ -49,11 +49,12 @@ BUILTIN_MAPS: dict[str, str] = {
 DEFAULT_RESOLUTION = 0.05
 DEFAULT_OCCUPIED_THRESH = 0.65
 DEFAULT_FREE_THRESH = 0.196
-#: A bare bitmap whose longer side would span fewer cells than this at DEFAULT_RESOLUTION is taken as drawn
-#: one pixel per cell (a hand-drawn map), not as a 0.05 m/px scan.
-MIN_CELLS_AT_DEFAULT = 20
+#: A bare bitmap smaller than this (pixels, longer side) is taken as drawn one pixel per cell (a hand-drawn
+#: map): at 0.05 m/px it would be under 13 m wide, too small for a fleet.
+DRAWN_MAX_PIXELS = 256
 #: The start cell's neighbourhood: cells within this BFS distance are counted as room for robots.
 START_RADIUS = 4
+#: How many of those cells (at most 41) a start needs, when some cell of the component has that many.
 START_ROOM = 24
 
 _FOUR = ndimage.generate_binary_structure(2, 1)
@@ -140,6 +141,7 @@ def _split(lo: int, hi: int, wmin: int, wmax: int, rng: np.random.Generator) -> 
 
 
 def _office(cs: float, rng: np.random.Generator) -> tuple[np.ndarray, Cell | None]:
+    """Rooms above and below a 2 m corridor, a 2 m vertical corridor across; starts at their crossing."""
     h, w, cw, dw = _cells(25, cs, 7), _cells(40, cs, 9), _cells(2.0, cs), _cells(1.0, cs)
     g = np.zeros((h, w), dtype=np.int8)
     g[[0, -1], :] = g[:, [0, -1]] = OCCUPIED
@@ -174,6 +176,7 @@ def _office(cs: float, rng: np.random.Generator) -> tuple[np.ndarray, Cell | Non
 
 
 def _maze(cs: float, rng: np.random.Generator) -> tuple[np.ndarray, Cell | None]:
+    """A perfect maze of 2 m passages by randomized depth-first search (the recursive backtracker)."""
     pw = _cells(2.0, cs)
     p = pw + 1
     n = max(2, round((30 / cs - 1) / p))
@@ -217,6 +220,7 @@ def _grid(cs: float, rng: np.random.Generator) -> tuple[np.ndarray, Cell | None]
 
 
 def _hall(cs: float, rng: np.random.Generator) -> tuple[np.ndarray, Cell | None]:
+    """Up to 15 rectangles of 1-3 m by 1-4 m, each with a 1 m free margin, never disconnecting free space."""
     h, w, gap = _cells(20, cs, 5), _cells(30, cs, 5), _cells(1.0, cs)
     g = np.zeros((h, w), dtype=np.int8)
     g[[0, -1], :] = g[:, [0, -1]] = OCCUPIED
@@ -275,12 +279,14 @@ def classify(gray: np.ndarray, negate: bool = False, occupied_thresh: float = DE
     free if ``p < free_thresh``. raw: the (possibly negated) value is the occupancy 0..100; occupied from
     ``occupied_thresh * 100``, free below it, unknown above 100.
     """
-    x = gray.astype(np.float64)
+    x = np.arange(256, dtype=np.float64)  # a lookup table over the gray levels
     if mode == "raw":
         v = 255.0 - x if negate else x
-        return (v >= occupied_thresh * 100) & (v <= 100), v < occupied_thresh * 100
-    p = x / 255.0 if negate else (255.0 - x) / 255.0
-    return p > occupied_thresh, p < free_thresh
+        occ, fre = (v >= occupied_thresh * 100) & (v <= 100), v < occupied_thresh * 100
+    else:
+        p = x / 255.0 if negate else (255.0 - x) / 255.0
+        occ, fre = p > occupied_thresh, p < free_thresh
+    return occ[gray], fre[gray]
 
 
 def resample(occupied: np.ndarray, free: np.ndarray, factor: float) -> np.ndarray:
@@ -303,7 +309,8 @@ def resample(occupied: np.ndarray, free: np.ndarray, factor: float) -> np.ndarra
     def pool(a: np.ndarray) -> np.ndarray:
         return np.add.reduceat(np.add.reduceat(a.astype(np.int32), starts[0], axis=0), starts[1], axis=1)
 
-    total = pool(np.ones(occupied.shape, dtype=bool))
+    sizes = [np.diff(np.append(st, n)) for st, n in zip(starts, occupied.shape, strict=True)]
+    total = np.outer(sizes[0], sizes[1])
     ok = (pool(occupied) == 0) & (2 * pool(free) >= total)
     return np.where(ok, FREE, OCCUPIED).astype(np.int8)
 
@@ -319,13 +326,12 @@ def load_bitmap(path: str | Path, cell_size: float, *, resolution: float | None 
                 name: str | None = None) -> MapData:
     """A PNG/PGM bitmap (dark is occupied, map_server default thresholds) at ``resolution`` m/px.
 
-    ``resolution=None`` means 0.05 m/px, except for a small image (fewer than MIN_CELLS_AT_DEFAULT cells
-    along its longer side at 0.05 m/px), which is taken as already drawn one pixel per cell.
+    ``resolution=None`` means 0.05 m/px, except for a small image (under DRAWN_MAX_PIXELS on its longer
+    side), which is taken as already drawn at the cell size, one pixel per cell.
     """
     gray = _read_gray(Path(path))
     if resolution is None:
-        small = max(gray.shape) * DEFAULT_RESOLUTION / cell_size < MIN_CELLS_AT_DEFAULT
-        resolution = cell_size if small else DEFAULT_RESOLUTION
+        resolution = cell_size if max(gray.shape) < DRAWN_MAX_PIXELS else DEFAULT_RESOLUTION
     occ, fre = classify(gray)
     return _finish(name or str(path), resample(occ, fre, cell_size / resolution), cell_size)
 

@@ -17,7 +17,7 @@ from core.bus import Inbox, client_config, publisher
 from core.codec import Context
 from core.kernels import warm_up
 from core.keys import Keys, robot_ids
-from core.messages import Command, Hello, Observation, Ready, Stop, WorldState
+from core.messages import Command, Failed, Hello, Observation, Ready, Stop, WorldState
 from core.node import NodeBase, run_node, setup_logging
 from core.scenario import Scenario
 from world.maps import MapData, load_map
@@ -52,6 +52,7 @@ class WorldNode(NodeBase):
         self.startup_timeout = startup_timeout
         self.stopped_early = False
         self.interrupted = False
+        self.lost_at_start: set[str] = set()
 
     async def run(self, session: zenoh.Session) -> str:
         """Run the whole episode; returns the reason it ended."""
@@ -61,6 +62,7 @@ class WorldNode(NodeBase):
             inbox.subscribe(session, keys.wildcard("robot", "*", "cmd")),
             inbox.subscribe(session, keys.ready_all),
             inbox.subscribe(session, keys.stop),
+            inbox.subscribe(session, keys.failed("*")),
             inbox.watch_liveliness(session, keys.wildcard("alive", "agent", "*")),
         ]
         self.pub_obs = {r: publisher(session, keys.obs(r)) for r in self.robots}
@@ -69,6 +71,7 @@ class WorldNode(NodeBase):
         pub_stop = publisher(session, keys.stop)
         handles.append(session.liveliness().declare_token(keys.alive("world", "world")))
         self.ctx = Context(senders=frozenset(self.robots), shape=self.world.shape)
+        self.ctx_launcher = Context(senders=frozenset({"launcher"}))
 
         if not await self._handshake(inbox, pub_hello):
             pub_stop.put(Stop(src="world", tick=0, seq=self.next_seq(), reason="startup").encode())
@@ -76,6 +79,10 @@ class WorldNode(NodeBase):
         if self.stopped_early:
             return "interrupted"
         readings = self.world.reset()
+        for r in sorted(self.lost_at_start):  # agents whose process died before the first tick
+            self.world.fail(r)
+        if self.lost_at_start:
+            readings = {r: rd for r, rd in readings.items() if r in self.world.live}
         while True:
             self._publish(readings)
             if self.world.done:
@@ -102,20 +109,33 @@ class WorldNode(NodeBase):
                 self.drop("ctl/ready", f"startup timed out waiting for {sorted(waiting)}")
                 return False
             if now >= next_hello:
-                pub_hello.put(Hello(src="world", tick=0, seq=self.next_seq()).encode())
+                pub_hello.put(Hello(src="world", tick=0, seq=self.next_ctl_seq()).encode())
                 next_hello = now + HELLO_PERIOD
             item = await inbox.get(timeout=HELLO_PERIOD)
             if item is None:
                 continue
-            key, data, _ = item
+            key, data, is_put = item
             if self._interrupted(key, data):
                 self.stopped_early = True
                 return True
+            lost = self._lost(key, data, is_put)
+            if lost in waiting:
+                self.lost_at_start.add(lost)
+                waiting.discard(lost)
             if "/ctl/ready/" in key:
                 ready = self.decode(key, data, Ready)
                 if ready is not None and ready.src == Keys.last(key):
                     waiting.discard(ready.src)
         return True
+
+    def _lost(self, key: str, data: bytes, is_put: bool) -> str | None:
+        """The robot a liveliness deletion or the launcher's failure notice is about, or None."""
+        if "/alive/agent/" in key:
+            return None if is_put else Keys.last(key)
+        if "/ctl/failed/" in key:
+            msg = self.decode(key, data, Failed, self.ctx_launcher)
+            return msg.robot if msg is not None else None
+        return None
 
     def _interrupted(self, key: str, data: bytes) -> bool:
         """The launcher's stop (Ctrl-C) ends the run at once."""
@@ -152,11 +172,11 @@ class WorldNode(NodeBase):
             if self._interrupted(key, data):
                 self.interrupted = True
                 break
-            if "/alive/agent/" in key:
-                robot = Keys.last(key)
-                if not is_put and robot in waiting:
-                    waiting.discard(robot)
-                    self.world.fail(robot)
+            lost = self._lost(key, data, is_put)
+            if lost is not None:
+                if lost in waiting:
+                    waiting.discard(lost)
+                    self.world.fail(lost)
                 continue
             if "/robot/" not in key:
                 continue

@@ -111,7 +111,7 @@ class World:
         current cell; passes repeat until nothing changes, so a line of robots can advance together, and
         two robots never swap or meet.
         """
-        pending = {r: m for r, m in moves.items() if r in self.live and m != STAY and m in MOVES}
+        pending = {r: moves[r] for r in self.live if moves.get(r, STAY) != STAY and moves[r] in MOVES}
         held = set(self.poses.values())
         moved = False
         changed = True

@@ -1,6 +1,14 @@
 """Frontier allocators, one per module, registered by name (``make_allocator({"type": "minpos"})``)."""
 
-from agents.allocators import minpos, nearest  # noqa: F401  (registration)
+from agents.allocators import (  # noqa: F401  (registration)
+    connectivity,
+    greedy,
+    hungarian,
+    minpos,
+    nearest,
+    trade,
+    utility,
+)
 from agents.allocators.base import (
     Allocation,
     Allocator,

@@ -47,7 +47,7 @@ def _tick_messages(path: Path) -> dict[str, list[bytes]]:
     out: dict[str, list[bytes]] = {}
     with open(path, "rb") as f:
         for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
-            if "/ctl/" in channel.topic:
+            if "/ctl/" in channel.topic or channel.message_encoding != "msgpack":
                 continue
             msg = decode(message.data)
             obj = msg.to_obj()

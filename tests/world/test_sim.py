@@ -72,7 +72,7 @@ def test_two_robots_into_one_cell_lowest_id_wins() -> None:
     """, 3)
     w.reset()
     # r0 at (2,2); r1 at (1,2); r2 at (2,1). Both r1 and r2 aim at (1,1).
-    w.step({"r1": (0, -1), "r2": (-1, 0)})
+    w.step({"r2": (-1, 0), "r1": (0, -1)})  # the order commands arrived in does not matter
     assert w.poses["r1"] == (1, 1) and w.poses["r2"] == (2, 1)
 
 

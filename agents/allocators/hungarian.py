@@ -1,0 +1,133 @@
+"""Centralized optimal assignment (Kuhn's Hungarian method, 1955), the reference planner of Yan, Jouandeau and
+Ali Cherif 2011 (section 5, Tables 1-2: "a centralized approach based on the Hungarian method ... in which the task
+allocation is done by a central planner").
+
+The coordinator minimises the total wavefront cost ``sum_ij alpha_ij C_ij`` over one-to-one assignments
+(``scipy.optimize.linear_sum_assignment``). With more robots than clusters the cluster columns are
+replicated ``ceil(n/m)`` times, so every robot is assigned; an unreachable pair costs a large finite value
+that outweighs any sum of real costs, so the assignment maximises the number of robots sent to a reachable
+cluster first. Among optimal assignments scipy's deterministic choice stands (the paper states none).
+
+Protocol (explicit, over the lossy radio): the coordinator is the lowest live robot id, a robot being live to
+me if it is me, or I heard it within ``timeout`` ticks (``Problem.heard``; a robot with a known pose and no
+entry there counts as live: no liveness was recorded). The coordinator assigns the live robots every tick
+and every ``period`` ticks broadcasts an :class:`~core.messages.Assignment` of target cells. Any other robot
+takes its target from the newest Assignment received from the robot it believes is coordinator: the
+reachable cluster whose cells contain the cell, else the reachable cluster whose target is nearest
+(Euclidean). With no such Assignment, or one older than ``timeout`` ticks, or none naming it, it falls back
+to its nearest frontier (MinPos Algorithm 1): moving toward a frontier beats waiting for a message that may
+never come. When the coordinator falls silent for ``timeout`` ticks, the next lowest live id takes over.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from agents.allocators.base import Allocation, Allocator, Problem
+from core.grid import Cell, flat
+from core.messages import Assignment, RadioMsg
+
+
+def optimal_assignment(costs: np.ndarray) -> np.ndarray:
+    """The cluster of each robot row minimising the total cost (columns replicated when rows outnumber
+    them); -1 where a robot could only be given a cluster it cannot reach."""
+    n, m = costs.shape
+    out = np.full(n, -1, dtype=np.int64)
+    if m == 0 or n == 0:
+        return out
+    finite = np.isfinite(costs)
+    big = (float(costs[finite].max()) + 1.0) * (n + 1) if finite.any() else 1.0
+    tiled = np.tile(np.where(finite, costs, big), (1, -(-n // m)))
+    rows, cols = linear_sum_assignment(tiled)
+    out[rows] = cols % m
+    out[~finite[np.arange(n), np.maximum(out, 0)]] = -1
+    return out
+
+
+def total_cost(costs: np.ndarray, assignment: np.ndarray) -> float:
+    """The summed cost of an assignment (row -> cluster)."""
+    return float(sum(costs[i, j] for i, j in enumerate(assignment) if j >= 0))
+
+
+class Hungarian(Allocator, plugin_name="hungarian"):
+    """``timeout``: ticks of silence after which a robot (or an Assignment) counts as gone;
+    ``period``: the coordinator broadcasts its assignment every ``period`` ticks."""
+
+    def __init__(self, timeout: int = 10, period: int = 1, **params: Any) -> None:
+        super().__init__(**params)
+        if not (isinstance(timeout, int) and isinstance(period, int) and timeout >= 1 and period >= 1):
+            raise ValueError("hungarian: timeout and period must be integers >= 1")
+        self.timeout = timeout
+        self.period = period
+        self.received: dict[str, Assignment] = {}
+
+    def params(self) -> dict[str, Any]:
+        return {"timeout": self.timeout, "period": self.period}
+
+    def reset(self, rng: np.random.Generator) -> None:
+        super().reset(rng)
+        self.received = {}
+
+    def live(self, problem: Problem) -> list[str]:
+        """The robots with a known pose that are live to the deciding one, in id order."""
+        return [r for r in problem.robots
+                if r == problem.me or r not in problem.heard or problem.tick - problem.heard[r] <= self.timeout]
+
+    def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
+        for msg in inbox:
+            if isinstance(msg, Assignment) and msg.dst in ("*", problem.me):
+                old = self.received.get(msg.src)
+                if old is None or (msg.tick, msg.seq) > (old.tick, old.seq):
+                    self.received[msg.src] = msg
+        if not problem.clusters:
+            return Allocation.none()
+        live = self.live(problem)
+        if live[0] == problem.me:
+            return self._coordinate(problem, live)
+        msg = self.received.get(live[0])
+        if msg is not None and problem.tick - msg.tick <= self.timeout and problem.me in msg.targets:
+            j = self._cluster_of(problem, msg.targets[problem.me])
+            if j is not None:
+                return Allocation.assigned(problem, j)
+        return self._nearest(problem)
+
+    def _coordinate(self, problem: Problem, live: list[str]) -> Allocation:
+        rows = [problem.robots.index(r) for r in live]
+        plan = optimal_assignment(problem.costs[rows])
+        targets = {r: problem.clusters[j].target for r, j in zip(live, plan, strict=True) if j >= 0}
+        outbox: tuple[RadioMsg, ...] = ()
+        if problem.tick % self.period == 0:
+            outbox = (Assignment(src=problem.me, tick=problem.tick, seq=problem.tick, dst="*", ttl=0,
+                                 round=problem.tick, targets=targets),)
+        if plan[0] >= 0:  # live[0] is me
+            return Allocation.assigned(problem, int(plan[0]), outbox)
+        fallback = self._nearest(problem)
+        return Allocation(fallback.status, fallback.cluster, fallback.target, outbox)
+
+    @staticmethod
+    def _own(problem: Problem) -> np.ndarray:
+        """The deciding robot's row of C, from the wavefronts alone (a non-coordinator needs no more)."""
+        me = problem.poses[problem.me]
+        return np.array([wf[me] if wf[me] >= 0 else np.inf for wf in problem.wavefronts])
+
+    def _cluster_of(self, problem: Problem, cell: Cell) -> int | None:
+        """The reachable cluster holding ``cell``, else the one whose target is nearest to it."""
+        reachable = np.flatnonzero(np.isfinite(self._own(problem)))
+        if not len(reachable):
+            return None
+        index = flat(problem.belief.shape, cell)
+        for j in reachable:
+            cells = problem.clusters[j].cells
+            k = np.searchsorted(cells, index)
+            if k < len(cells) and cells[k] == index:
+                return int(j)
+        targets = np.array([problem.clusters[j].target for j in reachable], dtype=float)
+        return int(reachable[np.argmin(((targets - np.asarray(cell, dtype=float)) ** 2).sum(axis=1))])
+
+    def _nearest(self, problem: Problem) -> Allocation:
+        own = self._own(problem)
+        return Allocation.assigned(problem, int(np.argmin(own))) if np.isfinite(own).any() else Allocation.none()

@@ -1,0 +1,293 @@
+"""Trade-based allocation, Yan, Jouandeau and Ali Cherif 2011 (ICINCO), section 4.
+
+A robot *not in a task* runs one round of the protocol; a robot in a task explores it and does not take part.
+
+1. **Role allocation** (Algorithm 1). Every tick while not in a task, the robot broadcasts its number
+   (``TradeNumber``; ``r3`` is 3). After ``time_max`` ticks of listening it decides: if it heard a number
+   smaller than its own it is a *buyer* of the robot with the smallest number heard, otherwise the *seller*.
+2. **Task allocation** (section 4.2). Tasks are frontier clusters, named by their target cell. Each robot picks
+   the task of least wavefront cost (eq. 2) that its task list does not show as taken by a teammate. A buyer
+   sends the purchase message ``{r, m, c}`` (eq. 3, ``TradePurchase``) to its seller and waits for the answer.
+   The seller, with its own pick, collects purchases for ``bid_period`` ticks, then runs Algorithm 2: per task,
+   the request of lower cost wins (ties to the lower robot number; requests within ``task_radius`` cells count
+   as the same task). It broadcasts the round's task-allocation messages ``{r, m}`` (eq. 4) as one
+   ``TradeAllocation`` whose ``src`` is the seller. "The seller robot itself is also the object of task
+   allocation": a seller whose pick went to a buyer takes its best task not awarded in the round.
+3. **Completion.** A task is done when the belief holds no frontier cell within ``task_radius`` cells of it;
+   the robot broadcasts ``TradeDone`` and starts a new round. Each robot keeps a task list (tasks awarded in
+   any ``TradeAllocation`` it heard, by robot) and drops an entry on ``TradeDone``, when the robot holding it is
+   awarded another task, or after ``claim_ttl`` ticks.
+
+Robustness under loss (our addition; the paper does not say how a robot recovers). Every wait is bounded:
+
+- a buyer whose allocation does not come within ``award_timeout`` ticks (its purchase or the allocation was
+  lost, or the seller went silent) counts a failed round and elects again; a silent seller no longer
+  broadcasts its number, so the next election picks another;
+- a buyer who hears its seller's allocation without its own name (outbid, or its purchase lost) also counts a
+  failed round and elects again, the awarded tasks now in its task list; a robot that receives a purchase
+  while not selling (it was a buyer too, or its bidding period is over) answers with an empty allocation;
+- after ``retries`` failed rounds in a row, the robot allocates itself its own pick at the next decision (as
+  a seller that heard nobody would) and broadcasts that allocation;
+- a task held for ``task_timeout`` ticks is given up (broadcast as done).
+
+So a robot with a reachable frontier is ASSIGNED at most ``(retries + 1) * (time_max + award_timeout) +
+time_max`` ticks after it becomes free. While in a round it returns WAITING (the brain stays); with no
+reachable frontier it returns NO_FRONTIER but still takes part (it can sell to others). Ticks are the time unit.
+The paper gives no value for its timeMax or bidding period (its robots ran in continuous time): the defaults
+are the least that let robots that became free in the same tick, or one tick apart, meet in one round, as one
+tick is a message's latency here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from agents.allocators.base import Allocation, Allocator, AllocStatus, Problem, robot_order
+from core.grid import Cell
+from core.messages import RadioMsg, TradeAllocation, TradeDone, TradeNumber, TradePurchase
+
+
+class Phase(enum.Enum):
+    ELECT = "elect"  # Algorithm 1: broadcasting and listening for numbers
+    SELL = "sell"  # collecting purchases for the bidding period
+    BUY = "buy"  # purchase sent, waiting for the seller's allocation
+    TASK = "task"  # exploring an allocated task
+
+
+@dataclasses.dataclass
+class _State:
+    me: str = ""
+    tick: int = -1
+    phase: Phase = Phase.ELECT
+    since: int = 0  # tick the phase began
+    heard: dict[str, int] = dataclasses.field(default_factory=dict)  # numbers heard this election
+    seller: str = ""
+    pick: tuple[Cell, float] | None = None  # own request (task, cost) this round
+    purchases: dict[str, tuple[Cell, float]] = dataclasses.field(default_factory=dict)
+    task: Cell | None = None
+    started: bool = False  # the task has been explored for at least a tick
+    claims: dict[str, tuple[Cell, int]] = dataclasses.field(default_factory=dict)  # robot -> (task, tick)
+    failures: int = 0
+    seq: int = 0
+
+
+def near(a: Cell, b: Cell, radius: int) -> bool:
+    """Chebyshev distance at most ``radius``: two cells name the same task."""
+    return max(abs(a[0] - b[0]), abs(a[1] - b[1])) <= radius
+
+
+def greedy_table(requests: dict[str, tuple[Cell, float]], radius: int) -> dict[str, Cell]:
+    """Algorithm 2: per task the request of lower cost stays in the allocation table (ties: lower number)."""
+    table: list[tuple[str, Cell, float]] = []
+    for robot in sorted(requests, key=robot_order):
+        task, cost = requests[robot]
+        same = next((k for k, (_, t, _) in enumerate(table) if near(t, task, radius)), None)
+        if same is None:
+            table.append((robot, task, cost))
+        elif cost < table[same][2]:
+            table[same] = (robot, task, cost)
+    return {robot: task for robot, task, _ in table}
+
+
+class Trade(Allocator, plugin_name="trade"):
+    """Yan et al. 2011: role allocation by robot numbers, purchases, a greedy seller (module docstring)."""
+
+    def __init__(self, time_max: int = 2, bid_period: int = 2, award_timeout: int = 5, retries: int = 1,
+                 task_radius: int = 3, claim_ttl: int = 100, task_timeout: int = 300) -> None:
+        super().__init__()
+        values = (time_max, bid_period, award_timeout, retries, task_radius, claim_ttl, task_timeout)
+        if not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in values):
+            raise TypeError("trade parameters are non-negative integers (ticks, cells)")
+        if award_timeout < 1 or task_timeout < 1:
+            raise TypeError("award_timeout and task_timeout must be at least one tick")
+        self.time_max, self.bid_period, self.award_timeout = time_max, bid_period, award_timeout
+        self.retries, self.task_radius = retries, task_radius
+        self.claim_ttl, self.task_timeout = claim_ttl, task_timeout
+        self.s = _State()
+
+    def params(self) -> dict[str, Any]:
+        return {"time_max": self.time_max, "bid_period": self.bid_period, "award_timeout": self.award_timeout,
+                "retries": self.retries, "task_radius": self.task_radius, "claim_ttl": self.claim_ttl,
+                "task_timeout": self.task_timeout}
+
+    def reset(self, rng: np.random.Generator) -> None:
+        super().reset(rng)
+        self.s = _State()
+
+    # --- one tick -------------------------------------------------------------------------------------
+
+    def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
+        s = self.s
+        if problem.me != s.me or problem.tick < s.tick:  # another robot, or time went back: start afresh
+            self.s = s = _State(me=problem.me, tick=problem.tick, since=problem.tick)
+        s.tick = problem.tick
+        out: list[RadioMsg] = []
+        self._receive(problem, inbox, out)
+        s.claims = {r: c for r, c in s.claims.items() if problem.tick - c[1] <= self.claim_ttl}
+
+        if s.phase is Phase.TASK:
+            alloc = self._explore(problem, out)
+            if alloc is not None:
+                return alloc
+        if s.phase is Phase.ELECT and problem.tick - s.since >= self.time_max:
+            self._decide(problem, out)
+        if s.phase is Phase.SELL and problem.tick - s.since >= self.bid_period:
+            self._close_sale(problem, out)
+        if s.phase is Phase.BUY and problem.tick - s.since >= self.award_timeout:
+            s.failures += 1  # no allocation in time: purchase or allocation lost, or the seller is silent
+            self._enter(Phase.ELECT, problem.tick)
+        if s.phase is Phase.TASK:  # allocated a task this tick
+            alloc = self._explore(problem, out)
+            if alloc is not None:
+                return alloc
+        out.append(self._msg(TradeNumber, problem, "*", number=self._number(s.me)))  # Alg. 1 line 2
+        status = AllocStatus.WAITING if self._pick(problem) is not None else AllocStatus.NO_FRONTIER
+        return Allocation(status, outbox=tuple(out))
+
+    def _explore(self, problem: Problem, out: list[RadioMsg]) -> Allocation | None:
+        """ASSIGNED to the allocated task's cluster; None (back to role allocation) when the task is done,
+        was given up after ``task_timeout`` ticks, or vanished before the robot could start it."""
+        s = self.s
+        assert s.task is not None
+        j = self._track(problem, s.task)
+        if j is not None and problem.tick - s.since < self.task_timeout:
+            s.failures, s.started = 0, True
+            return Allocation.assigned(problem, j, tuple(out))
+        if not s.started:  # the task's frontier vanished while we traded: a wasted round
+            s.failures += 1
+        out.append(self._msg(TradeDone, problem, "*", task=s.task))  # done (or given up): tell the team
+        s.claims.pop(s.me, None)
+        self._enter(Phase.ELECT, problem.tick)
+        return None
+
+    # --- protocol steps -------------------------------------------------------------------------------
+
+    def _receive(self, problem: Problem, inbox: Sequence[RadioMsg], out: list[RadioMsg]) -> None:
+        s = self.s
+        for msg in inbox:
+            if msg.src == s.me:
+                continue
+            if isinstance(msg, TradeNumber):
+                if s.phase is Phase.ELECT and msg.tick >= s.since:  # sent during this election
+                    s.heard[msg.src] = msg.number
+            elif isinstance(msg, TradePurchase) and msg.dst == s.me:
+                if s.phase is Phase.SELL:
+                    s.purchases[msg.src] = (msg.task, msg.cost)
+                else:  # not selling (any more): an empty allocation sends the buyer back to role allocation
+                    out.append(self._msg(TradeAllocation, problem, msg.src, awards={}))
+            elif isinstance(msg, TradeAllocation):
+                for robot, task in msg.awards.items():
+                    if robot != s.me:
+                        s.claims[robot] = (task, problem.tick)
+                if s.phase is Phase.BUY and msg.src == s.seller and msg.tick >= s.since:  # answers our purchase
+                    if s.me in msg.awards:
+                        self._take(msg.awards[s.me], problem.tick)
+                    else:  # outbid, or our purchase was lost: a new round, the awarded tasks now known
+                        s.failures += 1
+                        self._enter(Phase.ELECT, problem.tick)
+            elif isinstance(msg, TradeDone):
+                held = s.claims.get(msg.src)
+                if held is not None and near(held[0], msg.task, self.task_radius):
+                    del s.claims[msg.src]
+
+    def _decide(self, problem: Problem, out: list[RadioMsg]) -> None:
+        """End of Algorithm 1: seller if no smaller number was heard, else buyer of the smallest heard."""
+        s = self.s
+        pick = self._pick(problem)
+        mine = self._number(s.me)
+        smaller = {r: n for r, n in s.heard.items() if n < mine}
+        if s.failures > self.retries:  # fallback: allocate ourselves our own pick, and say so
+            if pick is None:
+                self._enter(Phase.ELECT, problem.tick)
+                return
+            out.append(self._msg(TradeAllocation, problem, "*", awards={s.me: pick[0]}))
+            self._take(pick[0], problem.tick)
+        elif smaller:
+            s.seller = min(smaller, key=lambda r: (smaller[r], robot_order(r)))
+            if pick is None:  # nothing to buy: listen again
+                self._enter(Phase.ELECT, problem.tick)
+                return
+            out.append(self._msg(TradePurchase, problem, s.seller, task=pick[0], cost=float(pick[1])))
+            s.pick = pick
+            self._enter(Phase.BUY, problem.tick)
+        else:
+            s.pick = pick
+            self._enter(Phase.SELL, problem.tick)
+
+    def _close_sale(self, problem: Problem, out: list[RadioMsg]) -> None:
+        """End of the bidding period: Algorithm 2 over the purchases and the seller's own pick."""
+        s = self.s
+        requests = dict(s.purchases)
+        pick = self._pick(problem)  # the seller's pick, on its newest belief
+        if pick is not None:
+            requests[s.me] = pick
+        awards = greedy_table(requests, self.task_radius)
+        if pick is not None and s.me not in awards:  # outbid on its own pick: its best task left over
+            other = self._pick(problem, exclude=list(awards.values()))
+            if other is not None:
+                awards[s.me] = other[0]
+        if awards:
+            out.append(self._msg(TradeAllocation, problem, "*", awards=awards))
+        for robot, task in awards.items():
+            if robot != s.me:
+                s.claims[robot] = (task, problem.tick)
+        if s.me in awards:
+            self._take(awards[s.me], problem.tick)
+        else:
+            self._enter(Phase.ELECT, problem.tick)
+
+    # --- helpers --------------------------------------------------------------------------------------
+
+    def _enter(self, phase: Phase, tick: int) -> None:
+        s = self.s
+        s.phase, s.since = phase, tick
+        if phase is Phase.ELECT:
+            s.heard, s.purchases, s.pick, s.seller, s.task = {}, {}, None, "", None
+        elif phase is Phase.SELL:
+            s.purchases = {}
+
+    def _take(self, task: Cell, tick: int) -> None:
+        self._enter(Phase.TASK, tick)
+        self.s.task, self.s.started = task, False
+        self.s.claims[self.s.me] = (task, tick)
+
+    def _pick(self, problem: Problem, exclude: Sequence[Cell] = ()) -> tuple[Cell, float] | None:
+        """The reachable task of least wavefront cost (eq. 2) not taken by a teammate nor in ``exclude``;
+        if every reachable task is taken, the least-cost one anyway (a free robot never idles)."""
+        if not problem.clusters:
+            return None
+        costs = problem.costs[problem.index]
+        reach = np.flatnonzero(np.isfinite(costs))
+        if not len(reach):
+            return None
+        taken = [t for r, (t, _) in self.s.claims.items() if r != self.s.me] + list(exclude)
+        free = [j for j in reach if not any(near(problem.clusters[j].target, t, self.task_radius) for t in taken)]
+        pool = free or [int(j) for j in reach if problem.clusters[j].target not in exclude] or list(reach)
+        j = min(pool, key=lambda k: (costs[k], k))
+        return problem.clusters[j].target, float(costs[j])
+
+    def _track(self, problem: Problem, task: Cell) -> int | None:
+        """The reachable cluster with a frontier cell nearest the task (within ``task_radius``), or None
+        when the task's frontier is gone: the task is done."""
+        me = problem.poses[problem.me]
+        cols = problem.belief.shape[1]
+        best: tuple[int, int] | None = None
+        for j, cluster in enumerate(problem.clusters):
+            rows, cs = np.divmod(cluster.cells, cols)
+            d = int(np.maximum(np.abs(rows - task[0]), np.abs(cs - task[1])).min())
+            if d <= self.task_radius and problem.wavefronts[j][me] >= 0 and (best is None or d < best[0]):
+                best = (d, j)
+        return None if best is None else best[1]
+
+    def _msg(self, cls: type[RadioMsg], problem: Problem, dst: str, **payload: Any) -> RadioMsg:
+        self.s.seq += 1
+        return cls(src=problem.me, tick=problem.tick, seq=self.s.seq, dst=dst, ttl=0, **payload)
+
+    @staticmethod
+    def _number(robot: str) -> int:
+        return robot_order(robot)[0]

@@ -1,0 +1,311 @@
+"""The metrics of a run, recomputed from its recorded bus messages (a pure fold, like :mod:`launch.monitor`).
+
+:class:`RunMetrics` feeds every recorded sample to a :class:`launch.monitor.Monitor` — the same fold that makes
+``result.json`` live, so the recomputed result has the same keys and values — and folds the rest of the stream
+(observations, tx/rx bundles, commands, ready messages) into:
+
+- ``exploration_time``: the first ticks at 90, 99 and 100 % coverage (the world's coverage: the fraction of the
+  free cells reachable from the start that some robot has sensed);
+- ``path``: cells travelled per robot and in total;
+- ``efficiency``: distinct free cells sensed by the team per cell travelled by the team;
+- ``overlap``: cells sensed by more than one robot (from the observations), and their fraction of the cells the
+  team sensed;
+- ``share``: how evenly the exploring was shared. Each robot is credited with the cells it sensed first (a cell
+  first sensed by k robots in the same tick gives each 1/k); ``share`` is each robot's fraction of that credit.
+  Evenness is **Jain's fairness index** J = (sum x)^2 / (n sum x^2) over the credits (1 = perfectly even,
+  1/n = one robot did it all); the Gini coefficient of the same credits is given too (0 = even);
+- ``connectivity``: the fraction of ticks the team's link graph was connected, and for each pair of robots the
+  fraction of ticks they had a link (Benavides et al.'s "connection time %");
+- ``radio``: sent/delivered/dropped by cause (netem's counters), and per robot the messages and bytes it sent
+  (the encoded tx bundles' sizes), bytes per tick, and the messages it received;
+- ``decision_time``: the allocator's time per call (every command is one call), overall and per robot.
+
+The per-tick series (coverage, connectivity, messages per tick) and the trajectories are kept for the plots.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from core.codec import DecodeError, decode
+from core.keys import robot_ids
+from core.messages import Command, Links, Observation, Ready, RxBundle, Stop, TxBundle, WorldState
+from launch.monitor import Monitor
+
+#: result.json keys that a recording cannot give back (they describe the launcher process, not the run)
+NOT_RECORDED = ("wall_seconds",)
+
+
+def jain(x: list[float] | np.ndarray) -> float | None:
+    """Jain's fairness index of non-negative values: 1 when all are equal, 1/n when one has everything."""
+    a = np.asarray(x, dtype=float)
+    if len(a) == 0 or not (a**2).sum():
+        return None
+    return float(a.sum() ** 2 / (len(a) * (a**2).sum()))
+
+
+def gini(x: list[float] | np.ndarray) -> float | None:
+    """The Gini coefficient of non-negative values: 0 when all are equal, (n-1)/n when one has everything."""
+    a = np.sort(np.asarray(x, dtype=float))
+    n = len(a)
+    if n == 0 or not a.sum():
+        return None
+    return float((2 * np.arange(1, n + 1) - n - 1) @ a / (n * a.sum()))
+
+
+def _r(x: float | None, nd: int = 6) -> float | None:
+    return None if x is None else round(float(x), nd)
+
+
+@dataclasses.dataclass
+class TickSeries:
+    """Per-tick values for the plots."""
+
+    connected: dict[int, bool] = dataclasses.field(default_factory=dict)
+    links: dict[int, int] = dataclasses.field(default_factory=dict)
+    strength: dict[int, float] = dataclasses.field(default_factory=dict)  # mean signal over live pairs, dB
+    tx_msgs: dict[int, int] = dataclasses.field(default_factory=dict)
+    tx_bytes: dict[int, int] = dataclasses.field(default_factory=dict)
+    rx_msgs: dict[int, int] = dataclasses.field(default_factory=dict)
+
+    def arrays(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        d: dict[int, Any] = getattr(self, name)
+        ticks = np.array(sorted(d), dtype=int)
+        return ticks, np.array([d[t] for t in ticks], dtype=float)
+
+
+class RunMetrics:
+    """Fold of one run's recorded samples; ``metrics()`` is what ``fleet report`` writes to metrics.json."""
+
+    def __init__(self, scenario: dict[str, Any], run_id: str) -> None:
+        self.scenario = scenario
+        self.run_id = run_id
+        self.robots = tuple(robot_ids(int(scenario["robots"])))
+        self.monitor = Monitor(self.robots)
+        self.messages = 0
+        self.undecodable = 0
+        self.shape: tuple[int, int] | None = None
+        self.first_seen: dict[str, np.ndarray] = {}  # per robot: tick it first sensed each cell (-1 never)
+        self.truth_seen: np.ndarray | None = None  # true values of the cells sensed (-1 never sensed)
+        self.trajectory: dict[str, list[tuple[int, tuple[int, int]]]] = {r: [] for r in self.robots}
+        self.pair_ticks: dict[tuple[str, str], int] = {}
+        self.tx_msgs = dict.fromkeys(self.robots, 0)
+        self.tx_bytes = dict.fromkeys(self.robots, 0)
+        self.tx_bundles = dict.fromkeys(self.robots, 0)
+        self.rx_msgs = dict.fromkeys(self.robots, 0)
+        self.kinds: dict[str, int] = {}
+        self.decisions: dict[str, list[float]] = {r: [] for r in self.robots}
+        self.pids: dict[str, int] = {}
+        self.launcher_stop: Stop | None = None
+        self.series = TickSeries()
+        self._traj_tick = -1
+
+    # --- the fold ---------------------------------------------------------------------------------------
+
+    def feed(self, key: str, data: bytes, publish_ns: int | None = None) -> None:
+        """One recorded msgpack sample (topic, bytes, its publish time)."""
+        self.messages += 1
+        msg = self.monitor.feed(key, data, publish_ns)
+        kind = key.split("/", 2)[-1]
+        if msg is None:
+            if not kind.startswith(("world/obs/", "radio/tx/", "radio/rx/", "ctl/ready/")):
+                return
+            try:
+                msg = decode(data)
+            except DecodeError:
+                self.undecodable += 1
+                return
+            if isinstance(msg, TxBundle) and msg.src in self.tx_bytes:
+                self.tx_bytes[msg.src] += len(data)
+                self.series.tx_bytes[msg.tick] = self.series.tx_bytes.get(msg.tick, 0) + len(data)
+        if isinstance(msg, WorldState) and msg.src == "world":
+            self._state(msg)
+        elif isinstance(msg, Links) and msg.src == "netem":
+            self._links(msg)
+        elif isinstance(msg, Observation) and msg.src == "world":
+            self._observe(msg)
+        elif isinstance(msg, TxBundle) and msg.src in self.tx_msgs:
+            self.tx_msgs[msg.src] += len(msg.msgs)
+            self.tx_bundles[msg.src] += 1
+            self.series.tx_msgs[msg.tick] = self.series.tx_msgs.get(msg.tick, 0) + len(msg.msgs)
+            for m in msg.msgs:
+                self.kinds[m.KIND] = self.kinds.get(m.KIND, 0) + 1
+        elif isinstance(msg, RxBundle) and msg.dst in self.rx_msgs:
+            self.rx_msgs[msg.dst] += len(msg.msgs)
+            self.series.rx_msgs[msg.tick] = self.series.rx_msgs.get(msg.tick, 0) + len(msg.msgs)
+        elif isinstance(msg, Command) and msg.src in self.decisions:
+            self.decisions[msg.src].append(msg.decision_ms)
+        elif isinstance(msg, Ready):
+            self.pids[msg.src] = msg.pid
+        elif isinstance(msg, Stop) and msg.src == "launcher":
+            self.launcher_stop = msg
+
+    def _state(self, st: WorldState) -> None:
+        if st.tick <= self._traj_tick:
+            return
+        self._traj_tick = st.tick
+        for r in self.robots:
+            if r in st.poses:
+                cell = (int(st.poses[r][0]), int(st.poses[r][1]))
+                traj = self.trajectory[r]
+                if not traj or traj[-1][1] != cell:
+                    traj.append((st.tick, cell))
+
+    def _links(self, lk: Links) -> None:
+        t = lk.tick
+        link = np.asarray(lk.link, dtype=bool)
+        strength = np.asarray(lk.strength, dtype=float)
+        n = len(lk.robots)
+        iu = np.triu_indices(n, 1)
+        und = link | link.T
+        self.series.connected[t] = bool(lk.connected)
+        self.series.links[t] = int(und[iu].sum())
+        if n > 1:
+            sym = np.maximum(strength, strength.T)[iu]
+            sym = sym[np.isfinite(sym)]
+            if len(sym):
+                self.series.strength[t] = float(sym.mean())
+        for i, j in zip(*iu, strict=True):
+            if und[i, j]:
+                pair = tuple(sorted((lk.robots[i], lk.robots[j]), key=self._order))
+                self.pair_ticks[pair] = self.pair_ticks.get(pair, 0) + 1  # type: ignore[index]
+
+    def _order(self, r: str) -> int:
+        return self.robots.index(r) if r in self.robots else len(self.robots)
+
+    def _observe(self, o: Observation) -> None:
+        if o.robot not in self.first_seen:
+            if self.shape is None:
+                self.shape = (int(o.shape[0]), int(o.shape[1]))
+                self.truth_seen = np.full(self.shape[0] * self.shape[1], -1, dtype=np.int8)
+            self.first_seen[o.robot] = np.full(self.shape[0] * self.shape[1], -1, dtype=np.int32)
+        if tuple(o.shape) != self.shape:
+            return
+        fs = self.first_seen[o.robot]
+        cells = o.cells.astype(np.int64)
+        mask = (fs[cells] < 0) | (fs[cells] > o.tick)
+        fs[cells[mask]] = o.tick
+        self.truth_seen[cells] = o.values  # type: ignore[index]
+
+    # --- results --------------------------------------------------------------------------------------------
+
+    def result(self, recording_path: str | None = None) -> dict[str, Any]:
+        """result.json, recomputed: the monitor's result plus what the launcher adds (but ``wall_seconds``)."""
+        res = self.monitor.result(self.scenario, self.run_id, self.scenario["target_coverage"])
+        if self.launcher_stop is not None and self.launcher_stop.reason == "interrupted":
+            res["reason"] = "interrupted"
+        elif self.launcher_stop is not None or getattr(self.monitor.stop, "reason", None) == "startup":
+            res["reason"] = "error"  # as the runner says when a process died or the start timed out
+        res["pids"] = {"world": self.pids.get("world"), "netem": self.pids.get("netem"),
+                       "agents": [self.pids.get(r) for r in self.robots]}
+        res["recording"] = {"path": recording_path, "messages": self.messages}
+        res["scenario"] = self.scenario
+        return res
+
+    def coverage_stats(self) -> dict[str, Any]:
+        """Team, per-robot and overlapping sensed cells, first-discovery credit and its evenness."""
+        if not self.first_seen or self.shape is None:
+            n = len(self.robots)
+            return {"team_cells": 0, "free_cells": 0, "per_robot": dict.fromkeys(self.robots, 0),
+                    "overlap_cells": 0, "overlap_fraction": None, "credit": dict.fromkeys(self.robots, 0.0),
+                    "share": dict.fromkeys(self.robots, None), "jain": None, "gini": None, "n": n}
+        big = np.iinfo(np.int32).max
+        empty = np.full(self.shape[0] * self.shape[1], -1, dtype=np.int32)
+        stack = np.stack([self.first_seen.get(r, empty) for r in self.robots])
+        sensed = stack >= 0
+        team = sensed.any(axis=0)
+        firsts = np.where(sensed, stack, big)
+        team_first = firsts.min(axis=0)
+        discoverer = sensed & (firsts == team_first) & team
+        k = discoverer.sum(axis=0)
+        credit = (discoverer / np.maximum(k, 1)).sum(axis=1)
+        total = float(credit.sum())
+        overlap = int((sensed.sum(axis=0) >= 2).sum())
+        team_cells = int(team.sum())
+        return {
+            "team_cells": team_cells,
+            "free_cells": int((self.truth_seen == 0).sum()),  # type: ignore[operator]
+            "per_robot": {r: int(sensed[i].sum()) for i, r in enumerate(self.robots)},
+            "overlap_cells": overlap,
+            "overlap_fraction": _r(overlap / team_cells) if team_cells else None,
+            "credit": {r: round(float(credit[i]), 3) for i, r in enumerate(self.robots)},
+            "share": {r: _r(credit[i] / total) if total else None for i, r in enumerate(self.robots)},
+            "jain": _r(jain(credit)),
+            "gini": _r(gini(credit)),
+        }
+
+    def first_tick_at(self, level: float) -> int | None:
+        for t, c in self.monitor.coverage_curve:
+            if c >= level - 1e-12:
+                return t
+        return None
+
+    def metrics(self, recording_path: str | None = None) -> dict[str, Any]:
+        """Everything ``fleet report`` writes: result.json's keys, then the analysis groups."""
+        res = self.result(recording_path)
+        cov = self.coverage_stats()
+        path = res["path_length"]
+        total_path = int(sum(path))
+        link_ticks = self.monitor.link_ticks
+        pairs = {}
+        for i, a in enumerate(self.robots):
+            for b in self.robots[i + 1:]:
+                n = self.pair_ticks.get((a, b), 0)
+                pairs[f"{a}-{b}"] = _r(n / link_ticks) if link_ticks else None
+        all_ms = np.array([m for r in self.robots for m in self.decisions[r]], dtype=float)
+        lk = self.monitor.links
+        sent = lk.sent if lk else 0
+        res.update({
+            "exploration_time": {"t90": self.first_tick_at(0.90), "t99": self.first_tick_at(0.99),
+                                 "t100": self.first_tick_at(1.0)},
+            "path": {"per_robot": dict(zip(self.robots, path, strict=True)), "total": total_path},
+            "efficiency": {
+                "definition": "distinct free cells sensed by the team per cell travelled by the team",
+                "free_cells_sensed": cov["free_cells"],
+                "cells_travelled": total_path,
+                "value": _r(cov["free_cells"] / total_path) if total_path else None,
+            },
+            "overlap": {"cells": cov["overlap_cells"], "fraction": cov["overlap_fraction"],
+                        "team_cells_sensed": cov["team_cells"], "per_robot_cells_sensed": cov["per_robot"]},
+            "share": {
+                "definition": "cells each robot sensed first (simultaneous firsts split evenly); "
+                              "evenness by Jain's fairness index (1 = even, 1/n = one robot), and Gini (0 = even)",
+                "credit": cov["credit"], "share": cov["share"], "jain": cov["jain"], "gini": cov["gini"],
+            },
+            "connectivity": {
+                "connected_fraction": res["connected_fraction"],
+                "ticks": link_ticks,
+                "pair_link_fraction": pairs,
+                "mean_links": _r(np.mean(list(self.series.links.values()))) if self.series.links else None,
+                "mean_signal_db": _r(np.mean(list(self.series.strength.values())), 3)
+                if self.series.strength else None,
+            },
+            "radio_detail": {
+                "sent": sent,
+                "delivered": lk.delivered if lk else 0,
+                "dropped": {"loss": lk.dropped_loss if lk else 0, "signal": lk.dropped_signal if lk else 0},
+                "delivered_fraction": _r(lk.delivered / sent) if lk and sent else None,
+                "by_kind": dict(sorted(self.kinds.items())),
+                "per_robot": {r: {
+                    "msgs_sent": self.tx_msgs[r],
+                    "bytes_sent": self.tx_bytes[r],
+                    "bytes_per_tick": _r(self.tx_bytes[r] / self.tx_bundles[r], 2) if self.tx_bundles[r] else None,
+                    "msgs_received": self.rx_msgs[r],
+                } for r in self.robots},
+                "bytes_per_robot_per_tick": _r(sum(self.tx_bytes.values()) / sum(self.tx_bundles.values()), 2)
+                if sum(self.tx_bundles.values()) else None,
+            },
+            "decision_time": {
+                "calls": len(all_ms),
+                "mean_ms": _r(all_ms.mean(), 4) if len(all_ms) else None,
+                "p50_ms": _r(np.percentile(all_ms, 50), 4) if len(all_ms) else None,
+                "p95_ms": _r(np.percentile(all_ms, 95), 4) if len(all_ms) else None,
+                "max_ms": _r(all_ms.max(), 4) if len(all_ms) else None,
+                "per_robot_mean_ms": {r: _r(np.mean(v), 4) if v else None for r, v in self.decisions.items()},
+            },
+            "undecodable": self.undecodable,
+        })
+        return res

@@ -1,0 +1,219 @@
+"""Every registered allocator against the conformance checks, and greedy, utility and Hungarian on their own:
+cost matrices and grids drawn as ASCII art."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+import agents.allocators  # noqa: F401  (registers every allocator)
+from agents.allocators import Allocator, AllocStatus, Problem, make_allocator
+from agents.allocators.conformance import api_test, seed_test
+from agents.allocators.greedy import greedy_choice, greedy_pairs
+from agents.allocators.hungarian import Hungarian, optimal_assignment, total_cost
+from agents.allocators.utility import utility_choice
+from agents.frontiers import find_clusters
+from core.grid import Cell, from_ascii
+from core.messages import Assignment, PoseBeacon, decode
+
+INF = np.inf
+
+CONFIGS: list[dict[str, Any]] = [{"type": name} for name in sorted(Allocator.registry)] + [
+    {"type": "minpos", "wavefront": "stop"},
+    {"type": "minpos", "wavefront": "parallel"},
+    {"type": "utility", "beta": 0.5, "sensor_range": 3.0},
+    {"type": "hungarian", "timeout": 3, "period": 2},
+]
+
+
+def _id(config: dict[str, Any]) -> str:
+    return "-".join(str(v) for v in config.values())
+
+
+@pytest.mark.parametrize("config", CONFIGS, ids=_id)
+def test_conformance(config: dict[str, Any]) -> None:
+    api_test(config)
+    seed_test(config)
+
+
+@pytest.mark.parametrize("name", sorted(Allocator.registry))
+def test_to_dict_and_unknown_parameters(name: str) -> None:
+    alloc = make_allocator({"type": name})
+    assert alloc.to_dict() == {"type": name, **alloc.params()}
+    with pytest.raises(ValueError, match="bogus"):
+        make_allocator({"type": name, "bogus": 1})
+
+
+def problem(art: str, me: str, tick: int = 0, heard: dict[str, int] | None = None) -> Problem:
+    grid, robots = from_ascii(art)
+    return Problem(me=me, poses=robots, belief=grid, clusters=find_clusters(grid, 4), tick=tick,
+                   heard=heard or {})
+
+
+# --- greedy (MinPos paper Algorithm 2) ---------------------------------------------------------------
+
+def test_greedy_takes_the_cheapest_pair_first() -> None:
+    costs = np.array([[4.0, 1.0, 6.0],
+                      [2.0, 3.0, 5.0],
+                      [3.0, 2.0, 9.0]])
+    assert greedy_pairs(costs) == [(0, 1), (1, 0), (2, 2)]
+    assert [greedy_choice(costs, i) for i in range(3)] == [1, 0, 2]
+
+
+def test_greedy_ties_go_to_lowest_robot_then_lowest_cluster() -> None:
+    costs = np.array([[2.0, 2.0], [2.0, 2.0]])
+    assert greedy_pairs(costs) == [(0, 0), (1, 1)]
+
+
+def test_greedy_resets_the_frontiers_when_robots_outnumber_them() -> None:
+    costs = np.array([[1.0, 5.0], [2.0, 6.0], [3.0, 4.0], [1.5, 9.0]])
+    # r0-F0 (1), then only F1 is left: r2-F1 (4); F is empty, so F = F_init: r3-F0 (1.5), then r1-F1 (6)
+    assert greedy_pairs(costs) == [(0, 0), (2, 1), (3, 0), (1, 1)]
+    assert greedy_choice(costs, 1) == 1
+
+
+def test_greedy_skips_unreachable_pairs() -> None:
+    costs = np.array([[1.0, INF], [2.0, INF], [INF, INF]])
+    assert greedy_choice(costs, 0) == 0
+    assert greedy_choice(costs, 1) == 0  # F1 reaches nobody left, so F = F_init again
+    assert greedy_choice(costs, 2) is None
+
+
+# --- utility (Burgard et al. 2005) ---------------------------------------------------------------------
+
+TARGETS = np.array([[0, 0], [0, 2], [0, 20]])  # T0 and T1 within sensor range of each other, T2 far away
+UCOSTS = np.array([[1.0, 2.0, 10.0],
+                   [2.0, 1.0, 5.0]])
+
+
+def test_utility_discounts_targets_near_an_assigned_one() -> None:
+    # r0: U - V = 1 - 0.1 at T0, r1: 1 - 0.1 at T1: a tie, r0 first, takes T0. T1 is 2 cells away:
+    # U_T1 = 1 - P(2) = 1 - (1 - 2/8) = 0.25, so r1 prefers the far T2 (1 - 0.5) to T1 (0.25 - 0.1).
+    assert utility_choice(UCOSTS, TARGETS, 0) == 0
+    assert utility_choice(UCOSTS, TARGETS, 1) == 2
+    assert greedy_choice(UCOSTS, 1) == 1  # greedy, blind to the overlap, sends r1 next to r0
+
+
+def test_utility_parameters_change_the_trade() -> None:
+    assert utility_choice(UCOSTS, TARGETS, 1, sensor_range=2.0) == 1  # T1 out of range: no discount
+    assert utility_choice(UCOSTS, TARGETS, 1, beta=10.0) == 1  # cost dominates
+    assert make_allocator({"type": "utility", "beta": 2, "sensor_range": 4}).to_dict() == {
+        "type": "utility", "beta": 2.0, "sensor_range": 4.0}
+    with pytest.raises(ValueError):
+        make_allocator({"type": "utility", "sensor_range": 0})
+
+
+def test_utility_gives_every_robot_a_target_even_with_few_targets() -> None:
+    costs = np.array([[1.0], [2.0], [3.0]])
+    assert [utility_choice(costs, np.array([[0, 0]]), i) for i in range(3)] == [0, 0, 0]
+
+
+# --- hungarian (Kuhn 1955; the reference of Yan et al. 2011) ------------------------------------------
+
+def test_hungarian_finds_the_optimum_where_greedy_does_not() -> None:
+    costs = np.array([[1.0, 2.0, 9.0],
+                      [2.0, 9.0, 9.0],
+                      [9.0, 3.0, 4.0]])
+    greedy = np.array([greedy_choice(costs, i) for i in range(3)])
+    optimal = optimal_assignment(costs)
+    assert greedy.tolist() == [0, 2, 1] and total_cost(costs, greedy) == 1 + 9 + 3
+    assert optimal.tolist() == [1, 0, 2] and total_cost(costs, optimal) == 2 + 2 + 4
+
+
+def test_hungarian_replicates_clusters_and_avoids_unreachable_ones() -> None:
+    costs = np.array([[1.0, 8.0], [2.0, 3.0], [1.0, 7.0], [INF, INF]])
+    plan = optimal_assignment(costs)
+    assert plan[3] == -1 and sorted(plan[:3].tolist()) == [0, 0, 1] and plan[1] == 1
+    assert optimal_assignment(np.array([[INF, 1.0], [INF, 2.0]])).tolist() in ([1, -1], [-1, 1])
+
+
+# r0 is next to the left frontier; r1's nearest is the left one too, but the optimum sends it right.
+LINE = """
+##############
+?.0..1.......?
+##############
+"""
+LEFT, RIGHT = (1, 1), (1, 12)
+
+
+def test_hungarian_coordinator_broadcasts_the_optimal_assignment() -> None:
+    alloc = make_allocator({"type": "hungarian"})
+    a = alloc.allocate(problem(LINE, "r0", tick=4, heard={"r1": 4}))
+    assert a.target == LEFT
+    (msg,) = a.outbox
+    assert isinstance(msg, Assignment) and (msg.src, msg.dst, msg.tick) == ("r0", "*", 4)
+    assert msg.targets == {"r0": LEFT, "r1": RIGHT}
+    assert decode(msg.encode()) == msg
+
+
+def test_hungarian_follower_takes_its_target_from_the_coordinator() -> None:
+    coordinator = make_allocator({"type": "hungarian"})
+    (msg,) = coordinator.allocate(problem(LINE, "r0", tick=4, heard={"r1": 4})).outbox
+    follower = make_allocator({"type": "hungarian"})
+    alone = follower.allocate(problem(LINE, "r1", tick=5, heard={"r0": 4}))
+    assert alone.target == LEFT and alone.outbox == ()  # nothing heard yet: nearest frontier
+    beacon = PoseBeacon(src="r0", tick=4, seq=1, dst="*", ttl=0, cell=(1, 2))
+    told = follower.allocate(problem(LINE, "r1", tick=5, heard={"r0": 4}), [beacon, msg])
+    assert told.target == RIGHT and told.outbox == ()
+    assert follower.allocate(problem(LINE, "r1", tick=9, heard={"r0": 8})).target == RIGHT  # kept
+    stale = follower.allocate(problem(LINE, "r1", tick=15, heard={"r0": 14}))
+    assert stale.target == LEFT  # the assignment is older than the timeout: nearest again
+
+
+def test_hungarian_follower_ignores_assignments_from_others() -> None:
+    follower = make_allocator({"type": "hungarian"})
+    rogue = Assignment(src="r2", tick=4, seq=4, dst="*", ttl=0, round=4, targets={"r1": RIGHT})
+    p = problem(LINE, "r1", tick=5, heard={"r0": 5})
+    assert follower.allocate(p, [rogue]).target == LEFT
+
+
+def test_hungarian_next_live_robot_takes_over_from_a_silent_coordinator() -> None:
+    alloc = make_allocator({"type": "hungarian", "timeout": 5})
+    a = alloc.allocate(problem(LINE, "r1", tick=20, heard={"r0": 14}))  # r0 silent for 6 ticks
+    (msg,) = a.outbox
+    assert msg.src == "r1" and msg.targets == {"r1": LEFT}  # r0 is no longer assigned
+    assert a.target == LEFT
+    still = alloc.allocate(problem(LINE, "r1", tick=20, heard={"r0": 15}))
+    assert still.outbox == ()
+
+
+def test_hungarian_broadcasts_every_period_ticks() -> None:
+    alloc = make_allocator({"type": "hungarian", "period": 3})
+    sent = [bool(alloc.allocate(problem(LINE, "r0", tick=t, heard={"r1": t})).outbox) for t in range(7)]
+    assert sent == [True, False, False, True, False, False, True]
+
+
+def test_hungarian_maps_a_target_cell_to_a_reachable_cluster() -> None:
+    p = problem(LINE, "r1")
+    h = Hungarian()
+    assert h._cluster_of(p, RIGHT) == 1
+    assert h._cluster_of(p, (1, 10)) == 1  # not a frontier cell: the cluster with the nearest target
+    assert h._cluster_of(p, (1, 3)) == 0
+
+
+def test_hungarian_without_frontier() -> None:
+    art = """
+    #####
+    #0.1#
+    #####
+    """
+    assert make_allocator({"type": "hungarian"}).allocate(problem(art, "r0")).status is AllocStatus.NO_FRONTIER
+
+
+def _cells(alloc_targets: dict[str, Cell | None]) -> set[Cell | None]:
+    return set(alloc_targets.values())
+
+
+def test_every_coordinating_allocator_spreads_two_robots_on_the_line() -> None:
+    for name in ("greedy", "hungarian", "minpos", "utility"):
+        heard = {"r0": 0, "r1": 0}
+        got = {}
+        for me in ("r0", "r1"):
+            alloc = make_allocator({"type": name})
+            inbox = []
+            if name == "hungarian" and me == "r1":
+                inbox = list(make_allocator({"type": name}).allocate(problem(LINE, "r0", heard=heard)).outbox)
+            got[me] = alloc.allocate(problem(LINE, me, heard=heard), inbox).target
+        assert _cells(got) == {LEFT, RIGHT}, name

@@ -1,0 +1,137 @@
+"""Connectivity-aware MinPos (Benavides et al. 2016) on hand-drawn grids."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from agents.allocators import AllocStatus, Problem, make_allocator
+from agents.allocators.conformance import CROSS, WALLED, api_test, random_problem, seed_test
+from agents.allocators.connectivity import connectivity, utilities, wall_mask
+from agents.frontiers import find_clusters
+from core.grid import from_ascii
+from netem.signal import RadioParams
+
+RADIO = RadioParams()  # c = 10 m, PL = 2, WAF = 3.1 dB, C = 4
+
+
+def problem(art: str, me: str = "r0") -> Problem:
+    grid, robots = from_ascii(art)
+    return Problem(me=me, poses=robots, belief=grid, clusters=find_clusters(grid, 4))
+
+
+def test_conformance() -> None:
+    api_test({"type": "connectivity"})
+    seed_test({"type": "connectivity"})
+    api_test({"type": "connectivity", "alpha": 0.0, "beta": 1.0, "lam": 1.0, "unknown_walls": True})
+    assert make_allocator({"type": "connectivity"}).to_dict() == {
+        "type": "connectivity", "alpha": 0.6, "beta": 0.4, "lam": 0.5, "comm_range": 10.0, "cell_size": 0.5,
+        "path_loss": 2.0, "waf": 3.1, "max_walls": 4, "unknown_walls": False}
+    with pytest.raises(ValueError):
+        make_allocator({"type": "connectivity", "lam": 1.5})
+
+
+def test_beta_zero_is_minpos() -> None:
+    minpos = make_allocator({"type": "minpos"})
+    conn = make_allocator({"type": "connectivity", "beta": 0.0})
+    rng = np.random.default_rng(3)
+    problems = [problem(CROSS, me) for me in ("r0", "r1", "r2", "r3")] + [problem(WALLED)]
+    problems += [random_problem(rng, me=f"r{k % 4}") for k in range(40)]
+    for p in problems:
+        assert conn.allocate(p) == minpos.allocate(p)
+
+
+# r1's room has no door: r1 cannot reach any frontier (its positions never count), but its radio hears
+# through the one wall below it. Frontier A (3,1) is 1 m below r1 through that wall; frontier B (5,14) is
+# nearer r0 (5 cells against 10) but 6.8 m from r1 through two walls.
+TWO_WAYS = """
+################
+#1.............#
+################
+?..........0...#
+##############.#
+##############.#
+##############?#
+"""
+
+
+def test_prefers_the_frontier_in_radio_range() -> None:
+    p = problem(TWO_WAYS)
+    targets = [c.target for c in p.clusters]
+    a, b = targets.index((3, 1)), targets.index((5, 14))
+    walls = wall_mask(p.belief)
+    r1 = [p.poses["r1"]]
+    assert connectivity(walls, (3, 1), r1, 1.0, 0.5, RADIO) == pytest.approx(-20 * math.log10(1.0 / 10) - 3.1)
+    assert connectivity(walls, (5, 14), r1, 1.0, 0.5, RADIO) == pytest.approx(
+        -20 * math.log10(math.hypot(4, 13) * 0.5 / 10) - 2 * 3.1)
+    assert make_allocator({"type": "minpos"}).allocate(p).cluster == b
+    assert make_allocator({"type": "connectivity", "beta": 0.0}).allocate(p).cluster == b
+    assert make_allocator({"type": "connectivity", "alpha": 0.1, "beta": 1.0}).allocate(p).cluster == a
+    assert make_allocator({"type": "connectivity"}).allocate(p).cluster == a  # the paper's alpha = 0.6 too
+    assert make_allocator({"type": "connectivity", "alpha": 0.99, "beta": 0.01}).allocate(p).cluster == b
+    assert make_allocator({"type": "connectivity", "lam": 0.0}).allocate(p).cluster == b  # lambda 0: ideal radio
+
+
+# Eq. 8 at T = (0, 0): r2 is nearer (3 cells = 1.5 m, one wall), so it takes lambda^1; r1 (9 cells = 4.5 m,
+# no wall) takes lambda^2.
+EQ8 = """
+.........1.....
+...............
+###############
+2..............
+"""
+
+
+def test_eq8_by_hand() -> None:
+    p = problem(EQ8)
+    walls = wall_mask(p.belief)
+    others = [p.poses["r1"], p.poses["r2"]]
+    lam = 0.5
+    expected = lam * (-20 * math.log10(1.5 / 10) - 1 * 3.1) + lam ** 2 * (-20 * math.log10(4.5 / 10))
+    assert expected == pytest.approx(0.5 * 13.3782 + 0.25 * 6.9357, abs=1e-4)  # 8.4230 dB
+    assert connectivity(walls, (0, 0), others, lam, 0.5, RADIO) == pytest.approx(expected)
+    # lambda = 1 weighs both alike; a 6 m range lowers every term by 20 log10(10 / 6)
+    both = (-20 * math.log10(0.15) - 3.1) + (-20 * math.log10(0.45))
+    assert connectivity(walls, (0, 0), others, 1.0, 0.5, RADIO) == pytest.approx(both)
+    six = RadioParams(comm_range=6.0)
+    assert connectivity(walls, (0, 0), others, 1.0, 0.5, six) == pytest.approx(both - 2 * 20 * math.log10(10 / 6))
+    # a teammate on the target counts as one cell away, not 1 mm
+    assert connectivity(walls, (0, 9), [p.poses["r1"]], 1.0, 0.5, RADIO) == pytest.approx(-20 * math.log10(0.05))
+
+
+def test_utilities_match_eq9() -> None:
+    p = problem(TWO_WAYS)
+    alpha, beta, lam = 0.6, 0.4, 0.5
+    u = utilities(p, alpha, beta, lam, 0.5, RADIO)
+    walls = wall_mask(p.belief)
+    i = p.index
+    for j, c in enumerate(p.clusters):
+        cost = p.costs[i, j]
+        if np.isfinite(cost):
+            conn = connectivity(walls, c.target, [p.poses["r1"]], lam, 0.5, RADIO)
+            assert u[i, j] == pytest.approx(-alpha * cost * 0.5 + beta * conn)
+        else:
+            assert u[i, j] == -np.inf
+    assert (u[p.robots.index("r1")] == -np.inf).all()  # r1 reaches nothing
+
+
+def test_unknown_cells_as_walls() -> None:
+    art = """
+    0..?..1
+    """
+    p = problem(art)
+    free = wall_mask(p.belief)
+    unknown = wall_mask(p.belief, unknown_walls=True)
+    base = -20 * math.log10(3.0 / 10)
+    assert connectivity(free, (0, 0), [p.poses["r1"]], 1.0, 0.5, RADIO) == pytest.approx(base)
+    assert connectivity(unknown, (0, 0), [p.poses["r1"]], 1.0, 0.5, RADIO) == pytest.approx(base - 3.1)
+
+
+def test_alone_is_minpos_on_cost() -> None:
+    p = problem("""
+    ?....0..?
+    """)
+    a = make_allocator({"type": "connectivity", "beta": 1.0}).allocate(p)
+    assert a.status is AllocStatus.ASSIGNED and a.target == (0, 7)

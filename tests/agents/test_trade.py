@@ -1,0 +1,257 @@
+"""The trade-based allocator (Yan et al. 2011) driven as a fleet: each allocator's outbox goes, through the
+codec, to the others' inboxes one tick later (netem's latency), with a seeded function that drops some."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from agents.allocators import AllocStatus, Problem, make_allocator
+from agents.allocators.conformance import api_test, seed_test
+from agents.allocators.trade import greedy_table
+from agents.frontiers import find_clusters
+from agents.navigation import next_move
+from core.grid import FREE, OCCUPIED, UNKNOWN, Cell, from_ascii
+from core.kernels import visible_cells, wavefront
+from core.messages import Context, RadioMsg, TradeAllocation, TradeNumber, TradePurchase, decode
+
+Drop = Callable[[RadioMsg, str, int], bool]  # (message, receiver, tick it was sent) -> lost?
+
+# Four one-cell frontiers at the corners; each robot has its own nearest one.
+CORNERS = """
+?.............?
+#.0...........#
+#...........2.#
+#.1...........#
+?.............?
+"""
+
+# Same frontiers, but r0 and r1 both nearest the top-left one.
+CONTENDED = """
+?.............?
+#.0...........#
+#.1.........2.#
+#.............#
+?.............?
+"""
+
+T, A, R = 2, 5, 1  # the defaults: time_max, award_timeout, retries
+BOUND = (R + 1) * (T + A) + T  # the documented worst case, in ticks after a robot becomes free
+
+
+def never(msg: RadioMsg, dst: str, tick: int) -> bool:
+    return False
+
+
+class Fleet:
+    """Allocators of several robots on one shared belief, messages delivered the next tick."""
+
+    def __init__(self, robots: list[str], **params: int) -> None:
+        self.allocs = {r: make_allocator({"type": "trade", **params}) for r in robots}
+        for k, a in enumerate(self.allocs.values()):
+            a.reset(np.random.default_rng(k))
+        self.pending: list[RadioMsg] = []
+        self.sent: list[RadioMsg] = []
+        self.statuses: dict[str, list[AllocStatus]] = {r: [] for r in robots}
+        self.targets: dict[str, Cell | None] = dict.fromkeys(robots)
+
+    def tick(self, t: int, belief: np.ndarray, poses: dict[str, Cell], drop: Drop = never,
+             silent: frozenset[str] = frozenset()) -> dict[str, int | None]:
+        ctx = Context(senders=frozenset(self.allocs), shape=belief.shape)
+        clusters = find_clusters(belief, 4)
+        out: list[RadioMsg] = []
+        chosen: dict[str, int | None] = {}
+        for r, alloc in self.allocs.items():
+            inbox = [decode(m.encode(), ctx) for m in self.pending
+                     if m.src != r and m.dst in ("*", r) and not drop(m, r, t - 1)]
+            p = Problem(me=r, poses=poses, belief=belief, clusters=clusters, tick=t)
+            a = alloc.allocate(p, inbox)
+            self.statuses[r].append(a.status)
+            self.targets[r] = a.target
+            chosen[r] = a.cluster if a.status is AllocStatus.ASSIGNED else None
+            for m in a.outbox:
+                assert (m.src, m.tick, m.ttl) == (r, t, 0) and m.dst in ({"*"} | set(self.allocs))
+            if r not in silent:
+                out.extend(a.outbox)
+        self.sent.extend(out)
+        self.pending = out
+        return chosen
+
+    def run_static(self, art: str, ticks: int, drop: Drop = never, silent_from: dict[str, int] | None = None) -> None:
+        grid, poses = from_ascii(art)
+        for t in range(ticks):
+            silent = frozenset(r for r, t0 in (silent_from or {}).items() if t >= t0)
+            self.tick(t, grid, poses, drop, silent)
+
+    def first_assigned(self, robot: str, after: int = 0) -> int | None:
+        for t, st in enumerate(self.statuses[robot]):
+            if t >= after and st is AllocStatus.ASSIGNED:
+                return t
+        return None
+
+
+def drop_first(kind: type[RadioMsg], src: str | None = None, dst: str | None = None) -> Drop:
+    """Loses the first message of ``kind`` (from ``src``, to receiver ``dst``), once."""
+    state = {"done": False}
+
+    def drop(msg: RadioMsg, receiver: str, tick: int) -> bool:
+        if state["done"] or not isinstance(msg, kind):
+            return False
+        if (src is None or msg.src == src) and (dst is None or receiver == dst):
+            state["done"] = True
+            return True
+        return False
+
+    return drop
+
+
+def test_conformance() -> None:
+    api_test({"type": "trade"})
+    seed_test({"type": "trade"})
+    api_test({"type": "trade", "time_max": 0, "bid_period": 0, "award_timeout": 1, "retries": 0})
+    assert make_allocator({"type": "trade"}).to_dict() == {
+        "type": "trade", "time_max": 2, "bid_period": 2, "award_timeout": 5, "retries": 1, "task_radius": 3,
+        "claim_ttl": 100, "task_timeout": 300}
+    with pytest.raises(ValueError):
+        make_allocator({"type": "trade", "time_max": -1})
+
+
+def test_greedy_table_is_algorithm_2() -> None:
+    requests = {"r2": ((0, 0), 3.0), "r1": ((0, 1), 5.0), "r3": ((9, 9), 1.0), "r0": ((0, 0), 5.0)}
+    # r0, r1 and r2 ask for the same task (within 3 cells): the lowest cost, r2, keeps it; r3 alone.
+    assert greedy_table(requests, 3) == {"r2": (0, 0), "r3": (9, 9)}
+    assert greedy_table({"r1": ((0, 0), 2.0), "r0": ((0, 0), 2.0)}, 0) == {"r0": (0, 0)}  # tie: lower number
+
+
+def test_normal_round_allocates_distinct_tasks() -> None:
+    fleet = Fleet(["r0", "r1", "r2"])
+    fleet.run_static(CORNERS, 12)
+    # tick 0-1: numbers; tick 2: r0 seller, r1 and r2 buy; tick 4: r0 allocates; tick 5: buyers have it.
+    assert all(fleet.statuses[r][:2] == [AllocStatus.WAITING] * 2 for r in fleet.allocs)
+    assert fleet.first_assigned("r0") == 2 + 2
+    assert fleet.first_assigned("r1") == fleet.first_assigned("r2") == 2 + 2 + 1
+    assert all(s is AllocStatus.ASSIGNED for st in fleet.statuses.values() for s in st[5:])
+    assert fleet.targets == {"r0": (0, 1), "r1": (4, 1), "r2": (0, 13)}
+    buys = [m for m in fleet.sent if isinstance(m, TradePurchase)]
+    assert sorted((m.src, m.dst, m.task, m.cost) for m in buys) == [("r1", "r0", (4, 1), 2.0),
+                                                                    ("r2", "r0", (0, 13), 3.0)]
+    allocs = [m for m in fleet.sent if isinstance(m, TradeAllocation)]
+    assert len(allocs) == 1 and allocs[0].src == "r0"
+    assert allocs[0].awards == {"r0": (0, 1), "r1": (4, 1), "r2": (0, 13)}
+    numbers = [m for m in fleet.sent if isinstance(m, TradeNumber)]
+    assert all(m.tick <= 4 for m in numbers)  # robots in a task stop broadcasting their numbers
+
+
+def test_outbid_buyer_gets_another_task() -> None:
+    fleet = Fleet(["r0", "r1", "r2"])
+    fleet.run_static(CONTENDED, 30)
+    # r1 asks for r0's task and loses (Algorithm 2); it learns r0's and r2's tasks and buys another.
+    t1 = fleet.first_assigned("r1")
+    assert t1 is not None and t1 <= BOUND
+    assert len(set(fleet.targets.values())) == 3 and None not in fleet.targets.values()
+
+
+@pytest.mark.parametrize("drop", [
+    drop_first(TradePurchase, src="r1"),
+    drop_first(TradeAllocation, src="r0", dst="r1"),
+    drop_first(TradeAllocation, src="r0"),  # lost to every buyer
+], ids=["lost-purchase", "lost-allocation", "lost-allocation-all"])
+def test_lost_message_does_not_deadlock(drop: Drop) -> None:
+    fleet = Fleet(["r0", "r1", "r2"])
+    fleet.run_static(CORNERS, 40, drop=drop)
+    for r in fleet.allocs:
+        t = fleet.first_assigned(r)
+        assert t is not None and t <= BOUND, (r, t)
+        assert all(s is AllocStatus.ASSIGNED for s in fleet.statuses[r][t:]), r
+    assert len(set(fleet.targets.values())) == 3
+
+
+def test_silent_seller_leads_to_re_election() -> None:
+    fleet = Fleet(["r0", "r1", "r2"])
+    fleet.run_static(CORNERS, 40, silent_from={"r0": 1})  # r0 is heard at tick 0, elected, never heard again
+    for r in ("r1", "r2"):
+        t = fleet.first_assigned(r)
+        assert t is not None and t <= BOUND, (r, t)
+    allocs = [m for m in fleet.sent if isinstance(m, TradeAllocation)]
+    assert [m.src for m in allocs] == ["r1"]  # the next lowest number sold
+    assert fleet.targets["r1"] != fleet.targets["r2"]
+
+
+def test_silent_teammate_from_the_start() -> None:
+    fleet = Fleet(["r0", "r1", "r2"])
+    fleet.run_static(CORNERS, 20, silent_from={"r1": 0})
+    # r1 hears the others, so it buys from r0; its purchase never arrives and r0's allocation lacks it: it
+    # elects again (alone, the others in their tasks), sells to itself and takes the task left over.
+    assert {r: fleet.first_assigned(r) for r in fleet.allocs} == {"r0": 4, "r1": 5 + T + 2, "r2": 5}
+    assert len(set(fleet.targets.values())) == 3
+
+
+# --- a small explored world: moving robots, sensing, tasks completing, half the messages lost -------------
+
+TRUTH = """
+######################
+#0.1.....#...........#
+#2.3.....#...........#
+#........#...........#
+#####.####...........#
+#....................#
+#........######.######
+#........#...........#
+#........#...........#
+######################
+"""
+
+
+def explore(ticks: int, loss: float, seed: int) -> tuple[Fleet, float]:
+    truth, poses = from_ascii(TRUTH)
+    occupied = truth == OCCUPIED
+    belief = np.full(truth.shape, UNKNOWN, dtype=np.int8)
+    fleet = Fleet(sorted(poses))
+    rng = np.random.default_rng(seed)
+
+    def lossy(msg: RadioMsg, dst: str, tick: int) -> bool:
+        return bool(rng.random() < loss)
+
+    for t in range(ticks):
+        for cell in poses.values():  # every robot's scan, shared (map sharing is the brain's business)
+            seen = visible_cells(occupied, cell[0], cell[1], 3.0)
+            belief.flat[seen] = truth.flat[seen]
+        chosen = fleet.tick(t, belief.copy(), poses, lossy)
+        clusters = find_clusters(belief, 4)
+        passable = belief == FREE
+        for r, j in chosen.items():
+            if j is None:
+                continue
+            wf = wavefront(passable, clusters[j].cells.astype(np.int64), -1)
+            dr, dc = next_move(wf, poses[r])  # robots pass each other here: no traffic jams in this test
+            poses[r] = (poses[r][0] + dr, poses[r][1] + dc)
+    known = (belief != UNKNOWN) & (truth == FREE)
+    return fleet, known.sum() / (truth == FREE).sum()
+
+
+def longest_wait(statuses: list[AllocStatus]) -> int:
+    run = best = 0
+    for s in statuses:
+        run = run + 1 if s is AllocStatus.WAITING else 0
+        best = max(best, run)
+    return best
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_half_the_messages_lost_still_assigns(seed: int) -> None:
+    fleet, coverage = explore(200, 0.5, seed)
+    for r, st in fleet.statuses.items():
+        assert longest_wait(st) <= BOUND, (r, longest_wait(st))
+        assert st.count(AllocStatus.ASSIGNED) > 0
+    rounds = [m for m in fleet.sent if isinstance(m, TradeAllocation)]
+    assert len(rounds) > len(fleet.allocs)  # tasks were completed and traded again
+    assert coverage == 1.0
+
+
+def test_lossless_exploration_completes() -> None:
+    fleet, coverage = explore(200, 0.0, 0)
+    assert coverage == 1.0
+    for st in fleet.statuses.values():
+        assert longest_wait(st) <= BOUND
