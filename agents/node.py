@@ -27,14 +27,16 @@ def brain_config(scenario: Scenario) -> BrainConfig:
 
 
 def allocator_config(scenario: Scenario) -> dict:
-    """The scenario's allocator config; a radio-aware allocator predicts links with the scenario's radio
-    and cell size unless its config sets its own."""
+    """The scenario's allocator config; an allocator that models the radio or the sensor (connectivity,
+    utility) uses the scenario's unless its config sets its own."""
     config = dict(scenario.allocator)
     if config.get("type") == "connectivity":
         r = scenario.radio
         for k, v in (("comm_range", r.comm_range), ("cell_size", scenario.cell_size), ("path_loss", r.path_loss),
                      ("waf", r.waf), ("max_walls", r.max_walls)):
             config.setdefault(k, v)
+    if config.get("type") == "utility":
+        config.setdefault("sensor_range", scenario.sensor_cells)
     return config
 
 

@@ -50,7 +50,7 @@ MILESTONES = (0.25, 0.5, 0.75, 0.9, 0.99, 1.0)
 UINT8, INT8 = 1, 2
 LINE_STRIP, LINE_LIST = 0, 2
 DELETE_MATCHING_ID = 0
-DEBUG, INFO, WARNING = 1, 2, 3
+INFO, WARNING = 2, 3
 
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22",
            "#7f7f7f")
@@ -191,7 +191,7 @@ class FoxgloveFold:
         self.emitted: set[str] = set()  # scene entity ids currently shown
         self.flushed = -1  # last tick whose scene was emitted
         self.live: tuple[str, ...] | None = None
-        self.milestones = [m for m in sorted({*MILESTONES, float(scenario.get("target_coverage", 1.0))})]
+        self.milestones = sorted({*MILESTONES, float(scenario.get("target_coverage", 1.0))})
         self.connected: bool | None = None
         self.belief_tick: dict[str, int] = {}
         self.started = False

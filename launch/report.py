@@ -85,27 +85,31 @@ def read_run(path: Path) -> Run:
         fold: RunMetrics | None = None
         messages = 0
         truncated = False
-        reader = StreamReader(f, record_size_limit=max(size, 1))
-        try:
-            for rec in reader.records:
-                if isinstance(rec, McapMessage):
-                    messages += 1
-                    ch = channels.get(rec.channel_id)
-                    if ch is None or ch.message_encoding != "msgpack":
-                        continue
-                    if fold is None:
-                        pending.append((ch.topic, rec.data, rec.publish_time))
-                    else:
-                        fold.feed(ch.topic, rec.data, rec.publish_time)
-                elif isinstance(rec, Channel):
-                    channels.setdefault(rec.id, rec)
-                elif isinstance(rec, Metadata) and rec.name == "scenario" and fold is None:
-                    fold = _fold_for(rec.metadata, mcap)
-                    for item in pending:
-                        fold.feed(*item)
-                    pending.clear()
-        except Exception:  # the file ends inside a record (a cut recording): keep what was read
-            truncated = True
+        records = StreamReader(f, record_size_limit=max(size, 1)).records
+        while True:
+            try:
+                rec = next(records)
+            except StopIteration:
+                break
+            except Exception:  # the file ends inside a record (a cut recording): keep what was read
+                truncated = True
+                break
+            if isinstance(rec, McapMessage):
+                messages += 1
+                ch = channels.get(rec.channel_id)
+                if ch is None or ch.message_encoding != "msgpack":
+                    continue
+                if fold is None:
+                    pending.append((ch.topic, rec.data, rec.publish_time))
+                else:
+                    fold.feed(ch.topic, rec.data, rec.publish_time)
+            elif isinstance(rec, Channel):
+                channels.setdefault(rec.id, rec)
+            elif isinstance(rec, Metadata) and rec.name == "scenario" and fold is None:
+                fold = _fold_for(rec.metadata, mcap)
+                for item in pending:
+                    fold.feed(*item)
+                pending.clear()
     if fold is None:
         if truncated and not messages:
             raise ReportError(f"{mcap} was cut before anything was flushed to it")

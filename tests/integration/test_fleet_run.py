@@ -33,7 +33,9 @@ def test_three_robot_processes_explore_a_small_map(small_map: Path, tmp_path: Pa
         assert summary is not None
         count = sum(summary.statistics.channel_message_counts.values())
         topics = {c.topic for c in summary.channels.values()}
-        assert {c.message_encoding for c in summary.channels.values()} == {"msgpack"}
+        encodings = {c.topic: c.message_encoding for c in summary.channels.values()}
+        assert {e for t, e in encodings.items() if t.startswith("fleet/")} == {"msgpack"}  # the bus, as sent
+        assert {e for t, e in encodings.items() if t.startswith("/viz/")} == {"json"}  # the Foxglove views
         meta = list(reader.iter_metadata())
     assert count == res["recording"]["messages"]
     run = res["run_id"]

@@ -1,0 +1,76 @@
+"""Mean ticks to 99 % coverage per allocator, fleet size and map, over several seeds (the real fleet).
+
+    python benchmarks/compare_allocators.py [--allocators nearest greedy utility minpos hungarian]
+        [--robots 2 4 8] [--seeds 5] [--maps office ../shared/maps/stage/hospital_section.yaml]
+        [--loss 0] [--jobs 2] [--in-process]
+
+Each cell runs ``fleet run`` as a subprocess (``--no-record --quiet``) and reads its ``result.json``. A run that
+does not reach the target counts as its last tick and is flagged with ``*`` (and the count of such runs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+HOSPITAL = ROOT.parent / "shared" / "maps" / "stage" / "hospital_section.yaml"
+
+
+def run_one(allocator: str, robots: int, seed: int, map_name: str, loss: float, extra: list[str]) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run"
+        cmd = [sys.executable, "-m", "launch", "run", "--map", map_name, "--robots", str(robots),
+               "--allocator", allocator, "--seed", str(seed), "--loss", str(loss), "--quiet", "--no-record",
+               "--out", str(out), *extra]
+        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
+        if not (out / "result.json").exists():
+            return {"error": proc.stderr.strip()[-300:]}
+        return json.loads((out / "result.json").read_text())
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--allocators", nargs="+", default=["nearest", "greedy", "utility", "minpos", "hungarian"])
+    p.add_argument("--robots", type=int, nargs="+", default=[2, 4, 8])
+    p.add_argument("--seeds", type=int, default=5)
+    p.add_argument("--maps", nargs="+", default=["office", str(HOSPITAL)])
+    p.add_argument("--loss", type=float, default=0.0)
+    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--in-process", action="store_true", help="all nodes of a run in one process")
+    a = p.parse_args()
+    extra = ["--in-process"] if a.in_process else []
+    jobs = [(al, n, s, m) for m in a.maps for n in a.robots for al in a.allocators for s in range(a.seeds)]
+    with ThreadPoolExecutor(a.jobs) as pool:
+        results = list(pool.map(lambda j: run_one(j[0], j[1], j[2], j[3], a.loss, extra), jobs))
+    table: dict[tuple[str, int, str], list[dict]] = {}
+    for (al, n, _, m), r in zip(jobs, results, strict=True):
+        table.setdefault((m, n, al), []).append(r)
+    print(f"mean ticks to {99}% coverage (t99), loss {a.loss}, seeds 0..{a.seeds - 1}; "
+          f"'*k' = k runs that did not reach it (counted at their last tick)")
+    for m in a.maps:
+        print(f"\nmap {Path(m).stem}")
+        print(f"{'robots':>6} " + " ".join(f"{al:>16}" for al in a.allocators))
+        for n in a.robots:
+            cells = []
+            for al in a.allocators:
+                rs = table[(m, n, al)]
+                errors = [r for r in rs if "error" in r]
+                ok = [r for r in rs if "error" not in r]
+                ticks = [r["t99"] if r["t99"] is not None else r["ticks"] for r in ok]
+                miss = sum(1 for r in ok if r["t99"] is None)
+                text = f"{statistics.mean(ticks):.0f}±{statistics.pstdev(ticks):.0f}" if ticks else "-"
+                text += f" *{miss}" if miss else ""
+                text += f" E{len(errors)}" if errors else ""
+                cells.append(f"{text:>16}")
+            print(f"{n:>6} " + " ".join(cells))
+
+
+if __name__ == "__main__":
+    main()
