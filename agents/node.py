@@ -3,7 +3,6 @@ publishes its tx bundle and command. Only this module touches Zenoh and the cloc
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import resource
 
@@ -12,12 +11,12 @@ import zenoh
 
 from agents.allocators import make_allocator
 from agents.brain import Brain, BrainConfig
-from core.bus import Inbox, client_config, publisher
+from core.bus import Inbox, publisher
 from core.codec import Context
 from core.kernels import warm_up
 from core.keys import Keys, robot_ids
 from core.messages import AgentReport, BeliefSnapshot, Observation, RxBundle, Stop, TxBundle
-from core.node import NodeBase, run_node, setup_logging
+from core.node import NodeBase, node_main
 from core.rng import generator
 from core.scenario import Scenario
 
@@ -124,12 +123,5 @@ class AgentNode(NodeBase):
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m agents --robot r0 --run RUN --connect ENDPOINT --scenario FILE.json``."""
-    from launch.childargs import parse_child
-
-    parser = argparse.ArgumentParser(prog="agents")
-    parser.add_argument("--robot", required=True)
-    args = parse_child(parser, argv)
-    setup_logging()
-    node = AgentNode(args.scenario, args.run, args.robot)
-    with zenoh.open(client_config(args.connect)) as session:
-        asyncio.run(run_node(node.run(session)))
+    node_main("agents", lambda a: AgentNode(a.scenario, a.run, a.robot), argv,
+              lambda p: p.add_argument("--robot", required=True))

@@ -12,6 +12,21 @@ import numpy as np
 UNREACHED: int = -1
 
 
+@numba.njit(cache=True, inline="always")
+def _neighbour(cur: int, k: int, rows: int, cols: int) -> int:
+    """Flat index of the k-th 4-neighbour of ``cur`` (up, down, left, right: :data:`core.grid.MOVES`), or -1
+    off the grid."""
+    r = cur // cols
+    c = cur - r * cols
+    if k == 0:
+        return cur - cols if r > 0 else -1
+    if k == 1:
+        return cur + cols if r < rows - 1 else -1
+    if k == 2:
+        return cur - 1 if c > 0 else -1
+    return cur + 1 if c < cols - 1 else -1
+
+
 @numba.njit(cache=True)
 def wavefront(passable: np.ndarray, sources: np.ndarray, stop: int = -1) -> np.ndarray:
     """BFS distance (4-connected, unit cost) from every source over ``passable`` cells.
@@ -38,26 +53,11 @@ def wavefront(passable: np.ndarray, sources: np.ndarray, stop: int = -1) -> np.n
     while head < tail:
         cur = queue[head]
         head += 1
-        r = cur // cols
-        c = cur - r * cols
         d = dist[cur] + 1
         for k in range(4):
-            if k == 0:
-                if r == 0:
-                    continue
-                nxt = cur - cols
-            elif k == 1:
-                if r == rows - 1:
-                    continue
-                nxt = cur + cols
-            elif k == 2:
-                if c == 0:
-                    continue
-                nxt = cur - 1
-            else:
-                if c == cols - 1:
-                    continue
-                nxt = cur + 1
+            nxt = _neighbour(cur, k, rows, cols)
+            if nxt < 0:
+                continue
             if dist[nxt] < 0 and flat_pass[nxt]:
                 dist[nxt] = d
                 if nxt == stop:
@@ -190,25 +190,10 @@ def _expand_layer(flat_pass, rows, cols, seen, base, crowd, me, cell, link, spar
         if cur == me:
             return True, found, fresh, used, nspare
         found += crowd[cur]
-        r = cur // cols
-        c = cur - r * cols
         for k in range(4):
-            if k == 0:
-                if r == 0:
-                    continue
-                nxt = cur - cols
-            elif k == 1:
-                if r == rows - 1:
-                    continue
-                nxt = cur + cols
-            elif k == 2:
-                if c == 0:
-                    continue
-                nxt = cur - 1
-            else:
-                if c == cols - 1:
-                    continue
-                nxt = cur + 1
+            nxt = _neighbour(cur, k, rows, cols)
+            if nxt < 0:
+                continue
             if flat_pass[nxt] and not seen[base + nxt]:
                 seen[base + nxt] = True
                 if nspare > 0:

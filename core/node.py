@@ -5,17 +5,23 @@ The node shells (world, netem, agents) are the only code that touches Zenoh; the
 
 from __future__ import annotations
 
+import argparse
+import asyncio
+import json
 import logging
 import os
 import sys
-from typing import TypeVar
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
 
 import zenoh
 
-from core.bus import Inbox, publisher
+from core.bus import Inbox, client_config, publisher
 from core.codec import Context, DecodeError, Message, decode
 from core.keys import Keys
 from core.messages import Hello, Ready
+from core.scenario import ConfigError, Scenario
 
 M = TypeVar("M", bound=Message)
 
@@ -78,8 +84,6 @@ def setup_logging() -> None:
 
 async def watch_parent(period: float = 0.5) -> None:
     """Exit the process when the launcher that spawned it dies (no orphan is left behind)."""
-    import asyncio
-
     parent = os.getppid()
     while True:
         await asyncio.sleep(period)
@@ -90,11 +94,38 @@ async def watch_parent(period: float = 0.5) -> None:
 
 async def run_node(node_coro, watch: bool = True) -> None:  # type: ignore[no-untyped-def]
     """Run a node's coroutine with the parent watchdog beside it."""
-    import asyncio
-
     watchdog = asyncio.create_task(watch_parent()) if watch else None
     try:
         await node_coro
     finally:
         if watchdog is not None:
             watchdog.cancel()
+
+
+def parse_child(parser: argparse.ArgumentParser, argv: list[str] | None) -> argparse.Namespace:
+    """The command line every child process takes: ``--run``, ``--connect``, ``--scenario FILE.json``
+    (written by ``fleet run``). A bad scenario file is one line on stderr and exit code 2."""
+    parser.add_argument("--run", required=True, help="run id (the <run> of the key expressions)")
+    parser.add_argument("--connect", required=True, help="router endpoint, e.g. tcp/127.0.0.1:7447")
+    parser.add_argument("--scenario", required=True, type=Path, help="scenario as JSON (written by fleet run)")
+    args = parser.parse_args(argv)
+    try:
+        args.scenario = Scenario.from_dict(json.loads(args.scenario.read_text())).validate()
+    except (OSError, ValueError, TypeError, ConfigError) as exc:
+        print(f"{parser.prog}: error: bad scenario {args.scenario}: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
+    return args
+
+
+def node_main(prog: str, build: Callable[[argparse.Namespace], Any], argv: list[str] | None,
+              extra: Callable[[argparse.ArgumentParser], None] | None = None) -> None:
+    """The ``__main__`` of a node process: parse the child command line, build the node, open one client
+    session to the router, and run the node with the parent watchdog beside it."""
+    parser = argparse.ArgumentParser(prog=prog)
+    if extra is not None:
+        extra(parser)
+    args = parse_child(parser, argv)
+    setup_logging()
+    node = build(args)
+    with zenoh.open(client_config(args.connect)) as session:
+        asyncio.run(run_node(node.run(session)))

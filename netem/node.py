@@ -7,19 +7,17 @@ The channel itself is :class:`netem.channel.Channel`; the signal model is :mod:`
 
 from __future__ import annotations
 
-import argparse
-import asyncio
 import time
 
 import numpy as np
 import zenoh
 
-from core.bus import Inbox, client_config, publisher
+from core.bus import Inbox, publisher
 from core.codec import Context
 from core.kernels import warm_up
 from core.keys import Keys, robot_ids
 from core.messages import Links, RxBundle, Stop, TxBundle, WorldState
-from core.node import NodeBase, run_node, setup_logging
+from core.node import NodeBase, node_main
 from core.rng import generator
 from core.scenario import Scenario
 from netem.channel import Channel
@@ -157,10 +155,4 @@ class NetemNode(NodeBase):
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m netem --run RUN --connect ENDPOINT --scenario FILE.json``."""
-    from launch.childargs import parse_child
-
-    args = parse_child(argparse.ArgumentParser(prog="netem"), argv)
-    setup_logging()
-    node = NetemNode(args.scenario, args.run)
-    with zenoh.open(client_config(args.connect)) as session:
-        asyncio.run(run_node(node.run(session)))
+    node_main("netem", lambda a: NetemNode(a.scenario, a.run), argv)

@@ -7,18 +7,17 @@ apply the moves, advance. All the simulation is :class:`world.sim.World`; this m
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import time
 
 import zenoh
 
-from core.bus import Inbox, client_config, publisher
+from core.bus import Inbox, publisher
 from core.codec import Context
 from core.kernels import warm_up
 from core.keys import Keys, robot_ids
 from core.messages import Command, Failed, Hello, Observation, Ready, Stop, WorldState
-from core.node import NodeBase, run_node, setup_logging
+from core.node import NodeBase, node_main
 from core.scenario import Scenario
 from world.maps import MapData, load_map
 from world.sim import Reading, World, WorldConfig
@@ -194,10 +193,4 @@ class WorldNode(NodeBase):
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m world --run RUN --connect ENDPOINT --scenario FILE.json``."""
-    from launch.childargs import parse_child
-
-    args = parse_child(argparse.ArgumentParser(prog="world"), argv)
-    setup_logging()
-    node = WorldNode(args.scenario, args.run)
-    with zenoh.open(client_config(args.connect)) as session:
-        asyncio.run(run_node(node.run(session)))
+    node_main("world", lambda a: WorldNode(a.scenario, a.run), argv)
