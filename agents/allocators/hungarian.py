@@ -25,7 +25,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from agents.allocators.base import Allocation, Allocator, Problem
 from core.grid import Cell, flat
@@ -42,6 +41,8 @@ def optimal_assignment(costs: np.ndarray) -> np.ndarray:
     finite = np.isfinite(costs)
     big = (float(costs[finite].max()) + 1.0) * (n + 1) if finite.any() else 1.0
     tiled = np.tile(np.where(finite, costs, big), (1, -(-n // m)))
+    from scipy.optimize import linear_sum_assignment  # imported on use: ~40 MB that other agents need not load
+
     rows, cols = linear_sum_assignment(tiled)
     out[rows] = cols % m
     out[~finite[np.arange(n), np.maximum(out, 0)]] = -1
