@@ -2,10 +2,12 @@
 
     python benchmarks/compare_allocators.py [--allocators nearest greedy utility minpos hungarian]
         [--robots 2 4 8] [--seeds 5] [--maps office ../shared/maps/stage/hospital_section.yaml]
-        [--loss 0] [--jobs 2] [--in-process]
+        [--loss 0] [--start random] [--jobs 2] [--in-process]
 
 Each cell runs ``fleet run`` as a subprocess (``--no-record --quiet``) and reads its ``result.json``. A run that
 does not reach the target counts as its last tick and is flagged with ``*`` (and the count of such runs).
+With ``--start random`` (the default) each seed also draws the fleet's start cell, so that seeds differ even
+at loss 0 on a fixed map; ``--start map`` keeps the map's own start.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ HOSPITAL = ROOT.parent / "shared" / "maps" / "stage" / "hospital_section.yaml"
 
 
 def run_one(allocator: str, robots: int, seed: int, map_name: str, loss: float, extra: list[str]) -> dict:
+    """One ``fleet run``; its result.json, or ``{"error": ...}``."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         cmd = [sys.executable, "-m", "launch", "run", "--map", map_name, "--robots", str(robots),
@@ -42,17 +45,20 @@ def main() -> None:
     p.add_argument("--seeds", type=int, default=5)
     p.add_argument("--maps", nargs="+", default=["office", str(HOSPITAL)])
     p.add_argument("--loss", type=float, default=0.0)
+    p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--in-process", action="store_true", help="all nodes of a run in one process")
     a = p.parse_args()
     extra = ["--in-process"] if a.in_process else []
+    if a.start != "map":
+        extra += ["--start", a.start]
     jobs = [(al, n, s, m) for m in a.maps for n in a.robots for al in a.allocators for s in range(a.seeds)]
     with ThreadPoolExecutor(a.jobs) as pool:
         results = list(pool.map(lambda j: run_one(j[0], j[1], j[2], j[3], a.loss, extra), jobs))
     table: dict[tuple[str, int, str], list[dict]] = {}
     for (al, n, _, m), r in zip(jobs, results, strict=True):
         table.setdefault((m, n, al), []).append(r)
-    print(f"mean ticks to {99}% coverage (t99), loss {a.loss}, seeds 0..{a.seeds - 1}; "
+    print(f"mean±sd ticks to 99% coverage (t99), loss {a.loss}, start {a.start}, seeds 0..{a.seeds - 1}; "
           f"'*k' = k runs that did not reach it (counted at their last tick)")
     for m in a.maps:
         print(f"\nmap {Path(m).stem}")

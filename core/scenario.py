@@ -38,7 +38,7 @@ class Scenario:
     cell_size: float = 0.5
     robots: int = 4
     sensor_range: float = 4.0
-    start: tuple[int, int] | None = None
+    start: tuple[int, int] | str | None = None  # a cell, "random" (drawn from the seed), or the map's own
     allocator: dict[str, Any] = dataclasses.field(default_factory=lambda: {"type": "minpos"})
     radio: RadioConfig = dataclasses.field(default_factory=RadioConfig)
     seed: int = 0
@@ -75,6 +75,10 @@ class Scenario:
             raise ConfigError(f"belief_every must be non-negative (got {self.belief_every})")
         if self.radio.latency < 1:
             raise ConfigError("radio.latency must be at least 1 tick")
+        if isinstance(self.start, str) and self.start != "random":
+            raise ConfigError(f"--start must be ROW,COL or 'random' (got {self.start!r})")
+        if isinstance(self.start, tuple) and (len(self.start) != 2 or not all(isinstance(v, int) for v in self.start)):
+            raise ConfigError(f"--start must be ROW,COL or 'random' (got {self.start!r})")
         if not isinstance(self.allocator.get("type"), str):
             raise ConfigError("allocator needs a 'type' name")
         return self
@@ -86,14 +90,14 @@ class Scenario:
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
-        d["start"] = list(self.start) if self.start else None
+        d["start"] = list(self.start) if isinstance(self.start, tuple) else self.start
         return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Scenario:
         d = dict(d)
         radio = RadioConfig(**d.pop("radio", {}))
-        if d.get("start") is not None:
+        if isinstance(d.get("start"), list):
             d["start"] = tuple(d["start"])
         return cls(radio=radio, **d)
 
@@ -132,7 +136,7 @@ def load_scenario(path: str | Path) -> Scenario:
                 for key in ("robots", "sensor_range", "start"):
                     if key in f:
                         kw[key] = f.pop(key)
-                if "start" in kw:
+                if isinstance(kw.get("start"), list):
                     kw["start"] = tuple(kw["start"])
                 _no_extra("fleet", f)
             elif k == "radio":

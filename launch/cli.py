@@ -26,6 +26,16 @@ def _fail(message: str, code: int = 2) -> NoReturn:
     raise SystemExit(code)
 
 
+def _start(text: str) -> tuple[int, int] | str:
+    if text == "random":
+        return text
+    try:
+        row, col = (int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected ROW,COL or 'random', got {text!r}") from None
+    return (row, col)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="fleet", description="Multi-robot exploration under realistic radio, over Eclipse Zenoh.")
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
@@ -39,6 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--sensor-range", type=float, help="sensor range in metres")
     r.add_argument("--cell-size", type=float, help="metres per cell")
     r.add_argument("--seed", type=int)
+    r.add_argument("--start", type=_start, help="start cell ROW,COL, or 'random' (drawn from the seed)")
     r.add_argument("--max-ticks", type=int)
     r.add_argument("--target-coverage", type=float)
     r.add_argument("--comm", choices=("wall", "ideal"), help="wall-attenuation radio, or an ideal channel")
@@ -64,7 +75,7 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
     return with_overrides(
         base, map=args.map, robots=args.robots, allocator=args.allocator, loss=args.loss,
         comm_range=args.comm_range, sensor_range=args.sensor_range, cell_size=args.cell_size, seed=args.seed,
-        max_ticks=args.max_ticks, target_coverage=args.target_coverage, comm=args.comm).validate()
+        start=args.start, max_ticks=args.max_ticks, target_coverage=args.target_coverage, comm=args.comm).validate()
 
 
 def cmd_run(args: argparse.Namespace) -> int:

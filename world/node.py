@@ -18,6 +18,7 @@ from core.kernels import warm_up
 from core.keys import Keys, robot_ids
 from core.messages import Command, Failed, Hello, Observation, Ready, Stop, WorldState
 from core.node import NodeBase, node_main
+from core.rng import generator
 from core.scenario import Scenario
 from world.maps import MapData, load_map
 from world.sim import Reading, World, WorldConfig
@@ -36,7 +37,7 @@ def build_world(scenario: Scenario, map_data: MapData | None = None) -> World:
         stall_ticks=scenario.stall_ticks,
         start=scenario.start,
     )
-    return World(map_data, robot_ids(scenario.robots), config)
+    return World(map_data, robot_ids(scenario.robots), config, generator(scenario.seed, "world"))
 
 
 class WorldNode(NodeBase):

@@ -25,13 +25,15 @@ class StartAreaError(ValueError):
 @dataclasses.dataclass(frozen=True)
 class WorldConfig:
     """``sensor_range`` in cells; ``start_radius``: the start area is the free cells within this BFS
-    distance of the start cell; ``stall_ticks``: ticks without any move or new sensed cell that end the run."""
+    distance of the start cell; ``stall_ticks``: ticks without any move or new sensed cell that end the run;
+    ``start``: a cell, ``"random"`` (a cell drawn from the world's generator where the robots fit, in the map's
+    main free component), or None for the map's own start."""
 
     sensor_range: float = 8.0
     target_coverage: float = 0.99
     max_ticks: int = 2000
     stall_ticks: int = 30
-    start: Cell | None = None
+    start: Cell | str | None = None
     start_radius: int = 4
 
 
@@ -47,13 +49,15 @@ class Reading:
 class World:
     """The simulation of one run."""
 
-    def __init__(self, map_data: MapData, robots: list[str], config: WorldConfig) -> None:
+    def __init__(self, map_data: MapData, robots: list[str], config: WorldConfig,
+                 rng: np.random.Generator | None = None) -> None:
+        self.rng = rng if rng is not None else np.random.default_rng(0)
         self.map = map_data
         self.grid = map_data.grid
         self.occupied = self.grid == OCCUPIED
         self.robots = list(robots)
         self.config = config
-        self.start = config.start if config.start is not None else map_data.start
+        self.start: Cell = map_data.start if not isinstance(config.start, tuple) else config.start
         self.tick = 0
         self.poses: dict[str, Cell] = {}
         self.live: list[str] = []
@@ -78,6 +82,8 @@ class World:
 
     def reset(self) -> dict[str, Reading]:
         """Place the robots around the start and sense; the readings of tick 0."""
+        if self.config.start == "random":
+            self.start = self._random_start()
         cells = self.start_cells()
         if len(self.robots) > len(cells):
             raise StartAreaError(f"{len(self.robots)} robots do not fit the start area around {tuple(self.start)} "
@@ -95,6 +101,18 @@ class World:
         readings = self._sense()
         self._check_end(progress=True)
         return readings
+
+    def _random_start(self) -> Cell:
+        """A start cell drawn from the world's generator: a free cell of the map's main component (the one
+        holding its own start) around which every robot fits; the map's start if no draw fits."""
+        main = wavefront(~self.occupied, np.array([flat(self.shape, self.map.start)], np.int64), -1) >= 0
+        candidates = np.flatnonzero(main.ravel() & (self.grid.ravel() == FREE))
+        for k in self.rng.permutation(len(candidates))[:200]:
+            cell = (int(candidates[k]) // self.shape[1], int(candidates[k]) % self.shape[1])
+            self.start = cell
+            if len(self.start_cells()) >= len(self.robots):
+                return cell
+        return self.map.start
 
     def fail(self, robot: str) -> None:
         """A robot that stopped answering leaves the run (its body stays where it stopped)."""

@@ -111,3 +111,17 @@ def test_tick_limit_stall_and_failure_end_the_run() -> None:
     assert f.live == ["r0"] and not f.done
     f.fail("r0")
     assert f.done and f.reason == "no_robots"
+
+
+def test_random_start_comes_from_the_generator_and_fits_the_fleet() -> None:
+    grid, _ = from_ascii(ROOMS)
+    md = MapData(name="test", grid=grid, cell_size=0.5, start=(2, 2))
+
+    def start(seed: int) -> tuple[int, int]:
+        w = World(md, ["r0", "r1", "r2"], WorldConfig(start="random"), np.random.default_rng(seed))
+        w.reset()
+        assert w.grid[w.start] == FREE and len(set(w.poses.values())) == 3
+        return w.start
+
+    draws = {start(s) for s in range(8)}
+    assert start(3) == start(3) and len(draws) > 2  # the seed decides, and it does vary
