@@ -78,11 +78,7 @@ class WorldNode(NodeBase):
             return "startup"
         if self.stopped_early:
             return "interrupted"
-        readings = self.world.reset()
-        for r in sorted(self.lost_at_start):  # agents whose process died before the first tick
-            self.world.fail(r)
-        if self.lost_at_start:
-            readings = {r: rd for r, rd in readings.items() if r in self.world.live}
+        readings = self.world.reset(failed=self.lost_at_start)  # agents whose process died before tick 0
         while True:
             self._publish(readings)
             if self.world.done:

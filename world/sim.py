@@ -80,8 +80,9 @@ class World:
         area = area[np.lexsort((area, dist.ravel()[area]))]
         return [(int(i) // self.shape[1], int(i) % self.shape[1]) for i in area]
 
-    def reset(self) -> dict[str, Reading]:
-        """Place the robots around the start and sense; the readings of tick 0."""
+    def reset(self, failed: frozenset[str] | set[str] = frozenset()) -> dict[str, Reading]:
+        """Place the robots around the start and sense; the readings of tick 0. Robots in ``failed`` (their
+        process died before the first tick) are placed but neither sense nor act."""
         if self.config.start == "random":
             self.start = self._random_start()
         cells = self.start_cells()
@@ -90,7 +91,7 @@ class World:
                                  f"({len(cells)} free cells within {self.config.start_radius} steps)")
         self.tick = 0
         self.poses = dict(zip(self.robots, cells, strict=False))
-        self.live = list(self.robots)
+        self.live = [r for r in self.robots if r not in failed]
         self.path_length = {r: 0 for r in self.robots}
         self.done, self.reason = False, None
         self._reachable = wavefront(~self.occupied, np.array([flat(self.shape, self.start)], np.int64), -1) >= 0

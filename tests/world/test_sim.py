@@ -125,3 +125,11 @@ def test_random_start_comes_from_the_generator_and_fits_the_fleet() -> None:
 
     draws = {start(s) for s in range(8)}
     assert start(3) == start(3) and len(draws) > 2  # the seed decides, and it does vary
+
+
+def test_a_robot_lost_before_the_first_tick_neither_senses_nor_acts() -> None:
+    w = _world(ROOMS, 2, sensor_range=2.0)
+    readings = w.reset(failed={"r1"})
+    assert list(readings) == ["r0"] and w.live == ["r0"]
+    w.step({"r0": (0, -1), "r1": (0, 1)})
+    assert w.poses["r1"] == (1, 2) and w.path_length["r1"] == 0  # its body stays where it was placed
