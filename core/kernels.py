@@ -174,6 +174,19 @@ def _grown(a: np.ndarray, cap: int) -> np.ndarray:
     return out
 
 
+@numba.njit(cache=True, inline="always")
+def _push(cell: np.ndarray, link: np.ndarray, head: np.ndarray, tail: np.ndarray, j: int, slot: int,
+          value: int) -> None:
+    """Append ``value`` in pool slot ``slot`` to the tail of wavefront j's linked queue."""
+    cell[slot] = value
+    link[slot] = -1
+    if head[j] < 0:
+        head[j] = slot
+    else:
+        link[tail[j]] = slot
+    tail[j] = slot
+
+
 @numba.njit(cache=True)
 def _expand_layer(flat_pass, rows, cols, seen, base, crowd, me, cell, link, spare, head, tail, j, count,
                   used, nspare):
@@ -202,13 +215,7 @@ def _expand_layer(flat_pass, rows, cols, seen, base, crowd, me, cell, link, spar
                 else:
                     slot = used
                     used += 1
-                cell[slot] = nxt
-                link[slot] = -1
-                if head[j] < 0:
-                    head[j] = slot
-                else:
-                    link[tail[j]] = slot
-                tail[j] = slot
+                _push(cell, link, head, tail, j, slot, nxt)
                 fresh += 1
     return False, found, fresh, used, nspare
 
@@ -256,13 +263,7 @@ def minpos_parallel(passable: np.ndarray, sources: np.ndarray, offsets: np.ndarr
             s = sources[t]
             if 0 <= s < n and not seen[base + s]:
                 seen[base + s] = True
-                cell[used] = s
-                link[used] = -1
-                if head[j] < 0:
-                    head[j] = used
-                else:
-                    link[tail[j]] = used
-                tail[j] = used
+                _push(cell, link, head, tail, j, used, s)
                 used += 1
                 size[j] += 1
         if size[j] > 0:
