@@ -21,6 +21,7 @@ from agents.frontiers import find_clusters
 from agents.navigation import next_move
 from core.grid import FREE, MOVES, Cell
 from core.messages import Command, MapDelta, Observation, PoseBeacon, RadioMsg
+from core.scenario import Scenario
 
 STAY: Cell = (0, 0)
 
@@ -40,6 +41,24 @@ class BrainConfig:
 class Teammate:
     cell: Cell
     heard: int
+
+
+def brain_config(scenario: Scenario) -> BrainConfig:
+    return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_ttl=scenario.map_delta_ttl)
+
+
+def allocator_config(scenario: Scenario) -> dict:
+    """The scenario's allocator config; an allocator that models the radio or the sensor (connectivity,
+    utility) uses the scenario's unless its config sets its own."""
+    config = dict(scenario.allocator)
+    if config.get("type") == "connectivity":
+        r = scenario.radio
+        for k, v in (("comm_range", r.comm_range), ("cell_size", scenario.cell_size), ("path_loss", r.path_loss),
+                     ("waf", r.waf), ("max_walls", r.max_walls)):
+            config.setdefault(k, v)
+    if config.get("type") == "utility":
+        config.setdefault("sensor_range", scenario.sensor_cells)
+    return config
 
 
 class Brain:

@@ -10,7 +10,7 @@ import numpy as np
 import zenoh
 
 from agents.allocators import make_allocator
-from agents.brain import Brain, BrainConfig
+from agents.brain import Brain, allocator_config, brain_config
 from core.bus import Inbox, publisher
 from core.codec import Context
 from core.kernels import warm_up
@@ -19,24 +19,6 @@ from core.messages import AgentReport, BeliefSnapshot, Observation, RxBundle, St
 from core.node import NodeBase, node_main
 from core.rng import generator
 from core.scenario import Scenario
-
-
-def brain_config(scenario: Scenario) -> BrainConfig:
-    return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_ttl=scenario.map_delta_ttl)
-
-
-def allocator_config(scenario: Scenario) -> dict:
-    """The scenario's allocator config; an allocator that models the radio or the sensor (connectivity,
-    utility) uses the scenario's unless its config sets its own."""
-    config = dict(scenario.allocator)
-    if config.get("type") == "connectivity":
-        r = scenario.radio
-        for k, v in (("comm_range", r.comm_range), ("cell_size", scenario.cell_size), ("path_loss", r.path_loss),
-                     ("waf", r.waf), ("max_walls", r.max_walls)):
-            config.setdefault(k, v)
-    if config.get("type") == "utility":
-        config.setdefault("sensor_range", scenario.sensor_cells)
-    return config
 
 
 class AgentNode(NodeBase):

@@ -19,6 +19,7 @@ from typing import Any
 import zenoh
 
 from agents.allocators import make_allocator
+from agents.brain import allocator_config
 from core.bus import client_config, publisher, router_config, router_locators
 from core.keys import Keys, robot_ids
 from core.messages import Failed, Ready, Stop
@@ -57,7 +58,7 @@ def check(scenario: Scenario) -> MapData:
     """Everything that can be wrong with the user's input, found before any process starts."""
     scenario.validate()
     try:
-        make_allocator(scenario.allocator)
+        make_allocator(allocator_config(scenario))  # exactly what every agent will build
     except ValueError as exc:
         raise ConfigError(str(exc)) from None
     md = load_map(scenario.map, scenario.cell_size, scenario.seed)

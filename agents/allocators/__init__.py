@@ -14,9 +14,8 @@ from agents.allocators.base import (
     Allocator,
     AllocStatus,
     Problem,
-    argmin_first,
     make_allocator,
     robot_order,
 )
 
-__all__ = ["AllocStatus", "Allocation", "Allocator", "Problem", "argmin_first", "make_allocator", "robot_order"]
+__all__ = ["AllocStatus", "Allocation", "Allocator", "Problem", "make_allocator", "robot_order"]

@@ -152,7 +152,3 @@ def make_allocator(config: dict[str, Any]) -> Allocator:
     except TypeError as exc:
         raise ValueError(f"allocator {name!r}: {exc}") from None
 
-
-def argmin_first(values: Sequence[float] | np.ndarray) -> int:
-    """Index of the smallest value, the lowest index on ties (every tie-break is deterministic)."""
-    return int(np.argmin(np.asarray(values)))
