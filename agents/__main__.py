@@ -1,3 +1,3 @@
-from agents.node import main
+from fleet_emu.agents.node import main
 
 main()

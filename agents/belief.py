@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.grid import UNKNOWN
+from fleet_emu.core.grid import UNKNOWN
 
 
 class Belief:

@@ -15,13 +15,13 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from agents.allocators import Allocator, AllocStatus, Problem
-from agents.belief import Belief
-from agents.frontiers import find_clusters
-from agents.navigation import next_move
-from core.grid import FREE, MOVES, Cell
-from core.messages import Command, MapDelta, Observation, PoseBeacon, RadioMsg
-from core.scenario import Scenario
+from fleet_emu.agents.allocators import Allocator, AllocStatus, Problem
+from fleet_emu.agents.belief import Belief
+from fleet_emu.agents.frontiers import find_clusters
+from fleet_emu.agents.navigation import next_move
+from fleet_emu.core.grid import FREE, MOVES, Cell
+from fleet_emu.core.messages import Command, MapDelta, Observation, PoseBeacon, RadioMsg
+from fleet_emu.core.scenario import Scenario
 
 STAY: Cell = (0, 0)
 

@@ -15,7 +15,7 @@ from collections import deque
 import numpy as np
 from scipy import ndimage
 
-from core.grid import FREE, UNKNOWN, Cell
+from fleet_emu.core.grid import FREE, UNKNOWN, Cell
 
 EIGHT = np.ones((3, 3), dtype=bool)
 

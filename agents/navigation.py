@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.grid import MOVES, Cell
+from fleet_emu.core.grid import MOVES, Cell
 
 STAY: Cell = (0, 0)
 

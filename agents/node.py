@@ -9,16 +9,16 @@ import resource
 import numpy as np
 import zenoh
 
-from agents.allocators import make_allocator
-from agents.brain import Brain, allocator_config, brain_config
-from core.bus import Inbox, publisher
-from core.codec import Context
-from core.kernels import warm_up
-from core.keys import Keys, robot_ids
-from core.messages import AgentReport, BeliefSnapshot, Observation, RxBundle, Stop, TxBundle
-from core.node import NodeBase, node_main
-from core.rng import generator
-from core.scenario import Scenario
+from fleet_emu.agents.allocators import make_allocator
+from fleet_emu.agents.brain import Brain, allocator_config, brain_config
+from fleet_emu.core.bus import Inbox, publisher
+from fleet_emu.core.codec import Context
+from fleet_emu.core.kernels import warm_up
+from fleet_emu.core.keys import Keys, robot_ids
+from fleet_emu.core.messages import AgentReport, BeliefSnapshot, Observation, RxBundle, Stop, TxBundle
+from fleet_emu.core.node import NodeBase, node_main
+from fleet_emu.core.rng import generator
+from fleet_emu.core.scenario import Scenario
 
 
 class AgentNode(NodeBase):
@@ -104,6 +104,6 @@ class AgentNode(NodeBase):
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m agents --robot r0 --run RUN --connect ENDPOINT --scenario FILE.json``."""
+    """``python -m fleet_emu.agents --robot r0 --run RUN --connect ENDPOINT --scenario FILE.json``."""
     node_main("agents", lambda a: AgentNode(a.scenario, a.run, a.robot), argv,
               lambda p: p.add_argument("--robot", required=True))

@@ -29,7 +29,7 @@ def run_one(allocator: str, robots: int, seed: int, map_name: str, loss: float, 
     """One ``fleet run``; its result.json, or ``{"error": ...}``."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
-        cmd = [sys.executable, "-m", "launch", "run", "--map", map_name, "--robots", str(robots),
+        cmd = [sys.executable, "-m", "fleet_emu.launch", "run", "--map", map_name, "--robots", str(robots),
                "--allocator", allocator, "--seed", str(seed), "--loss", str(loss), "--quiet", "--no-record",
                "--out", str(out), *extra]
         proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)

@@ -25,9 +25,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from agents.allocators import Problem, make_allocator
-from agents.frontiers import Cluster
-from core.grid import FREE, OCCUPIED
+from fleet_emu.agents.allocators import Problem, make_allocator
+from fleet_emu.agents.frontiers import Cluster
+from fleet_emu.core.grid import FREE, OCCUPIED
 
 ALLOCATORS: dict[str, dict] = {
     "nearest": {"type": "nearest"},

@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def run_once(robots: int, ticks: int, allocator: str, extra: list[str]) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
-        cmd = [sys.executable, "-m", "launch", "run", "--map", "office", "--robots", str(robots),
+        cmd = [sys.executable, "-m", "fleet_emu.launch", "run", "--map", "office", "--robots", str(robots),
                "--max-ticks", str(ticks), "--target-coverage", "1.0", "--allocator", allocator,
                "--quiet", "--no-record", "--out", str(out), *extra]
         subprocess.run(cmd, cwd=ROOT, check=False, capture_output=True)

@@ -17,12 +17,10 @@ from typing import Any, ClassVar
 import msgpack
 import numpy as np
 
+from fleet_emu.core.errors import DecodeError
+
 ALLOWED_DTYPES = frozenset({"int8", "uint8", "int16", "int32", "int64", "float32", "float64", "bool"})
 MAX_ARRAY_BYTES = 64 * 1024 * 1024
-
-
-class DecodeError(ValueError):
-    """A message that does not validate; the receiver counts and drops it."""
 
 
 @dataclasses.dataclass(frozen=True)

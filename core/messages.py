@@ -10,8 +10,8 @@ import dataclasses
 
 import numpy as np
 
-from core.codec import Context, DecodeError, Message, decode, peek_tick
-from core.grid import MOVES, Cell
+from fleet_emu.core.codec import Context, DecodeError, Message, decode, peek_tick
+from fleet_emu.core.grid import MOVES, Cell
 
 __all__ = [
     "Context", "DecodeError", "Message", "decode", "peek_tick",

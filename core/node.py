@@ -17,11 +17,11 @@ from typing import Any, TypeVar
 
 import zenoh
 
-from core.bus import Inbox, client_config, publisher
-from core.codec import Context, DecodeError, Message, decode
-from core.keys import Keys
-from core.messages import Hello, Ready
-from core.scenario import ConfigError, Scenario
+from fleet_emu.core.bus import Inbox, client_config, publisher
+from fleet_emu.core.codec import Context, DecodeError, Message, decode
+from fleet_emu.core.keys import Keys
+from fleet_emu.core.messages import Hello, Ready
+from fleet_emu.core.scenario import ConfigError, Scenario
 
 M = TypeVar("M", bound=Message)
 

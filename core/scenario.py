@@ -10,9 +10,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-
-class ConfigError(ValueError):
-    """Bad user input; the CLI prints ``fleet: error: <message>`` and exits non-zero."""
+from fleet_emu.core.errors import ConfigError
 
 
 @dataclasses.dataclass(frozen=True)

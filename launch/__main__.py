@@ -1,3 +1,3 @@
-from launch.cli import main
+from fleet_emu.launch.cli import main
 
 main()

@@ -11,7 +11,8 @@ import sys
 from pathlib import Path
 from typing import NoReturn
 
-from core.scenario import ConfigError, Scenario, load_scenario, with_overrides
+from fleet_emu.core.errors import ConfigError, FleetError
+from fleet_emu.core.scenario import Scenario, load_scenario, with_overrides
 
 DEFAULT_SCENARIO = Path(__file__).resolve().parent / "scenarios" / "default.toml"
 
@@ -79,11 +80,10 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from launch.progress import console, summary_table
-    from launch.runner import RunError, RunOptions, new_run_id, run_fleet
-    from world.maps import MapError
-    from world.sim import StartAreaError
+    from fleet_emu.launch.progress import console, summary_table
+    from fleet_emu.launch.runner import RunOptions, new_run_id, run_fleet
 
+    out = args.out
     try:
         scenario = scenario_from_args(args)
         run_id = args.run_id or new_run_id()
@@ -93,10 +93,6 @@ def cmd_run(args: argparse.Namespace) -> int:
         opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
                           connect=args.connect, quiet=args.quiet, run_id=run_id, grid_every=args.grid_every)
         result = run_fleet(scenario, opts)
-    except (ConfigError, MapError, StartAreaError) as exc:
-        _fail(str(exc))
-    except RunError as exc:
-        _fail(str(exc), code=1)
     except KeyboardInterrupt:
         print(f"fleet: interrupted; what was recorded is in {out}", file=sys.stderr)
         return 130
@@ -108,7 +104,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_maps(_: argparse.Namespace) -> int:
-    from world.maps import BUILTIN_MAPS
+    from fleet_emu.world.maps import BUILTIN_MAPS
 
     for name, desc in BUILTIN_MAPS.items():
         print(f"{name:10s} {desc}")
@@ -116,12 +112,9 @@ def cmd_maps(_: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from launch.report import ReportError, report
+    from fleet_emu.launch.report import report
 
-    try:
-        report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
-    except ReportError as exc:
-        _fail(str(exc))
+    report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
     return 0
 
 
@@ -131,7 +124,11 @@ def main(argv: list[str] | None = None) -> None:
     if args.command is None:
         args = build_parser().parse_args(["run", *(argv or [])])
     handlers = {"run": cmd_run, "maps": cmd_maps, "report": cmd_report}
-    raise SystemExit(handlers[command](args))
+    try:
+        code = handlers[command](args)
+    except FleetError as exc:  # every error meant for the user, caught once: one line, its exit code
+        _fail(str(exc), code=exc.exit_code)
+    raise SystemExit(code)
 
 
 if __name__ == "__main__":

@@ -31,10 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from core.codec import DecodeError, decode
-from core.keys import robot_ids
-from core.messages import BeliefSnapshot, Command, Links, Message, Observation, Stop, WorldState
-from launch.recorder import TICK_NS
+from fleet_emu.core.codec import DecodeError, decode
+from fleet_emu.core.keys import robot_ids
+from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Message, Observation, Stop, WorldState
+from fleet_emu.launch.recorder import TICK_NS
 
 log = logging.getLogger(__name__)
 
@@ -68,7 +68,7 @@ def belief_topic(robot: str) -> str:
 def schema_text(name: str) -> bytes:
     """The official JSON schema of ``foxglove.<Name>`` (shipped as package data)."""
     short = name.removeprefix("foxglove.")
-    return (resources.files("launch") / "schemas" / f"{short}.json").read_bytes()
+    return (resources.files("fleet_emu.launch") / "schemas" / f"{short}.json").read_bytes()
 
 
 def robot_rgb(robot: str, robots: list[str] | tuple[str, ...]) -> tuple[float, float, float]:

@@ -30,10 +30,10 @@ from typing import Any
 
 import numpy as np
 
-from core.codec import DecodeError, decode
-from core.keys import robot_ids
-from core.messages import Command, Links, Observation, Ready, RxBundle, Stop, TxBundle, WorldState
-from launch.monitor import Monitor
+from fleet_emu.core.codec import DecodeError, decode
+from fleet_emu.core.keys import robot_ids
+from fleet_emu.core.messages import Command, Links, Observation, Ready, RxBundle, Stop, TxBundle, WorldState
+from fleet_emu.launch.monitor import Monitor
 
 #: result.json keys that a recording cannot give back (they describe the launcher process, not the run)
 NOT_RECORDED = ("wall_seconds",)

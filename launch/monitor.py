@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from core.codec import DecodeError, decode
-from core.messages import AgentReport, Command, Links, Message, Stop, WorldState
+from fleet_emu.core.codec import DecodeError, decode
+from fleet_emu.core.messages import AgentReport, Command, Links, Message, Stop, WorldState
 
 
 @dataclasses.dataclass

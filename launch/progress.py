@@ -9,8 +9,8 @@ from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
 from rich.progress import Progress as RichProgress
 from rich.table import Table
 
-from core.scenario import Scenario
-from launch.monitor import Monitor
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.monitor import Monitor
 
 console = Console(stderr=True)
 

@@ -16,7 +16,7 @@ from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
-from core.codec import peek_tick
+from fleet_emu.core.codec import peek_tick
 
 TICK_NS = 100_000_000  # one tick is shown as 100 ms of log time
 FLUSH_SECONDS = 1.0

@@ -23,14 +23,11 @@ from mcap.stream_reader import StreamReader
 from rich.console import Console
 from rich.table import Table
 
-from launch.metrics import RunMetrics
+from fleet_emu.core.errors import ReportError
+from fleet_emu.launch.metrics import RunMetrics
 
 MAGIC = b"\x89MCAP0\r\n"
 PLOTS = ("coverage", "connectivity", "map", "messages")
-
-
-class ReportError(Exception):
-    """Bad input for ``fleet report``: one line for the user."""
 
 
 class Run:
@@ -358,7 +355,7 @@ def connectivity_plot(run: Run, path: Path) -> None:
 
 def map_plot(run: Run, path: Path) -> None:
     """The team's final map (what the robots sensed, true values) with each robot's trajectory."""
-    from launch.foxglove import robot_rgb
+    from fleet_emu.launch.foxglove import robot_rgb
 
     f = run.fold
     fig, ax = _figure(height=5.5)

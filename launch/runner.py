@@ -18,19 +18,20 @@ from typing import Any
 
 import zenoh
 
-from agents.allocators import make_allocator
-from agents.brain import allocator_config
-from core.bus import client_config, publisher, router_config, router_locators
-from core.keys import Keys, robot_ids
-from core.messages import Failed, Ready, Stop
-from core.scenario import ConfigError, Scenario
-from launch.foxglove import FoxgloveFold, FoxgloveWriter
-from launch.monitor import Monitor
-from launch.progress import Progress
-from launch.recorder import Recorder
-from launch.supervisor import Supervisor
-from world.maps import MapData, load_map
-from world.node import build_world
+from fleet_emu.agents.allocators import make_allocator
+from fleet_emu.agents.brain import allocator_config
+from fleet_emu.core.bus import client_config, publisher, router_config, router_locators
+from fleet_emu.core.errors import ConfigError, RunError
+from fleet_emu.core.keys import Keys, robot_ids
+from fleet_emu.core.messages import Failed, Ready, Stop
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.foxglove import FoxgloveFold, FoxgloveWriter
+from fleet_emu.launch.monitor import Monitor
+from fleet_emu.launch.progress import Progress
+from fleet_emu.launch.recorder import Recorder
+from fleet_emu.launch.supervisor import Supervisor
+from fleet_emu.world.maps import MapData, load_map
+from fleet_emu.world.node import build_world
 
 STOP_GRACE = 5.0
 
@@ -44,10 +45,6 @@ class RunOptions:
     quiet: bool = False
     run_id: str = ""
     grid_every: int | None = None  # Foxglove grids every k ticks (default: the scenario's belief_every)
-
-
-class RunError(RuntimeError):
-    """The run could not go on (a process died, startup timed out): one line for the user."""
 
 
 def new_run_id() -> str:
@@ -109,10 +106,10 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> dict[str, Any]:
                 pids = {"world": os.getpid(), "netem": os.getpid(), "agents": [os.getpid()] * len(robots)}
             else:
                 common = ["--run", run_id, "--connect", endpoint, "--scenario", str(scenario_path)]
-                sup.spawn("world", "world", common)
-                sup.spawn("netem", "netem", common)
+                sup.spawn("world", "fleet_emu.world", common)
+                sup.spawn("netem", "fleet_emu.netem", common)
                 for r in robots:
-                    sup.spawn(r, "agents", ["--robot", r, *common])
+                    sup.spawn(r, "fleet_emu.agents", ["--robot", r, *common])
                 p = sup.pids()
                 pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
             with progress:
@@ -223,9 +220,9 @@ class _Consumer(threading.Thread):
 
 def _start_in_process(scenario: Scenario, run_id: str, endpoint: str) -> threading.Thread:
     """Every node in this process, each with its own Zenoh session to the same router."""
-    from agents.node import AgentNode
-    from netem.node import NetemNode
-    from world.node import WorldNode
+    from fleet_emu.agents.node import AgentNode
+    from fleet_emu.netem.node import NetemNode
+    from fleet_emu.world.node import WorldNode
 
     nodes = [WorldNode(scenario, run_id), NetemNode(scenario, run_id)]
     nodes += [AgentNode(scenario, run_id, r) for r in robot_ids(scenario.robots)]

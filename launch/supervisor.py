@@ -12,8 +12,6 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 class Supervisor:
     """Owns the child processes of one run."""
@@ -26,14 +24,12 @@ class Supervisor:
 
     def spawn(self, name: str, module: str, args: list[str]) -> subprocess.Popen[bytes]:
         """Start ``python -m module args`` in a new session (its own process group)."""
-        env = dict(os.environ)
-        env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH", "")) if p)
         stderr = None
         if self.log_dir is not None:
             stderr = open(self.log_dir / f"{name}.log", "wb")  # noqa: SIM115 (closed in kill_all)
             self._logs.append(stderr)
         proc = subprocess.Popen([sys.executable, "-m", module, *args], stdin=subprocess.DEVNULL,
-                                stdout=stderr, stderr=stderr, env=env, start_new_session=True)
+                                stdout=stderr, stderr=stderr, start_new_session=True)
         self.children[name] = proc
         return proc
 

@@ -1,3 +1,3 @@
-from netem.node import main
+from fleet_emu.netem.node import main
 
 main()

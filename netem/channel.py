@@ -13,7 +13,7 @@ from collections import defaultdict
 import msgpack
 import numpy as np
 
-from core.messages import RadioMsg
+from fleet_emu.core.messages import RadioMsg
 
 
 @dataclasses.dataclass

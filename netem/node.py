@@ -12,17 +12,17 @@ import time
 import numpy as np
 import zenoh
 
-from core.bus import Inbox, publisher
-from core.codec import Context
-from core.kernels import warm_up
-from core.keys import Keys, robot_ids
-from core.messages import Links, RxBundle, Stop, TxBundle, WorldState
-from core.node import NodeBase, node_main
-from core.rng import generator
-from core.scenario import Scenario
-from netem.channel import Channel
-from netem.signal import RadioParams, connected, link_matrix
-from world.maps import load_map
+from fleet_emu.core.bus import Inbox, publisher
+from fleet_emu.core.codec import Context
+from fleet_emu.core.kernels import warm_up
+from fleet_emu.core.keys import Keys, robot_ids
+from fleet_emu.core.messages import Links, RxBundle, Stop, TxBundle, WorldState
+from fleet_emu.core.node import NodeBase, node_main
+from fleet_emu.core.rng import generator
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.netem.channel import Channel
+from fleet_emu.netem.signal import RadioParams, connected, link_matrix
+from fleet_emu.world.maps import load_map
 
 STATE_GRACE = 2.0  # seconds to wait, after a stop, for the states it announced
 
@@ -154,5 +154,5 @@ class NetemNode(NodeBase):
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m netem --run RUN --connect ENDPOINT --scenario FILE.json``."""
+    """``python -m fleet_emu.netem --run RUN --connect ENDPOINT --scenario FILE.json``."""
     node_main("netem", lambda a: NetemNode(a.scenario, a.run), argv)

@@ -16,8 +16,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from core.grid import Cell
-from core.kernels import count_walls
+from fleet_emu.core.grid import Cell
+from fleet_emu.core.kernels import count_walls
 
 
 @dataclasses.dataclass(frozen=True)

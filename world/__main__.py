@@ -1,3 +1,3 @@
-from world.node import main
+from fleet_emu.world.node import main
 
 main()

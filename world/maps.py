@@ -18,14 +18,8 @@ import yaml
 from PIL import Image
 from scipy import ndimage
 
-from core.grid import FREE, MOVES, OCCUPIED, Cell
-
-
-class MapError(ValueError):
-    """Bad map input; its str() is ONE line for the user (no newline)."""
-
-    def __init__(self, message: str) -> None:
-        super().__init__(" ".join(str(message).split()))
+from fleet_emu.core.errors import MapError
+from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell
 
 
 @dataclasses.dataclass(frozen=True)

@@ -12,16 +12,16 @@ import time
 
 import zenoh
 
-from core.bus import Inbox, publisher
-from core.codec import Context
-from core.kernels import warm_up
-from core.keys import Keys, robot_ids
-from core.messages import Command, Failed, Hello, Observation, Ready, Stop, WorldState
-from core.node import NodeBase, node_main
-from core.rng import generator
-from core.scenario import Scenario
-from world.maps import MapData, load_map
-from world.sim import Reading, World, WorldConfig
+from fleet_emu.core.bus import Inbox, publisher
+from fleet_emu.core.codec import Context
+from fleet_emu.core.kernels import warm_up
+from fleet_emu.core.keys import Keys, robot_ids
+from fleet_emu.core.messages import Command, Failed, Hello, Observation, Ready, Stop, WorldState
+from fleet_emu.core.node import NodeBase, node_main
+from fleet_emu.core.rng import generator
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.world.maps import MapData, load_map
+from fleet_emu.world.sim import Reading, World, WorldConfig
 
 HELLO_PERIOD = 0.1
 
@@ -189,5 +189,5 @@ class WorldNode(NodeBase):
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m world --run RUN --connect ENDPOINT --scenario FILE.json``."""
+    """``python -m fleet_emu.world --run RUN --connect ENDPOINT --scenario FILE.json``."""
     node_main("world", lambda a: WorldNode(a.scenario, a.run), argv)

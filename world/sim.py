@@ -11,14 +11,15 @@ import dataclasses
 
 import numpy as np
 
-from core.grid import FREE, MOVES, OCCUPIED, Cell, flat
-from core.kernels import visible_cells, wavefront
-from world.maps import MapData
+from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell, flat
+from fleet_emu.core.kernels import visible_cells, wavefront
+from fleet_emu.world.maps import MapData
 
 STAY: Cell = (0, 0)
 
 
-class StartAreaError(ValueError):
+class StartAreaError(ConfigError):
     """More robots than the free start area holds (one line for the user)."""
 
 

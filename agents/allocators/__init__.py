@@ -1,6 +1,6 @@
 """Frontier allocators, one per module, registered by name (``make_allocator({"type": "minpos"})``)."""
 
-from agents.allocators import (  # noqa: F401  (registration)
+from fleet_emu.agents.allocators import (  # noqa: F401  (registration)
     connectivity,
     greedy,
     hungarian,
@@ -9,7 +9,7 @@ from agents.allocators import (  # noqa: F401  (registration)
     trade,
     utility,
 )
-from agents.allocators.base import (
+from fleet_emu.agents.allocators.base import (
     Allocation,
     Allocator,
     AllocStatus,

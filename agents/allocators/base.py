@@ -15,10 +15,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from agents.frontiers import Cluster
-from core.grid import FREE, Cell
-from core.kernels import wavefront
-from core.messages import RadioMsg
+from fleet_emu.agents.frontiers import Cluster
+from fleet_emu.core.grid import FREE, Cell
+from fleet_emu.core.kernels import wavefront
+from fleet_emu.core.messages import RadioMsg
 
 INF = np.inf
 

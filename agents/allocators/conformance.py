@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from agents.allocators.base import Allocation, Allocator, AllocStatus, Problem, make_allocator
-from agents.frontiers import find_clusters
-from core.grid import FREE, UNKNOWN, from_ascii
+from fleet_emu.agents.allocators.base import Allocation, Allocator, AllocStatus, Problem, make_allocator
+from fleet_emu.agents.frontiers import find_clusters
+from fleet_emu.core.grid import FREE, UNKNOWN, from_ascii
 
 CROSS = """
 ???????.???????

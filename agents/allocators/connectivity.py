@@ -46,12 +46,12 @@ from typing import Any
 
 import numpy as np
 
-from agents.allocators.base import Allocation, Allocator, Problem
-from agents.allocators.minpos import minpos_choice
-from core.grid import FREE, OCCUPIED, Cell
-from core.kernels import count_walls
-from core.messages import RadioMsg
-from netem.signal import RadioParams, signal_db
+from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.agents.allocators.minpos import minpos_choice
+from fleet_emu.core.grid import FREE, OCCUPIED, Cell
+from fleet_emu.core.kernels import count_walls
+from fleet_emu.core.messages import RadioMsg
+from fleet_emu.netem.signal import RadioParams, signal_db
 
 
 def wall_mask(belief: np.ndarray, unknown_walls: bool = False) -> np.ndarray:

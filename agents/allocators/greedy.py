@@ -16,8 +16,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from agents.allocators.base import Allocation, Allocator, Problem
-from core.messages import RadioMsg
+from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.core.messages import RadioMsg
 
 
 def greedy_pairs(costs: np.ndarray, until: int | None = None) -> list[tuple[int, int]]:

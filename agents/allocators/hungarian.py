@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from agents.allocators.base import Allocation, Allocator, Problem
-from core.grid import Cell, flat
-from core.messages import Assignment, RadioMsg
+from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.core.grid import Cell, flat
+from fleet_emu.core.messages import Assignment, RadioMsg
 
 
 def optimal_assignment(costs: np.ndarray) -> np.ndarray:

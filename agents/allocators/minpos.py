@@ -23,10 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from agents.allocators.base import Allocation, Allocator, Problem
-from core.grid import flat
-from core.kernels import minpos_parallel, wavefront
-from core.messages import RadioMsg
+from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.core.grid import flat
+from fleet_emu.core.kernels import minpos_parallel, wavefront
+from fleet_emu.core.messages import RadioMsg
 
 WAVEFRONTS = ("full", "stop", "parallel")
 

@@ -47,9 +47,9 @@ from typing import Any
 
 import numpy as np
 
-from agents.allocators.base import Allocation, Allocator, AllocStatus, Problem, robot_order
-from core.grid import Cell
-from core.messages import RadioMsg, TradeAllocation, TradeDone, TradeNumber, TradePurchase
+from fleet_emu.agents.allocators.base import Allocation, Allocator, AllocStatus, Problem, robot_order
+from fleet_emu.core.grid import Cell
+from fleet_emu.core.messages import RadioMsg, TradeAllocation, TradeDone, TradeNumber, TradePurchase
 
 
 class Phase(enum.Enum):

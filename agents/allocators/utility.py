@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.allocators.base import Allocation, Allocator, Problem
-from core.messages import RadioMsg
+from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.core.messages import RadioMsg
 
 
 def utility_choice(costs: np.ndarray, targets: np.ndarray, i: int, beta: float = 1.0,

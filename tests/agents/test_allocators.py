@@ -8,15 +8,15 @@ from typing import Any
 import numpy as np
 import pytest
 
-import agents.allocators  # noqa: F401  (registers every allocator)
-from agents.allocators import Allocator, AllocStatus, Problem, make_allocator
-from agents.allocators.conformance import api_test, seed_test
-from agents.allocators.greedy import greedy_choice, greedy_pairs
-from agents.allocators.hungarian import Hungarian, optimal_assignment, total_cost
-from agents.allocators.utility import utility_choice
-from agents.frontiers import find_clusters
-from core.grid import Cell, from_ascii
-from core.messages import Assignment, PoseBeacon, decode
+import fleet_emu.agents.allocators  # noqa: F401  (registers every allocator)
+from fleet_emu.agents.allocators import Allocator, AllocStatus, Problem, make_allocator
+from fleet_emu.agents.allocators.conformance import api_test, seed_test
+from fleet_emu.agents.allocators.greedy import greedy_choice, greedy_pairs
+from fleet_emu.agents.allocators.hungarian import Hungarian, optimal_assignment, total_cost
+from fleet_emu.agents.allocators.utility import utility_choice
+from fleet_emu.agents.frontiers import find_clusters
+from fleet_emu.core.grid import Cell, from_ascii
+from fleet_emu.core.messages import Assignment, PoseBeacon, decode
 
 INF = np.inf
 

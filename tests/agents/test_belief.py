@@ -2,7 +2,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from agents.belief import Belief
+from fleet_emu.agents.belief import Belief
 
 
 def test_merge_and_news() -> None:

@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from agents.allocators import AllocStatus, Problem, make_allocator
-from agents.allocators.conformance import CROSS, WALLED, api_test, random_problem, seed_test
-from agents.allocators.connectivity import connectivity, utilities, wall_mask
-from agents.frontiers import find_clusters
-from core.grid import from_ascii
-from netem.signal import RadioParams
+from fleet_emu.agents.allocators import AllocStatus, Problem, make_allocator
+from fleet_emu.agents.allocators.conformance import CROSS, WALLED, api_test, random_problem, seed_test
+from fleet_emu.agents.allocators.connectivity import connectivity, utilities, wall_mask
+from fleet_emu.agents.frontiers import find_clusters
+from fleet_emu.core.grid import from_ascii
+from fleet_emu.netem.signal import RadioParams
 
 RADIO = RadioParams()  # c = 10 m, PL = 2, WAF = 3.1 dB, C = 4
 

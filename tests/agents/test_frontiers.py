@@ -6,10 +6,10 @@ import itertools
 
 import numpy as np
 
-from agents.frontiers import find_clusters, frontier_mask
-from agents.navigation import STAY, next_move
-from core.grid import FREE, flat, from_ascii
-from core.kernels import wavefront
+from fleet_emu.agents.frontiers import find_clusters, frontier_mask
+from fleet_emu.agents.navigation import STAY, next_move
+from fleet_emu.core.grid import FREE, flat, from_ascii
+from fleet_emu.core.kernels import wavefront
 
 
 def test_frontier_cells_are_free_cells_next_to_unknown() -> None:

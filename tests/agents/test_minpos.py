@@ -8,12 +8,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from agents.allocators import AllocStatus, Problem, make_allocator
-from agents.allocators.conformance import CLOSED, CROSS, WALLED, random_problem
-from agents.allocators.minpos import minpos_choice, parallel_choice, positions
-from agents.frontiers import find_clusters
-from core.grid import FREE, UNKNOWN, Cell, flat, from_ascii
-from core.kernels import minpos_parallel
+from fleet_emu.agents.allocators import AllocStatus, Problem, make_allocator
+from fleet_emu.agents.allocators.conformance import CLOSED, CROSS, WALLED, random_problem
+from fleet_emu.agents.allocators.minpos import minpos_choice, parallel_choice, positions
+from fleet_emu.agents.frontiers import find_clusters
+from fleet_emu.core.grid import FREE, UNKNOWN, Cell, flat, from_ascii
+from fleet_emu.core.kernels import minpos_parallel
 
 VARIANTS = ("full", "stop", "parallel")
 
@@ -211,7 +211,7 @@ def test_parallel_kernel_reports_position_and_cost() -> None:
 
 def test_stop_computes_less_than_full() -> None:
     """The stopped wavefronts leave far cells unlabelled: the saving section 4.3 is after."""
-    from agents.allocators.minpos import stopped_costs
+    from fleet_emu.agents.allocators.minpos import stopped_costs
 
     p = problem(FIG6C, "r1")
     partial = stopped_costs(p)

@@ -8,14 +8,14 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from agents.allocators import AllocStatus, Problem, make_allocator
-from agents.allocators.conformance import api_test, seed_test
-from agents.allocators.trade import greedy_table
-from agents.frontiers import find_clusters
-from agents.navigation import next_move
-from core.grid import FREE, OCCUPIED, UNKNOWN, Cell, from_ascii
-from core.kernels import visible_cells, wavefront
-from core.messages import Context, RadioMsg, TradeAllocation, TradeNumber, TradePurchase, decode
+from fleet_emu.agents.allocators import AllocStatus, Problem, make_allocator
+from fleet_emu.agents.allocators.conformance import api_test, seed_test
+from fleet_emu.agents.allocators.trade import greedy_table
+from fleet_emu.agents.frontiers import find_clusters
+from fleet_emu.agents.navigation import next_move
+from fleet_emu.core.grid import FREE, OCCUPIED, UNKNOWN, Cell, from_ascii
+from fleet_emu.core.kernels import visible_cells, wavefront
+from fleet_emu.core.messages import Context, RadioMsg, TradeAllocation, TradeNumber, TradePurchase, decode
 
 Drop = Callable[[RadioMsg, str, int], bool]  # (message, receiver, tick it was sent) -> lost?
 

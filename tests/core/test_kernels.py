@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.grid import OCCUPIED, flat, from_ascii, to_ascii, unflat
-from core.kernels import count_walls, visible_cells, wavefront
+from fleet_emu.core.grid import OCCUPIED, flat, from_ascii, to_ascii, unflat
+from fleet_emu.core.kernels import count_walls, visible_cells, wavefront
 
 
 def test_ascii_round_trip() -> None:

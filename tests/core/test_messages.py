@@ -8,7 +8,7 @@ import msgpack
 import numpy as np
 import pytest
 
-from core.messages import (
+from fleet_emu.core.messages import (
     AgentReport,
     Command,
     Context,

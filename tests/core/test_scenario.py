@@ -4,9 +4,9 @@ from pathlib import Path
 
 import pytest
 
-from core.keys import Keys, key, robot_ids
-from core.rng import derive_seed, generator
-from core.scenario import ConfigError, Scenario, load_scenario, with_overrides
+from fleet_emu.core.keys import Keys, key, robot_ids
+from fleet_emu.core.rng import derive_seed, generator
+from fleet_emu.core.scenario import ConfigError, Scenario, load_scenario, with_overrides
 
 DEFAULT = Path(__file__).resolve().parents[2] / "launch" / "scenarios" / "default.toml"
 

@@ -41,10 +41,9 @@ def small_map(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def fleet(*args: str, timeout: float = 240, check: bool = True) -> subprocess.CompletedProcess[str]:
-    """Run the ``fleet`` CLI as a user would (``python -m launch`` is the console script's module)."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.run([sys.executable, "-m", "launch", *args], capture_output=True, text=True,
-                          timeout=timeout, env=env, cwd=ROOT)
+    """Run the ``fleet`` CLI as a user would (``python -m fleet_emu.launch`` is the console script's module)."""
+    proc = subprocess.run([sys.executable, "-m", "fleet_emu.launch", *args], capture_output=True, text=True,
+                          timeout=timeout, cwd=ROOT)
     if check and proc.returncode not in (0, 3):
         raise AssertionError(f"fleet {' '.join(args)} exited {proc.returncode}:\n{proc.stderr[-3000:]}")
     return proc

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.allocators import Allocator
+from fleet_emu.agents.allocators import Allocator
 
 from .conftest import fleet, result
 

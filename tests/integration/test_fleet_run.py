@@ -6,7 +6,7 @@ from pathlib import Path
 
 from mcap.reader import make_reader
 
-from core.messages import decode
+from fleet_emu.core.messages import decode
 
 from .conftest import all_pids, fleet, pid_alive, result
 

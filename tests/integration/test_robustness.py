@@ -15,8 +15,8 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
-from core.bus import client_config, router_config, router_locators
-from core.messages import Command, PoseBeacon, TxBundle
+from fleet_emu.core.bus import client_config, router_config, router_locators
+from fleet_emu.core.messages import Command, PoseBeacon, TxBundle
 
 from .conftest import ROOT, all_pids, fleet, pid_alive, result
 
@@ -75,9 +75,9 @@ def test_malformed_messages_are_dropped_and_counted(small_map: Path, tmp_path: P
     with zenoh.open(router_config()) as router, zenoh.open(client_config(router_locators(router)[0])) as s:
         endpoint = router_locators(router)[0]
         proc = subprocess.Popen(
-            [sys.executable, "-m", "launch", "run", "--map", str(small_map), "--robots", "3", "--quiet",
+            [sys.executable, "-m", "fleet_emu.launch", "run", "--map", str(small_map), "--robots", "3", "--quiet",
              "--connect", endpoint, "--run-id", "inject", "--out", str(out)],
-            cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)), stderr=subprocess.PIPE, text=True)
+            cwd=ROOT, stderr=subprocess.PIPE, text=True)
         sent = _inject(s, "inject", time.monotonic() + 6.0)
         _, err = proc.communicate(timeout=240)
     assert proc.returncode == 0, err[-2000:]
@@ -102,9 +102,9 @@ def _wait_for(predicate, timeout: float) -> None:  # type: ignore[no-untyped-def
 
 def _start(out: Path, *extra: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "launch", "run", "--map", "office", "--robots", "3", "--max-ticks", "100000",
+        [sys.executable, "-m", "fleet_emu.launch", "run", "--map", "office", "--robots", "3", "--max-ticks", "100000",
          "--out", str(out), "--quiet", *extra],
-        cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)), stderr=subprocess.PIPE, text=True)
+        cwd=ROOT, stderr=subprocess.PIPE, text=True)
 
 
 def _children(pid: int) -> list[int]:
@@ -152,9 +152,9 @@ def test_children_exit_when_the_launcher_is_killed(tmp_path: Path) -> None:
 def test_a_killed_robot_is_failed_and_the_run_goes_on(small_map: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "launch", "run", "--map", str(small_map), "--robots", "3", "--out", str(out),
+        [sys.executable, "-m", "fleet_emu.launch", "run", "--map", str(small_map), "--robots", "3", "--out", str(out),
          "--quiet", "--comm", "ideal"],
-        cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)), stderr=subprocess.PIPE, text=True)
+        cwd=ROOT, stderr=subprocess.PIPE, text=True)
     _wait_for(lambda: len(_children(proc.pid)) == 5 and (out / "run.mcap").exists(), 60)
     scenario = json.loads((out / "scenario.json").read_text())
     assert scenario["robots"] == 3

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from core.grid import from_ascii
-from core.messages import BeliefSnapshot, Command, Links, Observation, Stop, WorldState
-from launch.foxglove import (
+from fleet_emu.core.grid import from_ascii
+from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Observation, Stop, WorldState
+from fleet_emu.launch.foxglove import (
     SCHEMAS,
     TOPIC_COVERAGE,
     TOPIC_LOG,
@@ -26,7 +26,7 @@ from launch.foxglove import (
     schema_text,
     stamp,
 )
-from launch.recorder import TICK_NS
+from fleet_emu.launch.recorder import TICK_NS
 
 VALIDATORS = {name: jsonschema.Draft202012Validator(json.loads(schema_text(name))) for name in SCHEMAS}
 
@@ -194,7 +194,7 @@ def test_every_foxglove_message_of_a_real_run_validates(small_run: Path) -> None
     assert counts[TOPIC_SCENE] == ticks + 1
     assert counts[TOPIC_TRUTH] == counts[TOPIC_COVERAGE] >= 2
     assert counts["/viz/belief/r0"] >= 1 and counts[TOPIC_LOG] >= 2
-    from world.maps import load_map
+    from fleet_emu.world.maps import load_map
 
     sc = res["scenario"]
     assert truth is not None

@@ -20,8 +20,8 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import Writer
 from PIL import Image
 
-from core.grid import from_ascii
-from core.messages import (
+from fleet_emu.core.grid import from_ascii
+from fleet_emu.core.messages import (
     Command,
     Links,
     Observation,
@@ -32,9 +32,9 @@ from core.messages import (
     TxBundle,
     WorldState,
 )
-from launch.cli import main as cli_main
-from launch.metrics import RunMetrics, gini, jain
-from launch.report import PLOTS, ReportError, read_run, write_report
+from fleet_emu.launch.cli import main as cli_main
+from fleet_emu.launch.metrics import RunMetrics, gini, jain
+from fleet_emu.launch.report import PLOTS, ReportError, read_run, write_report
 from tests.integration.conftest import ROOT, fleet
 
 ART = """
@@ -205,9 +205,8 @@ def _ticks_flushed(mcap: Path) -> int:
 def killed_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """An in-process run (every node in the launcher) killed with SIGKILL after a few flushes."""
     out = tmp_path_factory.mktemp("killed") / "run"
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "launch", "run", "--map", "office", "--robots", "3", "--quiet",
-                             "--in-process", "--out", str(out)], env=env, cwd=ROOT,
+    proc = subprocess.Popen([sys.executable, "-m", "fleet_emu.launch", "run", "--map", "office", "--robots", "3",
+                             "--quiet", "--in-process", "--out", str(out)], cwd=ROOT,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 90

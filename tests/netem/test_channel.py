@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.messages import PoseBeacon
-from netem.channel import Channel
+from fleet_emu.core.messages import PoseBeacon
+from fleet_emu.netem.channel import Channel
 
 ROBOTS = ("r0", "r1", "r2")
 

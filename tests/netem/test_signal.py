@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from core.grid import OCCUPIED, from_ascii
-from netem.signal import RadioParams, connected, link_matrix, signal_db
+from fleet_emu.core.grid import OCCUPIED, from_ascii
+from fleet_emu.netem.signal import RadioParams, connected, link_matrix, signal_db
 
 P = RadioParams(comm_range=10.0, path_loss=2.0, waf=3.1, max_walls=4, threshold=0.0)
 

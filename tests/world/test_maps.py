@@ -10,8 +10,8 @@ import pytest
 from PIL import Image
 from scipy import ndimage
 
-from core.grid import FREE, OCCUPIED, from_ascii
-from world.maps import BUILTIN_MAPS, START_RADIUS, MapData, MapError, _ball, load_bitmap, load_map
+from fleet_emu.core.grid import FREE, OCCUPIED, from_ascii
+from fleet_emu.world.maps import BUILTIN_MAPS, START_RADIUS, MapData, MapError, _ball, load_bitmap, load_map
 
 SHARED_MAPS = Path(__file__).resolve().parents[3] / "shared" / "maps"
 FOUR = ndimage.generate_binary_structure(2, 1)

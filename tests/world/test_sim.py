@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.grid import FREE, OCCUPIED, flat, from_ascii
-from world.maps import MapData
-from world.sim import StartAreaError, World, WorldConfig
+from fleet_emu.core.grid import FREE, OCCUPIED, flat, from_ascii
+from fleet_emu.world.maps import MapData
+from fleet_emu.world.sim import StartAreaError, World, WorldConfig
 
 ROOMS = """
 ###########
