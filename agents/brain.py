@@ -19,21 +19,21 @@ from fleet_emu.agents.allocators import Allocator, AllocStatus, Problem
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.agents.navigation import next_move
-from fleet_emu.core.grid import FREE, MOVES, Cell
-from fleet_emu.core.messages import Command, MapDelta, Observation, PoseBeacon, RadioMsg
+from fleet_emu.agents.protocol import MapDelta, PoseBeacon
+from fleet_emu.core.codec import Context
+from fleet_emu.core.errors import DecodeError
+from fleet_emu.core.grid import FREE, MOVES, STAY, Cell
+from fleet_emu.core.messages import Command, Envelope, Observation, RadioMsg, open_envelope, seal
 from fleet_emu.core.scenario import Scenario
-
-STAY: Cell = (0, 0)
 
 
 @dataclasses.dataclass(frozen=True)
 class BrainConfig:
     """``cluster_max``: frontier cells one sensing covers (MinPos 4.1); ``resync_after``: ticks of silence
-    after which a teammate heard again gets the whole known map; ``map_ttl``: hops for map deltas."""
+    after which a teammate heard again gets the whole known map."""
 
     cluster_max: int = 16
     resync_after: int = 10
-    map_ttl: int = 0
     unstick_after: int = 2
 
 
@@ -44,7 +44,7 @@ class Teammate:
 
 
 def brain_config(scenario: Scenario) -> BrainConfig:
-    return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_ttl=scenario.map_delta_ttl)
+    return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)))
 
 
 def allocator_config(scenario: Scenario) -> dict:
@@ -65,8 +65,11 @@ class Brain:
     """The functional core of one agent; ``step`` is called once per tick."""
 
     def __init__(self, me: str, allocator: Allocator, rng: np.random.Generator, config: BrainConfig,
-                 clock: Callable[[], float] = time.perf_counter) -> None:
+                 clock: Callable[[], float] = time.perf_counter, team: frozenset[str] | None = None,
+                 on_drop: Callable[[str, str], None] | None = None) -> None:
         self.me = me
+        self.team = team
+        self.on_drop = on_drop
         self.allocator = allocator
         self.rng = rng
         self.config = config
@@ -79,27 +82,45 @@ class Brain:
         self.last_move: Cell = STAY
         self.stuck = 0
         self.decision_ms: list[float] = []
+        self.dropped = 0
+        self.ctx: Context | None = None
 
-    def _seq(self) -> int:
+    def next_seq(self) -> int:
+        """The robot's one sequence counter: envelopes, commands, bundles and reports all draw from it."""
         self.seq += 1
         return self.seq
 
-    def step(self, obs: Observation, inbox: Sequence[RadioMsg]) -> tuple[Command, tuple[RadioMsg, ...]]:
+    def open(self, inbox: Sequence[Envelope]) -> list[RadioMsg]:
+        """Decode what the radio delivered, checked against the grid and the team; a message that does not
+        validate (an unknown payload kind included) is counted and dropped."""
+        out = []
+        for env in inbox:
+            try:
+                env.validate(self.ctx)
+                out.append(open_envelope(env, self.ctx))
+            except DecodeError as exc:
+                self.dropped += 1
+                if self.on_drop is not None:
+                    self.on_drop(f"radio/{env.payload_kind}", str(exc))
+        return out
+
+    def step(self, obs: Observation, inbox: Sequence[Envelope]) -> tuple[Command, tuple[Envelope, ...]]:
         """Decide the move for ``obs.tick`` and the radio messages to send."""
         t = obs.tick
         if self.belief is None:
             self.belief = Belief(obs.shape)
+            self.ctx = Context(senders=self.team, shape=obs.shape)
         belief = self.belief
         belief.merge(obs.cells, obs.values)
         outbox: list[RadioMsg] = []
         protocol: list[RadioMsg] = []
-        for msg in inbox:
+        for msg in self.open(inbox):
             if msg.src == self.me:
                 continue
-            if isinstance(msg, PoseBeacon):
-                self._heard(msg, t, outbox)
-            elif isinstance(msg, MapDelta):
-                belief.merge(msg.cells, msg.values)
+            if isinstance(msg.body, PoseBeacon):
+                self._heard(msg, msg.body, t, outbox)
+            elif isinstance(msg.body, MapDelta):
+                belief.merge(msg.body.cells, msg.body.values)
             else:
                 protocol.append(msg)
         poses = {self.me: obs.cell} | {r: tm.cell for r, tm in sorted(self.teammates.items())}
@@ -118,26 +139,24 @@ class Brain:
             wants = move == STAY and dist[obs.cell] > 0
         move = self._unstick(obs.cell, move, wants, belief.grid)
         outbox.extend(alloc.outbox)
-        outbox.insert(0, PoseBeacon(src=self.me, tick=t, seq=self._seq(), dst="*", ttl=0, cell=obs.cell))
+        news = [RadioMsg(PoseBeacon(cell=obs.cell))]
         cells, values = belief.take_news()
         if len(cells):
-            outbox.insert(1, MapDelta(src=self.me, tick=t, seq=self._seq(), dst="*", ttl=self.config.map_ttl,
-                                      cells=cells, values=values))
-        cmd = Command(src=self.me, tick=t, seq=self._seq(), move=move, target=alloc.target,
+            news.append(RadioMsg(MapDelta(cells=cells, values=values)))
+        sealed = tuple(seal(m, self.me, t, self.next_seq()) for m in news + outbox)
+        cmd = Command(src=self.me, tick=t, seq=self.next_seq(), move=move, target=alloc.target,
                       status=alloc.status.name, decision_ms=round(self.decision_ms[-1], 4))
-        return cmd, tuple(outbox)
+        return cmd, sealed
 
-    def _heard(self, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> None:
+    def _heard(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> None:
         """A teammate's pose; one heard for the first time, or again after a silence, gets our whole map."""
-        prev = self.teammates.get(beacon.src)
-        if prev is not None and beacon.tick < prev.heard:
+        prev = self.teammates.get(msg.src)
+        if prev is not None and msg.tick < prev.heard:
             return
-        if prev is None or t - prev.heard > self.config.resync_after:
-            assert self.belief is not None
+        if (prev is None or t - prev.heard > self.config.resync_after) and self.belief is not None:
             cells, values = self.belief.known()
-            outbox.append(MapDelta(src=self.me, tick=t, seq=self._seq(), dst=beacon.src, ttl=0,
-                                   cells=cells, values=values))
-        self.teammates[beacon.src] = Teammate(cell=beacon.cell, heard=max(t, beacon.tick))
+            outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=msg.src))
+        self.teammates[msg.src] = Teammate(cell=beacon.cell, heard=max(t, msg.tick))
 
     def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray) -> Cell:
         """A robot whose moves keep failing, or that keeps waiting for a teammate to clear its way (two

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fleet_emu.core.grid import MOVES, Cell
-
-STAY: Cell = (0, 0)
+from fleet_emu.core.grid import MOVES, STAY, Cell
 
 
 def next_move(dist: np.ndarray, cell: Cell, blocked: set[Cell] | frozenset[Cell] = frozenset()) -> Cell:

@@ -12,51 +12,89 @@ from __future__ import annotations
 import dataclasses
 import types
 import typing
-from typing import Any, ClassVar
+from collections.abc import Callable
+from typing import Any, ClassVar, TypeVar
 
 import msgpack
 import numpy as np
 
 from fleet_emu.core.errors import DecodeError
+from fleet_emu.core.version import SCHEMA_VERSION
 
 ALLOWED_DTYPES = frozenset({"int8", "uint8", "int16", "int32", "int64", "float32", "float64", "bool"})
 MAX_ARRAY_BYTES = 64 * 1024 * 1024
+M = TypeVar("M", bound="Message")
+
+
+R = TypeVar("R")
+
+
+class Record:
+    """A typed, frozen dataclass that encodes to a msgpack map. Each family root (:class:`Message`,
+    :class:`Payload`) keeps its own registry by ``KIND``; a subclass with a ``KIND`` registers in its family's."""
+
+    KIND: ClassVar[str] = ""
+    REGISTRY: ClassVar[dict[str, type[Record]]] = {}
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "REGISTRY" in cls.__dict__ or not cls.__dict__.get("KIND"):
+            return
+        registry = cls.REGISTRY  # the nearest family root's
+        if cls.KIND in registry:
+            raise TypeError(f"{cls.family_name()} kind {cls.KIND!r} defined twice")
+        registry[cls.KIND] = cls
+
+    @classmethod
+    def family_name(cls) -> str:
+        return next(c.__name__ for c in cls.__mro__ if "REGISTRY" in c.__dict__)
+
+    def validate(self, ctx: Context | None) -> None:
+        """Check cross-field constraints; raise DecodeError. Subclasses extend this."""
+
+    def fields_obj(self) -> dict[str, Any]:
+        """The msgpack-ready map of this record's fields (nested records become maps)."""
+        return {f.name: _to_obj(getattr(self, f.name)) for f in dataclasses.fields(self)}  # type: ignore[arg-type]
+
+    def to_obj(self) -> dict[str, Any]:
+        """:meth:`fields_obj` with the record's ``kind``."""
+        return {"kind": self.KIND, **self.fields_obj()}
+
+    def encode(self) -> bytes:
+        return msgpack.packb(self.to_obj(), use_bin_type=True)
 
 
 @dataclasses.dataclass(frozen=True)
-class Message:
-    """Envelope shared by every message: ``kind`` (class-level), ``src``, ``tick``, ``seq``."""
+class Message(Record):
+    """A message on the bus. Envelope shared by every message: ``kind`` (class-level), ``src``, ``tick``,
+    ``seq`` (one counter per sender), and ``v``, the schema version."""
 
-    KIND: ClassVar[str] = ""
-    REGISTRY: ClassVar[dict[str, type[Message]]] = {}
+    REGISTRY: ClassVar[dict[str, type[Record]]] = {}
 
     src: str
     tick: int
     seq: int
 
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        if cls.__dict__.get("KIND"):
-            if cls.KIND in Message.REGISTRY:
-                raise TypeError(f"message kind {cls.KIND!r} defined twice")
-            Message.REGISTRY[cls.KIND] = cls
-
     def validate(self, ctx: Context | None) -> None:
-        """Check cross-field constraints; raise DecodeError. Subclasses extend this."""
         if self.tick < 0 or self.seq < 0:
             raise DecodeError("negative tick or seq")
         if ctx is not None and ctx.senders is not None and self.src not in ctx.senders:
             raise DecodeError(f"unknown sender {self.src!r}")
 
     def to_obj(self) -> dict[str, Any]:
-        """The msgpack-ready map of this message (nested messages become maps)."""
-        out: dict[str, Any] = {"kind": self.KIND}
-        for f in dataclasses.fields(self):
-            out[f.name] = _to_obj(getattr(self, f.name))
-        return out
+        return {"kind": self.KIND, "v": SCHEMA_VERSION, **self.fields_obj()}
+
+
+@dataclasses.dataclass(frozen=True)
+class Payload(Record):
+    """The body of a radio message: opaque bytes to netem and relays, decoded only by the robot protocol that
+    owns its ``KIND`` (the brain's pose and map sharing, an allocator's messages). Encoded without its kind,
+    which travels in the envelope."""
+
+    REGISTRY: ClassVar[dict[str, type[Record]]] = {}
 
     def encode(self) -> bytes:
-        return msgpack.packb(self.to_obj(), use_bin_type=True)
+        return msgpack.packb(self.fields_obj(), use_bin_type=True)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +106,7 @@ class Context:
 
 
 def _to_obj(value: Any) -> Any:
-    if isinstance(value, Message):
+    if isinstance(value, Record):
         return value.to_obj()
     if isinstance(value, np.ndarray):
         arr = np.ascontiguousarray(value)
@@ -117,6 +155,10 @@ def _from_obj(hint: Any, value: Any, name: str, ctx: Context | None) -> Any:
         return value
     if hint is np.ndarray:
         return _array(value, name)
+    if hint is bytes:
+        if not isinstance(value, bytes) or len(value) > MAX_ARRAY_BYTES:
+            raise DecodeError(f"{name}: expected bytes")
+        return value
     if isinstance(hint, type) and issubclass(hint, Message):
         return _decode_obj(value, ctx, expected=hint)
     if origin is tuple:
@@ -162,37 +204,64 @@ def _decode_obj(obj: Any, ctx: Context | None, expected: type[Message] | None = 
         raise DecodeError(f"unknown message kind {kind!r}")
     if expected is not None and not issubclass(cls, expected):
         raise DecodeError(f"expected {expected.KIND or expected.__name__}, got {kind!r}")
+    version = obj.get("v", 1)
+    if not isinstance(version, int) or isinstance(version, bool) or version > SCHEMA_VERSION:
+        raise DecodeError(f"{kind}: schema version {version!r} is newer than this fleet_emu's {SCHEMA_VERSION}")
+    return _build(cls, {k: v for k, v in obj.items() if k not in ("kind", "v")}, ctx)  # type: ignore[return-value]
+
+
+def _build(cls: type[Record], fields: dict[Any, Any], ctx: Context | None) -> Record:
+    """A record of ``cls`` from its decoded field map, every field checked against its type, then validated."""
     hints = _hints(cls)
-    names = {f.name for f in dataclasses.fields(cls)}
-    extra = set(obj) - names - {"kind"}
+    names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    extra = set(fields) - names
     if extra:
-        raise DecodeError(f"{kind}: unexpected fields {sorted(map(str, extra))}")
+        raise DecodeError(f"{cls.KIND}: unexpected fields {sorted(map(str, extra))}")
     values = {}
-    for f in dataclasses.fields(cls):
-        if f.name not in obj:
-            if f.default is not dataclasses.MISSING:
+    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+        if f.name not in fields:
+            if f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING:
                 continue
-            if f.default_factory is not dataclasses.MISSING:
-                continue
-            raise DecodeError(f"{kind}: missing field {f.name!r}")
-        values[f.name] = _from_obj(hints[f.name], obj[f.name], f"{kind}.{f.name}", ctx)
-    msg = cls(**values)
-    msg.validate(ctx)
-    return msg
+            raise DecodeError(f"{cls.KIND}: missing field {f.name!r}")
+        values[f.name] = _from_obj(hints[f.name], fields[f.name], f"{cls.KIND}.{f.name}", ctx)
+    record = cls(**values)
+    record.validate(ctx)
+    return record
 
 
-def decode(data: bytes, ctx: Context | None = None, expected: type[Message] | None = None) -> Message:
-    """Decode bytes into a registered message, validating it; only ever raises DecodeError."""
+def _guarded(build: Callable[[], R]) -> R:
+    """Run a decoder; anything but DecodeError (a constructor or validator tripped on odd but well-typed
+    data) becomes a DecodeError."""
     try:
-        obj = msgpack.unpackb(data, raw=False, strict_map_key=True)
-    except Exception as exc:  # msgpack raises several unrelated types on garbage
-        raise DecodeError(f"not msgpack: {type(exc).__name__}") from None
-    try:
-        return _decode_obj(obj, ctx, expected)
+        return build()
     except DecodeError:
         raise
-    except Exception as exc:  # a constructor or validator tripped on odd but well-typed data
+    except Exception as exc:
         raise DecodeError(f"invalid message: {exc}") from None
+
+
+def _unpack(data: bytes) -> Any:
+    try:
+        return msgpack.unpackb(data, raw=False, strict_map_key=True)
+    except Exception as exc:  # msgpack raises several unrelated types on garbage
+        raise DecodeError(f"not msgpack: {type(exc).__name__}") from None
+
+
+def decode(data: bytes, ctx: Context | None = None, expected: type[M] | None = None) -> M:
+    """Decode bytes into a registered message, validating it; only ever raises DecodeError."""
+    obj = _unpack(data)
+    return _guarded(lambda: _decode_obj(obj, ctx, expected))  # type: ignore[return-value]
+
+
+def decode_payload(kind: str, data: bytes, ctx: Context | None = None) -> Payload:
+    """Decode a radio payload of ``kind``; only ever raises DecodeError (an unknown kind included)."""
+    cls = Payload.REGISTRY.get(kind)
+    if cls is None:
+        raise DecodeError(f"unknown payload kind {kind!r}")
+    obj = _unpack(data)
+    if not isinstance(obj, dict):
+        raise DecodeError(f"{kind}: payload is not a map")
+    return _guarded(lambda: _build(cls, obj, ctx))  # type: ignore[return-value]
 
 
 def peek_tick(data: bytes) -> int | None:

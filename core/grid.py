@@ -6,6 +6,9 @@ Grids are ``int8`` arrays indexed ``[row, col]`` with row 0 at the top: ``-1`` u
 
 from __future__ import annotations
 
+import dataclasses
+from pathlib import Path
+
 import numpy as np
 
 UNKNOWN: int = -1
@@ -17,8 +20,37 @@ Cell = tuple[int, int]
 #: 4-connected moves in a fixed order (up, down, left, right); every tie-break that walks
 #: neighbours uses this order, so that runs are deterministic.
 MOVES: tuple[Cell, ...] = ((-1, 0), (1, 0), (0, -1), (0, 1))
+#: The command that stays in place.
+STAY: Cell = (0, 0)
 
 _ASCII = {"#": OCCUPIED, ".": FREE, "?": UNKNOWN}
+
+
+@dataclasses.dataclass(frozen=True)
+class MapData:
+    """A ground-truth map: ``grid`` is int8 ``[row, col]`` (row 0 at the top), 0 free, 100 occupied.
+
+    Built once per run by the launcher (``fleet_emu.world.maps.load_map``) and handed to the world and netem
+    processes as a file (:meth:`save`, :meth:`load`), so that every process holds the same truth."""
+
+    name: str
+    grid: np.ndarray
+    cell_size: float
+    start: Cell
+
+    def save(self, path: str | Path) -> None:
+        """Write the map to ``path`` (numpy ``.npz``, no pickles)."""
+        with open(path, "wb") as f:
+            np.savez(f, grid=self.grid, start=np.array(self.start, dtype=np.int64),
+                     cell_size=np.array(self.cell_size), name=np.array(self.name))
+
+    @classmethod
+    def load(cls, path: str | Path) -> MapData:
+        """Read a map written by :meth:`save`."""
+        with np.load(path, allow_pickle=False) as z:
+            start = z["start"]
+            return cls(name=str(z["name"]), grid=z["grid"].astype(np.int8), cell_size=float(z["cell_size"]),
+                       start=(int(start[0]), int(start[1])))
 
 
 def from_ascii(art: str) -> tuple[np.ndarray, dict[str, Cell]]:
@@ -54,11 +86,6 @@ def to_ascii(grid: np.ndarray, robots: dict[str, Cell] | None = None) -> str:
     for name, (r, c) in (robots or {}).items():
         rows[r][c] = name[1:] if name[1:].isdigit() and len(name) == 2 else "R"
     return "\n".join("".join(row) for row in rows)
-
-
-def in_bounds(shape: tuple[int, int], cell: Cell) -> bool:
-    """Whether ``cell`` lies inside a grid of ``shape``."""
-    return 0 <= cell[0] < shape[0] and 0 <= cell[1] < shape[1]
 
 
 def flat(shape: tuple[int, int], cell: Cell) -> int:

@@ -9,8 +9,6 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-UNREACHED: int = -1
-
 
 @numba.njit(cache=True, inline="always")
 def _neighbour(cur: int, k: int, rows: int, cols: int) -> int:

@@ -2,7 +2,20 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 ROOT = "fleet"
+
+
+@dataclasses.dataclass(frozen=True)
+class ParsedKey:
+    """What a key of a run names: its ``channel`` (``obs``, ``state``, ``cmd``, ``belief``, ``tx``, ``rx``,
+    ``links``, ``hello``, ``ready``, ``stop``, ``failed``, ``report``, ``alive``), the robot or node id in it,
+    and for liveliness tokens the role."""
+
+    channel: str
+    node: str | None = None
+    role: str | None = None
 
 
 def key(run: str, *parts: str) -> str:
@@ -23,8 +36,6 @@ class Keys:
         self.hello = key(run, "ctl", "hello")
         self.ready_all = key(run, "ctl", "ready", "*")
         self.stop = key(run, "ctl", "stop")
-        self.report_all = key(run, "ctl", "report", "*")
-        self.alive_all = key(run, "alive", "**")
 
     def obs(self, robot: str) -> str:
         return key(self.run, "world", "obs", robot)
@@ -56,10 +67,26 @@ class Keys:
     def wildcard(self, *parts: str) -> str:
         return key(self.run, *parts)
 
-    @staticmethod
-    def last(key_expr: str) -> str:
-        """The final chunk of a key (a robot id in obs/cmd/tx/rx keys)."""
-        return str(key_expr).rsplit("/", 1)[-1]
+    def parse(self, key_expr: object) -> ParsedKey | None:
+        """The channel and id a key of this run names; None for another run's key or one this run never uses
+        (the inverse of the builders above)."""
+        parts = str(key_expr).split("/")
+        if len(parts) < 3 or parts[0] != ROOT or parts[1] != self.run:
+            return None
+        match parts[2:]:
+            case ["world", "obs", robot]:
+                return ParsedKey("obs", robot)
+            case ["world", "state"] | ["netem", "links"] | ["ctl", "hello"] | ["ctl", "stop"]:
+                return ParsedKey(parts[-1])
+            case ["robot", robot, ("cmd" | "belief") as channel]:
+                return ParsedKey(channel, robot)
+            case ["radio", ("tx" | "rx") as channel, robot]:
+                return ParsedKey(channel, robot)
+            case ["ctl", ("ready" | "failed" | "report") as channel, node]:
+                return ParsedKey(channel, node)
+            case ["alive", role, node]:
+                return ParsedKey("alive", node, role)
+        return None
 
 
 def robot_ids(n: int) -> list[str]:

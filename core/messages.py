@@ -1,7 +1,10 @@
-"""Every message on the bus, defined once (DESIGN.md "Messages").
+"""Every message of the lockstep protocol, defined once (DESIGN.md "Messages"), and the radio envelope.
 
-Barrier messages (world -> agents, netem -> agents, agents -> world/netem) and radio messages carried inside
-tx/rx bundles. Encode with ``msg.encode()``; decode with :func:`core.codec.decode`.
+Barrier messages (world -> agents, netem -> agents, agents -> world/netem), control messages, and the
+:class:`Envelope` that carries one radio message inside tx/rx bundles. Radio payloads are not defined here:
+each protocol owns its own (``agents/protocol.py`` for poses and map deltas, each allocator's module for its
+messages), and netem routes envelopes without decoding them. Encode with ``msg.encode()``; decode with
+:func:`fleet_emu.core.codec.decode`.
 """
 
 from __future__ import annotations
@@ -10,21 +13,22 @@ import dataclasses
 
 import numpy as np
 
-from fleet_emu.core.codec import Context, DecodeError, Message, decode, peek_tick
-from fleet_emu.core.grid import MOVES, Cell
+from fleet_emu.core.codec import Context, DecodeError, Message, Payload, decode, decode_payload, peek_tick
+from fleet_emu.core.grid import MOVES, STAY, Cell
 
 __all__ = [
-    "Context", "DecodeError", "Message", "decode", "peek_tick",
-    "Observation", "WorldState", "Command", "RadioMsg", "PoseBeacon", "MapDelta",
-    "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Failed", "Stop", "AgentReport", "BeliefSnapshot",
-    "Assignment", "TradeNumber", "TradePurchase", "TradeAllocation", "TradeDone",
+    "Context", "DecodeError", "Message", "Payload", "decode", "decode_payload", "peek_tick",
+    "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope",
+    "check_cell", "check_cells", "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Failed", "Stop",
+    "AgentReport", "BeliefSnapshot",
 ]
 
 VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
-VALID_MOVES = frozenset(MOVES) | {(0, 0)}
+VALID_MOVES = frozenset(MOVES) | {STAY}
 
 
-def _check_cells(cells: np.ndarray, values: np.ndarray, shape: tuple[int, int] | None, what: str) -> None:
+def check_cells(cells: np.ndarray, values: np.ndarray, shape: tuple[int, int] | None, what: str) -> None:
+    """Flat cell indices inside a grid of ``shape`` and occupancy values (-1, 0, 100), of equal length."""
     if cells.ndim != 1 or values.ndim != 1 or len(cells) != len(values):
         raise DecodeError(f"{what}: cells and values differ in length")
     if cells.dtype.kind not in "iu" or values.dtype != np.int8:
@@ -35,7 +39,8 @@ def _check_cells(cells: np.ndarray, values: np.ndarray, shape: tuple[int, int] |
         raise DecodeError(f"{what}: cell value not in (-1, 0, 100)")
 
 
-def _check_cell(cell: Cell, shape: tuple[int, int] | None, what: str) -> None:
+def check_cell(cell: Cell, shape: tuple[int, int] | None, what: str) -> None:
+    """A cell inside a grid of ``shape`` (unchecked when the shape is not known)."""
     if shape is not None and not (0 <= cell[0] < shape[0] and 0 <= cell[1] < shape[1]):
         raise DecodeError(f"{what}: cell {cell} outside the grid")
 
@@ -58,8 +63,8 @@ class Observation(Message):
         super().validate(ctx)
         if self.shape[0] <= 0 or self.shape[1] <= 0 or self.cell_size <= 0:
             raise DecodeError("obs: bad grid shape or cell size")
-        _check_cell(self.cell, self.shape, "obs")
-        _check_cells(self.cells, self.values, self.shape, "obs")
+        check_cell(self.cell, self.shape, "obs")
+        check_cells(self.cells, self.values, self.shape, "obs")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,122 +97,69 @@ class Command(Message):
         if self.move not in VALID_MOVES:
             raise DecodeError(f"cmd: move {self.move} is not a 4-connected step")
         if self.target is not None:
-            _check_cell(self.target, ctx.shape if ctx else None, "cmd")
+            check_cell(self.target, ctx.shape if ctx else None, "cmd")
 
 
 # --- radio (inside bundles) --------------------------------------------------------------------------
 
-@dataclasses.dataclass(frozen=True)
-class RadioMsg(Message):
-    """Base of everything a robot sends over the radio: ``dst`` is a robot id or ``*``; ``ttl`` hops left."""
+MAX_TTL = 16
+MAX_PAYLOAD_BYTES = 16 * 1024 * 1024
 
+
+@dataclasses.dataclass(frozen=True)
+class Envelope(Message):
+    """One radio message as netem and relays see it: who sent this hop (``src``), who made it (``origin``),
+    for whom (``dst``: a robot id, ``base`` or ``*`` for everyone), hops left (``ttl``), and an opaque
+    ``payload`` of ``payload_kind`` that only the protocol owning that kind decodes. ``(origin, seq)`` is the
+    message's id; ``seq`` comes from the origin's one counter."""
+
+    KIND = "radio"
+    origin: str
     dst: str
     ttl: int
+    payload_kind: str
+    payload: bytes
 
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)
-        if self.ttl < 0 or self.ttl > 16:
+        if not 0 <= self.ttl <= MAX_TTL:
             raise DecodeError("radio: ttl out of range")
+        if len(self.payload) > MAX_PAYLOAD_BYTES:
+            raise DecodeError("radio: payload too large")
+        if ctx is not None and ctx.senders is not None and self.origin not in ctx.senders:
+            raise DecodeError(f"radio: unknown origin {self.origin!r}")
 
 
 @dataclasses.dataclass(frozen=True)
-class PoseBeacon(RadioMsg):
-    """A robot's own pose, broadcast every tick."""
+class RadioMsg:
+    """A radio message as a robot's protocols see it: a decoded :class:`~fleet_emu.core.codec.Payload` and its
+    envelope's header. A protocol that sends gives ``body`` and ``dst`` (and ``ttl``); the sender's brain
+    fills in the rest when it seals the envelope."""
 
-    KIND = "pose"
-    cell: Cell
+    body: Payload
+    dst: str = "*"
+    ttl: int = 0
+    src: str = ""
+    origin: str = ""
+    tick: int = 0
+    seq: int = 0
 
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        _check_cell(self.cell, ctx.shape if ctx else None, "pose")
-
-
-@dataclasses.dataclass(frozen=True)
-class MapDelta(RadioMsg):
-    """The cells a robot newly learned this tick (flat indices and their values)."""
-
-    KIND = "map"
-    cells: np.ndarray
-    values: np.ndarray
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        _check_cells(self.cells, self.values, ctx.shape if ctx else None, "map")
+    @property
+    def kind(self) -> str:
+        return self.body.KIND
 
 
-# --- allocator protocols (inside bundles) ------------------------------------------------------------
-
-@dataclasses.dataclass(frozen=True)
-class Assignment(RadioMsg):
-    """A coordinator's assignment (``hungarian``): each robot's target cell, for round ``round``."""
-
-    KIND = "assign"
-    round: int
-    targets: dict[str, Cell]
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        for cell in self.targets.values():
-            _check_cell(cell, ctx.shape if ctx else None, "assign")
+def seal(msg: RadioMsg, src: str, tick: int, seq: int) -> Envelope:
+    """The envelope of a message ``src`` makes at ``tick``."""
+    return Envelope(src=src, tick=tick, seq=seq, origin=src, dst=msg.dst, ttl=msg.ttl, payload_kind=msg.kind,
+                    payload=msg.body.encode())
 
 
-# --- trade-based allocation (Yan et al. 2011, section 4) ------------------------------------------------
-
-@dataclasses.dataclass(frozen=True)
-class TradeNumber(RadioMsg):
-    """Role allocation (Algorithm 1): a robot not in a task broadcasts its number every tick."""
-
-    KIND = "trade_num"
-    number: int
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        if self.number < 0:
-            raise DecodeError("trade_num: negative robot number")
-
-
-@dataclasses.dataclass(frozen=True)
-class TradePurchase(RadioMsg):
-    """A buyer's purchase message ``pums_r = {r, m, c}`` (eq. 3) to the seller: ``r`` is ``src``, ``m`` the
-    task (a frontier cluster's target cell), ``c`` its wavefront cost (eq. 2)."""
-
-    KIND = "trade_buy"
-    task: Cell
-    cost: float
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        _check_cell(self.task, ctx.shape if ctx else None, "trade_buy")
-        if not (0.0 <= self.cost < 1e9):
-            raise DecodeError("trade_buy: cost out of range")
-
-
-@dataclasses.dataclass(frozen=True)
-class TradeAllocation(RadioMsg):
-    """A seller's task-allocation messages ``tams = {r, m}`` (eq. 4) of one round, as one broadcast:
-    ``src`` is the seller, ``awards`` maps each robot allocated a task to that task's cell."""
-
-    KIND = "trade_alloc"
-    awards: dict[str, Cell]
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        for robot, cell in self.awards.items():
-            if ctx is not None and ctx.senders is not None and robot not in ctx.senders:
-                raise DecodeError(f"trade_alloc: unknown robot {robot!r}")
-            _check_cell(cell, ctx.shape if ctx else None, "trade_alloc")
-
-
-@dataclasses.dataclass(frozen=True)
-class TradeDone(RadioMsg):
-    """A completed (or abandoned) task, broadcast so that teammates update their task lists (section 4.2)."""
-
-    KIND = "trade_done"
-    task: Cell
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        _check_cell(self.task, ctx.shape if ctx else None, "trade_done")
+def open_envelope(env: Envelope, ctx: Context | None = None) -> RadioMsg:
+    """Decode an envelope's payload; raises DecodeError (an unknown kind included)."""
+    body = decode_payload(env.payload_kind, env.payload, ctx)
+    return RadioMsg(body=body, dst=env.dst, ttl=env.ttl, src=env.src, origin=env.origin, tick=env.tick,
+                    seq=env.seq)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -215,7 +167,7 @@ class TxBundle(Message):
     """Everything one robot sends at ``tick`` (radio/tx/<robot>); sent even when empty."""
 
     KIND = "tx"
-    msgs: tuple[RadioMsg, ...]
+    msgs: tuple[Envelope, ...]
 
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)
@@ -229,7 +181,7 @@ class RxBundle(Message):
 
     KIND = "rx"
     dst: str
-    msgs: tuple[RadioMsg, ...]
+    msgs: tuple[Envelope, ...]
 
 
 # --- netem -> everyone ---------------------------------------------------------------------------------

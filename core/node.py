@@ -7,21 +7,23 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import json
+import contextlib
 import logging
 import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Protocol, TypeVar
 
 import zenoh
 
 from fleet_emu.core.bus import Inbox, client_config, publisher
 from fleet_emu.core.codec import Context, DecodeError, Message, decode
+from fleet_emu.core.errors import FleetError
+from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import Hello, Ready
-from fleet_emu.core.scenario import ConfigError, Scenario
+from fleet_emu.core.scenario import Scenario
 
 M = TypeVar("M", bound=Message)
 
@@ -38,17 +40,12 @@ class NodeBase:
         self.node_id = node_id
         self.dropped = 0
         self._seq = 0
-        self._ctl_seq = 0
 
     def next_seq(self) -> int:
-        """Sequence number of the lockstep traffic (deterministic for a seed)."""
+        """The node's one sequence counter (deterministic for a seed). The start handshake (hello, ready),
+        repeated until answered as timing goes, carries seq 0 and does not draw from it."""
         self._seq += 1
         return self._seq
-
-    def next_ctl_seq(self) -> int:
-        """Sequence number of the start handshake, whose retries depend on timing."""
-        self._ctl_seq += 1
-        return self._ctl_seq
 
     def decode(self, key: str, data: bytes, expected: type[M], ctx: Context | None = None) -> M | None:
         """Decode or count-and-drop: a malformed message is never fatal."""
@@ -64,7 +61,7 @@ class NodeBase:
         if self.dropped <= 5 or self.dropped % 100 == 0:
             log.warning("%s %s: dropped message #%d on %s: %s", self.role, self.node_id, self.dropped, key, why)
 
-    def declare_presence(self, session: zenoh.Session, inbox: Inbox) -> list[object]:
+    def declare_presence(self, session: zenoh.Session, inbox: Inbox) -> list[Declared]:
         """Subscribe to the hello, then declare the liveliness token (after every other subscription)."""
         self._ready_pub = publisher(session, self.keys.ready(self.node_id))
         sub = inbox.subscribe(session, self.keys.hello)
@@ -73,8 +70,22 @@ class NodeBase:
 
     def answer_hello(self, key: str, data: bytes) -> None:
         if self.decode(key, data, Hello) is not None:
-            self._ready_pub.put(Ready(src=self.node_id, tick=0, seq=self.next_ctl_seq(), role=self.role,
-                                      pid=os.getpid()).encode())
+            self._ready_pub.put(Ready(src=self.node_id, tick=0, seq=0, role=self.role, pid=os.getpid()).encode())
+
+
+class Declared(Protocol):
+    """A subscriber, publisher or liveliness token: something a session declared and must undeclare."""
+
+    def undeclare(self) -> None: ...
+
+
+def undeclare(handles: list[Declared]) -> None:
+    """Undeclare explicitly, newest first (dropping the Python object does not undeclare a callback subscriber
+    in zenoh-python 1.10); a session already closing is not an error."""
+    for handle in reversed(handles):
+        with contextlib.suppress(zenoh.ZError):
+            handle.undeclare()
+    handles.clear()
 
 
 def setup_logging() -> None:
@@ -102,29 +113,34 @@ async def run_node(node_coro, watch: bool = True) -> None:  # type: ignore[no-un
             watchdog.cancel()
 
 
-def parse_child(parser: argparse.ArgumentParser, argv: list[str] | None) -> argparse.Namespace:
+def parse_child(parser: argparse.ArgumentParser, argv: list[str] | None, map_file: bool = False) -> argparse.Namespace:
     """The command line every child process takes: ``--run``, ``--connect``, ``--scenario FILE.json``
-    (written by ``fleet run``). A bad scenario file is one line on stderr and exit code 2."""
+    (written by ``fleet run``), and for the world and netem ``--map-file MAP.npz`` (the launcher's one build of
+    the true map). A bad file is one line on stderr and exit code 2."""
     parser.add_argument("--run", required=True, help="run id (the <run> of the key expressions)")
     parser.add_argument("--connect", required=True, help="router endpoint, e.g. tcp/127.0.0.1:7447")
     parser.add_argument("--scenario", required=True, type=Path, help="scenario as JSON (written by fleet run)")
+    if map_file:
+        parser.add_argument("--map-file", required=True, type=Path, help="the true map (written by fleet run)")
     args = parser.parse_args(argv)
     try:
-        args.scenario = Scenario.from_dict(json.loads(args.scenario.read_text())).validate()
-    except (OSError, ValueError, TypeError, ConfigError) as exc:
-        print(f"{parser.prog}: error: bad scenario {args.scenario}: {exc}", file=sys.stderr)
+        args.scenario = Scenario.from_json(args.scenario)
+        if map_file:
+            args.map_file = MapData.load(args.map_file)
+    except (OSError, ValueError, KeyError, FleetError) as exc:
+        print(f"{parser.prog}: error: bad input file: {exc}", file=sys.stderr)
         raise SystemExit(2) from None
     return args
 
 
 def node_main(prog: str, build: Callable[[argparse.Namespace], Any], argv: list[str] | None,
-              extra: Callable[[argparse.ArgumentParser], None] | None = None) -> None:
+              extra: Callable[[argparse.ArgumentParser], None] | None = None, map_file: bool = False) -> None:
     """The ``__main__`` of a node process: parse the child command line, build the node, open one client
     session to the router, and run the node with the parent watchdog beside it."""
     parser = argparse.ArgumentParser(prog=prog)
     if extra is not None:
         extra(parser)
-    args = parse_child(parser, argv)
+    args = parse_child(parser, argv, map_file)
     setup_logging()
     node = build(args)
     with zenoh.open(client_config(args.connect)) as session:

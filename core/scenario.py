@@ -1,35 +1,29 @@
-"""Scenario: everything that defines a run, loaded from TOML and overridden by CLI flags.
+"""Scenario: everything that defines a run, from a TOML file, a dict or the ``scenario.json`` a run wrote, with
+CLI flags (or keyword arguments) on top.
 
-Validation turns bad input into :class:`ConfigError`, whose message is one line for the user.
+Every value is checked for type, finiteness and range before any process starts; a bad one is a
+:class:`ConfigError` whose message is one line naming the field and what it accepts.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
+import math
 import tomllib
 from pathlib import Path
 from typing import Any
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.radio import COMM_MODELS, RadioConfig
 
-
-@dataclasses.dataclass(frozen=True)
-class RadioConfig:
-    """The radio (DESIGN.md radio model): ``comm`` is ``wall`` (eq. 4 + loss) or ``ideal``."""
-
-    comm: str = "wall"
-    loss: float = 0.1
-    comm_range: float = 10.0
-    path_loss: float = 2.0
-    waf: float = 3.1
-    max_walls: int = 4
-    threshold: float = 0.0
-    latency: int = 1
+MAX_ROBOTS = 64
 
 
 @dataclasses.dataclass(frozen=True)
 class Scenario:
-    """A run's full definition; ``to_dict`` is what the recording's metadata and result.json carry."""
+    """A run's full definition; :meth:`to_dict` is what ``scenario.json``, the recording's metadata and
+    ``result.json`` carry, and :meth:`from_dict` reads it back."""
 
     name: str = "default"
     map: str = "office"
@@ -44,128 +38,183 @@ class Scenario:
     target_coverage: float = 0.99
     stall_ticks: int = 30
     barrier_timeout: float = 10.0
-    map_delta_ttl: int = 0
     belief_every: int = 10
 
-    def validate(self) -> Scenario:
-        """Raise ConfigError on the first bad value; return self."""
-        if self.robots < 1:
-            raise ConfigError(f"--robots must be at least 1 (got {self.robots})")
-        if self.robots > 64:
-            raise ConfigError(f"--robots must be at most 64 (got {self.robots})")
-        if not 0.0 <= self.radio.loss <= 1.0:
-            raise ConfigError(f"--loss must be within [0, 1] (got {self.radio.loss})")
-        for flag, value in (("--sensor-range", self.sensor_range), ("--comm-range", self.radio.comm_range),
-                            ("cell_size", self.cell_size)):
-            if not value > 0:
-                raise ConfigError(f"{flag} must be positive (got {value})")
-        if self.sensor_range / self.cell_size < 1:
-            raise ConfigError(f"--sensor-range {self.sensor_range} m is less than one cell ({self.cell_size} m)")
-        if self.radio.comm not in ("wall", "ideal"):
-            raise ConfigError(f"--comm must be 'wall' or 'ideal' (got {self.radio.comm!r})")
-        if not 0.0 < self.target_coverage <= 1.0:
-            raise ConfigError(f"--target-coverage must be within (0, 1] (got {self.target_coverage})")
-        if self.max_ticks < 1:
-            raise ConfigError(f"--max-ticks must be at least 1 (got {self.max_ticks})")
-        if self.seed < 0:
-            raise ConfigError(f"--seed must be non-negative (got {self.seed})")
-        if self.belief_every < 0:
-            raise ConfigError(f"belief_every must be non-negative (got {self.belief_every})")
-        if self.radio.latency < 1:
-            raise ConfigError("radio.latency must be at least 1 tick")
-        if isinstance(self.start, str) and self.start != "random":
-            raise ConfigError(f"--start must be ROW,COL or 'random' (got {self.start!r})")
-        if isinstance(self.start, tuple) and (len(self.start) != 2 or not all(isinstance(v, int) for v in self.start)):
-            raise ConfigError(f"--start must be ROW,COL or 'random' (got {self.start!r})")
-        if not isinstance(self.allocator.get("type"), str):
-            raise ConfigError("allocator needs a 'type' name")
-        return self
+    # --- reading and writing ------------------------------------------------------------------------------
 
-    @property
-    def sensor_cells(self) -> float:
-        """Sensor range in cells."""
-        return self.sensor_range / self.cell_size
+    @classmethod
+    def load(cls, path: str | Path) -> Scenario:
+        """A scenario file: TOML (``launch/scenarios/``), or the ``scenario.json`` a run wrote (by suffix)."""
+        p = Path(path)
+        return cls.from_json(p) if p.suffix.lower() == ".json" else cls.from_toml(p)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Scenario:
+        """A scenario TOML: top-level keys and the sections ``[map]``, ``[fleet]``, ``[radio]``, ``[allocator]``."""
+        p = Path(path)
+        try:
+            raw = tomllib.loads(_read(p))
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"scenario {p} is not valid TOML: {exc}") from None
+        flat: dict[str, Any] = {}
+        for k, v in raw.items():
+            if k in _SECTIONS and not isinstance(v, dict):
+                raise ConfigError(f"scenario {p}: {k!r} must be a [{k}] section, not a value")
+            if k == "map":
+                m = dict(v)
+                if "name" in m:
+                    name = m.pop("name")
+                    rel = p.parent / str(name)
+                    is_path = isinstance(name, str) and ("/" in name or "." in name) and rel.exists()
+                    flat["map"] = str(rel) if is_path else name
+                _move(m, flat, ("cell_size",), "map")
+            elif k == "fleet":
+                _move(dict(v), flat, ("robots", "sensor_range", "start"), "fleet")
+            elif k in ("radio", "allocator"):
+                flat[k] = dict(v)
+            elif k in _TOP:
+                flat[k] = v
+            else:
+                raise ConfigError(f"scenario {p}: unknown key or section {k!r}")
+        return cls.from_dict(flat, where=f"scenario {p}")
+
+    @classmethod
+    def from_json(cls, path: str | Path) -> Scenario:
+        """The ``scenario.json`` that ``fleet run`` writes beside every result (:meth:`to_dict`)."""
+        p = Path(path)
+        try:
+            d = json.loads(_read(p))
+        except json.JSONDecodeError as exc:
+            raise ConfigError(f"scenario {p} is not valid JSON: {exc}") from None
+        if not isinstance(d, dict):
+            raise ConfigError(f"scenario {p} is not a JSON object")
+        return cls.from_dict(d, where=f"scenario {p}")
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], where: str = "scenario") -> Scenario:
+        """The inverse of :meth:`to_dict`; unknown keys and wrong types are a ConfigError."""
+        d = dict(d)
+        unknown = set(d) - {f.name for f in dataclasses.fields(cls)}
+        if unknown:
+            raise ConfigError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}")
+        radio = d.pop("radio", {})
+        if isinstance(radio, RadioConfig):
+            radio = dataclasses.asdict(radio)
+        if not isinstance(radio, dict):
+            raise ConfigError(f"{where}: radio must be a table of radio settings")
+        bad = set(radio) - {f.name for f in dataclasses.fields(RadioConfig)}
+        if bad:
+            raise ConfigError(f"{where}: unknown key(s) in [radio]: {', '.join(sorted(bad))}")
+        if isinstance(d.get("start"), list):
+            d["start"] = tuple(d["start"])
+        if "allocator" in d and not isinstance(d["allocator"], dict):
+            raise ConfigError(f"{where}: allocator must be a table with a 'type' name")
+        return cls(radio=RadioConfig(**radio), **d).validate()
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
         d["start"] = list(self.start) if isinstance(self.start, tuple) else self.start
         return d
 
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> Scenario:
-        d = dict(d)
-        radio = RadioConfig(**d.pop("radio", {}))
-        if isinstance(d.get("start"), list):
-            d["start"] = tuple(d["start"])
-        return cls(radio=radio, **d)
+    def override(self, **flags: Any) -> Scenario:
+        """Flags on top (None means not given): ``loss``, ``comm_range`` and ``comm`` go to the radio;
+        ``allocator`` a name (its parameters kept when the name is unchanged); the rest by field name."""
+        top: dict[str, Any] = {}
+        radio: dict[str, Any] = {}
+        names = {f.name for f in dataclasses.fields(self)}
+        for k, v in flags.items():
+            if v is None:
+                continue
+            if k in ("loss", "comm_range", "comm"):
+                radio[k] = v
+            elif k == "allocator":
+                top["allocator"] = {"type": v} if v != self.allocator.get("type") else self.allocator
+            elif k in names:
+                top[k] = tuple(v) if k == "start" and isinstance(v, list) else v
+            else:
+                raise ConfigError(f"unknown scenario field {k!r}")
+        if radio:
+            top["radio"] = dataclasses.replace(self.radio, **radio)
+        return dataclasses.replace(self, **top).validate()
+
+    @property
+    def sensor_cells(self) -> float:
+        """Sensor range in cells."""
+        return self.sensor_range / self.cell_size
+
+    # --- checks -------------------------------------------------------------------------------------------
+
+    def validate(self) -> Scenario:
+        """Raise ConfigError on the first bad value; return self."""
+        r = self.radio
+        _text("name", self.name)
+        _text("--map", self.map)
+        _integer("--robots", self.robots, 1, MAX_ROBOTS)
+        _integer("--seed", self.seed, 0, 2**63 - 1)
+        _integer("--max-ticks", self.max_ticks, 1, 10**9)
+        _integer("stall_ticks", self.stall_ticks, 1, 10**9)
+        _integer("belief_every", self.belief_every, 0, 10**9)
+        _number("--cell-size", self.cell_size, 1e-3, 1e3)
+        _number("--sensor-range", self.sensor_range, 0.0, 1e6, low_open=True)
+        _number("--target-coverage", self.target_coverage, 0.0, 1.0, low_open=True)
+        _number("barrier_timeout", self.barrier_timeout, 0.0, 86400.0, low_open=True)
+        _number("--loss", r.loss, 0.0, 1.0)
+        _number("--comm-range", r.comm_range, 0.0, 1e6, low_open=True)
+        _number("radio.path_loss", r.path_loss, 0.0, 100.0)
+        _number("radio.waf", r.waf, 0.0, 1000.0)
+        _number("radio.threshold", r.threshold, -1000.0, 1000.0)
+        _integer("radio.max_walls", r.max_walls, 0, 10**6)
+        _integer("radio.latency", r.latency, 1, 10**6)
+        if r.comm not in COMM_MODELS:
+            raise ConfigError(f"--comm must be one of {', '.join(COMM_MODELS)} (got {r.comm!r})")
+        if self.sensor_range / self.cell_size < 1:
+            raise ConfigError(f"--sensor-range {self.sensor_range} m is less than one cell ({self.cell_size} m)")
+        start_ok = self.start is None or self.start == "random" or (
+            isinstance(self.start, tuple) and len(self.start) == 2
+            and all(isinstance(v, int) and not isinstance(v, bool) for v in self.start))
+        if not start_ok:
+            raise ConfigError(f"--start must be ROW,COL or 'random' (got {self.start!r})")
+        if not isinstance(self.allocator, dict) or not isinstance(self.allocator.get("type"), str):
+            raise ConfigError("allocator needs a 'type' name")
+        return self
 
 
-_TOP = {"name", "seed", "max_ticks", "target_coverage", "stall_ticks", "barrier_timeout", "map_delta_ttl",
-        "belief_every"}
+_TOP = {"name", "seed", "max_ticks", "target_coverage", "stall_ticks", "barrier_timeout", "belief_every"}
+_SECTIONS = ("map", "fleet", "radio", "allocator")
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read a scenario TOML (sections ``[map]``, ``[fleet]``, ``[radio]``, ``[allocator]``)."""
-    p = Path(path)
+def _read(p: Path) -> str:
     try:
-        raw = tomllib.loads(p.read_text())
+        return p.read_text()
     except FileNotFoundError:
         raise ConfigError(f"scenario file not found: {p}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"cannot read scenario {p}: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"scenario {p} is not valid TOML: {exc}") from None
-    kw: dict[str, Any] = {}
-    try:
-        for k, v in raw.items():
-            if k in _TOP:
-                kw[k] = v
-            elif k == "map":
-                m = dict(v)
-                if "name" in m:
-                    name = str(m.pop("name"))
-                    rel = p.parent / name
-                    kw["map"] = str(rel) if ("/" in name or "." in name) and rel.exists() else name
-                if "cell_size" in m:
-                    kw["cell_size"] = float(m.pop("cell_size"))
-                _no_extra("map", m)
-            elif k == "fleet":
-                f = dict(v)
-                for key in ("robots", "sensor_range", "start"):
-                    if key in f:
-                        kw[key] = f.pop(key)
-                if isinstance(kw.get("start"), list):
-                    kw["start"] = tuple(kw["start"])
-                _no_extra("fleet", f)
-            elif k == "radio":
-                kw["radio"] = RadioConfig(**v)
-            elif k == "allocator":
-                kw["allocator"] = dict(v)
-            else:
-                raise ConfigError(f"scenario {p}: unknown key or section {k!r}")
-        return Scenario(**kw)
-    except TypeError as exc:
-        raise ConfigError(f"scenario {p}: {exc}") from None
 
 
-def _no_extra(section: str, rest: dict[str, Any]) -> None:
-    if rest:
-        raise ConfigError(f"unknown key(s) in [{section}]: {', '.join(sorted(rest))}")
+def _move(section: dict[str, Any], flat: dict[str, Any], keys: tuple[str, ...], name: str) -> None:
+    for key in keys:
+        if key in section:
+            flat[key] = section.pop(key)
+    if section:
+        raise ConfigError(f"unknown key(s) in [{name}]: {', '.join(sorted(section))}")
 
 
-def with_overrides(s: Scenario, **flags: Any) -> Scenario:
-    """Apply CLI flags (None means not given) on top of a scenario."""
-    top: dict[str, Any] = {}
-    radio: dict[str, Any] = {}
-    for k, v in flags.items():
-        if v is None:
-            continue
-        if k in ("loss", "comm_range", "comm"):
-            radio[k] = v
-        elif k == "allocator":
-            top["allocator"] = {"type": v} if v != s.allocator.get("type") else s.allocator
-        else:
-            top[k] = v
-    if radio:
-        top["radio"] = dataclasses.replace(s.radio, **radio)
-    return dataclasses.replace(s, **top)
+def _text(field: str, value: Any) -> None:
+    if not isinstance(value, str) or not value:
+        raise ConfigError(f"{field} must be a non-empty string (got {value!r})")
+
+
+def _integer(field: str, value: Any, low: int, high: int) -> None:
+    if not isinstance(value, int) or isinstance(value, bool):
+        raise ConfigError(f"{field} must be a whole number from {low} to {high} (got {value!r})")
+    if not low <= value <= high:
+        raise ConfigError(f"{field} must be from {low} to {high} (got {value})")
+
+
+def _number(field: str, value: Any, low: float, high: float, low_open: bool = False) -> None:
+    lo = "(" if low_open else "["
+    if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
+        raise ConfigError(f"{field} must be a finite number within {lo}{low:g}, {high:g}] (got {value!r})")
+    if not (low < value if low_open else low <= value) or value > high:
+        raise ConfigError(f"{field} must be within {lo}{low:g}, {high:g}] (got {value})")

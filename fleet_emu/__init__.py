@@ -1,3 +1,99 @@
-"""fleet_emu: multi-robot frontier exploration under realistic radio, one process per robot over Eclipse Zenoh."""
+"""fleet_emu: multi-robot frontier exploration under realistic radio, one process per robot over Eclipse Zenoh.
+
+The public API, for scripts and notebooks (the ``fleet`` CLI is built on it)::
+
+    import fleet_emu as fe
+
+    scenario = fe.Scenario.load("launch/scenarios/default.toml").override(robots=3, allocator="greedy")
+    result = fe.run(scenario, out="runs/greedy3")        # a real fleet: one process per robot, over Zenoh
+    ticks, coverage = result.coverage_curve()
+    run = fe.load_recording("runs/greedy3/run.mcap")     # the same fold as ``fleet report``
+
+Names are imported on first use, so that a robot process (``python -m fleet_emu.agents``) loads only what it
+needs.
+"""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 __version__ = "0.2.0"
+
+__all__ = [
+    "__version__",
+    # scenarios and runs
+    "Scenario", "RadioConfig", "run", "Result",
+    # recordings
+    "load_recording",
+    # allocators
+    "Allocator", "Allocation", "AllocStatus", "Problem", "make_allocator",
+    # errors
+    "FleetError", "ConfigError", "MapError", "DecodeError", "ReportError", "RunError",
+    # versions
+    "SCHEMA_VERSION",
+]
+
+_LAZY = {
+    "Scenario": "fleet_emu.core.scenario",
+    "RadioConfig": "fleet_emu.core.radio",
+    "Result": "fleet_emu.launch.result",
+    "load_recording": "fleet_emu.launch.report",
+    "Allocator": "fleet_emu.agents.allocators",
+    "Allocation": "fleet_emu.agents.allocators",
+    "AllocStatus": "fleet_emu.agents.allocators",
+    "Problem": "fleet_emu.agents.allocators",
+    "make_allocator": "fleet_emu.agents.allocators",
+    "FleetError": "fleet_emu.core.errors",
+    "ConfigError": "fleet_emu.core.errors",
+    "MapError": "fleet_emu.core.errors",
+    "DecodeError": "fleet_emu.core.errors",
+    "ReportError": "fleet_emu.core.errors",
+    "RunError": "fleet_emu.core.errors",
+    "SCHEMA_VERSION": "fleet_emu.core.version",
+}
+
+if TYPE_CHECKING:
+    from fleet_emu.agents.allocators import Allocation, Allocator, AllocStatus, Problem, make_allocator
+    from fleet_emu.core.errors import ConfigError, DecodeError, FleetError, MapError, ReportError, RunError
+    from fleet_emu.core.radio import RadioConfig
+    from fleet_emu.core.scenario import Scenario
+    from fleet_emu.core.version import SCHEMA_VERSION
+    from fleet_emu.launch.report import load_recording
+    from fleet_emu.launch.result import Result
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'fleet_emu' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | None = None,
+        in_process: bool = False, connect: str | None = None, run_id: str = "",
+        grid_every: int | None = None) -> Result:
+    """Run one scenario as a real fleet (world, netem and one process per robot over Zenoh; with
+    ``in_process`` every node in this process, a session each) and return its :class:`Result`.
+
+    Files are written only where asked: with ``out``, the run's directory gets ``result.json``,
+    ``scenario.json``, ``map.npz``, the process logs and (unless ``record=False``) ``run.mcap``; without it,
+    nothing is kept. Nothing is printed. Raises :class:`ConfigError` (or :class:`MapError`) on bad input before
+    any process starts, and :class:`RunError` when a process of the fleet failed the run.
+    """
+    from fleet_emu.launch.runner import RunOptions, run_fleet
+
+    out_dir = Path(out) if out is not None else None
+    if record and out_dir is None:
+        from fleet_emu.core.errors import ConfigError
+
+        raise ConfigError("record=True needs an output directory (out=...)")
+    opts = RunOptions(out_dir=out_dir, in_process=in_process, record=out_dir is not None and record is not False,
+                      connect=connect, run_id=run_id, grid_every=grid_every)
+    return run_fleet(scenario, opts)

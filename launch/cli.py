@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from fleet_emu.core.errors import ConfigError, FleetError
-from fleet_emu.core.scenario import Scenario, load_scenario, with_overrides
+from fleet_emu.core.scenario import Scenario
 
 DEFAULT_SCENARIO = Path(__file__).resolve().parent / "scenarios" / "default.toml"
 
@@ -72,27 +72,32 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
-    base = load_scenario(args.scenario) if args.scenario else load_scenario(DEFAULT_SCENARIO)
-    return with_overrides(
-        base, map=args.map, robots=args.robots, allocator=args.allocator, loss=args.loss,
+    base = Scenario.load(args.scenario or DEFAULT_SCENARIO)
+    return base.override(
+        map=args.map, robots=args.robots, allocator=args.allocator, loss=args.loss,
         comm_range=args.comm_range, sensor_range=args.sensor_range, cell_size=args.cell_size, seed=args.seed,
-        start=args.start, max_ticks=args.max_ticks, target_coverage=args.target_coverage, comm=args.comm).validate()
+        start=args.start, max_ticks=args.max_ticks, target_coverage=args.target_coverage, comm=args.comm)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from fleet_emu.launch.progress import console, summary_table
+    from rich.console import Console
+
+    from fleet_emu.launch.progress import Progress, summary_table
     from fleet_emu.launch.runner import RunOptions, new_run_id, run_fleet
 
     out = args.out
+    console = Console(stderr=True)
     try:
         scenario = scenario_from_args(args)
         run_id = args.run_id or new_run_id()
         out = args.out or Path("runs") / run_id
         if args.grid_every is not None and args.grid_every < 1:
             raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
-        opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
-                          connect=args.connect, quiet=args.quiet, run_id=run_id, grid_every=args.grid_every)
-        result = run_fleet(scenario, opts)
+        with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
+            opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
+                              connect=args.connect, run_id=run_id, grid_every=args.grid_every,
+                              on_progress=progress.update)
+            result = run_fleet(scenario, opts)
     except KeyboardInterrupt:
         print(f"fleet: interrupted; what was recorded is in {out}", file=sys.stderr)
         return 130

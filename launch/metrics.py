@@ -132,7 +132,7 @@ class RunMetrics:
             self.tx_bundles[msg.src] += 1
             self.series.tx_msgs[msg.tick] = self.series.tx_msgs.get(msg.tick, 0) + len(msg.msgs)
             for m in msg.msgs:
-                self.kinds[m.KIND] = self.kinds.get(m.KIND, 0) + 1
+                self.kinds[m.payload_kind] = self.kinds.get(m.payload_kind, 0) + 1
         elif isinstance(msg, RxBundle) and msg.dst in self.rx_msgs:
             self.rx_msgs[msg.dst] += len(msg.msgs)
             self.series.rx_msgs[msg.tick] = self.series.rx_msgs.get(msg.tick, 0) + len(msg.msgs)

@@ -11,8 +11,10 @@ from typing import Any
 
 import numpy as np
 
+from fleet_emu import __version__
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.messages import AgentReport, Command, Links, Message, Stop, WorldState
+from fleet_emu.core.version import SCHEMA_VERSION
 
 
 @dataclasses.dataclass
@@ -114,6 +116,8 @@ class Monitor:
             "malformed_dropped": self.malformed + sum(r.dropped for r in self.reports.values()),
             "agent_peak_rss_kb": {r: rep.peak_rss_kb for r, rep in sorted(self.reports.items())},
             "ticks_per_second": self.ticks_per_second(),
+            "schema_version": SCHEMA_VERSION,
+            "fleet_emu": __version__,
         }
 
     def ticks_per_second(self) -> float | None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 from rich.console import Console
@@ -12,13 +13,11 @@ from rich.table import Table
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.monitor import Monitor
 
-console = Console(stderr=True)
-
 
 class Progress:
     """Coverage bar to the target, with the tick; silent with ``quiet`` or when stderr is not a terminal."""
 
-    def __init__(self, scenario: Scenario, run_id: str, quiet: bool = False) -> None:
+    def __init__(self, scenario: Scenario, run_id: str, console: Console, quiet: bool = False) -> None:
         self.scenario = scenario
         self.enabled = not quiet
         self._bar = RichProgress(
@@ -42,7 +41,7 @@ class Progress:
                          cov=monitor.coverage, tick=monitor.tick)
 
 
-def summary_table(result: dict[str, Any], out_dir: str) -> Table:
+def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
     """The closing table of ``fleet run``."""
     t = Table(title=f"run {result['run_id']}", show_header=False, title_justify="left")
     t.add_column("metric", style="bold")

@@ -1,15 +1,16 @@
-"""One run of the fleet: embedded router, recorder and monitor, the nodes (as processes or in-process), the
-progress display, and ``result.json`` — written on every exit path, Ctrl-C included."""
+"""One run of the fleet: embedded router, recorder and monitor, the nodes (as processes or in-process), and
+``result.json`` — written on every exit path, Ctrl-C included. No console and no global state: the CLI passes
+a progress callback in."""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
 import dataclasses
-import json
 import os
 import queue
 import secrets
+import tempfile
 import threading
 import time
 from collections.abc import Callable
@@ -22,15 +23,17 @@ from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import allocator_config
 from fleet_emu.core.bus import client_config, publisher, router_config, router_locators
 from fleet_emu.core.errors import ConfigError, RunError
+from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import Keys, robot_ids
 from fleet_emu.core.messages import Failed, Ready, Stop
+from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.foxglove import FoxgloveFold, FoxgloveWriter
 from fleet_emu.launch.monitor import Monitor
-from fleet_emu.launch.progress import Progress
 from fleet_emu.launch.recorder import Recorder
+from fleet_emu.launch.result import Result, write_json_atomic
 from fleet_emu.launch.supervisor import Supervisor
-from fleet_emu.world.maps import MapData, load_map
+from fleet_emu.world.maps import load_map
 from fleet_emu.world.node import build_world
 
 STOP_GRACE = 5.0
@@ -38,13 +41,18 @@ STOP_GRACE = 5.0
 
 @dataclasses.dataclass(frozen=True)
 class RunOptions:
-    out_dir: Path
+    """How to run: ``out_dir`` keeps ``result.json``, ``scenario.json``, ``map.npz``, the process logs and
+    (with ``record``) ``run.mcap``; without it nothing is kept. ``in_process`` runs every node in this process
+    (a session each); ``connect`` uses an external router; ``on_progress`` is called with the monitor as the
+    run goes."""
+
+    out_dir: Path | None = None
     in_process: bool = False
     record: bool = True
     connect: str | None = None
-    quiet: bool = False
     run_id: str = ""
     grid_every: int | None = None  # Foxglove grids every k ticks (default: the scenario's belief_every)
+    on_progress: Callable[[Monitor], None] | None = None
 
 
 def new_run_id() -> str:
@@ -52,7 +60,8 @@ def new_run_id() -> str:
 
 
 def check(scenario: Scenario) -> MapData:
-    """Everything that can be wrong with the user's input, found before any process starts."""
+    """Everything that can be wrong with the user's input, found before any process starts; the true map,
+    built once for the whole run."""
     scenario.validate()
     try:
         make_allocator(allocator_config(scenario))  # exactly what every agent will build
@@ -63,22 +72,40 @@ def check(scenario: Scenario) -> MapData:
     return md
 
 
-def run_fleet(scenario: Scenario, opts: RunOptions) -> dict[str, Any]:
-    """Run one scenario to its end; returns the result (also written to ``out_dir/result.json``)."""
+def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
+    """Run one scenario to its end. ``result.json`` is written (atomically) when ``opts.out_dir`` is given,
+    on every exit path; Ctrl-C re-raises KeyboardInterrupt after it, and a failed run raises RunError."""
     map_data = check(scenario)
     run_id = opts.run_id or new_run_id()
-    out = opts.out_dir
-    out.mkdir(parents=True, exist_ok=True)
-    scenario_path = out / "scenario.json"
-    scenario_path.write_text(json.dumps(scenario.to_dict(), indent=2))
+    with contextlib.ExitStack() as files:
+        work = opts.out_dir or Path(files.enter_context(tempfile.TemporaryDirectory(prefix="fleet-run-")))
+        work.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(work / "scenario.json", scenario.to_dict())
+        map_data.save(work / "map.npz")
+        recording = work / "run.mcap" if opts.record and opts.out_dir is not None else None
+        result, failure = _run(scenario, map_data, run_id, work, recording, opts)
+        if opts.out_dir is not None:
+            write_json_atomic(work / "result.json", result.data)
+        elif failure == "error":
+            result.data["error"] += f" ({_last_log_line(work, result.data['error'])})"
+    if failure == "interrupted":
+        raise KeyboardInterrupt
+    if failure == "error":
+        raise RunError(result["error"])
+    return result
+
+
+def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recording: Path | None,
+         opts: RunOptions) -> tuple[Result, str | None]:
+    """The run itself: router, recorder, nodes, the wait, the teardown; the result and how it failed."""
     keys = Keys(run_id)
     robots = tuple(robot_ids(scenario.robots))
     monitor = Monitor(robots)
-    mcap_path = out / "run.mcap"
-    recorder = Recorder(mcap_path, {"run_id": run_id, "scenario": scenario.to_dict()}) if opts.record else None
+    meta = {"run_id": run_id, "scenario": scenario.to_dict()}
+    recorder = Recorder(recording, meta) if recording is not None else None
     viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id)) \
         if recorder else None
-    sup = Supervisor(log_dir=out)
+    sup = Supervisor(log_dir=work)
     pids: dict[str, Any] = {}
     t_start = time.monotonic()
     interrupted = False
@@ -95,33 +122,33 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> dict[str, Any]:
             keys.all, lambda s: samples.put((str(s.key_expr), s.payload.to_bytes(), time.time_ns())))
         pub_ready = publisher(session, keys.ready("launcher"))
         pub_stop = publisher(session, keys.stop)
-        token = session.liveliness().declare_token(keys.alive("launcher", "launcher"))
-        consumer = _Consumer(samples, monitor, recorder, pub_ready, robots, viz)
+        handles: list[Declared] = [pub_ready, pub_stop,
+                                   session.liveliness().declare_token(keys.alive("launcher", "launcher"))]
+        consumer = _Consumer(keys, samples, monitor, recorder, pub_ready, viz)
         consumer.start()
         nodes_thread: threading.Thread | None = None
-        progress = Progress(scenario, run_id, quiet=opts.quiet)
         try:
             if opts.in_process:
-                nodes_thread = _start_in_process(scenario, run_id, endpoint)
+                nodes_thread = _start_in_process(scenario, map_data, run_id, endpoint)
                 pids = {"world": os.getpid(), "netem": os.getpid(), "agents": [os.getpid()] * len(robots)}
             else:
-                common = ["--run", run_id, "--connect", endpoint, "--scenario", str(scenario_path)]
-                sup.spawn("world", "fleet_emu.world", common)
-                sup.spawn("netem", "fleet_emu.netem", common)
+                common = ["--run", run_id, "--connect", endpoint, "--scenario", str(work / "scenario.json")]
+                truth = ["--map-file", str(work / "map.npz")]
+                sup.spawn("world", "fleet_emu.world", [*common, *truth])
+                sup.spawn("netem", "fleet_emu.netem", [*common, *truth])
                 for r in robots:
                     sup.spawn(r, "fleet_emu.agents", ["--robot", r, *common])
                 p = sup.pids()
                 pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
-            with progress:
-                error = _wait(monitor, consumer, sup, nodes_thread, progress,
-                              lambda r: session.put(keys.failed(r), Failed(
-                                  src="launcher", tick=monitor.tick, seq=0, robot=r, reason="process exited").encode(),
-                                  congestion_control=zenoh.CongestionControl.BLOCK))
+            error = _wait(monitor, consumer, sup, nodes_thread, opts.on_progress,
+                          lambda r: session.put(keys.failed(r), Failed(
+                              src="launcher", tick=monitor.tick, seq=0, robot=r, reason="process exited").encode(),
+                              congestion_control=zenoh.CongestionControl.BLOCK))
         except KeyboardInterrupt:
             interrupted = True
         finally:
             if monitor.stop is None or interrupted:
-                with contextlib.suppress(Exception):
+                with contextlib.suppress(zenoh.ZError):
                     pub_stop.put(Stop(src="launcher", tick=monitor.tick, seq=1,
                                       reason="interrupted" if interrupted else "aborted").encode())
             if not sup.wait_all(STOP_GRACE):
@@ -130,42 +157,47 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> dict[str, Any]:
             if nodes_thread is not None:
                 nodes_thread.join(STOP_GRACE)
             time.sleep(0.1)  # let the last samples reach the subscriber
-            sub.undeclare()
+            undeclare([sub])
             samples.put(None)
-            consumer.join()
-            del token
+            consumer.join()  # it may still answer a hello on pub_ready: undeclare that only after it ends
+            undeclare(handles)
     if viz is not None:
         viz.finish()
     messages = recorder.close() if recorder else 0
-    result = monitor.result(scenario.to_dict(), run_id, scenario.target_coverage)
+    data = monitor.result(scenario.to_dict(), run_id, scenario.target_coverage)
     if interrupted:
-        result["reason"] = "interrupted"
+        data["reason"] = "interrupted"
     elif error:
-        result["reason"] = "error"
-        result["error"] = error
-    wall = time.monotonic() - t_start
-    result |= {
+        data["reason"] = "error"
+        data["error"] = error
+    data |= {
         "pids": pids,
-        "recording": {"path": str(mcap_path) if recorder else None, "messages": messages},
-        "wall_seconds": round(wall, 3),
+        "recording": {"path": str(recording) if recording else None, "messages": messages},
+        "wall_seconds": round(time.monotonic() - t_start, 3),
         "scenario": scenario.to_dict(),
     }
-    (out / "result.json").write_text(json.dumps(result, indent=2))
-    if interrupted:
-        raise KeyboardInterrupt
-    if error:
-        raise RunError(error)
-    return result
+    failure = "interrupted" if interrupted else ("error" if error else None)
+    return Result(data, tuple(monitor.coverage_curve), recording.parent if recording else None), failure
+
+
+def _last_log_line(work: Path, error: str) -> str:
+    """The last line a failed process wrote (its log is not kept when there is no output directory)."""
+    for name in ("world", "netem"):
+        if error.startswith(f"the {name} process"):
+            lines = (work / f"{name}.log").read_text(errors="replace").strip().splitlines()
+            return lines[-1] if lines else "it wrote nothing"
+    return "no log"
 
 
 def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: threading.Thread | None,
-          progress: Progress, notify_failed: Callable[[str], None]) -> str | None:
+          on_progress: Callable[[Monitor], None] | None, notify_failed: Callable[[str], None]) -> str | None:
     """Until the world's stop and every live agent's report; returns an error line, or None.
     An agent process that exits early is announced to the world, which goes on without it."""
     stop_seen: float | None = None
     announced: set[str] = set()
     while True:
-        progress.update(monitor)
+        if on_progress is not None:
+            on_progress(monitor)
         if monitor.stop is not None:
             stop_seen = stop_seen or time.monotonic()
             live = set(monitor.state.live) if monitor.state else set()
@@ -178,9 +210,9 @@ def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: 
             for name in sorted(announced if monitor.state is None else new):
                 notify_failed(name)
         if "world" in dead and monitor.stop is None:
-            return f"the world process exited with code {dead['world']} (see world.log in --out)"
+            return f"the world process exited with code {dead['world']} (see world.log)"
         if "netem" in dead and monitor.stop is None:
-            return f"the netem process exited with code {dead['netem']} (see netem.log in --out)"
+            return f"the netem process exited with code {dead['netem']} (see netem.log)"
         if nodes_thread is not None and not nodes_thread.is_alive() and monitor.stop is None:
             return "the in-process nodes ended before the run did"
         consumer.changed.wait(0.2)
@@ -190,26 +222,25 @@ def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: 
 class _Consumer(threading.Thread):
     """Takes samples off the subscriber's queue: records them, folds them, and answers the world's hello."""
 
-    def __init__(self, samples: queue.Queue, monitor: Monitor, recorder: Recorder | None,
-                 pub_ready: zenoh.Publisher, robots: tuple[str, ...], viz: FoxgloveWriter | None = None) -> None:
+    def __init__(self, keys: Keys, samples: queue.Queue, monitor: Monitor, recorder: Recorder | None,
+                 pub_ready: zenoh.Publisher, viz: FoxgloveWriter | None = None) -> None:
         super().__init__(daemon=True, name="recorder")
+        self.keys = keys
         self.samples = samples
         self.monitor = monitor
         self.recorder = recorder
         self.viz = viz
         self.pub_ready = pub_ready
         self.changed = threading.Event()
-        self._seq = 0
 
     def run(self) -> None:
         while (item := self.samples.get()) is not None:
             key, data, wall_ns = item
             if self.recorder is not None:
                 self.recorder.record(key, data, wall_ns)
-            if key.endswith("/ctl/hello"):
-                self._seq += 1
-                self.pub_ready.put(Ready(src="launcher", tick=0, seq=self._seq, role="launcher",
-                                         pid=os.getpid()).encode())
+            parsed = self.keys.parse(key)
+            if parsed is not None and parsed.channel == "hello":
+                self.pub_ready.put(Ready(src="launcher", tick=0, seq=0, role="launcher", pid=os.getpid()).encode())
                 continue
             msg = self.monitor.feed(key, data, wall_ns)
             if self.viz is not None:
@@ -218,13 +249,13 @@ class _Consumer(threading.Thread):
                 self.changed.set()
 
 
-def _start_in_process(scenario: Scenario, run_id: str, endpoint: str) -> threading.Thread:
+def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoint: str) -> threading.Thread:
     """Every node in this process, each with its own Zenoh session to the same router."""
     from fleet_emu.agents.node import AgentNode
     from fleet_emu.netem.node import NetemNode
     from fleet_emu.world.node import WorldNode
 
-    nodes = [WorldNode(scenario, run_id), NetemNode(scenario, run_id)]
+    nodes = [WorldNode(scenario, run_id, map_data), NetemNode(scenario, run_id, map_data)]
     nodes += [AgentNode(scenario, run_id, r) for r in robot_ids(scenario.robots)]
 
     async def main() -> None:

@@ -1,9 +1,9 @@
 """Spawning and tearing down the fleet's processes: each child in its own process group, killed on every
-exit path (normal end, Ctrl-C, an exception, interpreter exit)."""
+exit path of the runner (normal end, Ctrl-C, an exception); a child whose launcher dies exits by itself
+(``fleet_emu.core.node.watch_parent``)."""
 
 from __future__ import annotations
 
-import atexit
 import contextlib
 import os
 import signal
@@ -20,7 +20,6 @@ class Supervisor:
         self.children: dict[str, subprocess.Popen[bytes]] = {}
         self.log_dir = log_dir
         self._logs: list[object] = []
-        atexit.register(self.kill_all)
 
     def spawn(self, name: str, module: str, args: list[str]) -> subprocess.Popen[bytes]:
         """Start ``python -m module args`` in a new session (its own process group)."""

@@ -2,7 +2,8 @@
 
 Counting convention: every (message, intended receiver) pair is one transmission, so
 ``sent == delivered + dropped_loss + dropped_signal``; ``bytes_sent`` counts each message's encoded size once
-(one radio emission reaches every receiver).
+(one radio emission reaches every receiver). Messages are :class:`~fleet_emu.core.messages.Envelope` s, routed
+by their header; their payloads are never decoded here.
 """
 
 from __future__ import annotations
@@ -10,10 +11,9 @@ from __future__ import annotations
 import dataclasses
 from collections import defaultdict
 
-import msgpack
 import numpy as np
 
-from fleet_emu.core.messages import RadioMsg
+from fleet_emu.core.messages import Envelope
 
 
 @dataclasses.dataclass
@@ -33,10 +33,10 @@ class Channel:
         self.rng = rng
         self.latency = latency
         self.counters = Counters()
-        self._pending: dict[int, dict[str, list[RadioMsg]]] = defaultdict(lambda: defaultdict(list))
+        self._pending: dict[int, dict[str, list[Envelope]]] = defaultdict(lambda: defaultdict(list))
 
     def transmit(self, tick: int, robots: tuple[str, ...], link: np.ndarray,
-                 bundles: dict[str, tuple[RadioMsg, ...]]) -> None:
+                 bundles: dict[str, tuple[Envelope, ...]]) -> None:
         """Send every robot's bundle of ``tick`` over the link matrix (rows/cols in ``robots`` order).
 
         Draw order is fixed (senders by id order, messages in bundle order, receivers in id order), and a loss
@@ -48,7 +48,7 @@ class Channel:
         c = self.counters
         for src in robots:
             for msg in bundles.get(src, ()):
-                c.bytes_sent += len(msgpack.packb(msg.to_obj(), use_bin_type=True))
+                c.bytes_sent += len(msg.encode())
                 receivers = [r for r in robots if r != src and (msg.dst == "*" or msg.dst == r)]
                 for dst in receivers:
                     lost = self.rng.random() < self.loss
@@ -61,6 +61,6 @@ class Channel:
                         c.delivered += 1
                         due[dst].append(msg)
 
-    def deliver(self, tick: int) -> dict[str, list[RadioMsg]]:
+    def deliver(self, tick: int) -> dict[str, list[Envelope]]:
         """What arrives at ``tick``, per receiver (and forget it)."""
         return dict(self._pending.pop(tick, {}))

@@ -2,7 +2,7 @@
 
 Each tick t: on the world's state for t, compute the link graph from the true poses, publish it and every live
 robot's rx bundle for t; then wait for every live robot's tx bundle for t and schedule its deliveries.
-The channel itself is :class:`netem.channel.Channel`; the signal model is :mod:`netem.signal`.
+The channel itself is :class:`netem.channel.Channel`; the signal model is :mod:`fleet_emu.core.radio`.
 """
 
 from __future__ import annotations
@@ -14,40 +14,36 @@ import zenoh
 
 from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.codec import Context
+from fleet_emu.core.grid import MapData
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import Keys, robot_ids
 from fleet_emu.core.messages import Links, RxBundle, Stop, TxBundle, WorldState
-from fleet_emu.core.node import NodeBase, node_main
+from fleet_emu.core.node import NodeBase, node_main, undeclare
+from fleet_emu.core.radio import connected, link_matrix
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.netem.channel import Channel
-from fleet_emu.netem.signal import RadioParams, connected, link_matrix
-from fleet_emu.world.maps import load_map
 
 STATE_GRACE = 2.0  # seconds to wait, after a stop, for the states it announced
-
-
-def radio_params(scenario: Scenario) -> RadioParams:
-    r = scenario.radio
-    return RadioParams(comm_range=r.comm_range, path_loss=r.path_loss, waf=r.waf, max_walls=r.max_walls,
-                       threshold=r.threshold, ideal=r.comm == "ideal")
 
 
 class NetemNode(NodeBase):
     role = "netem"
 
-    def __init__(self, scenario: Scenario, run: str) -> None:
+    def __init__(self, scenario: Scenario, run: str, map_data: MapData) -> None:
         super().__init__(Keys(run), "netem")
         warm_up()  # compile (or load) the kernels before the first tick, not inside it
         self.scenario = scenario
         self.robots = robot_ids(scenario.robots)
-        md = load_map(scenario.map, scenario.cell_size, scenario.seed)
-        self.occupied = md.grid > 0
-        self.params = radio_params(scenario)
-        loss = 0.0 if self.params.ideal else scenario.radio.loss
-        self.channel = Channel(loss, generator(scenario.seed, "netem"), scenario.radio.latency)
-        self.ctx_tx = Context(senders=frozenset(self.robots), shape=md.grid.shape)
+        self.occupied = map_data.grid > 0
+        self.channel = Channel(scenario.radio.applied_loss, generator(scenario.seed, "netem"), scenario.radio.latency)
+        self.ctx_tx = Context(senders=frozenset(self.robots), shape=map_data.grid.shape)
         self.ctx_world = Context(senders=frozenset({"world"}))
+        self.states: dict[int, WorldState] = {}
+        self.tx: dict[int, dict[str, TxBundle]] = {}
+        self.stopped = False
+        self.stop_tick = -1
+        self.abort = False
 
     async def run(self, session: zenoh.Session) -> None:
         keys = self.keys
@@ -59,12 +55,13 @@ class NetemNode(NodeBase):
         ]
         self.pub_rx = {r: publisher(session, keys.rx(r)) for r in self.robots}
         self.pub_links = publisher(session, keys.links)
-        handles += self.declare_presence(session, inbox)
-        self.states: dict[int, WorldState] = {}
-        self.tx: dict[int, dict[str, TxBundle]] = {}
-        self.stopped = False
-        self.stop_tick = -1
-        self.abort = False
+        handles += [*self.pub_rx.values(), self.pub_links, *self.declare_presence(session, inbox)]
+        try:
+            await self._lockstep(inbox)
+        finally:
+            undeclare(handles)
+
+    async def _lockstep(self, inbox: Inbox) -> None:
         tick = 0
         while True:
             state = await self._await_state(inbox, tick)
@@ -82,7 +79,6 @@ class NetemNode(NodeBase):
         while not self.stopped:  # wait for the world's stop so the final links are recorded first
             if await self._next(inbox, timeout=5.0) is None:
                 break
-        del handles
 
     async def _next(self, inbox: Inbox, timeout: float | None = None) -> bool | None:
         """Handle one incoming item; None on timeout."""
@@ -90,21 +86,23 @@ class NetemNode(NodeBase):
         if item is None:
             return None
         key, data, _ = item
-        if key.endswith("/ctl/hello"):
+        parsed = self.keys.parse(key)
+        channel = parsed.channel if parsed is not None else None
+        if channel == "hello":
             self.answer_hello(key, data)
-        elif key == self.keys.stop:
+        elif channel == "stop":
             stop = self.decode(key, data, Stop)
             if stop is not None:
                 self.stopped = True
                 self.stop_tick = stop.tick
                 self.abort = stop.src != "world"  # the launcher's stop (Ctrl-C) ends at once
-        elif key == self.keys.state:
+        elif channel == "state":
             st = self.decode(key, data, WorldState, self.ctx_world)
             if st is not None:
                 self.states[st.tick] = st
-        elif "/radio/tx/" in key:
-            b = self.decode(key, data, TxBundle, self.ctx_tx)
-            if b is not None and b.src != Keys.last(key):
+        elif channel == "tx":
+            b = self.decode(key, data, TxBundle, self.ctx_tx)  # envelopes only: payloads stay opaque
+            if b is not None and b.src != parsed.node:  # type: ignore[union-attr]
                 self.drop(key, f"tx bundle from {b.src} on another robot's key")
             elif b is not None:
                 self.tx.setdefault(b.tick, {})[b.src] = b
@@ -137,7 +135,7 @@ class NetemNode(NodeBase):
 
     def _publish_tick(self, state: WorldState, live: tuple[str, ...]) -> np.ndarray:
         cells = [state.poses[r] for r in live]
-        strength, link = link_matrix(self.occupied, cells, self.scenario.cell_size, self.params)
+        strength, link = link_matrix(self.occupied, cells, self.scenario.cell_size, self.scenario.radio)
         c = self.channel.counters
         t = state.tick
         self.pub_links.put(Links(
@@ -154,5 +152,5 @@ class NetemNode(NodeBase):
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m fleet_emu.netem --run RUN --connect ENDPOINT --scenario FILE.json``."""
-    node_main("netem", lambda a: NetemNode(a.scenario, a.run), argv)
+    """``python -m fleet_emu.netem --run RUN --connect ENDPOINT --scenario FILE.json --map-file MAP.npz``."""
+    node_main("netem", lambda a: NetemNode(a.scenario, a.run, a.map_file), argv, map_file=True)

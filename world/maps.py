@@ -7,7 +7,6 @@ max-pooling obstacles, so that walls drawn one pixel thick survive (DESIGN.md "G
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections import deque
 from pathlib import Path
@@ -19,18 +18,7 @@ from PIL import Image
 from scipy import ndimage
 
 from fleet_emu.core.errors import MapError
-from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell
-
-
-@dataclasses.dataclass(frozen=True)
-class MapData:
-    """A ground-truth map: ``grid`` is int8 ``[row, col]`` (row 0 at the top), 0 free, 100 occupied."""
-
-    name: str
-    grid: np.ndarray
-    cell_size: float
-    start: tuple[int, int]
-
+from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell, MapData
 
 BUILTIN_MAPS: dict[str, str] = {
     "office": "40 x 25 m office: two rows of rooms with doors off a corridor, crossed by a vertical corridor",

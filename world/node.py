@@ -14,22 +14,20 @@ import zenoh
 
 from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.codec import Context
+from fleet_emu.core.grid import MapData
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import Keys, robot_ids
 from fleet_emu.core.messages import Command, Failed, Hello, Observation, Ready, Stop, WorldState
-from fleet_emu.core.node import NodeBase, node_main
+from fleet_emu.core.node import NodeBase, node_main, undeclare
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.world.maps import MapData, load_map
 from fleet_emu.world.sim import Reading, World, WorldConfig
 
 HELLO_PERIOD = 0.1
 
 
-def build_world(scenario: Scenario, map_data: MapData | None = None) -> World:
-    """The world of a scenario (the map is loaded with the run seed unless given)."""
-    if map_data is None:
-        map_data = load_map(scenario.map, scenario.cell_size, scenario.seed)
+def build_world(scenario: Scenario, map_data: MapData) -> World:
+    """The world of a scenario on its map (built once per run by the launcher)."""
     config = WorldConfig(
         sensor_range=scenario.sensor_cells,
         target_coverage=scenario.target_coverage,
@@ -43,11 +41,11 @@ def build_world(scenario: Scenario, map_data: MapData | None = None) -> World:
 class WorldNode(NodeBase):
     role = "world"
 
-    def __init__(self, scenario: Scenario, run: str, startup_timeout: float = 120.0) -> None:
+    def __init__(self, scenario: Scenario, run: str, map_data: MapData, startup_timeout: float = 120.0) -> None:
         super().__init__(Keys(run), "world")
         warm_up()  # compile (or load) the kernels before the first tick, not inside it
         self.scenario = scenario
-        self.world = build_world(scenario)
+        self.world = build_world(scenario, map_data)
         self.robots = robot_ids(scenario.robots)
         self.startup_timeout = startup_timeout
         self.stopped_early = False
@@ -69,10 +67,16 @@ class WorldNode(NodeBase):
         self.pub_state = publisher(session, keys.state)
         pub_hello = publisher(session, keys.hello)
         pub_stop = publisher(session, keys.stop)
-        handles.append(session.liveliness().declare_token(keys.alive("world", "world")))
+        handles += [*self.pub_obs.values(), self.pub_state, pub_hello, pub_stop,
+                    session.liveliness().declare_token(keys.alive("world", "world"))]
         self.ctx = Context(senders=frozenset(self.robots), shape=self.world.shape)
         self.ctx_launcher = Context(senders=frozenset({"launcher"}))
+        try:
+            return await self._episode(inbox, pub_hello, pub_stop)
+        finally:
+            undeclare(handles)
 
+    async def _episode(self, inbox: Inbox, pub_hello: zenoh.Publisher, pub_stop: zenoh.Publisher) -> str:
         if not await self._handshake(inbox, pub_hello):
             pub_stop.put(Stop(src="world", tick=0, seq=self.next_seq(), reason="startup").encode())
             return "startup"
@@ -90,7 +94,6 @@ class WorldNode(NodeBase):
         reason = "interrupted" if self.interrupted else (self.world.reason or "done")
         pub_stop.put(Stop(src="world", tick=self.world.tick, seq=self.next_seq(), reason=reason).encode())
         await asyncio.sleep(0.05)
-        del handles
         return reason
 
     async def _handshake(self, inbox: Inbox, pub_hello: zenoh.Publisher) -> bool:
@@ -105,7 +108,7 @@ class WorldNode(NodeBase):
                 self.drop("ctl/ready", f"startup timed out waiting for {sorted(waiting)}")
                 return False
             if now >= next_hello:
-                pub_hello.put(Hello(src="world", tick=0, seq=self.next_ctl_seq()).encode())
+                pub_hello.put(Hello(src="world", tick=0, seq=0).encode())
                 next_hello = now + HELLO_PERIOD
             item = await inbox.get(timeout=HELLO_PERIOD)
             if item is None:
@@ -118,17 +121,21 @@ class WorldNode(NodeBase):
             if lost in waiting:
                 self.lost_at_start.add(lost)
                 waiting.discard(lost)
-            if "/ctl/ready/" in key:
+            parsed = self.keys.parse(key)
+            if parsed is not None and parsed.channel == "ready":
                 ready = self.decode(key, data, Ready)
-                if ready is not None and ready.src == Keys.last(key):
+                if ready is not None and ready.src == parsed.node:
                     waiting.discard(ready.src)
         return True
 
     def _lost(self, key: str, data: bytes, is_put: bool) -> str | None:
         """The robot a liveliness deletion or the launcher's failure notice is about, or None."""
-        if "/alive/agent/" in key:
-            return None if is_put else Keys.last(key)
-        if "/ctl/failed/" in key:
+        parsed = self.keys.parse(key)
+        if parsed is None:
+            return None
+        if parsed.channel == "alive" and parsed.role == "agent":
+            return None if is_put else parsed.node
+        if parsed.channel == "failed":
             msg = self.decode(key, data, Failed, self.ctx_launcher)
             return msg.robot if msg is not None else None
         return None
@@ -174,9 +181,10 @@ class WorldNode(NodeBase):
                     waiting.discard(lost)
                     self.world.fail(lost)
                 continue
-            if "/robot/" not in key:
+            parsed = self.keys.parse(key)
+            if parsed is None or parsed.channel != "cmd":
                 continue
-            robot = key.rsplit("/", 2)[-2]
+            robot = parsed.node
             cmd = self.decode(key, data, Command, self.ctx)
             if cmd is None:
                 continue
@@ -189,5 +197,5 @@ class WorldNode(NodeBase):
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m fleet_emu.world --run RUN --connect ENDPOINT --scenario FILE.json``."""
-    node_main("world", lambda a: WorldNode(a.scenario, a.run), argv)
+    """``python -m fleet_emu.world --run RUN --connect ENDPOINT --scenario FILE.json --map-file MAP.npz``."""
+    node_main("world", lambda a: WorldNode(a.scenario, a.run, a.map_file), argv, map_file=True)

@@ -12,11 +12,8 @@ import dataclasses
 import numpy as np
 
 from fleet_emu.core.errors import ConfigError
-from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell, flat
+from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, STAY, Cell, MapData, flat
 from fleet_emu.core.kernels import visible_cells, wavefront
-from fleet_emu.world.maps import MapData
-
-STAY: Cell = (0, 0)
 
 
 class StartAreaError(ConfigError):

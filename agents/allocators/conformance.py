@@ -13,7 +13,9 @@ import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, AllocStatus, Problem, make_allocator
 from fleet_emu.agents.frontiers import find_clusters
+from fleet_emu.core.codec import Payload
 from fleet_emu.core.grid import FREE, UNKNOWN, from_ascii
+from fleet_emu.core.messages import RadioMsg
 
 CROSS = """
 ???????.???????
@@ -68,7 +70,9 @@ def _check(problem: Problem, a: Any, name: str) -> None:
         assert a.cluster is None or a.status is AllocStatus.WAITING, f"{name}: a cluster without ASSIGNED"
     assert isinstance(a.outbox, tuple), f"{name}: outbox is not a tuple"
     for m in a.outbox:
-        assert m.encode(), f"{name}: an outbox message does not encode"
+        assert isinstance(m, RadioMsg) and isinstance(m.dst, str), f"{name}: an outbox entry is not a RadioMsg"
+        assert m.kind in Payload.REGISTRY, f"{name}: payload kind {m.kind!r} is not registered"
+        assert m.body.encode(), f"{name}: an outbox payload does not encode"
 
 
 def api_test(config: dict[str, Any], rounds: int = 6) -> None:

@@ -11,7 +11,7 @@ eq. 8 evaluated at the task's location:
 
 where ``d_1 <= d_2 <= ... <= d_P`` are the distances from ``T_j`` to the other robots (the paper's "increasing
 ordered set of distances", ties by robot id) and ``com`` is the signal strength of eq. 4 in dB, *not* a
-probability: ``com(d) = -10 PL log10(d / c) - min(nW, C) WAF`` (``netem.signal.signal_db``). So a teammate in
+probability: ``com(d) = -10 PL log10(d / c) - min(nW, C) WAF`` (``fleet_emu.core.radio.signal_db``). So a teammate in
 range adds a positive term and one out of range (far, or behind walls) a negative one; ``lambda`` weighs the
 nearest teammates most. Every known teammate pose is a "sub-group member" (``P`` = all of them).
 
@@ -51,7 +51,7 @@ from fleet_emu.agents.allocators.minpos import minpos_choice
 from fleet_emu.core.grid import FREE, OCCUPIED, Cell
 from fleet_emu.core.kernels import count_walls
 from fleet_emu.core.messages import RadioMsg
-from fleet_emu.netem.signal import RadioParams, signal_db
+from fleet_emu.core.radio import RadioConfig, signal_db
 
 
 def wall_mask(belief: np.ndarray, unknown_walls: bool = False) -> np.ndarray:
@@ -59,7 +59,7 @@ def wall_mask(belief: np.ndarray, unknown_walls: bool = False) -> np.ndarray:
     return belief != FREE if unknown_walls else belief == OCCUPIED
 
 
-def signal_at(walls: np.ndarray, target: Cell, other: Cell, cell_size: float, radio: RadioParams) -> float:
+def signal_at(walls: np.ndarray, target: Cell, other: Cell, cell_size: float, radio: RadioConfig) -> float:
     """Eq. 4 between a task's cell and a robot's cell, on the belief's walls, distance clamped to one cell."""
     d = max(math.hypot(target[0] - other[0], target[1] - other[1]), 1.0) * cell_size
     nw = int(count_walls(walls, target[0], target[1], other[0], other[1]))
@@ -67,14 +67,14 @@ def signal_at(walls: np.ndarray, target: Cell, other: Cell, cell_size: float, ra
 
 
 def connectivity(walls: np.ndarray, target: Cell, others: Sequence[Cell], lam: float, cell_size: float,
-                 radio: RadioParams) -> float:
+                 radio: RadioConfig) -> float:
     """Eq. 8 at ``target``: ``sum_p lam^p com(d_p)``, the others sorted by increasing distance (stable)."""
     dist = [math.hypot(target[0] - o[0], target[1] - o[1]) for o in others]
     order = sorted(range(len(others)), key=lambda k: dist[k])
     return sum(lam ** (p + 1) * signal_at(walls, target, others[k], cell_size, radio) for p, k in enumerate(order))
 
 
-def utilities(problem: Problem, alpha: float, beta: float, lam: float, cell_size: float, radio: RadioParams,
+def utilities(problem: Problem, alpha: float, beta: float, lam: float, cell_size: float, radio: RadioConfig,
               unknown_walls: bool = False) -> np.ndarray:
     """Eq. 9 for every robot with a known pose (rows, in ``problem.robots`` order) and every task (columns);
     ``-inf`` where the robot cannot reach the task."""
@@ -113,7 +113,7 @@ class Connectivity(Allocator, plugin_name="connectivity"):
         self.alpha, self.beta, self.lam = float(alpha), float(beta), float(lam)
         self.cell_size = float(cell_size)
         self.unknown_walls = bool(unknown_walls)
-        self.radio = RadioParams(comm_range=float(comm_range), path_loss=float(path_loss), waf=float(waf),
+        self.radio = RadioConfig(comm_range=float(comm_range), path_loss=float(path_loss), waf=float(waf),
                                  max_walls=int(max_walls))
 
     def params(self) -> dict[str, Any]:

@@ -11,7 +11,7 @@ cluster first. Among optimal assignments scipy's deterministic choice stands (th
 Protocol (explicit, over the lossy radio): the coordinator is the lowest live robot id, a robot being live to
 me if it is me, or I heard it within ``timeout`` ticks (``Problem.heard``; a robot with a known pose and no
 entry there counts as live: no liveness was recorded). The coordinator assigns the live robots every tick
-and every ``period`` ticks broadcasts an :class:`~core.messages.Assignment` of target cells. Any other robot
+and every ``period`` ticks broadcasts an :class:`Assignment` of target cells. Any other robot
 takes its target from the newest Assignment received from the robot it believes is coordinator: the
 reachable cluster whose cells contain the cell, else the reachable cluster whose target is nearest
 (Euclidean). With no such Assignment, or one older than ``timeout`` ticks, or none naming it, it falls back
@@ -21,14 +21,32 @@ never come. When the coordinator falls silent for ``timeout`` ticks, the next lo
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.core.codec import Context, Payload
+from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell, flat
-from fleet_emu.core.messages import Assignment, RadioMsg
+from fleet_emu.core.messages import RadioMsg, check_cell
+
+
+@dataclasses.dataclass(frozen=True)
+class Assignment(Payload):
+    """A coordinator's assignment for round ``round``: each robot's target cell (broadcast)."""
+
+    KIND = "assign"
+    round: int
+    targets: dict[str, Cell]
+
+    def validate(self, ctx: Context | None) -> None:
+        for robot, cell in self.targets.items():
+            if ctx is not None and ctx.senders is not None and robot not in ctx.senders:
+                raise DecodeError(f"assign: unknown robot {robot!r}")
+            check_cell(cell, ctx.shape if ctx else None, "assign")
 
 
 def optimal_assignment(costs: np.ndarray) -> np.ndarray:
@@ -64,7 +82,7 @@ class Hungarian(Allocator, plugin_name="hungarian"):
             raise ValueError("hungarian: timeout and period must be integers >= 1")
         self.timeout = timeout
         self.period = period
-        self.received: dict[str, Assignment] = {}
+        self.received: dict[str, RadioMsg] = {}  # the newest Assignment from each robot
 
     def params(self) -> dict[str, Any]:
         return {"timeout": self.timeout, "period": self.period}
@@ -80,18 +98,19 @@ class Hungarian(Allocator, plugin_name="hungarian"):
 
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         for msg in inbox:
-            if isinstance(msg, Assignment) and msg.dst in ("*", problem.me):
-                old = self.received.get(msg.src)
+            if isinstance(msg.body, Assignment) and msg.dst in ("*", problem.me):
+                old = self.received.get(msg.origin)
                 if old is None or (msg.tick, msg.seq) > (old.tick, old.seq):
-                    self.received[msg.src] = msg
+                    self.received[msg.origin] = msg
         if not problem.clusters:
             return Allocation.none()
         live = self.live(problem)
         if live[0] == problem.me:
             return self._coordinate(problem, live)
         msg = self.received.get(live[0])
-        if msg is not None and problem.tick - msg.tick <= self.timeout and problem.me in msg.targets:
-            j = self._cluster_of(problem, msg.targets[problem.me])
+        targets = msg.body.targets if msg is not None else {}  # type: ignore[attr-defined]
+        if msg is not None and problem.tick - msg.tick <= self.timeout and problem.me in targets:
+            j = self._cluster_of(problem, targets[problem.me])
             if j is not None:
                 return Allocation.assigned(problem, j)
         return self._nearest(problem)
@@ -102,8 +121,7 @@ class Hungarian(Allocator, plugin_name="hungarian"):
         targets = {r: problem.clusters[j].target for r, j in zip(live, plan, strict=True) if j >= 0}
         outbox: tuple[RadioMsg, ...] = ()
         if problem.tick % self.period == 0:
-            outbox = (Assignment(src=problem.me, tick=problem.tick, seq=problem.tick, dst="*", ttl=0,
-                                 round=problem.tick, targets=targets),)
+            outbox = (RadioMsg(Assignment(round=problem.tick, targets=targets)),)
         if plan[0] >= 0:  # live[0] is me
             return Allocation.assigned(problem, int(plan[0]), outbox)
         fallback = self._nearest(problem)

@@ -48,8 +48,65 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, AllocStatus, Problem, robot_order
+from fleet_emu.core.codec import Context, Payload
+from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
-from fleet_emu.core.messages import RadioMsg, TradeAllocation, TradeDone, TradeNumber, TradePurchase
+from fleet_emu.core.messages import RadioMsg, check_cell
+
+# --- the protocol's messages (section 4), sealed in radio envelopes by the brain -----------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class TradeNumber(Payload):
+    """Role allocation (Algorithm 1): a robot not in a task broadcasts its number every tick."""
+
+    KIND = "trade_num"
+    number: int
+
+    def validate(self, ctx: Context | None) -> None:
+        if self.number < 0:
+            raise DecodeError("trade_num: negative robot number")
+
+
+@dataclasses.dataclass(frozen=True)
+class TradePurchase(Payload):
+    """A buyer's purchase message ``pums_r = {r, m, c}`` (eq. 3) to the seller: ``r`` is the sender, ``m`` the
+    task (a frontier cluster's target cell), ``c`` its wavefront cost (eq. 2)."""
+
+    KIND = "trade_buy"
+    task: Cell
+    cost: float
+
+    def validate(self, ctx: Context | None) -> None:
+        check_cell(self.task, ctx.shape if ctx else None, "trade_buy")
+        if not (0.0 <= self.cost < 1e9):
+            raise DecodeError("trade_buy: cost out of range")
+
+
+@dataclasses.dataclass(frozen=True)
+class TradeAllocation(Payload):
+    """A seller's task-allocation messages ``tams = {r, m}`` (eq. 4) of one round, as one broadcast: the sender
+    is the seller, ``awards`` maps each robot allocated a task to that task's cell."""
+
+    KIND = "trade_alloc"
+    awards: dict[str, Cell]
+
+    def validate(self, ctx: Context | None) -> None:
+        for robot, cell in self.awards.items():
+            if ctx is not None and ctx.senders is not None and robot not in ctx.senders:
+                raise DecodeError(f"trade_alloc: unknown robot {robot!r}")
+            check_cell(cell, ctx.shape if ctx else None, "trade_alloc")
+
+
+@dataclasses.dataclass(frozen=True)
+class TradeDone(Payload):
+    """A completed (or abandoned) task, broadcast so that teammates update their task lists (section 4.2)."""
+
+    KIND = "trade_done"
+    task: Cell
+
+    def validate(self, ctx: Context | None) -> None:
+        check_cell(self.task, ctx.shape if ctx else None, "trade_done")
 
 
 class Phase(enum.Enum):
@@ -73,7 +130,6 @@ class _State:
     started: bool = False  # the task has been explored for at least a tick
     claims: dict[str, tuple[Cell, int]] = dataclasses.field(default_factory=dict)  # robot -> (task, tick)
     failures: int = 0
-    seq: int = 0
 
 
 def near(a: Cell, b: Cell, radius: int) -> bool:
@@ -145,7 +201,7 @@ class Trade(Allocator, plugin_name="trade"):
             alloc = self._explore(problem, out)
             if alloc is not None:
                 return alloc
-        out.append(self._msg(TradeNumber, problem, "*", number=self._number(s.me)))  # Alg. 1 line 2
+        out.append(RadioMsg(TradeNumber(number=self._number(s.me)), dst="*"))  # Alg. 1 line 2
         status = AllocStatus.WAITING if self._pick(problem) is not None else AllocStatus.NO_FRONTIER
         return Allocation(status, outbox=tuple(out))
 
@@ -160,7 +216,7 @@ class Trade(Allocator, plugin_name="trade"):
             return Allocation.assigned(problem, j, tuple(out))
         if not s.started:  # the task's frontier vanished while we traded: a wasted round
             s.failures += 1
-        out.append(self._msg(TradeDone, problem, "*", task=s.task))  # done (or given up): tell the team
+        out.append(RadioMsg(TradeDone(task=s.task), dst="*"))  # done (or given up): tell the team
         s.claims.pop(s.me, None)
         self._enter(Phase.ELECT, problem.tick)
         return None
@@ -170,30 +226,31 @@ class Trade(Allocator, plugin_name="trade"):
     def _receive(self, problem: Problem, inbox: Sequence[RadioMsg], out: list[RadioMsg]) -> None:
         s = self.s
         for msg in inbox:
-            if msg.src == s.me:
+            sender, body = msg.origin, msg.body
+            if sender == s.me:
                 continue
-            if isinstance(msg, TradeNumber):
+            if isinstance(body, TradeNumber):
                 if s.phase is Phase.ELECT and msg.tick >= s.since:  # sent during this election
-                    s.heard[msg.src] = msg.number
-            elif isinstance(msg, TradePurchase) and msg.dst == s.me:
+                    s.heard[sender] = body.number
+            elif isinstance(body, TradePurchase) and msg.dst == s.me:
                 if s.phase is Phase.SELL:
-                    s.purchases[msg.src] = (msg.task, msg.cost)
+                    s.purchases[sender] = (body.task, body.cost)
                 else:  # not selling (any more): an empty allocation sends the buyer back to role allocation
-                    out.append(self._msg(TradeAllocation, problem, msg.src, awards={}))
-            elif isinstance(msg, TradeAllocation):
-                for robot, task in msg.awards.items():
+                    out.append(RadioMsg(TradeAllocation(awards={}), dst=sender))
+            elif isinstance(body, TradeAllocation):
+                for robot, task in body.awards.items():
                     if robot != s.me:
                         s.claims[robot] = (task, problem.tick)
-                if s.phase is Phase.BUY and msg.src == s.seller and msg.tick >= s.since:  # answers our purchase
-                    if s.me in msg.awards:
-                        self._take(msg.awards[s.me], problem.tick)
+                if s.phase is Phase.BUY and sender == s.seller and msg.tick >= s.since:  # answers our purchase
+                    if s.me in body.awards:
+                        self._take(body.awards[s.me], problem.tick)
                     else:  # outbid, or our purchase was lost: a new round, the awarded tasks now known
                         s.failures += 1
                         self._enter(Phase.ELECT, problem.tick)
-            elif isinstance(msg, TradeDone):
-                held = s.claims.get(msg.src)
-                if held is not None and near(held[0], msg.task, self.task_radius):
-                    del s.claims[msg.src]
+            elif isinstance(body, TradeDone):
+                held = s.claims.get(sender)
+                if held is not None and near(held[0], body.task, self.task_radius):
+                    del s.claims[sender]
 
     def _decide(self, problem: Problem, out: list[RadioMsg]) -> None:
         """End of Algorithm 1: seller if no smaller number was heard, else buyer of the smallest heard."""
@@ -205,14 +262,14 @@ class Trade(Allocator, plugin_name="trade"):
             if pick is None:
                 self._enter(Phase.ELECT, problem.tick)
                 return
-            out.append(self._msg(TradeAllocation, problem, "*", awards={s.me: pick[0]}))
+            out.append(RadioMsg(TradeAllocation(awards={s.me: pick[0]}), dst="*"))
             self._take(pick[0], problem.tick)
         elif smaller:
             s.seller = min(smaller, key=lambda r: (smaller[r], robot_order(r)))
             if pick is None:  # nothing to buy: listen again
                 self._enter(Phase.ELECT, problem.tick)
                 return
-            out.append(self._msg(TradePurchase, problem, s.seller, task=pick[0], cost=float(pick[1])))
+            out.append(RadioMsg(TradePurchase(task=pick[0], cost=float(pick[1])), dst=s.seller))
             s.pick = pick
             self._enter(Phase.BUY, problem.tick)
         else:
@@ -232,7 +289,7 @@ class Trade(Allocator, plugin_name="trade"):
             if other is not None:
                 awards[s.me] = other[0]
         if awards:
-            out.append(self._msg(TradeAllocation, problem, "*", awards=awards))
+            out.append(RadioMsg(TradeAllocation(awards=awards), dst="*"))
         for robot, task in awards.items():
             if robot != s.me:
                 s.claims[robot] = (task, problem.tick)
@@ -283,10 +340,6 @@ class Trade(Allocator, plugin_name="trade"):
             if d <= self.task_radius and problem.wavefronts[j][me] >= 0 and (best is None or d < best[0]):
                 best = (d, j)
         return None if best is None else best[1]
-
-    def _msg(self, cls: type[RadioMsg], problem: Problem, dst: str, **payload: Any) -> RadioMsg:
-        self.s.seq += 1
-        return cls(src=problem.me, tick=problem.tick, seq=self.s.seq, dst=dst, ttl=0, **payload)
 
     @staticmethod
     def _number(robot: str) -> int:

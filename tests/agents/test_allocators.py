@@ -12,11 +12,12 @@ import fleet_emu.agents.allocators  # noqa: F401  (registers every allocator)
 from fleet_emu.agents.allocators import Allocator, AllocStatus, Problem, make_allocator
 from fleet_emu.agents.allocators.conformance import api_test, seed_test
 from fleet_emu.agents.allocators.greedy import greedy_choice, greedy_pairs
-from fleet_emu.agents.allocators.hungarian import Hungarian, optimal_assignment, total_cost
+from fleet_emu.agents.allocators.hungarian import Assignment, Hungarian, optimal_assignment, total_cost
 from fleet_emu.agents.allocators.utility import utility_choice
 from fleet_emu.agents.frontiers import find_clusters
+from fleet_emu.agents.protocol import PoseBeacon
 from fleet_emu.core.grid import Cell, from_ascii
-from fleet_emu.core.messages import Assignment, PoseBeacon, decode
+from fleet_emu.core.messages import Envelope, RadioMsg, decode, open_envelope, seal
 
 INF = np.inf
 
@@ -143,18 +144,21 @@ def test_hungarian_coordinator_broadcasts_the_optimal_assignment() -> None:
     a = alloc.allocate(problem(LINE, "r0", tick=4, heard={"r1": 4}))
     assert a.target == LEFT
     (msg,) = a.outbox
-    assert isinstance(msg, Assignment) and (msg.src, msg.dst, msg.tick) == ("r0", "*", 4)
-    assert msg.targets == {"r0": LEFT, "r1": RIGHT}
-    assert decode(msg.encode()) == msg
+    assert isinstance(msg.body, Assignment) and msg.dst == "*"
+    assert msg.body.targets == {"r0": LEFT, "r1": RIGHT}
+    env = seal(msg, "r0", 4, 7)
+    assert (env.src, env.origin, env.tick, env.payload_kind) == ("r0", "r0", 4, "assign")
+    assert open_envelope(decode(env.encode(), expected=Envelope)).body == msg.body
 
 
 def test_hungarian_follower_takes_its_target_from_the_coordinator() -> None:
     coordinator = make_allocator({"type": "hungarian"})
-    (msg,) = coordinator.allocate(problem(LINE, "r0", tick=4, heard={"r1": 4})).outbox
+    (out,) = coordinator.allocate(problem(LINE, "r0", tick=4, heard={"r1": 4})).outbox
+    msg = open_envelope(seal(out, "r0", 4, 2))
     follower = make_allocator({"type": "hungarian"})
     alone = follower.allocate(problem(LINE, "r1", tick=5, heard={"r0": 4}))
     assert alone.target == LEFT and alone.outbox == ()  # nothing heard yet: nearest frontier
-    beacon = PoseBeacon(src="r0", tick=4, seq=1, dst="*", ttl=0, cell=(1, 2))
+    beacon = open_envelope(seal(RadioMsg(PoseBeacon(cell=(1, 2))), "r0", 4, 1))
     told = follower.allocate(problem(LINE, "r1", tick=5, heard={"r0": 4}), [beacon, msg])
     assert told.target == RIGHT and told.outbox == ()
     assert follower.allocate(problem(LINE, "r1", tick=9, heard={"r0": 8})).target == RIGHT  # kept
@@ -164,7 +168,7 @@ def test_hungarian_follower_takes_its_target_from_the_coordinator() -> None:
 
 def test_hungarian_follower_ignores_assignments_from_others() -> None:
     follower = make_allocator({"type": "hungarian"})
-    rogue = Assignment(src="r2", tick=4, seq=4, dst="*", ttl=0, round=4, targets={"r1": RIGHT})
+    rogue = open_envelope(seal(RadioMsg(Assignment(round=4, targets={"r1": RIGHT})), "r2", 4, 4))
     p = problem(LINE, "r1", tick=5, heard={"r0": 5})
     assert follower.allocate(p, [rogue]).target == LEFT
 
@@ -173,7 +177,7 @@ def test_hungarian_next_live_robot_takes_over_from_a_silent_coordinator() -> Non
     alloc = make_allocator({"type": "hungarian", "timeout": 5})
     a = alloc.allocate(problem(LINE, "r1", tick=20, heard={"r0": 14}))  # r0 silent for 6 ticks
     (msg,) = a.outbox
-    assert msg.src == "r1" and msg.targets == {"r1": LEFT}  # r0 is no longer assigned
+    assert msg.body.targets == {"r1": LEFT}  # r0 is no longer assigned
     assert a.target == LEFT
     still = alloc.allocate(problem(LINE, "r1", tick=20, heard={"r0": 15}))
     assert still.outbox == ()
@@ -214,6 +218,7 @@ def test_every_coordinating_allocator_spreads_two_robots_on_the_line() -> None:
             alloc = make_allocator({"type": name})
             inbox = []
             if name == "hungarian" and me == "r1":
-                inbox = list(make_allocator({"type": name}).allocate(problem(LINE, "r0", heard=heard)).outbox)
+                sent = make_allocator({"type": name}).allocate(problem(LINE, "r0", heard=heard)).outbox
+                inbox = [open_envelope(seal(m, "r0", 0, k)) for k, m in enumerate(sent)]
             got[me] = alloc.allocate(problem(LINE, me, heard=heard), inbox).target
         assert _cells(got) == {LEFT, RIGHT}, name

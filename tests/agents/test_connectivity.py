@@ -12,9 +12,9 @@ from fleet_emu.agents.allocators.conformance import CROSS, WALLED, api_test, ran
 from fleet_emu.agents.allocators.connectivity import connectivity, utilities, wall_mask
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.core.grid import from_ascii
-from fleet_emu.netem.signal import RadioParams
+from fleet_emu.core.radio import RadioConfig
 
-RADIO = RadioParams()  # c = 10 m, PL = 2, WAF = 3.1 dB, C = 4
+RADIO = RadioConfig()  # c = 10 m, PL = 2, WAF = 3.1 dB, C = 4
 
 
 def problem(art: str, me: str = "r0") -> Problem:
@@ -95,7 +95,7 @@ def test_eq8_by_hand() -> None:
     # lambda = 1 weighs both alike; a 6 m range lowers every term by 20 log10(10 / 6)
     both = (-20 * math.log10(0.15) - 3.1) + (-20 * math.log10(0.45))
     assert connectivity(walls, (0, 0), others, 1.0, 0.5, RADIO) == pytest.approx(both)
-    six = RadioParams(comm_range=6.0)
+    six = RadioConfig(comm_range=6.0)
     assert connectivity(walls, (0, 0), others, 1.0, 0.5, six) == pytest.approx(both - 2 * 20 * math.log10(10 / 6))
     # a teammate on the target counts as one cell away, not 1 mm
     assert connectivity(walls, (0, 9), [p.poses["r1"]], 1.0, 0.5, RADIO) == pytest.approx(-20 * math.log10(0.05))

@@ -10,12 +10,12 @@ import pytest
 
 from fleet_emu.agents.allocators import AllocStatus, Problem, make_allocator
 from fleet_emu.agents.allocators.conformance import api_test, seed_test
-from fleet_emu.agents.allocators.trade import greedy_table
+from fleet_emu.agents.allocators.trade import TradeAllocation, TradeNumber, TradePurchase, greedy_table
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.agents.navigation import next_move
 from fleet_emu.core.grid import FREE, OCCUPIED, UNKNOWN, Cell, from_ascii
 from fleet_emu.core.kernels import visible_cells, wavefront
-from fleet_emu.core.messages import Context, RadioMsg, TradeAllocation, TradeNumber, TradePurchase, decode
+from fleet_emu.core.messages import Context, Envelope, RadioMsg, decode, open_envelope, seal
 
 Drop = Callable[[RadioMsg, str, int], bool]  # (message, receiver, tick it was sent) -> lost?
 
@@ -64,17 +64,17 @@ class Fleet:
         out: list[RadioMsg] = []
         chosen: dict[str, int | None] = {}
         for r, alloc in self.allocs.items():
-            inbox = [decode(m.encode(), ctx) for m in self.pending
-                     if m.src != r and m.dst in ("*", r) and not drop(m, r, t - 1)]
+            inbox = [m for m in self.pending if m.src != r and m.dst in ("*", r) and not drop(m, r, t - 1)]
             p = Problem(me=r, poses=poses, belief=belief, clusters=clusters, tick=t)
             a = alloc.allocate(p, inbox)
             self.statuses[r].append(a.status)
             self.targets[r] = a.target
             chosen[r] = a.cluster if a.status is AllocStatus.ASSIGNED else None
             for m in a.outbox:
-                assert (m.src, m.tick, m.ttl) == (r, t, 0) and m.dst in ({"*"} | set(self.allocs))
-            if r not in silent:
-                out.extend(a.outbox)
+                assert m.ttl == 0 and m.dst in ({"*"} | set(self.allocs))
+            if r not in silent:  # sealed as the brain does, and through the codec as the radio carries it
+                envelopes = [seal(m, r, t, k) for k, m in enumerate(a.outbox)]
+                out.extend(open_envelope(decode(e.encode(), ctx, Envelope), ctx) for e in envelopes)
         self.sent.extend(out)
         self.pending = out
         return chosen
@@ -92,12 +92,12 @@ class Fleet:
         return None
 
 
-def drop_first(kind: type[RadioMsg], src: str | None = None, dst: str | None = None) -> Drop:
+def drop_first(kind: type, src: str | None = None, dst: str | None = None) -> Drop:
     """Loses the first message of ``kind`` (from ``src``, to receiver ``dst``), once."""
     state = {"done": False}
 
     def drop(msg: RadioMsg, receiver: str, tick: int) -> bool:
-        if state["done"] or not isinstance(msg, kind):
+        if state["done"] or not isinstance(msg.body, kind):
             return False
         if (src is None or msg.src == src) and (dst is None or receiver == dst):
             state["done"] = True
@@ -134,13 +134,13 @@ def test_normal_round_allocates_distinct_tasks() -> None:
     assert fleet.first_assigned("r1") == fleet.first_assigned("r2") == 2 + 2 + 1
     assert all(s is AllocStatus.ASSIGNED for st in fleet.statuses.values() for s in st[5:])
     assert fleet.targets == {"r0": (0, 1), "r1": (4, 1), "r2": (0, 13)}
-    buys = [m for m in fleet.sent if isinstance(m, TradePurchase)]
-    assert sorted((m.src, m.dst, m.task, m.cost) for m in buys) == [("r1", "r0", (4, 1), 2.0),
+    buys = [m for m in fleet.sent if isinstance(m.body, TradePurchase)]
+    assert sorted((m.src, m.dst, m.body.task, m.body.cost) for m in buys) == [("r1", "r0", (4, 1), 2.0),
                                                                     ("r2", "r0", (0, 13), 3.0)]
-    allocs = [m for m in fleet.sent if isinstance(m, TradeAllocation)]
+    allocs = [m for m in fleet.sent if isinstance(m.body, TradeAllocation)]
     assert len(allocs) == 1 and allocs[0].src == "r0"
-    assert allocs[0].awards == {"r0": (0, 1), "r1": (4, 1), "r2": (0, 13)}
-    numbers = [m for m in fleet.sent if isinstance(m, TradeNumber)]
+    assert allocs[0].body.awards == {"r0": (0, 1), "r1": (4, 1), "r2": (0, 13)}
+    numbers = [m for m in fleet.sent if isinstance(m.body, TradeNumber)]
     assert all(m.tick <= 4 for m in numbers)  # robots in a task stop broadcasting their numbers
 
 
@@ -174,7 +174,7 @@ def test_silent_seller_leads_to_re_election() -> None:
     for r in ("r1", "r2"):
         t = fleet.first_assigned(r)
         assert t is not None and t <= BOUND, (r, t)
-    allocs = [m for m in fleet.sent if isinstance(m, TradeAllocation)]
+    allocs = [m for m in fleet.sent if isinstance(m.body, TradeAllocation)]
     assert [m.src for m in allocs] == ["r1"]  # the next lowest number sold
     assert fleet.targets["r1"] != fleet.targets["r2"]
 
@@ -245,7 +245,7 @@ def test_half_the_messages_lost_still_assigns(seed: int) -> None:
     for r, st in fleet.statuses.items():
         assert longest_wait(st) <= BOUND, (r, longest_wait(st))
         assert st.count(AllocStatus.ASSIGNED) > 0
-    rounds = [m for m in fleet.sent if isinstance(m, TradeAllocation)]
+    rounds = [m for m in fleet.sent if isinstance(m.body, TradeAllocation)]
     assert len(rounds) > len(fleet.allocs)  # tasks were completed and traded again
     assert coverage == 1.0
 

@@ -8,24 +8,28 @@ import msgpack
 import numpy as np
 import pytest
 
+from fleet_emu.agents.protocol import MapDelta, PoseBeacon
 from fleet_emu.core.messages import (
     AgentReport,
     Command,
     Context,
     DecodeError,
+    Envelope,
     Hello,
     Links,
-    MapDelta,
     Observation,
-    PoseBeacon,
+    RadioMsg,
     Ready,
     RxBundle,
     Stop,
     TxBundle,
     WorldState,
     decode,
+    open_envelope,
     peek_tick,
+    seal,
 )
+from fleet_emu.core.version import SCHEMA_VERSION
 
 CTX = Context(senders=frozenset({"r0", "r1"}), shape=(4, 5))
 
@@ -33,8 +37,8 @@ CTX = Context(senders=frozenset({"r0", "r1"}), shape=(4, 5))
 def _samples() -> list:
     cells = np.array([0, 7, 19], dtype=np.int32)
     values = np.array([0, 100, -1], dtype=np.int8)
-    beacon = PoseBeacon(src="r0", tick=2, seq=1, dst="*", ttl=0, cell=(1, 2))
-    delta = MapDelta(src="r0", tick=2, seq=2, dst="r1", ttl=1, cells=cells, values=values)
+    beacon = seal(RadioMsg(PoseBeacon(cell=(1, 2))), "r0", 2, 1)
+    delta = seal(RadioMsg(MapDelta(cells=cells, values=values), dst="r1", ttl=1), "r0", 2, 2)
     return [
         Observation(src="r0", tick=1, seq=3, robot="r0", cell=(0, 0), shape=(4, 5), cell_size=0.5,
                     cells=cells, values=values),
@@ -54,7 +58,7 @@ def _samples() -> list:
     ]
 
 
-@pytest.mark.parametrize("msg", _samples(), ids=lambda m: m.KIND)
+@pytest.mark.parametrize("msg", _samples(), ids=lambda m: f"{m.KIND}-{m.seq}")
 def test_round_trip(msg) -> None:
     back = decode(msg.encode(), CTX)
     assert type(back) is type(msg)
@@ -95,13 +99,39 @@ def test_rejects_bad_arrays_and_cells() -> None:
 
 
 def test_bundle_rejects_foreign_message_and_wrong_expected_kind() -> None:
-    beacon = PoseBeacon(src="r1", tick=2, seq=1, dst="*", ttl=0, cell=(1, 2))
+    beacon = seal(RadioMsg(PoseBeacon(cell=(1, 2))), "r1", 2, 1)
     with pytest.raises(DecodeError, match="src"):
         decode(TxBundle(src="r0", tick=2, seq=1, msgs=(beacon,)).encode(), CTX)
     with pytest.raises(DecodeError, match="expected"):
         decode(beacon.encode(), CTX, expected=Command)
+    outside = decode(seal(RadioMsg(PoseBeacon(cell=(4, 0))), "r1", 2, 1).encode(), CTX)  # the envelope is fine
     with pytest.raises(DecodeError, match="outside"):
-        decode(PoseBeacon(src="r1", tick=2, seq=1, dst="*", ttl=0, cell=(4, 0)).encode(), CTX)
+        open_envelope(outside, CTX)  # the payload is checked by the protocol that opens it
+
+
+def test_envelope_payload_is_opaque_until_opened() -> None:
+    cells = np.array([0, 7], dtype=np.int32)
+    env = seal(RadioMsg(MapDelta(cells=cells, values=np.array([0, 100], np.int8)), dst="r1", ttl=2), "r0", 5, 9)
+    assert isinstance(env.payload, bytes) and env.payload_kind == "map"
+    assert (env.src, env.origin, env.dst, env.ttl, env.tick, env.seq) == ("r0", "r0", "r1", 2, 5, 9)
+    back = open_envelope(decode(env.encode(), CTX, Envelope), CTX)
+    assert back.src == "r0" and back.body.cells.tolist() == [0, 7] and back.body.values.tolist() == [0, 100]
+    for kind, payload in (("telepathy", env.payload), ("map", b"\xc1"), ("pose", msgpack.packb({"cell": [1]})),
+                          ("pose", msgpack.packb({"cell": [1, 2], "extra": 1}))):
+        with pytest.raises(DecodeError):
+            open_envelope(Envelope(src="r0", tick=5, seq=9, origin="r0", dst="*", ttl=0, payload_kind=kind,
+                                   payload=payload), CTX)
+    with pytest.raises(DecodeError, match="origin"):
+        decode(Envelope(src="r0", tick=1, seq=1, origin="r7", dst="*", ttl=0, payload_kind="pose",
+                        payload=b"").encode(), CTX)
+
+
+def test_schema_version_is_stamped_and_a_newer_one_refused() -> None:
+    obj = _obj(Stop(src="r0", tick=9, seq=2, reason="coverage"))
+    assert obj["v"] == SCHEMA_VERSION
+    decode(msgpack.packb({k: v for k, v in obj.items() if k != "v"}), CTX)  # the first round's: no version
+    with pytest.raises(DecodeError, match="newer"):
+        decode(msgpack.packb(dict(obj, v=SCHEMA_VERSION + 1)), CTX)
 
 
 def test_random_garbage_never_raises_anything_else() -> None:

@@ -78,6 +78,9 @@ def test_same_seed_same_run_and_in_process_agrees(small_map: Path, tmp_path: Pat
     assert ma.keys() == mb.keys() == mc.keys()
     for topic in ma:
         assert ma[topic] == mb[topic] == mc[topic], f"{topic} differs between runs"
+    again = tmp_path / "again"  # the scenario.json a run writes reproduces it
+    fleet("run", "--scenario", str(a / "scenario.json"), "--quiet", "--out", str(again))
+    assert _comparable(result(again)) == _comparable(ra)
     other = tmp_path / "other"
     fleet("run", "--map", str(small_map), "--robots", "3", "--seed", "5", "--loss", "0.3", "--quiet",
           "--out", str(other))

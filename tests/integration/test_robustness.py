@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -15,8 +16,9 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
+from fleet_emu.agents.protocol import PoseBeacon
 from fleet_emu.core.bus import client_config, router_config, router_locators
-from fleet_emu.core.messages import Command, PoseBeacon, TxBundle
+from fleet_emu.core.messages import Command, RadioMsg, TxBundle, seal
 
 from .conftest import ROOT, all_pids, fleet, pid_alive, result
 
@@ -54,8 +56,7 @@ def _inject(session: zenoh.Session, run: str, stop_at: float) -> int:
     garbage = [
         os.urandom(40), b"", msgpack.packb({"kind": "cmd", "tick": "x"}), msgpack.packb([1, 2]),
         Command(src="r9", tick=1, seq=1, move=(0, 1)).encode(),
-        TxBundle(src="r7", tick=1, seq=1, msgs=(PoseBeacon(src="r7", tick=1, seq=1, dst="*", ttl=0,
-                                                           cell=(1, 1)),)).encode(),
+        TxBundle(src="r7", tick=1, seq=1, msgs=(seal(RadioMsg(PoseBeacon(cell=(1, 1))), "r7", 1, 1),)).encode(),
         msgpack.packb({"kind": "state", "src": "world", "tick": 1, "seq": 1, "poses": 5}),
     ]
     keys = [f"fleet/{run}/{k}" for k in ("robot/r0/cmd", "radio/tx/r1", "radio/rx/r0", "world/obs/r1",
@@ -78,6 +79,10 @@ def test_malformed_messages_are_dropped_and_counted(small_map: Path, tmp_path: P
             [sys.executable, "-m", "fleet_emu.launch", "run", "--map", str(small_map), "--robots", "3", "--quiet",
              "--connect", endpoint, "--run-id", "inject", "--out", str(out)],
             cwd=ROOT, stderr=subprocess.PIPE, text=True)
+        started = threading.Event()  # inject once every node is up (start-up is slow on a loaded machine)
+        watch = s.declare_subscriber("fleet/inject/world/state", lambda _: started.set())
+        started.wait(120)
+        watch.undeclare()
         sent = _inject(s, "inject", time.monotonic() + 6.0)
         _, err = proc.communicate(timeout=240)
     assert proc.returncode == 0, err[-2000:]

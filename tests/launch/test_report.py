@@ -20,17 +20,19 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import Writer
 from PIL import Image
 
+from fleet_emu.agents.protocol import PoseBeacon
 from fleet_emu.core.grid import from_ascii
 from fleet_emu.core.messages import (
     Command,
     Links,
     Observation,
-    PoseBeacon,
+    RadioMsg,
     Ready,
     RxBundle,
     Stop,
     TxBundle,
     WorldState,
+    seal,
 )
 from fleet_emu.launch.cli import main as cli_main
 from fleet_emu.launch.metrics import RunMetrics, gini, jain
@@ -85,7 +87,7 @@ def test_metrics_fold_on_hand_made_messages() -> None:
     feed("world/state", WorldState(src="world", tick=0, seq=0, poses={"r0": (1, 1), "r1": (3, 5)},
                                    live=("r0", "r1"), coverage=0.5, path_length={"r0": 0, "r1": 0}))
     feed("netem/links", links(0, True))
-    beacon = PoseBeacon(src="r0", tick=0, seq=0, dst="*", ttl=0, cell=(1, 1))
+    beacon = seal(RadioMsg(PoseBeacon(cell=(1, 1))), "r0", 0, 0)
     tx0 = TxBundle(src="r0", tick=0, seq=0, msgs=(beacon,))
     feed("radio/tx/r0", tx0)
     feed("radio/tx/r1", TxBundle(src="r1", tick=0, seq=0, msgs=()))

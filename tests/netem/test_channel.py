@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
 
-from fleet_emu.core.messages import PoseBeacon
+from fleet_emu.agents.protocol import PoseBeacon
+from fleet_emu.core.messages import Envelope, RadioMsg, seal
 from fleet_emu.netem.channel import Channel
 
 ROBOTS = ("r0", "r1", "r2")
 
 
-def _beacon(src: str, dst: str = "*", tick: int = 0) -> PoseBeacon:
-    return PoseBeacon(src=src, tick=tick, seq=1, dst=dst, ttl=0, cell=(0, 0))
+def _beacon(src: str, dst: str = "*", tick: int = 0) -> Envelope:
+    return seal(RadioMsg(PoseBeacon(cell=(0, 0)), dst=dst), src, tick, 1)
 
 
 def test_broadcast_follows_links_and_arrives_next_tick() -> None:
@@ -52,3 +56,21 @@ def test_all_or_nothing_loss() -> None:
         ch = Channel(loss=loss, rng=np.random.default_rng(0))
         ch.transmit(0, ROBOTS, link, {r: (_beacon(r),) for r in ROBOTS})
         assert ch.counters.delivered == expect
+
+
+def test_payloads_are_opaque_to_the_channel() -> None:
+    """netem routes by the envelope alone: a payload of a kind it never heard of, not even msgpack, arrives
+    byte for byte."""
+    odd = Envelope(src="r0", tick=0, seq=3, origin="r0", dst="r2", ttl=0, payload_kind="plugin_msg",
+                   payload=b"\xc1 not msgpack")
+    ch = Channel(loss=0.0, rng=np.random.default_rng(0))
+    ch.transmit(0, ROBOTS, np.ones((3, 3), dtype=bool), {"r0": (odd,)})
+    assert ch.deliver(1) == {"r2": [odd]}
+    assert ch.counters.bytes_sent == len(odd.encode())
+
+
+def test_netem_imports_no_robot_protocol() -> None:
+    code = ("import sys, fleet_emu.netem.node; "
+            "print(sorted(m for m in sys.modules if m.startswith('fleet_emu.agents')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

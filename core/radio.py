@@ -1,4 +1,5 @@
-"""The radio's signal model (DESIGN.md "The radio model"; Benavides et al. 2016, eq. 4, after RADAR).
+"""The radio: its one parameter type, and the signal model (DESIGN.md "The radio model"; Benavides et al.
+2016, eq. 4, after RADAR), shared by netem (on the true map) and the connectivity allocator (on a belief).
 
     P_ij = -10 * PL * log10(d_ij / c) - min(nW_ij, C) * WAF
 
@@ -6,6 +7,10 @@
 free space), ``nW_ij`` the walls the straight segment crosses on the map (maximal runs of occupied cells),
 ``C`` the cap on counted walls and ``WAF`` the attenuation per wall. A link exists when ``P_ij >= threshold``.
 Pure functions of arrays: netem uses them on the true map, agents on their belief (Benavides eq. 8).
+
+Radio models (``RadioConfig.comm``), loss orthogonal to range: ``wall`` (eq. 4 decides the link), ``disk``
+(linked within ``comm_range`` metres, straight-line), ``full`` (every pair linked), and ``ideal`` (``full``
+with no loss, kept for comparison). The loss probability applies on every model but ``ideal``.
 """
 
 from __future__ import annotations
@@ -19,27 +24,43 @@ import numpy as np
 from fleet_emu.core.grid import Cell
 from fleet_emu.core.kernels import count_walls
 
+COMM_MODELS = ("wall", "disk", "full", "ideal")
+
 
 @dataclasses.dataclass(frozen=True)
-class RadioParams:
+class RadioConfig:
+    """The radio of a scenario (``[radio]``), of netem and of the connectivity allocator's prediction:
+    ``comm`` the model (see the module docstring), ``loss`` per message and receiver on an existing link,
+    ``comm_range`` c in metres, ``path_loss`` PL, ``waf`` dB per wall, ``max_walls`` C, ``threshold`` dB for a
+    link, ``latency`` ticks from send to delivery."""
+
+    comm: str = "wall"
+    loss: float = 0.1
     comm_range: float = 10.0
     path_loss: float = 2.0
     waf: float = 3.1
     max_walls: int = 4
     threshold: float = 0.0
-    ideal: bool = False
+    latency: int = 1
+
+    @property
+    def applied_loss(self) -> float:
+        """The loss probability the channel applies: none on the ideal radio."""
+        return 0.0 if self.comm == "ideal" else self.loss
 
 
-def signal_db(distance_m: float, walls: int, p: RadioParams) -> float:
+def signal_db(distance_m: float, walls: int, p: RadioConfig) -> float:
     """Benavides eq. 4 for one pair; ``distance_m`` is clamped to a millimetre (same-cell pairs)."""
     d = max(distance_m, 1e-3)
     return -10.0 * p.path_loss * math.log10(d / p.comm_range) - min(walls, p.max_walls) * p.waf
 
 
 def link_matrix(occupied: np.ndarray, cells: Sequence[Cell], cell_size: float,
-                p: RadioParams) -> tuple[np.ndarray, np.ndarray]:
+                p: RadioConfig) -> tuple[np.ndarray, np.ndarray]:
     """Signal strength (dB, symmetric, ``inf`` on the diagonal) and links (bool, no self-links) between
-    robots at ``cells`` on a map whose walls are ``occupied``. An ideal channel links every pair."""
+    robots at ``cells`` on a map whose walls are ``occupied``. The strength is eq. 4's on every model; the
+    link follows the model: eq. 4's threshold (``wall``), distance within ``comm_range`` (``disk``), or every
+    pair (``full``, ``ideal``)."""
     n = len(cells)
     strength = np.full((n, n), np.inf)
     for i in range(n):
@@ -48,7 +69,14 @@ def link_matrix(occupied: np.ndarray, cells: Sequence[Cell], cell_size: float,
             d = math.hypot(r1 - r0, c1 - c0) * cell_size
             walls = int(count_walls(occupied, r0, c0, r1, c1))
             strength[i, j] = strength[j, i] = signal_db(d, walls, p)
-    link = np.ones((n, n), dtype=bool) if p.ideal else strength >= p.threshold
+    if p.comm == "wall":
+        link = strength >= p.threshold
+    elif p.comm == "disk":
+        rc = np.array(cells, dtype=float).reshape(n, 2)
+        gap = np.hypot(rc[:, None, 0] - rc[None, :, 0], rc[:, None, 1] - rc[None, :, 1]) * cell_size
+        link = gap <= p.comm_range
+    else:
+        link = np.ones((n, n), dtype=bool)
     np.fill_diagonal(link, False)
     return strength, link
 

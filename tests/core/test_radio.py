@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from fleet_emu.core.grid import OCCUPIED, from_ascii
-from fleet_emu.netem.signal import RadioParams, connected, link_matrix, signal_db
+from fleet_emu.core.radio import RadioConfig, connected, link_matrix, signal_db
 
-P = RadioParams(comm_range=10.0, path_loss=2.0, waf=3.1, max_walls=4, threshold=0.0)
+P = RadioConfig(comm_range=10.0, path_loss=2.0, waf=3.1, max_walls=4, threshold=0.0)
 
 
 def test_free_space_is_zero_db_at_the_nominal_range() -> None:
@@ -41,8 +41,22 @@ def test_walls_on_the_segment_cut_the_link() -> None:
 def test_ideal_links_everyone_and_connectivity() -> None:
     grid, robots = from_ascii("0#######################1")
     cells = list(robots.values())
-    _, link = link_matrix(grid == OCCUPIED, cells, 0.5, RadioParams(ideal=True))
+    _, link = link_matrix(grid == OCCUPIED, cells, 0.5, RadioConfig(comm="full"))
     assert link.tolist() == [[False, True], [True, False]] and connected(link)
     chain = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 0]], dtype=bool)
     assert connected(chain)  # connected through a relay
     assert connected(np.zeros((1, 1), dtype=bool))
+
+
+def test_disk_links_within_range_through_walls_and_full_links_all() -> None:
+    grid, robots = from_ascii("""
+    0.#.1.....2
+    """)
+    cells = list(robots.values())  # r0 and r1 4 cells (2 m) apart across a wall, r2 10 cells (5 m) from r0
+    disk = RadioConfig(comm="disk", comm_range=3.0)
+    _, link = link_matrix(grid == OCCUPIED, cells, 0.5, disk)
+    assert link.tolist() == [[False, True, False], [True, False, True], [False, True, False]]
+    _, full = link_matrix(grid == OCCUPIED, cells, 0.5, RadioConfig(comm="full", comm_range=0.1))
+    assert full.sum() == 6
+    assert RadioConfig(comm="ideal", loss=0.5).applied_loss == 0.0
+    assert RadioConfig(comm="full", loss=0.5).applied_loss == 0.5

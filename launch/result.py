@@ -1,0 +1,63 @@
+"""What one run gives back: :class:`Result`, the ``result.json`` contract (DESIGN.md "CLI and the result
+contract") with the coverage curve beside it, readable like the dict it was."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+@dataclasses.dataclass(frozen=True)
+class Result(Mapping[str, Any]):
+    """A run's result: ``result["ticks"]`` (or ``result.ticks`` for the main keys) reads ``result.json``'s keys;
+    :meth:`coverage_curve` gives coverage against ticks; ``out_dir`` is where the run's files are (None when
+    nothing was kept)."""
+
+    data: dict[str, Any]
+    curve: tuple[tuple[int, float], ...] = ()
+    out_dir: Path | None = None
+
+    def __getitem__(self, key: str) -> Any:
+        return self.data[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.data)
+
+    def __len__(self) -> int:
+        return len(self.data)
+
+    @property
+    def ticks(self) -> int:
+        return int(self.data["ticks"])
+
+    @property
+    def completed(self) -> bool:
+        return bool(self.data["completed"])
+
+    @property
+    def coverage(self) -> float:
+        return float(self.data["coverage"])
+
+    def coverage_curve(self) -> tuple[np.ndarray, np.ndarray]:
+        """Ticks and the team's coverage at each (from the world's state messages)."""
+        if not self.curve:
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
+        ticks, cov = zip(*self.curve, strict=True)
+        return np.asarray(ticks, dtype=np.int64), np.asarray(cov, dtype=float)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dict(self.data)
+
+
+def write_json_atomic(path: Path, obj: Any) -> None:
+    """Write JSON to ``path`` through a temporary file and a rename, so that a reader (or a crash) never sees
+    half a file."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(obj, indent=2))
+    os.replace(tmp, path)

@@ -1,0 +1,68 @@
+"""The public API of ``fleet_emu``: exactly what ``__all__`` lists, each name importable, and a run from Python
+as a notebook would do it (after httpx's tests/test_exported_members.py)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import fleet_emu as fe
+
+EXPORTED = {
+    "__version__", "Scenario", "RadioConfig", "run", "Result", "load_recording", "Allocator", "Allocation",
+    "AllocStatus", "Problem", "make_allocator", "FleetError", "ConfigError", "MapError", "DecodeError",
+    "ReportError", "RunError", "SCHEMA_VERSION",
+}
+
+
+def test_all_lists_exactly_the_public_names_and_each_resolves() -> None:
+    assert set(fe.__all__) == EXPORTED and len(fe.__all__) == len(EXPORTED)
+    for name in fe.__all__:
+        assert getattr(fe, name) is not None, name
+    assert set(fe.__all__) <= set(dir(fe))
+    with pytest.raises(AttributeError):
+        fe.no_such_name  # noqa: B018
+    for error in ("ConfigError", "MapError", "DecodeError", "ReportError", "RunError"):
+        assert issubclass(getattr(fe, error), fe.FleetError)
+
+
+def test_importing_the_package_loads_no_engine() -> None:
+    """A robot process imports fleet_emu first: the public API must not drag the launcher, zenoh or numba in."""
+    code = "import sys, fleet_emu; print(sorted(m for m in sys.modules if m.split('.')[0] in " \
+           "('zenoh', 'numba', 'scipy', 'rich', 'matplotlib') or m.startswith('fleet_emu.')))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_scenario_api_loads_overrides_and_rejects() -> None:
+    s = fe.Scenario.from_dict({"robots": 2, "map": "hall", "radio": {"comm": "disk", "loss": 0.2}})
+    assert (s.robots, s.map, s.radio.comm, s.radio.loss) == (2, "hall", "disk", 0.2)
+    t = s.override(allocator="greedy", loss=0.0)
+    assert (t.allocator, t.radio.loss, t.radio.comm, s.radio.loss) == ({"type": "greedy"}, 0.0, "disk", 0.2)
+    assert fe.Scenario.from_dict(t.to_dict()) == t
+    with pytest.raises(fe.ConfigError, match="robots"):
+        s.override(robots=-1)
+    with pytest.raises(fe.ConfigError, match="speed"):
+        s.override(speed=3)
+
+
+def test_run_from_python_keeps_files_only_where_asked(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    s = fe.Scenario().override(robots=2, max_ticks=40, allocator="nearest", seed=2)
+    quiet = fe.run(s, in_process=True)
+    assert list(tmp_path.iterdir()) == [] and quiet.out_dir is None  # nothing written anywhere asked
+    assert quiet.ticks == 40 and not quiet.completed and quiet["recording"]["path"] is None
+    ticks, coverage = quiet.coverage_curve()
+    assert ticks[-1] == quiet.ticks and coverage[-1] == pytest.approx(quiet.coverage, abs=1e-6)
+    assert (coverage[1:] >= coverage[:-1]).all() and coverage[0] > 0
+    kept = fe.run(s, tmp_path / "kept", in_process=True)
+    assert json.loads((tmp_path / "kept" / "result.json").read_text())["ticks"] == quiet.ticks == kept.ticks
+    assert {p.name for p in (tmp_path / "kept").iterdir()} >= {"result.json", "run.mcap", "scenario.json"}
+    assert kept["schema_version"] == fe.SCHEMA_VERSION and kept["fleet_emu"] == fe.__version__
+    assert kept["coverage"] == quiet["coverage"] and kept["path_length"] == quiet["path_length"]
+    with pytest.raises(fe.ConfigError, match="out"):
+        fe.run(s, record=True)
