@@ -10,12 +10,14 @@ also gets the whole known map. No Zenoh, no files: the node shell does the I/O a
 from __future__ import annotations
 
 import dataclasses
+import operator
 import time
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
-from fleet_emu.agents.allocators import Allocator, AllocStatus, Problem
+from fleet_emu.agents.allocators import Allocator, AllocStatus, Problem, allocator_class
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.agents.navigation import next_move
@@ -47,17 +49,13 @@ def brain_config(scenario: Scenario) -> BrainConfig:
     return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)))
 
 
-def allocator_config(scenario: Scenario) -> dict:
-    """The scenario's allocator config; an allocator that models the radio or the sensor (connectivity,
-    utility) uses the scenario's unless its config sets its own."""
+def allocator_config(scenario: Scenario) -> dict[str, Any]:
+    """The scenario's allocator config, completed with the scenario fields its allocator declares
+    (``Allocator.scenario_fields``: the radio of connectivity, the sensor range of utility, a plugin's own);
+    a value the config sets wins. ConfigError on an unknown allocator or a plugin that does not load."""
     config = dict(scenario.allocator)
-    if config.get("type") == "connectivity":
-        r = scenario.radio
-        for k, v in (("comm_range", r.comm_range), ("cell_size", scenario.cell_size), ("path_loss", r.path_loss),
-                     ("waf", r.waf), ("max_walls", r.max_walls)):
-            config.setdefault(k, v)
-    if config.get("type") == "utility":
-        config.setdefault("sensor_range", scenario.sensor_cells)
+    for param, field in allocator_class(config.get("type")).scenario_fields.items():
+        config.setdefault(param, operator.attrgetter(field)(scenario))
     return config
 
 

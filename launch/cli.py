@@ -44,7 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--scenario", type=Path, help="scenario TOML (see launch/scenarios/)")
     r.add_argument("--map", help="built-in map name (see `fleet maps`) or a PNG/PGM/ROS YAML path")
     r.add_argument("--robots", type=int)
-    r.add_argument("--allocator", help="allocator name (nearest, minpos, ...)")
+    r.add_argument("--allocator", help="allocator name (see `fleet allocators`)")
     r.add_argument("--loss", type=float, help="per-message loss probability on an existing link")
     r.add_argument("--comm-range", type=float, help="nominal range c in metres (P = 0 dB in free space)")
     r.add_argument("--sensor-range", type=float, help="sensor range in metres")
@@ -63,6 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--grid-every", type=int, metavar="K",
                    help="Foxglove map/coverage/belief grids in run.mcap every K ticks (default: belief_every)")
     sub.add_parser("maps", help="list the built-in maps")
+    sub.add_parser("allocators", help="list the allocators (built-in and installed plugins) and their parameters")
     rep = sub.add_parser("report", help="metrics.json, plots and a table from a recording (RUN_DIR or RUN.mcap)")
     rep.add_argument("paths", nargs="+", type=Path, metavar="RUN", help="a run directory or its run.mcap")
     rep.add_argument("--compare", action="store_true", help="one table and overlaid coverage curves of the runs")
@@ -116,6 +117,22 @@ def cmd_maps(_: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_allocators(_: argparse.Namespace) -> int:
+    from fleet_emu.agents.allocators import allocator_class, allocator_names
+
+    for name in allocator_names():
+        try:
+            cls = allocator_class(name)
+        except ConfigError as exc:  # a broken plugin is listed with its error; the others still work
+            print(f"{name:14s} {exc}")
+            continue
+        params = [f"{p}=<scenario {cls.scenario_fields[p]}>" if p in cls.scenario_fields else f"{p}={spec.default!r}"
+                  for p, spec in cls.parameters.items()]
+        source = "built-in" if cls.__module__.startswith("fleet_emu.") else f"plugin {cls.__module__}"
+        print(f"{name:14s} {source}: {', '.join(params) or 'no parameters'}")
+    return 0
+
+
 def cmd_report(args: argparse.Namespace) -> int:
     from fleet_emu.launch.report import report
 
@@ -128,7 +145,7 @@ def main(argv: list[str] | None = None) -> None:
     command = args.command or "run"
     if args.command is None:
         args = build_parser().parse_args(["run", *(argv or [])])
-    handlers = {"run": cmd_run, "maps": cmd_maps, "report": cmd_report}
+    handlers = {"run": cmd_run, "maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report}
     try:
         code = handlers[command](args)
     except FleetError as exc:  # every error meant for the user, caught once: one line, its exit code

@@ -22,7 +22,7 @@ import zenoh
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import allocator_config
 from fleet_emu.core.bus import client_config, publisher, router_config, router_locators
-from fleet_emu.core.errors import ConfigError, RunError
+from fleet_emu.core.errors import RunError
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import Keys, robot_ids
 from fleet_emu.core.messages import Failed, Ready, Stop
@@ -63,10 +63,7 @@ def check(scenario: Scenario) -> MapData:
     """Everything that can be wrong with the user's input, found before any process starts; the true map,
     built once for the whole run."""
     scenario.validate()
-    try:
-        make_allocator(allocator_config(scenario))  # exactly what every agent will build
-    except ValueError as exc:
-        raise ConfigError(str(exc)) from None
+    make_allocator(allocator_config(scenario))  # exactly what every agent will build; ConfigError if bad
     md = load_map(scenario.map, scenario.cell_size, scenario.seed)
     build_world(scenario, md).reset()  # raises StartAreaError when the robots do not fit
     return md

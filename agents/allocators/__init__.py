@@ -1,4 +1,5 @@
-"""Frontier allocators, one per module, registered by name (``make_allocator({"type": "minpos"})``)."""
+"""Frontier allocators, one per module, registered by name (``make_allocator({"type": "minpos"})``); installed
+packages add theirs through the ``fleet_emu.allocators`` entry-point group (:mod:`.registry`)."""
 
 from fleet_emu.agents.allocators import (  # noqa: F401  (registration)
     connectivity,
@@ -14,8 +15,10 @@ from fleet_emu.agents.allocators.base import (
     Allocator,
     AllocStatus,
     Problem,
-    make_allocator,
     robot_order,
 )
+from fleet_emu.agents.allocators.params import Param
+from fleet_emu.agents.allocators.registry import allocator_class, allocator_names, make_allocator
 
-__all__ = ["AllocStatus", "Allocation", "Allocator", "Problem", "make_allocator", "robot_order"]
+__all__ = ["AllocStatus", "Allocation", "Allocator", "Param", "Problem", "allocator_class", "allocator_names",
+           "make_allocator", "robot_order"]

@@ -2,7 +2,8 @@
 
 An allocator is a pure function of (belief grid, frontier clusters, wavefront distances, known teammate poses,
 its own protocol state). It never touches Zenoh, clocks or files; radio messages it wants to send go out in
-``Allocation.outbox`` and the ones addressed to it come back through ``inbox``.
+``Allocation.outbox`` and the ones addressed to it come back through ``inbox``. Building one by name, with
+installed plugins, is :mod:`.registry`'s.
 """
 
 from __future__ import annotations
@@ -10,15 +11,18 @@ from __future__ import annotations
 import dataclasses
 import enum
 import functools
+import operator
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
+from fleet_emu.agents.allocators.params import Param, check_params
 from fleet_emu.agents.frontiers import Cluster
 from fleet_emu.core.grid import FREE, Cell
 from fleet_emu.core.kernels import wavefront
 from fleet_emu.core.messages import RadioMsg
+from fleet_emu.core.scenario import Scenario
 
 INF = np.inf
 
@@ -105,28 +109,55 @@ def robot_order(robot: str) -> tuple[int, str]:
 
 class Allocator:
     """Base class: subclasses register with ``class X(Allocator, plugin_name="x")`` and implement
-    :meth:`allocate`. Parameters are keyword arguments of ``__init__``; :meth:`to_dict` gives them back in
-    the scenario's shape ``{"type": name, **params}``."""
+    :meth:`allocate`.
+
+    ``parameters`` declares each keyword parameter (:class:`Param`: default, type, range); the base
+    ``__init__`` checks the given values against it (ConfigError otherwise) and sets them as attributes, and
+    :meth:`to_dict` gives them back in the scenario's shape ``{"type": name, **params}``. ``scenario_fields``
+    maps a parameter to the :class:`~core.scenario.Scenario` attribute it defaults to in a run (a dotted
+    path: ``"radio.comm_range"``, ``"cell_size"``, ``"sensor_cells"``); a value the scenario's
+    ``[allocator]`` sets wins."""
 
     plugin_name: ClassVar[str] = ""
     registry: ClassVar[dict[str, type[Allocator]]] = {}
+    parameters: ClassVar[dict[str, Param]] = {}
+    scenario_fields: ClassVar[dict[str, str]] = {}
 
     def __init_subclass__(cls, plugin_name: str = "", **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         if plugin_name:
-            if plugin_name in Allocator.registry:
-                raise TypeError(f"allocator {plugin_name!r} registered twice")
-            cls.plugin_name = plugin_name
-            Allocator.registry[plugin_name] = cls
+            cls.register(plugin_name)
+
+    @classmethod
+    def register(cls, name: str) -> None:
+        """Enter the class in the registry under ``name``; TypeError when the name is taken or the
+        declarations are inconsistent (a default out of its own range, a scenario field that is not a
+        parameter or not an attribute of a Scenario)."""
+        if name in Allocator.registry:
+            raise TypeError(f"allocator {name!r} registered twice")
+        for param, spec in cls.parameters.items():
+            try:
+                spec.check(spec.default)
+            except ValueError as exc:
+                raise TypeError(f"allocator {name!r}: default of {param} is not {exc}") from None
+        for param, field in cls.scenario_fields.items():
+            if param not in cls.parameters:
+                raise TypeError(f"allocator {name!r}: scenario field for {param!r}, which is not a parameter")
+            try:
+                operator.attrgetter(field)(Scenario())
+            except AttributeError:
+                raise TypeError(f"allocator {name!r}: {field!r} is not a scenario field") from None
+        cls.plugin_name = name
+        Allocator.registry[name] = cls
 
     def __init__(self, **params: Any) -> None:
-        if params:
-            raise TypeError(f"allocator {self.plugin_name!r} takes no parameter {sorted(params)[0]!r}")
+        for name, value in check_params(self.plugin_name, self.parameters, params).items():
+            setattr(self, name, value)
         self.rng = np.random.default_rng(0)
 
     def params(self) -> dict[str, Any]:
-        """The allocator's parameters (overridden by allocators that have some)."""
-        return {}
+        """The allocator's parameters, as checked."""
+        return {name: getattr(self, name) for name in self.parameters}
 
     def to_dict(self) -> dict[str, Any]:
         return {"type": self.plugin_name, **self.params()}
@@ -137,18 +168,3 @@ class Allocator:
 
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         raise NotImplementedError
-
-
-def make_allocator(config: dict[str, Any]) -> Allocator:
-    """``{"type": "minpos", ...params}`` to an allocator; an unknown name or parameter fails loudly."""
-    params = dict(config)
-    name = params.pop("type", None)
-    cls = Allocator.registry.get(name) if isinstance(name, str) else None
-    if cls is None:
-        known = ", ".join(sorted(Allocator.registry))
-        raise ValueError(f"unknown allocator {name!r} (known: {known})")
-    try:
-        return cls(**params)
-    except TypeError as exc:
-        raise ValueError(f"allocator {name!r}: {exc}") from None
-

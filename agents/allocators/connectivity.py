@@ -48,6 +48,7 @@ import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.minpos import minpos_choice
+from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.grid import FREE, OCCUPIED, Cell
 from fleet_emu.core.kernels import count_walls
 from fleet_emu.core.messages import RadioMsg
@@ -102,25 +103,26 @@ def utilities(problem: Problem, alpha: float, beta: float, lam: float, cell_size
 class Connectivity(Allocator, plugin_name="connectivity"):
     """Benavides et al. 2016: MinPos's criterion on the task utility of eq. 9 (see the module docstring)."""
 
-    def __init__(self, alpha: float = 0.6, beta: float = 0.4, lam: float = 0.5, comm_range: float = 10.0,
-                 cell_size: float = 0.5, path_loss: float = 2.0, waf: float = 3.1, max_walls: int = 4,
-                 unknown_walls: bool = False) -> None:
-        super().__init__()
-        if not (alpha >= 0 and beta >= 0 and 0 <= lam <= 1):
-            raise TypeError("needs alpha >= 0, beta >= 0 and 0 <= lam <= 1")
-        if not (comm_range > 0 and cell_size > 0 and path_loss >= 0 and waf >= 0 and max_walls >= 0):
-            raise TypeError("needs comm_range > 0, cell_size > 0, path_loss, waf, max_walls >= 0")
-        self.alpha, self.beta, self.lam = float(alpha), float(beta), float(lam)
-        self.cell_size = float(cell_size)
-        self.unknown_walls = bool(unknown_walls)
-        self.radio = RadioConfig(comm_range=float(comm_range), path_loss=float(path_loss), waf=float(waf),
-                                 max_walls=int(max_walls))
+    parameters = {"alpha": Param(0.6, ge=0), "beta": Param(0.4, ge=0), "lam": Param(0.5, ge=0, le=1),
+                  "comm_range": Param(10.0, gt=0), "cell_size": Param(0.5, gt=0), "path_loss": Param(2.0, ge=0),
+                  "waf": Param(3.1, ge=0), "max_walls": Param(4, ge=0), "unknown_walls": Param(False)}
+    # in a run the radio and the cell size are the scenario's, unless the [allocator] section sets its own
+    scenario_fields = {"comm_range": "radio.comm_range", "path_loss": "radio.path_loss", "waf": "radio.waf",
+                       "max_walls": "radio.max_walls", "cell_size": "cell_size"}
+    alpha: float
+    beta: float
+    lam: float
+    comm_range: float
+    cell_size: float
+    path_loss: float
+    waf: float
+    max_walls: int
+    unknown_walls: bool
 
-    def params(self) -> dict[str, Any]:
-        r = self.radio
-        return {"alpha": self.alpha, "beta": self.beta, "lam": self.lam, "comm_range": r.comm_range,
-                "cell_size": self.cell_size, "path_loss": r.path_loss, "waf": r.waf, "max_walls": r.max_walls,
-                "unknown_walls": self.unknown_walls}
+    def __init__(self, **params: Any) -> None:
+        super().__init__(**params)
+        self.radio = RadioConfig(comm_range=self.comm_range, path_loss=self.path_loss, waf=self.waf,
+                                 max_walls=self.max_walls)
 
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         if not problem.clusters:

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.codec import Context, Payload
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell, flat
@@ -76,16 +77,13 @@ class Hungarian(Allocator, plugin_name="hungarian"):
     """``timeout``: ticks of silence after which a robot (or an Assignment) counts as gone;
     ``period``: the coordinator broadcasts its assignment every ``period`` ticks."""
 
-    def __init__(self, timeout: int = 10, period: int = 1, **params: Any) -> None:
-        super().__init__(**params)
-        if not (isinstance(timeout, int) and isinstance(period, int) and timeout >= 1 and period >= 1):
-            raise ValueError("hungarian: timeout and period must be integers >= 1")
-        self.timeout = timeout
-        self.period = period
-        self.received: dict[str, RadioMsg] = {}  # the newest Assignment from each robot
+    parameters = {"timeout": Param(10, ge=1), "period": Param(1, ge=1)}
+    timeout: int
+    period: int
 
-    def params(self) -> dict[str, Any]:
-        return {"timeout": self.timeout, "period": self.period}
+    def __init__(self, **params: Any) -> None:
+        super().__init__(**params)
+        self.received: dict[str, RadioMsg] = {}  # the newest Assignment from each robot
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)

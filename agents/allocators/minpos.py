@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.grid import flat
 from fleet_emu.core.kernels import minpos_parallel, wavefront
 from fleet_emu.core.messages import RadioMsg
@@ -81,17 +82,14 @@ def parallel_choice(problem: Problem) -> int | None:
 class MinPos(Allocator, plugin_name="minpos"):
     """``wavefront``: ``"full"`` (Algorithm 3 on the full cost matrix), ``"stop"`` or ``"parallel"``."""
 
-    def __init__(self, wavefront: str = "full", **params: Any) -> None:
+    parameters = {"wavefront": Param("full", choices=WAVEFRONTS)}
+    wavefront: str
+
+    def __init__(self, **params: Any) -> None:
         super().__init__(**params)
-        if wavefront not in WAVEFRONTS:
-            raise ValueError(f"minpos: wavefront must be one of {WAVEFRONTS}, not {wavefront!r}")
-        self.wavefront = wavefront
-        if wavefront == "parallel":  # compile or load the kernel now, not in the first decision
+        if self.wavefront == "parallel":  # compile or load the kernel now, not in the first decision
             one = np.zeros(1, dtype=np.int64)
             minpos_parallel(np.ones((1, 1), dtype=np.bool_), one, np.array([0, 1], dtype=np.int64), 0, one[:0])
-
-    def params(self) -> dict[str, Any]:
-        return {"wavefront": self.wavefront}
 
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         if not problem.clusters:

@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, AllocStatus, Problem, robot_order
+from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.codec import Context, Payload
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
@@ -153,23 +154,20 @@ def greedy_table(requests: dict[str, tuple[Cell, float]], radius: int) -> dict[s
 class Trade(Allocator, plugin_name="trade"):
     """Yan et al. 2011: role allocation by robot numbers, purchases, a greedy seller (module docstring)."""
 
-    def __init__(self, time_max: int = 2, bid_period: int = 2, award_timeout: int = 5, retries: int = 1,
-                 task_radius: int = 3, claim_ttl: int = 100, task_timeout: int = 300) -> None:
-        super().__init__()
-        values = (time_max, bid_period, award_timeout, retries, task_radius, claim_ttl, task_timeout)
-        if not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in values):
-            raise TypeError("trade parameters are non-negative integers (ticks, cells)")
-        if award_timeout < 1 or task_timeout < 1:
-            raise TypeError("award_timeout and task_timeout must be at least one tick")
-        self.time_max, self.bid_period, self.award_timeout = time_max, bid_period, award_timeout
-        self.retries, self.task_radius = retries, task_radius
-        self.claim_ttl, self.task_timeout = claim_ttl, task_timeout
-        self.s = _State()
+    parameters = {"time_max": Param(2, ge=0), "bid_period": Param(2, ge=0), "award_timeout": Param(5, ge=1),
+                  "retries": Param(1, ge=0), "task_radius": Param(3, ge=0), "claim_ttl": Param(100, ge=0),
+                  "task_timeout": Param(300, ge=1)}  # ticks, but task_radius (cells)
+    time_max: int
+    bid_period: int
+    award_timeout: int
+    retries: int
+    task_radius: int
+    claim_ttl: int
+    task_timeout: int
 
-    def params(self) -> dict[str, Any]:
-        return {"time_max": self.time_max, "bid_period": self.bid_period, "award_timeout": self.award_timeout,
-                "retries": self.retries, "task_radius": self.task_radius, "claim_ttl": self.claim_ttl,
-                "task_timeout": self.task_timeout}
+    def __init__(self, **params: Any) -> None:
+        super().__init__(**params)
+        self.s = _State()
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)

@@ -16,11 +16,11 @@ Unreachable targets are never chosen; a robot that reaches none is never assigne
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.messages import RadioMsg
 
 
@@ -49,17 +49,13 @@ def utility_choice(costs: np.ndarray, targets: np.ndarray, i: int, beta: float =
 
 
 class Utility(Allocator, plugin_name="utility"):
-    """``beta``: weight of the normalised cost against utility; ``sensor_range``: max_range of P(d), cells."""
+    """``beta``: weight of the normalised cost against utility; ``sensor_range``: max_range of P(d), cells
+    (in a run, the scenario's sensor range)."""
 
-    def __init__(self, beta: float = 1.0, sensor_range: float = 8.0, **params: Any) -> None:
-        super().__init__(**params)
-        if not beta >= 0 or not sensor_range > 0:
-            raise ValueError("utility: beta must be >= 0 and sensor_range > 0")
-        self.beta = float(beta)
-        self.sensor_range = float(sensor_range)
-
-    def params(self) -> dict[str, Any]:
-        return {"beta": self.beta, "sensor_range": self.sensor_range}
+    parameters = {"beta": Param(1.0, ge=0), "sensor_range": Param(8.0, gt=0)}
+    scenario_fields = {"sensor_range": "sensor_cells"}
+    beta: float
+    sensor_range: float
 
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         if not problem.clusters:

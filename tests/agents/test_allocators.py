@@ -8,20 +8,20 @@ from typing import Any
 import numpy as np
 import pytest
 
-import fleet_emu.agents.allocators  # noqa: F401  (registers every allocator)
-from fleet_emu.agents.allocators import Allocator, AllocStatus, Problem, make_allocator
+from fleet_emu.agents.allocators import AllocStatus, Param, Problem, allocator_class, allocator_names, make_allocator
 from fleet_emu.agents.allocators.conformance import api_test, seed_test
 from fleet_emu.agents.allocators.greedy import greedy_choice, greedy_pairs
 from fleet_emu.agents.allocators.hungarian import Assignment, Hungarian, optimal_assignment, total_cost
 from fleet_emu.agents.allocators.utility import utility_choice
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.agents.protocol import PoseBeacon
+from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import Cell, from_ascii
 from fleet_emu.core.messages import Envelope, RadioMsg, decode, open_envelope, seal
 
 INF = np.inf
 
-CONFIGS: list[dict[str, Any]] = [{"type": name} for name in sorted(Allocator.registry)] + [
+CONFIGS: list[dict[str, Any]] = [{"type": name} for name in allocator_names()] + [
     {"type": "minpos", "wavefront": "stop"},
     {"type": "minpos", "wavefront": "parallel"},
     {"type": "utility", "beta": 0.5, "sensor_range": 3.0},
@@ -39,12 +39,64 @@ def test_conformance(config: dict[str, Any]) -> None:
     seed_test(config)
 
 
-@pytest.mark.parametrize("name", sorted(Allocator.registry))
+@pytest.mark.parametrize("name", allocator_names())
 def test_to_dict_and_unknown_parameters(name: str) -> None:
     alloc = make_allocator({"type": name})
     assert alloc.to_dict() == {"type": name, **alloc.params()}
-    with pytest.raises(ValueError, match="bogus"):
+    assert list(alloc.params()) == list(allocator_class(name).parameters)
+    with pytest.raises(ConfigError, match="'bogus'") as exc:
         make_allocator({"type": name, "bogus": 1})
+    assert name in str(exc.value)
+
+
+def bad_values(spec: Param) -> list[Any]:
+    """Values of the wrong type, non-finite, out of the range or not among the choices."""
+    if spec.kind is bool:
+        return [1, "true", None]
+    if spec.kind is str:
+        return [3, None, "no-such-choice"] if spec.choices else [3, None]
+    bad: list[Any] = ["1", None, True]
+    if spec.kind is int:
+        bad += [1.5, float(spec.default)]
+    else:
+        bad += [float("nan"), float("inf"), -float("inf")]
+    low = spec.ge if spec.ge is not None else spec.gt
+    if low is not None:
+        bad.append(spec.kind(low) - 1 if spec.ge is not None else spec.kind(low))
+    if spec.le is not None:
+        bad.append(spec.kind(spec.le) + 1)
+    return bad
+
+
+PARAMS = [(name, param) for name in allocator_names() for param in allocator_class(name).parameters]
+
+
+@pytest.mark.parametrize("name, param", PARAMS, ids=[f"{n}-{p}" for n, p in PARAMS])
+def test_every_bad_parameter_value_is_a_one_line_config_error(name: str, param: str) -> None:
+    spec = allocator_class(name).parameters[param]
+    for value in bad_values(spec):
+        with pytest.raises(ConfigError) as exc:
+            make_allocator({"type": name, param: value})
+        msg = str(exc.value)
+        assert f"{name!r}" in msg and param in msg and spec.accepted() in msg and "\n" not in msg, msg
+    assert make_allocator({"type": name, param: spec.default}).params()[param] == spec.default
+
+
+def test_param_ranges_in_words() -> None:
+    assert Param(0.5, ge=0, le=1).accepted() == "a number in [0, 1]"
+    assert Param(1.0, gt=0).accepted() == "a number > 0"
+    assert Param(2, ge=1).accepted() == "an integer >= 1"
+    assert Param(True).accepted() == "true or false"
+    assert Param("a", choices=("a", "b")).accepted() == "one of 'a', 'b'"
+    assert Param(1.0).check(2) == 2.0 and type(Param(1.0).check(2)) is float
+
+
+def test_unknown_allocator_lists_the_known_ones() -> None:
+    with pytest.raises(ConfigError, match="telepathy") as exc:
+        make_allocator({"type": "telepathy"})
+    assert all(name in str(exc.value) for name in allocator_names())
+    with pytest.raises(ConfigError, match="unknown allocator None"):
+        make_allocator({})
 
 
 def problem(art: str, me: str, tick: int = 0, heard: dict[str, int] | None = None) -> Problem:
@@ -102,7 +154,7 @@ def test_utility_parameters_change_the_trade() -> None:
     assert utility_choice(UCOSTS, TARGETS, 1, beta=10.0) == 1  # cost dominates
     assert make_allocator({"type": "utility", "beta": 2, "sensor_range": 4}).to_dict() == {
         "type": "utility", "beta": 2.0, "sensor_range": 4.0}
-    with pytest.raises(ValueError):
+    with pytest.raises(ConfigError, match="sensor_range"):
         make_allocator({"type": "utility", "sensor_range": 0})
 
 

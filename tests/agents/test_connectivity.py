@@ -11,6 +11,7 @@ from fleet_emu.agents.allocators import AllocStatus, Problem, make_allocator
 from fleet_emu.agents.allocators.conformance import CROSS, WALLED, api_test, random_problem, seed_test
 from fleet_emu.agents.allocators.connectivity import connectivity, utilities, wall_mask
 from fleet_emu.agents.frontiers import find_clusters
+from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import from_ascii
 from fleet_emu.core.radio import RadioConfig
 
@@ -29,7 +30,7 @@ def test_conformance() -> None:
     assert make_allocator({"type": "connectivity"}).to_dict() == {
         "type": "connectivity", "alpha": 0.6, "beta": 0.4, "lam": 0.5, "comm_range": 10.0, "cell_size": 0.5,
         "path_loss": 2.0, "waf": 3.1, "max_walls": 4, "unknown_walls": False}
-    with pytest.raises(ValueError):
+    with pytest.raises(ConfigError, match=r"lam must be a number in \[0, 1\]"):
         make_allocator({"type": "connectivity", "lam": 1.5})
 
 

@@ -12,6 +12,7 @@ from fleet_emu.agents.allocators import AllocStatus, Problem, make_allocator
 from fleet_emu.agents.allocators.conformance import CLOSED, CROSS, WALLED, random_problem
 from fleet_emu.agents.allocators.minpos import minpos_choice, parallel_choice, positions
 from fleet_emu.agents.frontiers import find_clusters
+from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import FREE, UNKNOWN, Cell, flat, from_ascii
 from fleet_emu.core.kernels import minpos_parallel
 
@@ -220,7 +221,7 @@ def test_stop_computes_less_than_full() -> None:
 
 
 def test_unknown_wavefront_mode_fails() -> None:
-    with pytest.raises(ValueError, match="wavefront"):
+    with pytest.raises(ConfigError, match="wavefront"):
         make_allocator({"type": "minpos", "wavefront": "fast"})
 
 

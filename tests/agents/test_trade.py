@@ -13,6 +13,7 @@ from fleet_emu.agents.allocators.conformance import api_test, seed_test
 from fleet_emu.agents.allocators.trade import TradeAllocation, TradeNumber, TradePurchase, greedy_table
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.agents.navigation import next_move
+from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import FREE, OCCUPIED, UNKNOWN, Cell, from_ascii
 from fleet_emu.core.kernels import visible_cells, wavefront
 from fleet_emu.core.messages import Context, Envelope, RadioMsg, decode, open_envelope, seal
@@ -114,7 +115,7 @@ def test_conformance() -> None:
     assert make_allocator({"type": "trade"}).to_dict() == {
         "type": "trade", "time_max": 2, "bid_period": 2, "award_timeout": 5, "retries": 1, "task_radius": 3,
         "claim_ttl": 100, "task_timeout": 300}
-    with pytest.raises(ValueError):
+    with pytest.raises(ConfigError, match="time_max must be an integer >= 0"):
         make_allocator({"type": "trade", "time_max": -1})
 
 

@@ -6,13 +6,13 @@ from pathlib import Path
 
 import pytest
 
-from fleet_emu.agents.allocators import Allocator
+from fleet_emu.agents.allocators import allocator_names
 
 from .conftest import fleet, result
 
 
 @pytest.mark.parametrize("loss", [0.0, 0.3, 0.5])
-@pytest.mark.parametrize("allocator", sorted(Allocator.registry))
+@pytest.mark.parametrize("allocator", allocator_names())
 def test_every_allocator_completes_under_loss(allocator: str, loss: float, small_map: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
     # loss 0.5 runs one process per robot; the others run every node in one process (each its own session)

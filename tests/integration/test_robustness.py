@@ -43,6 +43,24 @@ def test_bad_input_is_one_line_and_nonzero(args: list[str], match: str, tmp_path
     assert "Traceback" not in proc.stderr
 
 
+@pytest.mark.parametrize("section, match", [
+    ('type = "minpos"\nwavefront = "fastest"', "allocator 'minpos': wavefront must be one of"),
+    ('type = "minpos"\nwavefronts = "stop"', "allocator 'minpos' has no parameter 'wavefronts'"),
+    ('type = "connectivity"\nlam = "high"', "allocator 'connectivity': lam must be a number in [0, 1]"),
+    ('type = "hungarian"\ntimeout = true', "allocator 'hungarian': timeout must be an integer >= 1"),
+])
+def test_bad_allocator_parameter_in_a_scenario(section: str, match: str, tmp_path: Path) -> None:
+    scenario = tmp_path / "bad.toml"
+    scenario.write_text(f"[allocator]\n{section}\n")
+    allocator = section.split('"')[1]
+    proc = fleet("run", "--scenario", str(scenario), "--allocator", allocator, "--out", str(tmp_path / "x"),
+                 "--quiet", check=False, timeout=60)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"fleet: error: {match}"), proc.stderr
+    assert not (tmp_path / "x").exists()  # refused before any process started
+
+
 def test_unparseable_map_file(tmp_path: Path) -> None:
     bad = tmp_path / "garbage.png"
     bad.write_bytes(b"this is not a png")
