@@ -25,11 +25,11 @@ from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.keys import Keys, robot_ids
 from fleet_emu.core.messages import Failed, Ready, Stop
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.launch.foxglove import FoxgloveFold, FoxgloveWriter
-from fleet_emu.launch.monitor import Monitor
 from fleet_emu.launch.progress import Progress
-from fleet_emu.launch.recorder import Recorder
 from fleet_emu.launch.supervisor import Supervisor
+from fleet_emu.recording.foxglove import FoxgloveFold, FoxgloveWriter
+from fleet_emu.recording.monitor import Monitor
+from fleet_emu.recording.recorder import Recorder
 from fleet_emu.world.maps import MapData, load_map
 from fleet_emu.world.node import build_world
 

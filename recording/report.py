@@ -1,6 +1,6 @@
 """``fleet report``: metrics, plots and a table from a recording alone.
 
-The scenario comes from the MCAP's ``scenario`` metadata; :class:`launch.metrics.RunMetrics` folds the recorded
+The scenario comes from the MCAP's ``scenario`` metadata; :class:`.metrics.RunMetrics` folds the recorded
 msgpack messages (the same monitor fold as the live run, so the recomputed ``result.json`` keys are equal). The
 file is read sequentially with the mcap package's stream reader, so a recording without summary or footer (the
 launcher was killed) reads up to its last complete chunk: the recorder flushes one at least once a second.
@@ -24,7 +24,7 @@ from rich.console import Console
 from rich.table import Table
 
 from fleet_emu.core.errors import ReportError
-from fleet_emu.launch.metrics import RunMetrics
+from fleet_emu.recording.metrics import RunMetrics
 
 MAGIC = b"\x89MCAP0\r\n"
 PLOTS = ("coverage", "connectivity", "map", "messages")
@@ -355,7 +355,7 @@ def connectivity_plot(run: Run, path: Path) -> None:
 
 def map_plot(run: Run, path: Path) -> None:
     """The team's final map (what the robots sensed, true values) with each robot's trajectory."""
-    from fleet_emu.launch.foxglove import robot_rgb
+    from fleet_emu.recording.foxglove import robot_rgb
 
     f = run.fold
     fig, ax = _figure(height=5.5)

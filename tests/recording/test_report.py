@@ -33,8 +33,8 @@ from fleet_emu.core.messages import (
     WorldState,
 )
 from fleet_emu.launch.cli import main as cli_main
-from fleet_emu.launch.metrics import RunMetrics, gini, jain
-from fleet_emu.launch.report import PLOTS, ReportError, read_run, write_report
+from fleet_emu.recording.metrics import RunMetrics, gini, jain
+from fleet_emu.recording.report import PLOTS, ReportError, read_run, write_report
 from tests.integration.conftest import ROOT, fleet
 
 ART = """

@@ -2,7 +2,7 @@
 
 :class:`FoxgloveFold` is a pure fold: decoded bus messages in, derived messages out, each a
 :class:`Derived` (topic, schema name, JSON bytes, tick). It uses the official Foxglove JSON schemas shipped in
-``launch/schemas/`` (schema encoding ``jsonschema``, message encoding ``json``):
+``recording/schemas/`` (schema encoding ``jsonschema``, message encoding ``json``):
 
 - ``/viz/map/truth``, ``/viz/map/coverage`` and ``/viz/belief/<robot>``: ``foxglove.Grid``, every ``grid_every``
   ticks (beliefs as their snapshots come, at most once per ``grid_every`` ticks);
@@ -17,7 +17,7 @@ Grid cells carry one ``int8`` field ``occupancy`` (-1 unknown, 0 free, 100 occup
 ``alpha`` bytes (choose "RGBA (separate fields)" as the colour mode in the 3D panel).
 
 :class:`FoxgloveWriter` is the launcher's shell around the fold: it decodes what the fold needs and writes the
-derived messages through the :class:`launch.recorder.Recorder`. A failure in it never stops the run.
+derived messages through the :class:`.recorder.Recorder`. A failure in it never stops the run.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ import numpy as np
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import robot_ids
 from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Message, Observation, Stop, WorldState
-from fleet_emu.launch.recorder import TICK_NS
+from fleet_emu.recording.recorder import TICK_NS
 
 log = logging.getLogger(__name__)
 
@@ -68,7 +68,7 @@ def belief_topic(robot: str) -> str:
 def schema_text(name: str) -> bytes:
     """The official JSON schema of ``foxglove.<Name>`` (shipped as package data)."""
     short = name.removeprefix("foxglove.")
-    return (resources.files("fleet_emu.launch") / "schemas" / f"{short}.json").read_bytes()
+    return (resources.files("fleet_emu.recording") / "schemas" / f"{short}.json").read_bytes()
 
 
 def robot_rgb(robot: str, robots: list[str] | tuple[str, ...]) -> tuple[float, float, float]:

@@ -1,6 +1,6 @@
-"""The metrics of a run, recomputed from its recorded bus messages (a pure fold, like :mod:`launch.monitor`).
+"""The metrics of a run, recomputed from its recorded bus messages (a pure fold, like :mod:`.monitor`).
 
-:class:`RunMetrics` feeds every recorded sample to a :class:`launch.monitor.Monitor` — the same fold that makes
+:class:`RunMetrics` feeds every recorded sample to a :class:`.monitor.Monitor` — the same fold that makes
 ``result.json`` live, so the recomputed result has the same keys and values — and folds the rest of the stream
 (observations, tx/rx bundles, commands, ready messages) into:
 
@@ -33,7 +33,7 @@ import numpy as np
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import robot_ids
 from fleet_emu.core.messages import Command, Links, Observation, Ready, RxBundle, Stop, TxBundle, WorldState
-from fleet_emu.launch.monitor import Monitor
+from fleet_emu.recording.monitor import Monitor
 
 #: result.json keys that a recording cannot give back (they describe the launcher process, not the run)
 NOT_RECORDED = ("wall_seconds",)
