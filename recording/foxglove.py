@@ -34,6 +34,7 @@ import numpy as np
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import robot_ids
 from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Message, Observation, Stop, WorldState
+from fleet_emu.recording.first_seen import FirstSeen
 from fleet_emu.recording.recorder import TICK_NS
 
 log = logging.getLogger(__name__)
@@ -182,8 +183,7 @@ class FoxgloveFold:
         self.grid_every = max(1, int(grid_every or scenario.get("belief_every") or 10))
         self.truth = None if truth is None else np.asarray(truth, dtype=np.int8)
         self.shape: tuple[int, int] | None = None if truth is None else self.truth.shape  # type: ignore[union-attr]
-        self.first_seen: np.ndarray | None = None  # tick a cell was first sensed by any robot (-1 never)
-        self.seen_value: np.ndarray | None = None  # the true value sensed there
+        self.coverage: FirstSeen | None = None  # the cells the team sensed (from the first observation on)
         self.states: dict[int, WorldState] = {}
         self.links: dict[int, Links] = {}
         self.cmds: dict[int, dict[str, Command]] = {}
@@ -223,23 +223,13 @@ class FoxgloveFold:
 
     # --- folds --------------------------------------------------------------------------------------------
 
-    def _ensure_shape(self, shape: tuple[int, int]) -> bool:
-        if self.shape is None:
-            self.shape = (int(shape[0]), int(shape[1]))
-        if self.first_seen is None:
-            self.first_seen = np.full(self.shape, -1, dtype=np.int32)
-            self.seen_value = np.full(self.shape, -1, dtype=np.int8)
-        return tuple(shape) == self.shape
-
     def _observe(self, o: Observation) -> None:
-        if not self._ensure_shape(o.shape):
-            return
-        fs = self.first_seen.reshape(-1)  # type: ignore[union-attr]
-        sv = self.seen_value.reshape(-1)  # type: ignore[union-attr]
-        cells = o.cells.astype(np.int64)
-        new = cells[(fs[cells] < 0) | (fs[cells] > o.tick)]
-        fs[new] = o.tick
-        sv[cells] = o.values
+        if self.shape is None:
+            self.shape = (int(o.shape[0]), int(o.shape[1]))
+        if self.coverage is None:
+            self.coverage = FirstSeen(self.shape)
+        if tuple(o.shape) == self.shape:
+            self.coverage.observe(o.tick, o.cells, o.values)
 
     def _state(self, st: WorldState) -> list[Derived]:
         out: list[Derived] = []
@@ -314,9 +304,8 @@ class FoxgloveFold:
         out = []
         if self.truth is not None:
             out.append(self._grid(TOPIC_TRUTH, self.truth, _MAP_RGBA, t, 0.0))
-        if self.first_seen is not None:
-            cov = np.where((self.first_seen >= 0) & (self.first_seen <= t), self.seen_value, -1).astype(np.int8)
-            out.append(self._grid(TOPIC_COVERAGE, cov, _COVER_RGBA, t, 0.01))
+        if self.coverage is not None:
+            out.append(self._grid(TOPIC_COVERAGE, self.coverage.grid(t), _COVER_RGBA, t, 0.01))
         return out
 
     def _xy(self, cell: tuple[int, int]) -> tuple[float, float]:

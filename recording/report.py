@@ -359,9 +359,9 @@ def map_plot(run: Run, path: Path) -> None:
 
     f = run.fold
     fig, ax = _figure(height=5.5)
-    if f.truth_seen is not None and f.shape is not None:
-        g = f.truth_seen.reshape(f.shape)
-        img = np.full((*f.shape, 3), 0.72)
+    if f.team is not None:
+        g = f.team.value.reshape(f.team.shape)
+        img = np.full((*f.team.shape, 3), 0.72)
         img[g == 0] = 1.0
         img[g > 0] = 0.1
         ax.imshow(img, interpolation="nearest")
