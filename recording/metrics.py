@@ -248,6 +248,10 @@ class RunMetrics:
     def metrics(self, recording_path: str | None = None) -> dict[str, Any]:
         """Everything ``fleet report`` writes: result.json's keys, then the analysis groups."""
         res = self.result(recording_path)
+        return res | self.analysis(res)
+
+    def analysis(self, res: dict[str, Any]) -> dict[str, Any]:
+        """The analysis groups of metrics.json, given the recomputed result (:meth:`result`)."""
         cov = self.coverage_stats()
         path = res["path_length"]
         total_path = int(sum(path))
@@ -260,7 +264,7 @@ class RunMetrics:
         all_ms = np.array([m for r in self.robots for m in self.decisions[r]], dtype=float)
         lk = self.monitor.links
         sent = lk.sent if lk else 0
-        res.update({
+        return {
             "exploration_time": {"t90": self.first_tick_at(0.90), "t99": self.first_tick_at(0.99),
                                  "t100": self.first_tick_at(1.0)},
             "path": {"per_robot": dict(zip(self.robots, path, strict=True)), "total": total_path},
@@ -309,5 +313,4 @@ class RunMetrics:
                 "per_robot_mean_ms": {r: _r(np.mean(v), 4) if v else None for r, v in self.decisions.items()},
             },
             "undecodable": self.undecodable,
-        })
-        return res
+        }
