@@ -4,6 +4,9 @@ The scenario comes from the MCAP's ``scenario`` metadata; :class:`.metrics.RunMe
 messages (the same monitor fold as the live run, so the recomputed ``result.json`` keys are equal). The file is
 read front to back with the mcap package's stream reader, so a recording without summary or footer (the launcher
 was killed) reads up to its last complete chunk: the recorder flushes one at least once a second.
+
+The recorder stamps its ``fleet_emu`` metadata with the schema version it wrote; a recording without it is from the
+first round (schema 1), and one from a newer schema than :data:`fleet_emu.core.version.SCHEMA_VERSION` is refused.
 """
 
 from __future__ import annotations
@@ -18,7 +21,9 @@ from mcap.records import Message as McapMessage
 from mcap.stream_reader import StreamReader
 
 from fleet_emu.core.errors import ReportError
+from fleet_emu.core.version import SCHEMA_VERSION
 from fleet_emu.recording.metrics import RunMetrics
+from fleet_emu.recording.recorder import SCENARIO_METADATA, VERSION_METADATA
 
 MAGIC = b"\x89MCAP0\r\n"
 
@@ -31,11 +36,14 @@ class Run:
     ``truncated``); ``fold`` the :class:`.metrics.RunMetrics` behind them (per-tick series, trajectories).
     """
 
-    def __init__(self, path: Path, fold: RunMetrics, messages: int, truncated: bool) -> None:
+    def __init__(self, path: Path, fold: RunMetrics, messages: int, truncated: bool, schema_version: int,
+                 fleet_emu_version: str | None) -> None:
         self.path = path
         self.fold = fold
         self.messages = messages  # every message in the file (the Foxglove channels too)
         self.truncated = truncated  # the recording was cut (no summary): read up to its last complete chunk
+        self.schema_version = schema_version
+        self.fleet_emu_version = fleet_emu_version  # None for a first-round recording
         self.result = fold.result(str(path))
         self.result["recording"]["messages"] = messages
         self.metrics = self.result | fold.analysis(self.result) | {"truncated": truncated}
@@ -76,7 +84,7 @@ def load_recording(path: str | Path) -> Run:
     """Read and fold one recording (RUN_DIR or RUN.mcap), a cut last chunk included; prints and writes nothing.
 
     Raises :class:`~fleet_emu.core.errors.ReportError` (one line) when the path is missing, not an MCAP file,
-    or not a fleet recording.
+    not a fleet recording, or written by a newer fleet_emu.
     """
     mcap = resolve(Path(path))
     try:
@@ -95,6 +103,7 @@ def _read(f: BinaryIO, mcap: Path) -> Run:
     channels: dict[int, Channel] = {}
     pending: list[tuple[str, bytes, int]] = []
     fold: RunMetrics | None = None
+    schema_version, fleet_emu_version = 1, None  # a recording without version metadata is the first round's
     messages = 0
     truncated = False
     records = StreamReader(f, record_size_limit=max(mcap.stat().st_size, 1)).records
@@ -117,7 +126,9 @@ def _read(f: BinaryIO, mcap: Path) -> Run:
                 fold.feed(ch.topic, rec.data, rec.publish_time)
         elif isinstance(rec, Channel):
             channels.setdefault(rec.id, rec)
-        elif isinstance(rec, Metadata) and rec.name == "scenario" and fold is None:
+        elif isinstance(rec, Metadata) and rec.name == VERSION_METADATA:
+            schema_version, fleet_emu_version = _version(rec.metadata, mcap)
+        elif isinstance(rec, Metadata) and rec.name == SCENARIO_METADATA and fold is None:
             fold = _fold_for(rec.metadata, mcap)
             for item in pending:
                 fold.feed(*item)
@@ -125,8 +136,20 @@ def _read(f: BinaryIO, mcap: Path) -> Run:
     if fold is None:
         if truncated and not messages:
             raise ReportError(f"{mcap} was cut before anything was flushed to it")
-        raise ReportError(f"{mcap} has no 'scenario' metadata: not a fleet recording")
-    return Run(mcap, fold, messages, truncated)
+        raise ReportError(f"{mcap} has no '{SCENARIO_METADATA}' metadata: not a fleet recording")
+    return Run(mcap, fold, messages, truncated, schema_version, fleet_emu_version)
+
+
+def _version(metadata: dict[str, str], mcap: Path) -> tuple[int, str | None]:
+    """The schema version and fleet_emu version a recording was written with; refuses a newer schema."""
+    try:
+        schema = int(metadata["schema_version"])
+    except (KeyError, ValueError) as exc:
+        raise ReportError(f"{mcap}: unreadable '{VERSION_METADATA}' metadata ({exc})") from None
+    if schema > SCHEMA_VERSION:
+        raise ReportError(f"{mcap} was written by a newer fleet_emu (schema {schema}; this one reads up to "
+                          f"{SCHEMA_VERSION}): upgrade fleet_emu to read it")
+    return schema, metadata.get("version")
 
 
 def _fold_for(metadata: dict[str, str], mcap: Path) -> RunMetrics:
