@@ -5,8 +5,9 @@ messages (the same monitor fold as the live run, so the recomputed ``result.json
 read front to back with the mcap package's stream reader, so a recording without summary or footer (the launcher
 was killed) reads up to its last complete chunk: the recorder flushes one at least once a second.
 
-The recorder stamps its ``fleet_emu`` metadata with the schema version it wrote; a recording without it is from the
-first round (schema 1), and one from a newer schema than :data:`fleet_emu.core.version.SCHEMA_VERSION` is refused.
+The recorder writes the schema version into the ``scenario`` metadata (``schema_version``); a recording without it
+is from the first round (schema 1), and one from a newer schema than :data:`fleet_emu.core.version.SCHEMA_VERSION`
+is refused before anything else of it is read.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from mcap.stream_reader import StreamReader
 from fleet_emu.core.errors import ReportError
 from fleet_emu.core.version import SCHEMA_VERSION
 from fleet_emu.recording.metrics import RunMetrics
-from fleet_emu.recording.recorder import SCENARIO_METADATA, VERSION_METADATA
+from fleet_emu.recording.recorder import SCENARIO_METADATA
 
 MAGIC = b"\x89MCAP0\r\n"
 
@@ -103,7 +104,7 @@ def _read(f: BinaryIO, mcap: Path) -> Run:
     channels: dict[int, Channel] = {}
     pending: list[tuple[str, bytes, int]] = []
     fold: RunMetrics | None = None
-    schema_version, fleet_emu_version = 1, None  # a recording without version metadata is the first round's
+    versions: tuple[int, str | None] = (1, None)
     messages = 0
     truncated = False
     records = StreamReader(f, record_size_limit=max(mcap.stat().st_size, 1)).records
@@ -126,9 +127,8 @@ def _read(f: BinaryIO, mcap: Path) -> Run:
                 fold.feed(ch.topic, rec.data, rec.publish_time)
         elif isinstance(rec, Channel):
             channels.setdefault(rec.id, rec)
-        elif isinstance(rec, Metadata) and rec.name == VERSION_METADATA:
-            schema_version, fleet_emu_version = _version(rec.metadata, mcap)
         elif isinstance(rec, Metadata) and rec.name == SCENARIO_METADATA and fold is None:
+            versions = _versions(rec.metadata, mcap)
             fold = _fold_for(rec.metadata, mcap)
             for item in pending:
                 fold.feed(*item)
@@ -137,19 +137,20 @@ def _read(f: BinaryIO, mcap: Path) -> Run:
         if truncated and not messages:
             raise ReportError(f"{mcap} was cut before anything was flushed to it")
         raise ReportError(f"{mcap} has no '{SCENARIO_METADATA}' metadata: not a fleet recording")
-    return Run(mcap, fold, messages, truncated, schema_version, fleet_emu_version)
+    return Run(mcap, fold, messages, truncated, *versions)
 
 
-def _version(metadata: dict[str, str], mcap: Path) -> tuple[int, str | None]:
-    """The schema version and fleet_emu version a recording was written with; refuses a newer schema."""
+def _versions(metadata: dict[str, str], mcap: Path) -> tuple[int, str | None]:
+    """The schema and fleet_emu versions a recording was written with (1 and None for the first round's);
+    refuses a newer schema."""
     try:
-        schema = int(metadata["schema_version"])
-    except (KeyError, ValueError) as exc:
-        raise ReportError(f"{mcap}: unreadable '{VERSION_METADATA}' metadata ({exc})") from None
+        schema = int(metadata.get("schema_version", 1))
+    except ValueError:
+        raise ReportError(f"{mcap}: unreadable schema_version {metadata['schema_version']!r}") from None
     if schema > SCHEMA_VERSION:
         raise ReportError(f"{mcap} was written by a newer fleet_emu (schema {schema}; this one reads up to "
                           f"{SCHEMA_VERSION}): upgrade fleet_emu to read it")
-    return schema, metadata.get("version")
+    return schema, metadata.get("fleet_emu_version")
 
 
 def _fold_for(metadata: dict[str, str], mcap: Path) -> RunMetrics:

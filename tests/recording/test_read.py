@@ -59,7 +59,7 @@ def _states(tick_ns: int = TICK_NS) -> list[tuple[str, bytes, int]]:
 
 
 def _first_round_recording(path: Path) -> None:
-    """What the first round's recorder wrote: the scenario metadata and the bus, no version record."""
+    """What the first round's recorder wrote: the scenario metadata (no versions) and the bus."""
     with open(path, "wb") as f:
         w = Writer(f)
         w.start(profile="", library="fleet-emu")
@@ -131,8 +131,7 @@ def test_bad_input_is_one_line(case: str, tmp_path: Path) -> None:
             w = Writer(f)
             w.start()
             if case == "bad_version":
-                w.add_metadata("fleet_emu", {"schema_version": "two"})
-                w.add_metadata("scenario", {"run_id": "x", "scenario": json.dumps(SCENARIO)})
+                w.add_metadata("scenario", {"run_id": "x", "scenario": json.dumps(SCENARIO), "schema_version": "two"})
             ch = w.register_channel(topic="x", message_encoding="msgpack", schema_id=0)
             w.add_message(ch, 0, b"\x80", 0)
             w.finish()
