@@ -39,7 +39,7 @@ _LAZY = {
     "Scenario": "fleet_emu.core.scenario",
     "RadioConfig": "fleet_emu.core.radio",
     "Result": "fleet_emu.launch.result",
-    "load_recording": "fleet_emu.launch.report",
+    "load_recording": "fleet_emu.recording",
     "Allocator": "fleet_emu.agents.allocators",
     "Allocation": "fleet_emu.agents.allocators",
     "AllocStatus": "fleet_emu.agents.allocators",
@@ -60,8 +60,8 @@ if TYPE_CHECKING:
     from fleet_emu.core.radio import RadioConfig
     from fleet_emu.core.scenario import Scenario
     from fleet_emu.core.version import SCHEMA_VERSION
-    from fleet_emu.launch.report import load_recording
     from fleet_emu.launch.result import Result
+    from fleet_emu.recording import load_recording
 
 
 def __getattr__(name: str) -> Any:

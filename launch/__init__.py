@@ -1,1 +1,4 @@
-"""The user's entry: the ``fleet`` CLI, the embedded router, spawning and supervising, recording, reports."""
+"""The user's entry: the ``fleet`` CLI, scenarios, the embedded router, spawning and supervising, progress.
+
+Recording and reports are :mod:`fleet_emu.recording`.
+"""

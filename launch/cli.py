@@ -134,7 +134,7 @@ def cmd_allocators(_: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from fleet_emu.launch.report import report
+    from fleet_emu.recording.report import report
 
     report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
     return 0

@@ -11,7 +11,7 @@ from rich.progress import Progress as RichProgress
 from rich.table import Table
 
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.launch.monitor import Monitor
+from fleet_emu.recording.monitor import Monitor
 
 
 class Progress:

@@ -28,11 +28,11 @@ from fleet_emu.core.keys import Keys, robot_ids
 from fleet_emu.core.messages import Failed, Ready, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.launch.foxglove import FoxgloveFold, FoxgloveWriter
-from fleet_emu.launch.monitor import Monitor
-from fleet_emu.launch.recorder import Recorder
 from fleet_emu.launch.result import Result, write_json_atomic
 from fleet_emu.launch.supervisor import Supervisor
+from fleet_emu.recording.foxglove import FoxgloveFold, FoxgloveWriter
+from fleet_emu.recording.monitor import Monitor
+from fleet_emu.recording.recorder import Recorder
 from fleet_emu.world.maps import load_map
 from fleet_emu.world.node import build_world
 

@@ -14,7 +14,7 @@ from mcap.reader import make_reader
 
 from fleet_emu.core.grid import from_ascii
 from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Observation, Stop, WorldState
-from fleet_emu.launch.foxglove import (
+from fleet_emu.recording.foxglove import (
     SCHEMAS,
     TOPIC_COVERAGE,
     TOPIC_LOG,
@@ -26,7 +26,7 @@ from fleet_emu.launch.foxglove import (
     schema_text,
     stamp,
 )
-from fleet_emu.launch.recorder import TICK_NS
+from fleet_emu.recording.recorder import TICK_NS
 
 VALIDATORS = {name: jsonschema.Draft202012Validator(json.loads(schema_text(name))) for name in SCHEMAS}
 

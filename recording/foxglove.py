@@ -2,7 +2,7 @@
 
 :class:`FoxgloveFold` is a pure fold: decoded bus messages in, derived messages out, each a
 :class:`Derived` (topic, schema name, JSON bytes, tick). It uses the official Foxglove JSON schemas shipped in
-``launch/schemas/`` (schema encoding ``jsonschema``, message encoding ``json``):
+``recording/schemas/`` (schema encoding ``jsonschema``, message encoding ``json``):
 
 - ``/viz/map/truth``, ``/viz/map/coverage`` and ``/viz/belief/<robot>``: ``foxglove.Grid``, every ``grid_every``
   ticks (beliefs as their snapshots come, at most once per ``grid_every`` ticks);
@@ -17,7 +17,7 @@ Grid cells carry one ``int8`` field ``occupancy`` (-1 unknown, 0 free, 100 occup
 ``alpha`` bytes (choose "RGBA (separate fields)" as the colour mode in the 3D panel).
 
 :class:`FoxgloveWriter` is the launcher's shell around the fold: it decodes what the fold needs and writes the
-derived messages through the :class:`launch.recorder.Recorder`. A failure in it never stops the run.
+derived messages through the :class:`.recorder.Recorder`. A failure in it never stops the run.
 """
 
 from __future__ import annotations
@@ -34,7 +34,8 @@ import numpy as np
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import robot_ids
 from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Message, Observation, Stop, WorldState
-from fleet_emu.launch.recorder import TICK_NS
+from fleet_emu.recording.first_seen import FirstSeen
+from fleet_emu.recording.recorder import TICK_NS
 
 log = logging.getLogger(__name__)
 
@@ -68,7 +69,7 @@ def belief_topic(robot: str) -> str:
 def schema_text(name: str) -> bytes:
     """The official JSON schema of ``foxglove.<Name>`` (shipped as package data)."""
     short = name.removeprefix("foxglove.")
-    return (resources.files("fleet_emu.launch") / "schemas" / f"{short}.json").read_bytes()
+    return (resources.files("fleet_emu.recording") / "schemas" / f"{short}.json").read_bytes()
 
 
 def robot_rgb(robot: str, robots: list[str] | tuple[str, ...]) -> tuple[float, float, float]:
@@ -182,8 +183,7 @@ class FoxgloveFold:
         self.grid_every = max(1, int(grid_every or scenario.get("belief_every") or 10))
         self.truth = None if truth is None else np.asarray(truth, dtype=np.int8)
         self.shape: tuple[int, int] | None = None if truth is None else self.truth.shape  # type: ignore[union-attr]
-        self.first_seen: np.ndarray | None = None  # tick a cell was first sensed by any robot (-1 never)
-        self.seen_value: np.ndarray | None = None  # the true value sensed there
+        self.coverage: FirstSeen | None = None  # the cells the team sensed (from the first observation on)
         self.states: dict[int, WorldState] = {}
         self.links: dict[int, Links] = {}
         self.cmds: dict[int, dict[str, Command]] = {}
@@ -223,23 +223,13 @@ class FoxgloveFold:
 
     # --- folds --------------------------------------------------------------------------------------------
 
-    def _ensure_shape(self, shape: tuple[int, int]) -> bool:
-        if self.shape is None:
-            self.shape = (int(shape[0]), int(shape[1]))
-        if self.first_seen is None:
-            self.first_seen = np.full(self.shape, -1, dtype=np.int32)
-            self.seen_value = np.full(self.shape, -1, dtype=np.int8)
-        return tuple(shape) == self.shape
-
     def _observe(self, o: Observation) -> None:
-        if not self._ensure_shape(o.shape):
-            return
-        fs = self.first_seen.reshape(-1)  # type: ignore[union-attr]
-        sv = self.seen_value.reshape(-1)  # type: ignore[union-attr]
-        cells = o.cells.astype(np.int64)
-        new = cells[(fs[cells] < 0) | (fs[cells] > o.tick)]
-        fs[new] = o.tick
-        sv[cells] = o.values
+        if self.shape is None:
+            self.shape = (int(o.shape[0]), int(o.shape[1]))
+        if self.coverage is None:
+            self.coverage = FirstSeen(self.shape)
+        if tuple(o.shape) == self.shape:
+            self.coverage.observe(o.tick, o.cells, o.values)
 
     def _state(self, st: WorldState) -> list[Derived]:
         out: list[Derived] = []
@@ -314,9 +304,8 @@ class FoxgloveFold:
         out = []
         if self.truth is not None:
             out.append(self._grid(TOPIC_TRUTH, self.truth, _MAP_RGBA, t, 0.0))
-        if self.first_seen is not None:
-            cov = np.where((self.first_seen >= 0) & (self.first_seen <= t), self.seen_value, -1).astype(np.int8)
-            out.append(self._grid(TOPIC_COVERAGE, cov, _COVER_RGBA, t, 0.01))
+        if self.coverage is not None:
+            out.append(self._grid(TOPIC_COVERAGE, self.coverage.grid(t), _COVER_RGBA, t, 0.01))
         return out
 
     def _xy(self, cell: tuple[int, int]) -> tuple[float, float]:

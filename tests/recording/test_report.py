@@ -21,6 +21,7 @@ from mcap.writer import Writer
 from PIL import Image
 
 from fleet_emu.agents.protocol import PoseBeacon
+from fleet_emu.core.errors import ReportError
 from fleet_emu.core.grid import from_ascii
 from fleet_emu.core.messages import (
     Command,
@@ -35,8 +36,10 @@ from fleet_emu.core.messages import (
     seal,
 )
 from fleet_emu.launch.cli import main as cli_main
-from fleet_emu.launch.metrics import RunMetrics, gini, jain
-from fleet_emu.launch.report import PLOTS, ReportError, read_run, write_report
+from fleet_emu.recording.metrics import RunMetrics, gini, jain
+from fleet_emu.recording.plots import PLOTS
+from fleet_emu.recording.read import load_recording
+from fleet_emu.recording.report import write_report
 from tests.integration.conftest import ROOT, fleet
 
 ART = """
@@ -198,7 +201,7 @@ def flushed(data: bytes) -> list[tuple[int, int]]:
 
 def _ticks_flushed(mcap: Path) -> int:
     try:
-        return read_run(mcap).metrics["ticks"]
+        return load_recording(mcap).metrics["ticks"]
     except ReportError:  # not there yet, or nothing flushed yet
         return 0
 
@@ -247,7 +250,7 @@ def test_cut_copies_read_every_flushed_message(which: str, small_run: Path, kill
         cut.write_bytes(data[:off])
         expected = max((n for e, n in ends if e <= off), default=0)
         try:
-            run = read_run(cut)
+            run = load_recording(cut)
         except ReportError as exc:  # cut before the first flush: nothing to read, one line for the user
             assert expected == 0 and "cut before" in str(exc), off
             continue

@@ -2,6 +2,9 @@
 
 Messages keep their msgpack bytes (message encoding ``msgpack``, no schema). Log times follow the sim tick
 (``tick * TICK_NS``), so scrubbing a viewer's timeline moves through ticks; publish times are wall-clock.
+The ``scenario`` metadata record holds what the launcher passes (``run_id``, the scenario as JSON) and the
+versions it was written with: ``schema_version`` (:data:`fleet_emu.core.version.SCHEMA_VERSION`) and
+``fleet_emu_version`` (the package's).
 The writer closes a chunk and flushes at least once a second, so a recording cut by a crash still reads up
 to the last flush.
 """
@@ -16,10 +19,13 @@ from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
+import fleet_emu
 from fleet_emu.core.codec import peek_tick
+from fleet_emu.core.version import SCHEMA_VERSION
 
 TICK_NS = 100_000_000  # one tick is shown as 100 ms of log time
 FLUSH_SECONDS = 1.0
+SCENARIO_METADATA = "scenario"
 
 
 class Recorder:
@@ -30,7 +36,8 @@ class Recorder:
         self._file = open(path, "wb")  # noqa: SIM115 (closed in close())
         self._writer = Writer(self._file, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library="fleet-emu")
-        self._writer.add_metadata("scenario", {k: _text(v) for k, v in metadata.items()})
+        versions = {"schema_version": str(SCHEMA_VERSION), "fleet_emu_version": fleet_emu.__version__}
+        self._writer.add_metadata(SCENARIO_METADATA, {k: _text(v) for k, v in metadata.items()} | versions)
         self._channels: dict[str, int] = {}
         self._lock = threading.Lock()
         self._last_flush = time.monotonic()

@@ -1,6 +1,6 @@
-"""The metrics of a run, recomputed from its recorded bus messages (a pure fold, like :mod:`launch.monitor`).
+"""The metrics of a run, recomputed from its recorded bus messages (a pure fold, like :mod:`.monitor`).
 
-:class:`RunMetrics` feeds every recorded sample to a :class:`launch.monitor.Monitor` — the same fold that makes
+:class:`RunMetrics` feeds every recorded sample to a :class:`.monitor.Monitor` — the same fold that makes
 ``result.json`` live, so the recomputed result has the same keys and values — and folds the rest of the stream
 (observations, tx/rx bundles, commands, ready messages) into:
 
@@ -32,8 +32,9 @@ import numpy as np
 
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import robot_ids
-from fleet_emu.core.messages import Command, Links, Observation, Ready, RxBundle, Stop, TxBundle, WorldState
-from fleet_emu.launch.monitor import Monitor
+from fleet_emu.core.messages import Command, Envelope, Links, Observation, Ready, RxBundle, Stop, TxBundle, WorldState
+from fleet_emu.recording.first_seen import FirstSeen
+from fleet_emu.recording.monitor import Monitor
 
 #: result.json keys that a recording cannot give back (they describe the launcher process, not the run)
 NOT_RECORDED = ("wall_seconds",)
@@ -54,6 +55,12 @@ def gini(x: list[float] | np.ndarray) -> float | None:
     if n == 0 or not a.sum():
         return None
     return float((2 * np.arange(1, n + 1) - n - 1) @ a / (n * a.sum()))
+
+
+def radio_kind(msg: Envelope) -> str:
+    """The kind of a radio message inside a tx/rx bundle (the ``by_kind`` counts): its envelope's payload kind,
+    read without decoding the payload."""
+    return msg.payload_kind
 
 
 def _r(x: float | None, nd: int = 6) -> float | None:
@@ -87,9 +94,8 @@ class RunMetrics:
         self.monitor = Monitor(self.robots)
         self.messages = 0
         self.undecodable = 0
-        self.shape: tuple[int, int] | None = None
-        self.first_seen: dict[str, np.ndarray] = {}  # per robot: tick it first sensed each cell (-1 never)
-        self.truth_seen: np.ndarray | None = None  # true values of the cells sensed (-1 never sensed)
+        self.team: FirstSeen | None = None  # every robot's observations (its values: the true map, where sensed)
+        self.first_seen: dict[str, FirstSeen] = {}  # each robot's own
         self.trajectory: dict[str, list[tuple[int, tuple[int, int]]]] = {r: [] for r in self.robots}
         self.pair_ticks: dict[tuple[str, str], int] = {}
         self.tx_msgs = dict.fromkeys(self.robots, 0)
@@ -132,7 +138,8 @@ class RunMetrics:
             self.tx_bundles[msg.src] += 1
             self.series.tx_msgs[msg.tick] = self.series.tx_msgs.get(msg.tick, 0) + len(msg.msgs)
             for m in msg.msgs:
-                self.kinds[m.payload_kind] = self.kinds.get(m.payload_kind, 0) + 1
+                kind = radio_kind(m)
+                self.kinds[kind] = self.kinds.get(kind, 0) + 1
         elif isinstance(msg, RxBundle) and msg.dst in self.rx_msgs:
             self.rx_msgs[msg.dst] += len(msg.msgs)
             self.series.rx_msgs[msg.tick] = self.series.rx_msgs.get(msg.tick, 0) + len(msg.msgs)
@@ -177,18 +184,14 @@ class RunMetrics:
         return self.robots.index(r) if r in self.robots else len(self.robots)
 
     def _observe(self, o: Observation) -> None:
-        if o.robot not in self.first_seen:
-            if self.shape is None:
-                self.shape = (int(o.shape[0]), int(o.shape[1]))
-                self.truth_seen = np.full(self.shape[0] * self.shape[1], -1, dtype=np.int8)
-            self.first_seen[o.robot] = np.full(self.shape[0] * self.shape[1], -1, dtype=np.int32)
-        if tuple(o.shape) != self.shape:
+        if self.team is None:
+            self.team = FirstSeen(o.shape)
+        if tuple(o.shape) != self.team.shape:
             return
-        fs = self.first_seen[o.robot]
-        cells = o.cells.astype(np.int64)
-        mask = (fs[cells] < 0) | (fs[cells] > o.tick)
-        fs[cells[mask]] = o.tick
-        self.truth_seen[cells] = o.values  # type: ignore[index]
+        if o.robot not in self.first_seen:
+            self.first_seen[o.robot] = FirstSeen(self.team.shape)
+        self.first_seen[o.robot].observe(o.tick, o.cells, o.values)
+        self.team.observe(o.tick, o.cells, o.values)
 
     # --- results --------------------------------------------------------------------------------------------
 
@@ -207,14 +210,14 @@ class RunMetrics:
 
     def coverage_stats(self) -> dict[str, Any]:
         """Team, per-robot and overlapping sensed cells, first-discovery credit and its evenness."""
-        if not self.first_seen or self.shape is None:
+        if self.team is None:
             n = len(self.robots)
             return {"team_cells": 0, "free_cells": 0, "per_robot": dict.fromkeys(self.robots, 0),
                     "overlap_cells": 0, "overlap_fraction": None, "credit": dict.fromkeys(self.robots, 0.0),
                     "share": dict.fromkeys(self.robots, None), "jain": None, "gini": None, "n": n}
         big = np.iinfo(np.int32).max
-        empty = np.full(self.shape[0] * self.shape[1], -1, dtype=np.int32)
-        stack = np.stack([self.first_seen.get(r, empty) for r in self.robots])
+        empty = np.full(len(self.team.tick), -1, dtype=np.int32)
+        stack = np.stack([self.first_seen[r].tick if r in self.first_seen else empty for r in self.robots])
         sensed = stack >= 0
         team = sensed.any(axis=0)
         firsts = np.where(sensed, stack, big)
@@ -227,7 +230,7 @@ class RunMetrics:
         team_cells = int(team.sum())
         return {
             "team_cells": team_cells,
-            "free_cells": int((self.truth_seen == 0).sum()),  # type: ignore[operator]
+            "free_cells": int((self.team.value == 0).sum()),
             "per_robot": {r: int(sensed[i].sum()) for i, r in enumerate(self.robots)},
             "overlap_cells": overlap,
             "overlap_fraction": _r(overlap / team_cells) if team_cells else None,
@@ -246,6 +249,10 @@ class RunMetrics:
     def metrics(self, recording_path: str | None = None) -> dict[str, Any]:
         """Everything ``fleet report`` writes: result.json's keys, then the analysis groups."""
         res = self.result(recording_path)
+        return res | self.analysis(res)
+
+    def analysis(self, res: dict[str, Any]) -> dict[str, Any]:
+        """The analysis groups of metrics.json, given the recomputed result (:meth:`result`)."""
         cov = self.coverage_stats()
         path = res["path_length"]
         total_path = int(sum(path))
@@ -258,7 +265,7 @@ class RunMetrics:
         all_ms = np.array([m for r in self.robots for m in self.decisions[r]], dtype=float)
         lk = self.monitor.links
         sent = lk.sent if lk else 0
-        res.update({
+        return {
             "exploration_time": {"t90": self.first_tick_at(0.90), "t99": self.first_tick_at(0.99),
                                  "t100": self.first_tick_at(1.0)},
             "path": {"per_robot": dict(zip(self.robots, path, strict=True)), "total": total_path},
@@ -307,5 +314,4 @@ class RunMetrics:
                 "per_robot_mean_ms": {r: _r(np.mean(v), 4) if v else None for r, v in self.decisions.items()},
             },
             "undecodable": self.undecodable,
-        })
-        return res
+        }
