@@ -19,7 +19,8 @@ from fleet_emu.core.grid import MOVES, STAY, Cell
 __all__ = [
     "Context", "DecodeError", "Message", "Payload", "decode", "decode_payload", "peek_tick",
     "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope",
-    "check_cell", "check_cells", "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Failed", "Stop",
+    "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Failed",
+    "Stop",
     "AgentReport", "BeliefSnapshot",
 ]
 
@@ -43,6 +44,14 @@ def check_cell(cell: Cell, shape: tuple[int, int] | None, what: str) -> None:
     """A cell inside a grid of ``shape`` (unchecked when the shape is not known)."""
     if shape is not None and not (0 <= cell[0] < shape[0] and 0 <= cell[1] < shape[1]):
         raise DecodeError(f"{what}: cell {cell} outside the grid")
+
+
+def check_robot_cells(cells: dict[str, Cell], ctx: Context | None, what: str) -> None:
+    """A map of robot ids to cells: every id one of the team's, every cell inside the grid."""
+    for robot, cell in cells.items():
+        if ctx is not None and ctx.senders is not None and robot not in ctx.senders:
+            raise DecodeError(f"{what}: unknown robot {robot!r}")
+        check_cell(cell, ctx.shape if ctx else None, what)
 
 
 # --- world -> agent ---------------------------------------------------------------------------------

@@ -30,7 +30,8 @@ from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.result import Result, write_json_atomic
 from fleet_emu.launch.supervisor import Supervisor
-from fleet_emu.recording.foxglove import FoxgloveFold, FoxgloveWriter
+from fleet_emu.recording.foxglove import FoxgloveFold
+from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.monitor import Monitor
 from fleet_emu.recording.recorder import Recorder
 from fleet_emu.world.maps import load_map
@@ -100,7 +101,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     monitor = Monitor(robots)
     meta = {"run_id": run_id, "scenario": scenario.to_dict()}
     recorder = Recorder(recording, meta) if recording is not None else None
-    viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id)) \
+    viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id), keys) \
         if recorder else None
     sup = Supervisor(log_dir=work)
     pids: dict[str, Any] = {}

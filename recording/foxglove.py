@@ -16,8 +16,8 @@ above: cell ``(row, col)`` has its centre at ``((col + .5) * cell_size, (rows - 
 Grid cells carry one ``int8`` field ``occupancy`` (-1 unknown, 0 free, 100 occupied) and ``red``/``green``/``blue``/
 ``alpha`` bytes (choose "RGBA (separate fields)" as the colour mode in the 3D panel).
 
-:class:`FoxgloveWriter` is the launcher's shell around the fold: it decodes what the fold needs and writes the
-derived messages through the :class:`.recorder.Recorder`. A failure in it never stops the run.
+:class:`~fleet_emu.recording.foxglove_writer.FoxgloveWriter` is the launcher's shell around the fold: it
+decodes what the fold needs and writes the derived messages through the recorder.
 """
 
 from __future__ import annotations
@@ -25,19 +25,15 @@ from __future__ import annotations
 import base64
 import dataclasses
 import json
-import logging
 from importlib import resources
 from typing import Any
 
 import numpy as np
 
-from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import robot_ids
 from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Message, Observation, Stop, WorldState
 from fleet_emu.recording.first_seen import FirstSeen
 from fleet_emu.recording.recorder import TICK_NS
-
-log = logging.getLogger(__name__)
 
 SCHEMAS = ("foxglove.Grid", "foxglove.SceneUpdate", "foxglove.Log")
 FRAME = "map"
@@ -384,50 +380,3 @@ class FoxgloveFold:
 
 def _derived(topic: str, schema: str, obj: Any, tick: int) -> Derived:
     return Derived(topic, schema, json.dumps(obj, separators=(",", ":")).encode(), tick)
-
-
-_FOLDED = ("world/obs/", "world/state", "netem/links", "/cmd", "/belief", "ctl/stop")
-
-
-class FoxgloveWriter:
-    """The launcher's shell: decodes what the fold needs and writes its output through a recorder."""
-
-    def __init__(self, recorder: Any, fold: FoxgloveFold) -> None:
-        self.recorder = recorder
-        self.fold = fold
-        self.schema_ids: dict[str, int] = {}
-        self.failed = False
-        self.written = 0
-
-    def feed(self, key: str, data: bytes, msg: Message | None = None) -> None:
-        """One bus sample; ``msg`` is its decoded message when the caller has it already."""
-        if self.failed or not any(part in key for part in _FOLDED):
-            return
-        try:
-            if msg is None:
-                try:
-                    msg = decode(data)
-                except DecodeError:
-                    return
-            self._write(self.fold.feed(msg))
-        except Exception:  # a viewer channel must never stop the run
-            log.exception("foxglove channels disabled after an error")
-            self.failed = True
-
-    def finish(self) -> None:
-        if self.failed:
-            return
-        try:
-            self._write(self.fold.finish())
-        except Exception:
-            log.exception("foxglove channels: error at the end of the run")
-            self.failed = True
-
-    def _write(self, derived: list[Derived]) -> None:
-        for d in derived:
-            sid = self.schema_ids.get(d.schema)
-            if sid is None:
-                sid = self.recorder.register_schema(d.schema, "jsonschema", schema_text(d.schema))
-                self.schema_ids[d.schema] = sid
-            self.recorder.add_channel_message(d.topic, sid, "json", d.data, d.tick)
-            self.written += 1

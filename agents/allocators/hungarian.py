@@ -30,9 +30,8 @@ import numpy as np
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.codec import Context, Payload
-from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell, flat
-from fleet_emu.core.messages import RadioMsg, check_cell
+from fleet_emu.core.messages import RadioMsg, check_robot_cells
 
 
 @dataclasses.dataclass(frozen=True)
@@ -44,10 +43,7 @@ class Assignment(Payload):
     targets: dict[str, Cell]
 
     def validate(self, ctx: Context | None) -> None:
-        for robot, cell in self.targets.items():
-            if ctx is not None and ctx.senders is not None and robot not in ctx.senders:
-                raise DecodeError(f"assign: unknown robot {robot!r}")
-            check_cell(cell, ctx.shape if ctx else None, "assign")
+        check_robot_cells(self.targets, ctx, "assign")
 
 
 def optimal_assignment(costs: np.ndarray) -> np.ndarray:

@@ -52,7 +52,7 @@ from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.codec import Context, Payload
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
-from fleet_emu.core.messages import RadioMsg, check_cell
+from fleet_emu.core.messages import RadioMsg, check_cell, check_robot_cells
 
 # --- the protocol's messages (section 4), sealed in radio envelopes by the brain -----------------------------
 
@@ -93,10 +93,7 @@ class TradeAllocation(Payload):
     awards: dict[str, Cell]
 
     def validate(self, ctx: Context | None) -> None:
-        for robot, cell in self.awards.items():
-            if ctx is not None and ctx.senders is not None and robot not in ctx.senders:
-                raise DecodeError(f"trade_alloc: unknown robot {robot!r}")
-            check_cell(cell, ctx.shape if ctx else None, "trade_alloc")
+        check_robot_cells(self.awards, ctx, "trade_alloc")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -207,7 +204,9 @@ class Trade(Allocator, plugin_name="trade"):
         """ASSIGNED to the allocated task's cluster; None (back to role allocation) when the task is done,
         was given up after ``task_timeout`` ticks, or vanished before the robot could start it."""
         s = self.s
-        assert s.task is not None
+        if s.task is None:  # not reached: a robot enters TASK only through _take, which sets the task
+            self._enter(Phase.ELECT, problem.tick)
+            return None
         j = self._track(problem, s.task)
         if j is not None and problem.tick - s.since < self.task_timeout:
             s.failures, s.started = 0, True

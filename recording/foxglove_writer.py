@@ -1,0 +1,64 @@
+"""The launcher's shell around :class:`~fleet_emu.recording.foxglove.FoxgloveFold`: it decodes the bus samples
+the fold needs and writes the derived Foxglove messages into ``run.mcap`` through the recorder. A failure in it
+never stops the run."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from fleet_emu.core.codec import DecodeError, decode
+from fleet_emu.core.keys import Keys
+from fleet_emu.core.messages import Message
+from fleet_emu.recording.foxglove import Derived, FoxgloveFold, schema_text
+
+log = logging.getLogger(__name__)
+
+#: The channels the fold uses (``ParsedKey.channel``); the rest is not even decoded.
+_FOLDED = frozenset({"obs", "state", "links", "cmd", "belief", "stop"})
+
+
+class FoxgloveWriter:
+    """The launcher's shell: decodes what the fold needs and writes its output through a recorder."""
+
+    def __init__(self, recorder: Any, fold: FoxgloveFold, keys: Keys) -> None:
+        self.recorder = recorder
+        self.keys = keys
+        self.fold = fold
+        self.schema_ids: dict[str, int] = {}
+        self.failed = False
+        self.written = 0
+
+    def feed(self, key: str, data: bytes, msg: Message | None = None) -> None:
+        """One bus sample; ``msg`` is its decoded message when the caller has it already."""
+        parsed = self.keys.parse(key)
+        if self.failed or parsed is None or parsed.channel not in _FOLDED:
+            return
+        try:
+            if msg is None:
+                try:
+                    msg = decode(data)
+                except DecodeError:
+                    return
+            self._write(self.fold.feed(msg))
+        except Exception:  # a viewer channel must never stop the run
+            log.exception("foxglove channels disabled after an error")
+            self.failed = True
+
+    def finish(self) -> None:
+        if self.failed:
+            return
+        try:
+            self._write(self.fold.finish())
+        except Exception:
+            log.exception("foxglove channels: error at the end of the run")
+            self.failed = True
+
+    def _write(self, derived: list[Derived]) -> None:
+        for d in derived:
+            sid = self.schema_ids.get(d.schema)
+            if sid is None:
+                sid = self.recorder.register_schema(d.schema, "jsonschema", schema_text(d.schema))
+                self.schema_ids[d.schema] = sid
+            self.recorder.add_channel_message(d.topic, sid, "json", d.data, d.tick)
+            self.written += 1
