@@ -70,23 +70,32 @@ class Keys:
     def parse(self, key_expr: object) -> ParsedKey | None:
         """The channel and id a key of this run names; None for another run's key or one this run never uses
         (the inverse of the builders above)."""
-        parts = str(key_expr).split("/")
-        if len(parts) < 3 or parts[0] != ROOT or parts[1] != self.run:
-            return None
-        match parts[2:]:
-            case ["world", "obs", robot]:
-                return ParsedKey("obs", robot)
-            case ["world", "state"] | ["netem", "links"] | ["ctl", "hello"] | ["ctl", "stop"]:
-                return ParsedKey(parts[-1])
-            case ["robot", robot, ("cmd" | "belief") as channel]:
-                return ParsedKey(channel, robot)
-            case ["radio", ("tx" | "rx") as channel, robot]:
-                return ParsedKey(channel, robot)
-            case ["ctl", ("ready" | "failed" | "report") as channel, node]:
-                return ParsedKey(channel, node)
-            case ["alive", role, node]:
-                return ParsedKey("alive", node, role)
+        got = parse_key(key_expr)
+        return got[1] if got is not None and got[0] == self.run else None
+
+
+def parse_key(key_expr: object) -> tuple[str, ParsedKey] | None:
+    """The run and the channel a key names, whatever the run (for a recording read back); None for a key the
+    fleet never uses."""
+    parts = str(key_expr).split("/")
+    if len(parts) < 3 or parts[0] != ROOT:
         return None
+    match parts[2:]:
+        case ["world", "obs", robot]:
+            parsed = ParsedKey("obs", robot)
+        case ["world", "state"] | ["netem", "links"] | ["ctl", "hello"] | ["ctl", "stop"]:
+            parsed = ParsedKey(parts[-1])
+        case ["robot", robot, ("cmd" | "belief") as channel]:
+            parsed = ParsedKey(channel, robot)
+        case ["radio", ("tx" | "rx") as channel, robot]:
+            parsed = ParsedKey(channel, robot)
+        case ["ctl", ("ready" | "failed" | "report") as channel, node]:
+            parsed = ParsedKey(channel, node)
+        case ["alive", role, node]:
+            parsed = ParsedKey("alive", node, role)
+        case _:
+            return None
+    return parts[1], parsed
 
 
 def robot_ids(n: int) -> list[str]:

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.core.codec import DecodeError, decode
-from fleet_emu.core.keys import robot_ids
+from fleet_emu.core.keys import parse_key, robot_ids
 from fleet_emu.core.messages import Command, Envelope, Links, Observation, Ready, RxBundle, Stop, TxBundle, WorldState
 from fleet_emu.recording.first_seen import FirstSeen
 from fleet_emu.recording.monitor import Monitor
@@ -115,9 +115,9 @@ class RunMetrics:
         """One recorded msgpack sample (topic, bytes, its publish time)."""
         self.messages += 1
         msg = self.monitor.feed(key, data, publish_ns)
-        kind = key.split("/", 2)[-1]
         if msg is None:
-            if not kind.startswith(("world/obs/", "radio/tx/", "radio/rx/", "ctl/ready/")):
+            got = parse_key(key)
+            if got is None or got[1].channel not in ("obs", "tx", "rx", "ready"):
                 return
             try:
                 msg = decode(data)

@@ -13,8 +13,12 @@ import numpy as np
 
 from fleet_emu import __version__
 from fleet_emu.core.codec import DecodeError, decode
+from fleet_emu.core.keys import parse_key
 from fleet_emu.core.messages import AgentReport, Command, Links, Message, Stop, WorldState
 from fleet_emu.core.version import SCHEMA_VERSION
+
+#: The channels the monitor folds (``ParsedKey.channel``); the rest is not even decoded.
+_FOLDED = frozenset({"state", "links", "stop", "report", "cmd"})
 
 
 @dataclasses.dataclass
@@ -38,8 +42,8 @@ class Monitor:
 
     def feed(self, key: str, data: bytes, wall_ns: int | None = None) -> Message | None:
         """Decode and fold one sample; returns the message (None if it is not one the monitor uses)."""
-        kind = key.split("/", 2)[-1]
-        if not (kind.startswith(("world/state", "netem/links", "ctl/stop", "ctl/report")) or kind.endswith("/cmd")):
+        got = parse_key(key)
+        if got is None or got[1].channel not in _FOLDED:
             return None
         try:
             msg = decode(data)
