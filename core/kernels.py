@@ -105,12 +105,18 @@ def visible_cells(occupied: np.ndarray, row: int, col: int, radius: float) -> np
 
     Rays go from the sensor to every cell on the border of the square of half-side ``ceil(radius)``;
     each ray stops at the first occupied cell (which is seen) or beyond ``radius`` cells (Euclidean).
-    Sorted ascending.
+    A radius beyond the grid's diagonal (``hypot(rows, cols)``, infinity included) is clamped to it, where
+    every cell of the grid is already in range; a negative or NaN radius sees nothing. Sorted ascending.
     """
     rows, cols = occupied.shape
     mark = np.zeros(rows * cols, dtype=np.bool_)
+    limit = np.hypot(rows, cols)
+    if not radius >= 0.0:  # negative or NaN
+        return np.empty(0, dtype=np.int64)
+    if radius > limit:
+        radius = limit
     R = int(np.ceil(radius))
-    out = np.empty((2 * R + 1) * (2 * R + 1) + 1, dtype=np.int64)
+    out = np.empty(min((2 * R + 1) * (2 * R + 1), rows * cols) + 1, dtype=np.int64)  # each cell marked once
     radius2 = radius * radius
     count = 0
     for k in range(-R, R + 1):
@@ -125,7 +131,8 @@ def visible_cells(occupied: np.ndarray, row: int, col: int, radius: float) -> np
 def count_walls(occupied: np.ndarray, r0: int, c0: int, r1: int, c1: int) -> int:
     """Number of walls the straight segment between two cells crosses.
 
-    A wall is a maximal run of occupied cells along the Bresenham line (DESIGN.md, radio model).
+    A wall is a maximal run of occupied cells along the Bresenham line (DESIGN.md, radio model); cells off
+    the grid count as free.
     """
     dr = abs(r1 - r0)
     dc = abs(c1 - c0)
@@ -134,10 +141,11 @@ def count_walls(occupied: np.ndarray, r0: int, c0: int, r1: int, c1: int) -> int
     err = dc - dr
     r = r0
     c = c0
+    rows, cols = occupied.shape
     walls = 0
     inside = False
     while True:
-        if occupied[r, c]:
+        if 0 <= r < rows and 0 <= c < cols and occupied[r, c]:  # off the grid is open space
             if not inside:
                 walls += 1
                 inside = True

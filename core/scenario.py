@@ -155,7 +155,7 @@ class Scenario:
         _integer("stall_ticks", self.stall_ticks, 1, 10**9)
         _integer("belief_every", self.belief_every, 0, 10**9)
         _number("--cell-size", self.cell_size, 1e-3, 1e3)
-        _number("--sensor-range", self.sensor_range, 0.0, 1e6, low_open=True)
+        _number("--sensor-range", self.sensor_range, 0.0, math.inf, low_open=True)  # the world clamps it to the map
         _number("--target-coverage", self.target_coverage, 0.0, 1.0, low_open=True)
         _number("barrier_timeout", self.barrier_timeout, 0.0, 86400.0, low_open=True)
         _number("--loss", r.loss, 0.0, 1.0)
@@ -214,7 +214,8 @@ def _integer(field: str, value: Any, low: int, high: int) -> None:
 
 def _number(field: str, value: Any, low: float, high: float, low_open: bool = False) -> None:
     lo = "(" if low_open else "["
+    span = f"{'>' if low_open else '>='} {low:g}" if math.isinf(high) else f"within {lo}{low:g}, {high:g}]"
     if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
-        raise ConfigError(f"{field} must be a finite number within {lo}{low:g}, {high:g}] (got {value!r})")
+        raise ConfigError(f"{field} must be a finite number {span} (got {value!r})")
     if not (low < value if low_open else low <= value) or value > high:
-        raise ConfigError(f"{field} must be within {lo}{low:g}, {high:g}] (got {value})")
+        raise ConfigError(f"{field} must be {span} (got {value})")

@@ -63,3 +63,60 @@ def test_count_walls_counts_runs() -> None:
     occ = grid == OCCUPIED
     assert count_walls(occ, 0, 0, 0, 8) == 2  # a two-cell-thick wall counts once
     assert count_walls(occ, 0, 0, 0, 1) == 0
+
+
+def _visible_unclamped(occ: np.ndarray, row: int, col: int, radius: float) -> set[int]:
+    """The sensor as it was before the clamp: rays to the border of the square of half-side ceil(radius)."""
+    from fleet_emu.core.kernels import _trace
+
+    big = int(np.ceil(radius))
+    mark = np.zeros(occ.size, dtype=np.bool_)
+    out = np.empty((2 * big + 1) ** 2 + 1, dtype=np.int64)
+    count = 0
+    for k in range(-big, big + 1):
+        for r1, c1 in ((row - big, col + k), (row + big, col + k), (row + k, col - big), (row + k, col + big)):
+            count = _trace(occ, row, col, r1, c1, radius * radius, mark, out, count)
+    return set(out[:count].tolist())
+
+
+_ROOMS = """
+.........
+....#....
+..0.#....
+....#....
+.........
+"""
+
+
+def test_visible_cells_are_unchanged_for_ranges_within_the_grid() -> None:
+    grid, robots = from_ascii(_ROOMS)
+    occ = grid == OCCUPIED
+    limit = float(np.hypot(*occ.shape))
+    for radius in (1.0, 2.5, 4.0, 7.3, limit):
+        assert set(visible_cells(occ, *robots["r0"], radius).tolist()) == \
+            _visible_unclamped(occ, *robots["r0"], radius), radius
+
+
+def test_a_range_beyond_the_grid_is_clamped_to_it() -> None:
+    grid, robots = from_ascii(_ROOMS)
+    occ = grid == OCCUPIED
+    at_limit = visible_cells(occ, *robots["r0"], float(np.hypot(*occ.shape)))
+    for radius in (1e9, 1e300, np.inf):
+        got = visible_cells(occ, *robots["r0"], radius)
+        assert np.array_equal(got, at_limit), radius
+    assert flat(grid.shape, (2, 6)) not in set(at_limit.tolist())  # walls still block
+    open_hall = np.zeros((3, 4), dtype=np.bool_)
+    assert visible_cells(open_hall, 0, 0, 1e9).tolist() == list(range(12))  # every cell, each once
+
+
+def test_a_negative_or_nan_range_sees_nothing() -> None:
+    occ = np.zeros((4, 4), dtype=np.bool_)
+    for radius in (-1.0, -np.inf, np.nan):
+        assert visible_cells(occ, 1, 1, radius).size == 0, radius
+
+
+def test_count_walls_off_the_grid_is_open_space() -> None:
+    occ = np.zeros((3, 3), dtype=np.bool_)
+    occ[1, 1] = True
+    assert count_walls(occ, -5, -5, 7, 7) == 1  # only the wall inside the grid, no read outside it
+    assert count_walls(occ, -3, 0, -3, 50) == 0
