@@ -26,17 +26,25 @@ class Progress:
             console=console, transient=False, disable=quiet)
         self._task = self._bar.add_task(f"{scenario.allocator['type']} x{scenario.robots} on {scenario.map}",
                                         total=scenario.target_coverage, cov=0.0, tick=0, max=scenario.max_ticks)
-        if self.enabled:
-            console.print(f"[dim]run {run_id}[/dim]")
+        self._console = console
+        self._run_id = run_id
+        self._started = False
 
     def __enter__(self) -> Progress:
-        self._bar.__enter__()
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self._bar.__exit__(*exc)
+        if self._started:
+            self._bar.stop()
 
     def update(self, monitor: Monitor) -> None:
+        """Show the run's progress; the first call (once the fleet is starting, every check passed) shows
+        the run id and starts the bar, so that bad input stays one line on stderr."""
+        if not self._started:
+            self._started = True
+            if self.enabled:
+                self._console.print(f"[dim]run {self._run_id}[/dim]")
+            self._bar.start()
         self._bar.update(self._task, completed=min(monitor.coverage, self.scenario.target_coverage),
                          cov=monitor.coverage, tick=monitor.tick)
 

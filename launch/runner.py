@@ -9,7 +9,9 @@ import contextlib
 import dataclasses
 import os
 import queue
+import re
 import secrets
+import shutil
 import tempfile
 import threading
 import time
@@ -22,7 +24,7 @@ import zenoh
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import allocator_config
 from fleet_emu.core.bus import client_config, publisher, router_config, router_locators
-from fleet_emu.core.errors import RunError
+from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import Keys, robot_ids
 from fleet_emu.core.messages import Failed, Ready, Stop
@@ -38,6 +40,8 @@ from fleet_emu.world.maps import load_map
 from fleet_emu.world.node import build_world
 
 STOP_GRACE = 5.0
+CONNECT_TIMEOUT = 5.0  # seconds ``--connect`` keeps trying an external router before giving up
+RUN_ID = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}")  # a key-expression chunk and a directory name
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,14 +74,55 @@ def check(scenario: Scenario) -> MapData:
     return md
 
 
+def check_options(opts: RunOptions) -> None:
+    """The run's options that can be wrong before anything starts: the run id, and ``connect`` (its syntax,
+    and a router answering there within :data:`CONNECT_TIMEOUT`)."""
+    if opts.run_id and not RUN_ID.fullmatch(opts.run_id):
+        raise ConfigError(f"--run-id must be letters, digits, '_', '-' or '.' (not first), at most 100 "
+                          f"(got {opts.run_id!r})")
+    if opts.connect is None:
+        return
+    try:
+        conf = client_config(opts.connect)
+        timeout_ms = int(CONNECT_TIMEOUT * 1000)
+        conf.insert_json5("connect/timeout_ms", f'{{"router": -1, "peer": -1, "client": {timeout_ms}}}')
+    except zenoh.ZError:
+        raise ConfigError(f"--connect {opts.connect!r} is not a Zenoh endpoint (expected <protocol>/<address>, "
+                          f"e.g. tcp/127.0.0.1:7447)") from None
+    try:
+        zenoh.open(conf).close()
+    except zenoh.ZError:
+        raise ConfigError(f"--connect {opts.connect}: no Zenoh router answered (gave up after "
+                          f"{CONNECT_TIMEOUT:g} s)") from None
+
+
+def _make_out(out: Path) -> None:
+    """Create ``out`` (and its missing parents) and check it is writable; a ConfigError, and no directory left
+    behind, when it cannot be written."""
+    out = out.absolute()
+    top = next((p for p in (*reversed(out.parents), out) if not p.exists()), None)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        if top is not None:
+            shutil.rmtree(top, ignore_errors=True)
+        raise ConfigError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+
+
 def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     """Run one scenario to its end. ``result.json`` is written (atomically) when ``opts.out_dir`` is given,
-    on every exit path; Ctrl-C re-raises KeyboardInterrupt after it, and a failed run raises RunError."""
+    on every exit path; Ctrl-C re-raises KeyboardInterrupt after it, and a failed run raises RunError.
+    Bad input (the scenario, the options, an unwritable ``out_dir``) raises ConfigError before any process
+    starts and leaves no output directory behind."""
     map_data = check(scenario)
+    check_options(opts)
     run_id = opts.run_id or new_run_id()
+    if opts.out_dir is not None:
+        _make_out(opts.out_dir)
     with contextlib.ExitStack() as files:
         work = opts.out_dir or Path(files.enter_context(tempfile.TemporaryDirectory(prefix="fleet-run-")))
-        work.mkdir(parents=True, exist_ok=True)
         write_json_atomic(work / "scenario.json", scenario.to_dict())
         map_data.save(work / "map.npz")
         recording = work / "run.mcap" if opts.record and opts.out_dir is not None else None

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -23,6 +24,17 @@ from fleet_emu.core.messages import Command, RadioMsg, TxBundle, seal
 from .conftest import ROOT, all_pids, fleet, pid_alive, result
 
 
+class Toml(str):
+    """A scenario file's text in a bad-input row: the test writes it to a file and passes that file's path."""
+
+
+def _free_port() -> int:
+    """A loopback port nothing listens on (bound, then released)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 @pytest.mark.parametrize("args, match", [
     (["--map", "/no/such/map.png"], "not found"),
     (["--map", "nowhere"], "unknown map"),
@@ -30,17 +42,59 @@ from .conftest import ROOT, all_pids, fleet, pid_alive, result
     (["--robots", "60"], "start area"),
     (["--loss", "1.5"], "loss"),
     (["--sensor-range", "-2"], "sensor-range"),
+    (["--sensor-range", "inf"], "--sensor-range must be a finite number"),
+    (["--sensor-range", "nan"], "--sensor-range must be a finite number"),
     (["--comm-range", "-1"], "comm-range"),
+    (["--comm-range", "inf"], "--comm-range must be a finite number"),
+    (["--cell-size", "inf"], "--cell-size must be a finite number"),
     (["--allocator", "telepathy"], "telepathy"),
     (["--robots", "three"], "invalid int"),
     (["--scenario", "/no/such.toml"], "not found"),
+    (["--out", "/proc/forbidden"], "--out /proc/forbidden: cannot write there"),
+    (["--out", "/proc/forbidden/deeper/still"], "cannot write there"),
+    (["--run-id", "a/b"], "--run-id must be"),
+    (["--run-id", "*"], "--run-id must be"),
+    (["--run-id", "../up"], "--run-id must be"),
+    (["--connect", "notanendpoint"], "--connect 'notanendpoint' is not a Zenoh endpoint"),
+    (["--connect", f"tcp/127.0.0.1:{_free_port()}"], "no Zenoh router answered (gave up after 5 s)"),
+    (["--scenario", Toml('[fleet]\nrobots = "four"')], "--robots must be a whole number"),
+    (["--scenario", Toml('[radio]\nloss = "high"')], "--loss must be a finite number"),
+    (["--scenario", Toml('[fleet]\nsensor_range = "4"')], "--sensor-range must be a finite number"),
+    (["--scenario", Toml("seed = 1.5")], "--seed must be a whole number"),
+    (["--scenario", Toml('map = "office"')], "'map' must be a [map] section, not a value"),
 ])
 def test_bad_input_is_one_line_and_nonzero(args: list[str], match: str, tmp_path: Path) -> None:
-    proc = fleet("run", *args, "--out", str(tmp_path / "x"), "--quiet", check=False, timeout=60)
+    for i, arg in enumerate(args):
+        if isinstance(arg, Toml):
+            (tmp_path / "bad.toml").write_text(arg + "\n")
+            args = [*args[:i], str(tmp_path / "bad.toml"), *args[i + 1:]]
+    out = tmp_path / "x"
+    proc = fleet("run", "--out", str(out), *args, "--quiet", check=False, timeout=60)  # a later --out wins
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("fleet: error:") and match in lines[0], proc.stderr
     assert "Traceback" not in proc.stderr
+    assert not out.exists() and not Path("/proc/forbidden").exists()  # refused before any file was written
+    assert not (ROOT / "runs" / "a").exists() and not (ROOT / "up").exists()
+
+
+def test_bad_input_without_quiet_is_still_one_line(tmp_path: Path) -> None:
+    proc = fleet("run", "--run-id", "a b", "--out", str(tmp_path / "x"), check=False, timeout=60)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        "fleet: error: --run-id must be letters, digits, '_', '-' or '.' (not first), at most 100 (got 'a b')"]
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_sensor_range_beyond_the_map_is_clamped(small_map: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = fleet("run", "--sensor-range", "1e9", "--map", str(small_map), "--robots", "2", "--max-ticks", "30",
+                 "--out", str(out), "--quiet", check=False, timeout=120)
+    assert proc.returncode in (0, 3), proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr
+    res = result(out)
+    assert res["scenario"]["sensor_range"] == 1e9 and res["failed"] == []
+    assert res["coverage"] > 0.9  # two rooms and a door: the first scans see most of the map
 
 
 @pytest.mark.parametrize("section, match", [
