@@ -85,7 +85,8 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
     Files are written only where asked: with ``out``, the run's directory gets ``result.json``,
     ``scenario.json``, ``map.npz``, the process logs and (unless ``record=False``) ``run.mcap``; without it,
     nothing is kept. Nothing is printed. Raises :class:`ConfigError` (or :class:`MapError`) on bad input before
-    any process starts, and :class:`RunError` when a process of the fleet failed the run.
+    any process starts, and :class:`RunError` when a process of the fleet failed the run (the world, netem).
+    A robot that failed does not raise: the run goes on without it and ``result["failed"]`` names it.
     """
     from fleet_emu.launch.runner import RunOptions, run_fleet
 

@@ -1,15 +1,17 @@
 """``fleet``: the user's entry point (DESIGN.md "CLI and the result contract").
 
-Bad input gets one line on stderr (``fleet: error: ...``) and exit code 2; Ctrl-C exits 130 after writing
-what was recorded.
+Bad input gets one line on stderr (``fleet: error: ...``) and exit code 2; a run in which a process of the
+fleet failed exits 1 (a robot too, when the others finished); Ctrl-C exits 130 after writing what was
+recorded.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Mapping
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from fleet_emu.core.errors import ConfigError, FleetError
 from fleet_emu.core.scenario import Scenario
@@ -106,6 +108,18 @@ def cmd_run(args: argparse.Namespace) -> int:
         console.print(summary_table(result, str(out)))
     else:
         print(out / "result.json")
+    return exit_code(result, out)
+
+
+def exit_code(result: Mapping[str, Any], out: Path) -> int:
+    """1 when a robot of the fleet failed (its process died or went silent), even if the rest of the fleet
+    reached the target: a result that lost a robot is not the scenario that was asked for; 0 when the target
+    coverage was reached; 3 when the run ended without it (tick limit, stall)."""
+    if result["failed"]:
+        failed = ", ".join(result["failed"])
+        print(f"fleet: error: robot(s) {failed} of {result['robots']} failed and left the run (reason "
+              f"{result['reason']}); see their logs in {out}", file=sys.stderr)
+        return 1
     return 0 if result["completed"] else 3
 
 

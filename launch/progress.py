@@ -10,6 +10,7 @@ from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
 from rich.progress import Progress as RichProgress
 from rich.table import Table
 
+from fleet_emu.core.radio import RadioConfig
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.recording.monitor import Monitor
 
@@ -49,6 +50,12 @@ class Progress:
                          cov=monitor.coverage, tick=monitor.tick)
 
 
+def radio_label(comm: str, loss: float) -> str:
+    """The radio model and the loss the channel actually applies (none on ``ideal``, whatever was asked)."""
+    applied = RadioConfig(comm=comm, loss=loss).applied_loss
+    return f"{comm}, no loss" if applied == 0 else f"{comm}, loss {applied:g}"
+
+
 def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
     """The closing table of ``fleet run``."""
     t = Table(title=f"run {result['run_id']}", show_header=False, title_justify="left")
@@ -58,8 +65,9 @@ def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
     rows = [
         ("map / allocator", f"{result['map']} / {result['allocator']}"),
         ("robots / seed", f"{result['robots']} / {result['seed']}"),
-        ("radio", f"{result['comm']}, loss {result['loss']}"),
+        ("radio", radio_label(result["comm"], result["loss"])),
         ("completed", f"{result['completed']} ({result['reason']})"),
+        ("failed robots", ", ".join(result["failed"]) or "none"),
         ("coverage", f"{result['coverage']:.1%}"),
         ("ticks", str(result["ticks"])),
         ("t90 / t99", f"{result['t90']} / {result['t99']}"),

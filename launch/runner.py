@@ -235,8 +235,12 @@ def _last_log_line(work: Path, error: str) -> str:
 def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: threading.Thread | None,
           on_progress: Callable[[Monitor], None] | None, notify_failed: Callable[[str], None]) -> str | None:
     """Until the world's stop and every live agent's report; returns an error line, or None.
-    An agent process that exits early is announced to the world, which goes on without it."""
+    An agent process that exits early is announced to the world, which goes on without it. The world or
+    netem exiting with an error before the stop fails the run at once; exiting cleanly (code 0) is a normal
+    end whose stop message may still be on its way, so it fails the run only if no stop comes within
+    :data:`STOP_GRACE` seconds."""
     stop_seen: float | None = None
+    clean_end: float | None = None
     announced: set[str] = set()
     while True:
         if on_progress is not None:
@@ -252,12 +256,17 @@ def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: 
         if monitor.stop is None:  # repeated until the first tick: the world may not be listening yet
             for name in sorted(announced if monitor.state is None else new):
                 notify_failed(name)
-        if "world" in dead and monitor.stop is None:
-            return f"the world process exited with code {dead['world']} (see world.log)"
-        if "netem" in dead and monitor.stop is None:
-            return f"the netem process exited with code {dead['netem']} (see netem.log)"
-        if nodes_thread is not None and not nodes_thread.is_alive() and monitor.stop is None:
-            return "the in-process nodes ended before the run did"
+        if monitor.stop is None:
+            for name in ("world", "netem"):
+                if dead.get(name, 0) != 0:
+                    return f"the {name} process exited with code {dead[name]} (see {name}.log)"
+            ended = [f"the {n} process exited with code 0" for n in ("world", "netem") if n in dead]
+            if nodes_thread is not None and not nodes_thread.is_alive():
+                ended.append("the in-process nodes ended")
+            if ended:
+                clean_end = clean_end or time.monotonic()
+                if time.monotonic() - clean_end > STOP_GRACE:
+                    return f"{ended[0]} but no stop reached the launcher within {STOP_GRACE:g} s"
         consumer.changed.wait(0.2)
         consumer.changed.clear()
 

@@ -242,3 +242,7 @@ def test_a_killed_robot_is_failed_and_the_run_goes_on(small_map: Path, tmp_path:
     res = result(out)
     assert res["failed"] == ["r2"], err[-2000:]
     assert res["coverage"] > 0.5
+    assert res["reason"] in ("coverage", "max_ticks", "stall")  # the run itself went on to a normal end
+    assert proc.returncode == 1, err[-2000:]  # a robot of the fleet failed: never a silent 0
+    assert err.strip().splitlines()[-1].startswith("fleet: error: robot(s) r2 of 3 failed"), err[-2000:]
+    assert "Traceback" not in err

@@ -1,0 +1,106 @@
+"""The launcher's honest ends: the wait on a clean world exit, the CLI's exit codes and the summary's labels."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from rich.table import Table
+
+from fleet_emu.core.messages import Stop
+from fleet_emu.launch import runner
+from fleet_emu.launch.cli import exit_code
+from fleet_emu.launch.progress import radio_label, summary_table
+from fleet_emu.recording.monitor import Monitor
+
+
+class _Sup:
+    """A supervisor whose world (and netem) already exited with code 0."""
+
+    def __init__(self, dead: dict[str, int]) -> None:
+        self._dead = dead
+
+    def dead(self) -> dict[str, int]:
+        return dict(self._dead)
+
+
+class _Consumer:
+    def __init__(self) -> None:
+        self.changed = threading.Event()
+
+
+def _wait(monitor: Monitor, dead: dict[str, int]) -> str | None:
+    return runner._wait(monitor, _Consumer(), _Sup(dead), None, None, lambda _: None)  # type: ignore[arg-type]
+
+
+def test_a_clean_world_exit_waits_for_its_stop(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(runner, "STOP_GRACE", 3.0)
+    monitor = Monitor(("r0",))
+    stop = Stop(src="world", tick=30, seq=1, reason="max_ticks")
+    threading.Timer(0.5, lambda: setattr(monitor, "stop", stop)).start()  # the stop lands after the exit
+    t0 = time.monotonic()
+    assert _wait(monitor, {"world": 0, "netem": 0}) is None
+    assert time.monotonic() - t0 < 2.5
+
+
+def test_a_clean_world_exit_without_a_stop_is_an_error_after_the_grace(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(runner, "STOP_GRACE", 0.5)
+    t0 = time.monotonic()
+    error = _wait(Monitor(("r0",)), {"world": 0})
+    assert error == "the world process exited with code 0 but no stop reached the launcher within 0.5 s"
+    assert time.monotonic() - t0 >= 0.5
+
+
+def test_a_crashed_world_is_an_error_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(runner, "STOP_GRACE", 30.0)
+    t0 = time.monotonic()
+    assert _wait(Monitor(("r0",)), {"world": 0, "netem": -9}) == "the netem process exited with code -9 (see netem.log)"
+    assert time.monotonic() - t0 < 5.0
+
+
+def _result(**over: Any) -> dict[str, Any]:
+    base = {"run_id": "x", "map": "office", "allocator": "minpos", "robots": 3, "seed": 0, "comm": "wall",
+            "loss": 0.1, "completed": True, "reason": "coverage", "failed": [], "coverage": 0.99, "ticks": 50,
+            "t90": 40, "t99": 50, "path_length": [1, 2, 3], "connected_fraction": 1.0,
+            "radio": {"sent": 1, "delivered": 1, "dropped_loss": 0, "dropped_signal": 0, "bytes_sent": 10},
+            "decision_ms": {"mean": 0.1, "p95": 0.2}, "ticks_per_second": 100.0, "wall_seconds": 1.0,
+            "recording": {"path": None, "messages": 0}}
+    return base | over
+
+
+@pytest.mark.parametrize("over, code", [
+    ({}, 0),
+    ({"completed": False, "reason": "max_ticks"}, 3),
+    ({"failed": ["r2"]}, 1),  # the others reached the target: still a failed robot
+    ({"failed": ["r0", "r1", "r2"], "completed": False, "reason": "no_robots"}, 1),
+])
+def test_exit_codes(over: dict[str, Any], code: int, capsys: pytest.CaptureFixture[str]) -> None:
+    assert exit_code(_result(**over), Path("runs/x")) == code
+    err = capsys.readouterr().err
+    if code == 1:
+        assert err.startswith(f"fleet: error: robot(s) {', '.join(over['failed'])} of 3 failed")
+        assert err.count("\n") == 1
+    else:
+        assert err == ""
+
+
+def test_the_radio_label_shows_the_loss_applied() -> None:
+    assert radio_label("ideal", 0.1) == "ideal, no loss"
+    assert radio_label("wall", 0.1) == "wall, loss 0.1"
+    assert radio_label("full", 0.0) == "full, no loss"
+
+
+def _rows(table: Table) -> dict[str, str]:
+    """The summary table's rows as {metric: value}."""
+    metric, value = table.columns
+    return dict(zip(metric.cells, value.cells, strict=True))  # type: ignore[arg-type]
+
+
+def test_the_summary_names_the_failed_robots() -> None:
+    rows = _rows(summary_table(_result(failed=["r1", "r2"], comm="ideal"), "o"))
+    assert rows["failed robots"] == "r1, r2"
+    assert rows["radio"] == "ideal, no loss"
+    assert _rows(summary_table(_result(), "o"))["failed robots"] == "none"
