@@ -5,7 +5,9 @@
         [--loss 0] [--start random] [--jobs 2] [--in-process]
 
 Each cell runs ``fleet run`` as a subprocess (``--no-record --quiet``) and reads its ``result.json``. A run that
-does not reach the target counts as its last tick and is flagged with ``*`` (and the count of such runs).
+does not reach the target counts as its last tick and is flagged with ``*`` (and the count of such runs); a run
+that failed (an exit code other than 0 or 3: bad input, or a process of the fleet, a robot too, failed) is left
+out and counted as ``E``. One line per finished run goes to stderr; the exit code is 1 when any run failed.
 With ``--start random`` (the default) each seed also draws the fleet's start cell, so that seeds differ even
 at loss 0 on a fixed map; ``--start map`` keeps the map's own start.
 """
@@ -18,7 +20,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,16 +28,25 @@ HOSPITAL = ROOT.parent / "shared" / "maps" / "stage" / "hospital_section.yaml"
 
 
 def run_one(allocator: str, robots: int, seed: int, map_name: str, loss: float, extra: list[str]) -> dict:
-    """One ``fleet run``; its result.json, or ``{"error": ...}``."""
+    """One ``fleet run``; its result.json, or ``{"error": ..., "code": ...}`` when it did not end normally (exit
+    code other than 0 or 3: bad input, a process of the fleet failed, a robot among them)."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         cmd = [sys.executable, "-m", "fleet_emu.launch", "run", "--map", map_name, "--robots", str(robots),
                "--allocator", allocator, "--seed", str(seed), "--loss", str(loss), "--quiet", "--no-record",
                "--out", str(out), *extra]
         proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
-        if not (out / "result.json").exists():
-            return {"error": proc.stderr.strip()[-300:]}
+        if proc.returncode not in (0, 3) or not (out / "result.json").exists():
+            lines = proc.stderr.strip().splitlines()
+            return {"error": lines[-1][:300] if lines else "no output", "code": proc.returncode}
         return json.loads((out / "result.json").read_text())
+
+
+def describe(result: dict) -> str:
+    """A finished run in a few words, for the progress line."""
+    if "error" in result:
+        return f"FAILED (exit {result['code']}): {result['error']}"
+    return f"t99 {result['t99']}, coverage {result['coverage']:.1%} at tick {result['ticks']}"
 
 
 def main() -> None:
@@ -53,8 +64,15 @@ def main() -> None:
     if a.start != "map":
         extra += ["--start", a.start]
     jobs = [(al, n, s, m) for m in a.maps for n in a.robots for al in a.allocators for s in range(a.seeds)]
+    results: list[dict] = [{}] * len(jobs)
     with ThreadPoolExecutor(a.jobs) as pool:
-        results = list(pool.map(lambda j: run_one(j[0], j[1], j[2], j[3], a.loss, extra), jobs))
+        futures = {pool.submit(run_one, al, n, s, m, a.loss, extra): i for i, (al, n, s, m) in enumerate(jobs)}
+        for done, future in enumerate(as_completed(futures), start=1):
+            i = futures[future]
+            results[i] = future.result()
+            al, n, s, m = jobs[i]
+            print(f"[{done}/{len(jobs)}] {al} x{n} seed {s} on {Path(m).stem}: {describe(results[i])}",
+                  file=sys.stderr, flush=True)
     table: dict[tuple[str, int, str], list[dict]] = {}
     for (al, n, _, m), r in zip(jobs, results, strict=True):
         table.setdefault((m, n, al), []).append(r)
@@ -76,6 +94,11 @@ def main() -> None:
                 text += f" E{len(errors)}" if errors else ""
                 cells.append(f"{text:>16}")
             print(f"{n:>6} " + " ".join(cells))
+    failed = sum(1 for r in results if "error" in r)
+    if failed:
+        print(f"compare_allocators: {failed} of {len(results)} runs failed (E in the table; see the lines above)",
+              file=sys.stderr)
+        raise SystemExit(1)
 
 
 if __name__ == "__main__":

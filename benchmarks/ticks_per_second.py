@@ -4,7 +4,8 @@
 
 Prints a table: robots, ticks run, wall seconds, ticks per second, and the peak RSS of the agent processes
 (max and mean over agents, from getrusage in each agent). Timings are of the whole system (world, netem and N
-agents sharing this machine's cores), measured by the launcher from first spawn to the end of the run.
+agents sharing this machine's cores), measured by the launcher from first spawn to the end of the run. One line
+per finished run goes to stderr; a run that failed is a ``failed`` row, and the exit code is then 1.
 """
 
 from __future__ import annotations
@@ -19,14 +20,19 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def run_once(robots: int, ticks: int, allocator: str, extra: list[str]) -> dict:
+def run_once(robots: int, ticks: int, allocator: str, extra: list[str]) -> tuple[dict | None, str]:
+    """One run: its result.json, or None and the reason when it did not end normally (exit code other than 0
+    or 3: bad input, or a process of the fleet, a robot too, failed)."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         cmd = [sys.executable, "-m", "fleet_emu.launch", "run", "--map", "office", "--robots", str(robots),
                "--max-ticks", str(ticks), "--target-coverage", "1.0", "--allocator", allocator,
                "--quiet", "--no-record", "--out", str(out), *extra]
-        subprocess.run(cmd, cwd=ROOT, check=False, capture_output=True)
-        return json.loads((out / "result.json").read_text())
+        proc = subprocess.run(cmd, cwd=ROOT, check=False, capture_output=True, text=True)
+        if proc.returncode not in (0, 3) or not (out / "result.json").exists():
+            lines = proc.stderr.strip().splitlines()
+            return None, f"exit {proc.returncode}: {lines[-1][:300] if lines else 'no output'}"
+        return json.loads((out / "result.json").read_text()), "ok"
 
 
 def main() -> None:
@@ -40,13 +46,26 @@ def main() -> None:
     extra = ["--in-process"] if a.in_process else []
     print(f"{'robots':>6} {'ticks':>6} {'wall s':>8} {'ticks/s':>8} {'coverage':>9} "
           f"{'agent RSS max MB':>17} {'mean MB':>8} {'decision ms':>12}")
+    total = len(a.robots) * a.repeat
+    failed = done = 0
     for n in a.robots:
         for _ in range(a.repeat):
-            r = run_once(n, a.ticks, a.allocator, extra)
+            r, why = run_once(n, a.ticks, a.allocator, extra)
+            done += 1
+            if r is None:
+                failed += 1
+                print(f"[{done}/{total}] {n} robots: FAILED ({why})", file=sys.stderr, flush=True)
+                print(f"{n:>6} {'failed':>6}")
+                continue
+            print(f"[{done}/{total}] {n} robots: {r['ticks']} ticks in {r['wall_seconds']:.1f} s", file=sys.stderr,
+                  flush=True)
             rss = list(r["agent_peak_rss_kb"].values()) or [0]
-            print(f"{n:>6} {r['ticks']:>6} {r['wall_seconds']:>8.1f} {r['ticks_per_second']:>8.1f} "
+            print(f"{n:>6} {r['ticks']:>6} {r['wall_seconds']:>8.1f} {r['ticks_per_second'] or 0:>8.1f} "
                   f"{r['coverage']:>9.3f} {max(rss) / 1024:>17.1f} {sum(rss) / len(rss) / 1024:>8.1f} "
                   f"{r['decision_ms']['mean']:>12.3f}")
+    if failed:
+        print(f"ticks_per_second: {failed} of {total} runs failed (see the lines above)", file=sys.stderr)
+        raise SystemExit(1)
 
 
 if __name__ == "__main__":

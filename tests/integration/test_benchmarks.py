@@ -1,0 +1,48 @@
+"""The benchmark scripts: a progress line per finished run on stderr, and a non-zero exit when a run failed."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from .conftest import ROOT
+
+
+def _bench(script: str, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, str(ROOT / "benchmarks" / script), *args], capture_output=True,
+                          text=True, timeout=240, cwd=ROOT)
+
+
+def test_compare_allocators_reports_each_run(small_map: Path) -> None:
+    proc = _bench("compare_allocators.py", "--allocators", "nearest", "--robots", "2", "--seeds", "2",
+                  "--maps", str(small_map), "--start", "map")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 2 and all(" t99 " in ln for ln in lines), proc.stderr
+    assert sorted(ln.split("]")[0] for ln in lines) == ["[1/2", "[2/2"]
+    assert "E" not in proc.stdout.splitlines()[-1]
+
+
+def test_compare_allocators_fails_when_a_run_fails() -> None:
+    proc = _bench("compare_allocators.py", "--allocators", "nearest", "--robots", "2", "--seeds", "2",
+                  "--maps", "/no/such/map.png")
+    assert proc.returncode == 1
+    lines = proc.stderr.strip().splitlines()
+    assert [ln.split(": ", 1)[1].split(")")[0] for ln in lines[:2]] == ["FAILED (exit 2"] * 2, proc.stderr
+    assert lines[-1] == "compare_allocators: 2 of 2 runs failed (E in the table; see the lines above)"
+    assert "E2" in proc.stdout
+
+
+def test_ticks_per_second_reports_each_run() -> None:
+    proc = _bench("ticks_per_second.py", "--robots", "1", "--ticks", "5")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stderr.strip().splitlines()[0].startswith("[1/1] 1 robots: 5 ticks in ")
+
+
+def test_ticks_per_second_fails_when_a_run_fails() -> None:
+    proc = _bench("ticks_per_second.py", "--robots", "1", "2", "--ticks", "5", "--allocator", "telepathy")
+    assert proc.returncode == 1
+    lines = proc.stderr.strip().splitlines()
+    assert lines[0].startswith("[1/2] 1 robots: FAILED (exit 2: fleet: error:") and "telepathy" in lines[0]
+    assert lines[-1] == "ticks_per_second: 2 of 2 runs failed (see the lines above)"
