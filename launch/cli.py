@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from fleet_emu.core.errors import ConfigError, FleetError
+from fleet_emu.core.radio import COMM_MODELS
 from fleet_emu.core.scenario import Scenario
 
 DEFAULT_SCENARIO = Path(__file__).resolve().parent / "scenarios" / "default.toml"
@@ -55,7 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--start", type=_start, help="start cell ROW,COL, or 'random' (drawn from the seed)")
     r.add_argument("--max-ticks", type=int)
     r.add_argument("--target-coverage", type=float)
-    r.add_argument("--comm", choices=("wall", "ideal"), help="wall-attenuation radio, or an ideal channel")
+    r.add_argument("--comm", choices=COMM_MODELS,
+                   help="radio: wall (eq. 4), disk (within --comm-range), full (all pairs), ideal (full, no loss)")
     r.add_argument("--out", type=Path, help="output directory (default runs/<run id>)")
     r.add_argument("--in-process", action="store_true", help="all nodes in this process (one session each)")
     r.add_argument("--no-record", action="store_true", help="do not write run.mcap")
