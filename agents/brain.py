@@ -80,7 +80,6 @@ class Brain:
         self.last_move: Cell = STAY
         self.stuck = 0
         self.decision_ms: list[float] = []
-        self.dropped = 0
         self.ctx: Context | None = None
 
     def next_seq(self) -> int:
@@ -90,14 +89,13 @@ class Brain:
 
     def open(self, inbox: Sequence[Envelope]) -> list[RadioMsg]:
         """Decode what the radio delivered, checked against the grid and the team; a message that does not
-        validate (an unknown payload kind included) is counted and dropped."""
+        validate (an unknown payload kind included) is dropped and reported to ``on_drop``, which counts it."""
         out = []
         for env in inbox:
             try:
                 env.validate(self.ctx)
                 out.append(open_envelope(env, self.ctx))
             except DecodeError as exc:
-                self.dropped += 1
                 if self.on_drop is not None:
                     self.on_drop(f"radio/{env.payload_kind}", str(exc))
         return out

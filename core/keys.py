@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 
 ROOT = "fleet"
 
@@ -18,9 +19,13 @@ class ParsedKey:
     role: str | None = None
 
 
+#: A run id: one key-expression chunk that is also a directory name.
+RUN_ID = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}")
+
+
 def key(run: str, *parts: str) -> str:
     """``fleet/<run>/<parts...>``; every key on the bus is built here."""
-    if not run or any(ch in run for ch in "/*$?#"):
+    if not RUN_ID.fullmatch(run):
         raise ValueError(f"bad run id {run!r}")
     return "/".join((ROOT, run, *parts))
 

@@ -9,7 +9,6 @@ import contextlib
 import dataclasses
 import os
 import queue
-import re
 import secrets
 import shutil
 import tempfile
@@ -26,7 +25,7 @@ from fleet_emu.agents.brain import allocator_config
 from fleet_emu.core.bus import client_config, publisher, router_config, router_locators
 from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.grid import MapData
-from fleet_emu.core.keys import Keys, robot_ids
+from fleet_emu.core.keys import RUN_ID, Keys, robot_ids
 from fleet_emu.core.messages import Failed, Ready, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
@@ -41,7 +40,6 @@ from fleet_emu.world.node import build_world
 
 STOP_GRACE = 5.0
 CONNECT_TIMEOUT = 5.0  # seconds ``--connect`` keeps trying an external router before giving up
-RUN_ID = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}")  # a key-expression chunk and a directory name
 
 
 @dataclasses.dataclass(frozen=True)
