@@ -88,10 +88,10 @@ class AgentNode(NodeBase):
                     self.drop(key, "observation for another robot or a past tick")
             elif channel == "rx":
                 b = self.decode(key, data, RxBundle)  # loosely: the brain checks each envelope against the team
-                if b is not None and b.src != "netem":
-                    self.drop(key, f"rx bundle from {b.src!r}, not netem")
-                elif b is not None and b.dst == self.robot and b.tick >= tick:
+                if b is not None and b.dst == self.robot and b.tick >= tick:
                     rx[b.tick] = b
+                elif b is not None:
+                    self.drop(key, "rx bundle for another robot or a past tick")
             while tick in obs and tick in rx:
                 self._act(obs.pop(tick), rx.pop(tick))
                 tick += 1

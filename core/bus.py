@@ -9,8 +9,11 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+from typing import Any
 
 import zenoh
+
+from fleet_emu.core.access import Credential
 
 # Zenoh's default lease. A killed process is still noticed at once (its TCP link closes); a frozen one is caught by
 # the barrier timeout. A 1 s lease expired under load here (load average 8 on 2 cores) and failed healthy robots.
@@ -25,19 +28,32 @@ def _base(mode: str) -> zenoh.Config:
     return conf
 
 
-def router_config(listen: str = "tcp/127.0.0.1:0") -> zenoh.Config:
-    """An embedded loopback router; port 0 lets the OS pick (read it back with :func:`router_locators`)."""
+def router_config(listen: str = "tcp/127.0.0.1:0", dictionary_file: str | None = None,
+                  acl: dict[str, Any] | None = None) -> zenoh.Config:
+    """An embedded loopback router; port 0 lets the OS pick (read it back with :func:`router_locators`).
+    With ``dictionary_file`` (``user:password`` lines) it refuses sessions without valid credentials, and
+    with ``acl`` (``fleet_emu.core.access.acl_config``) it filters what each user may put."""
     conf = _base("router")
     conf.insert_json5("listen/endpoints", json.dumps([listen]))
     conf.insert_json5("scouting/delay", "0")
     conf.insert_json5("adminspace/enabled", "true")
+    if dictionary_file is not None:
+        conf.insert_json5("transport/auth/usrpwd/dictionary_file", json.dumps(dictionary_file))
+    if acl is not None:
+        conf.insert_json5("access_control", json.dumps(acl))
     return conf
 
 
-def client_config(endpoint: str) -> zenoh.Config:
-    """A client session to the router at ``endpoint`` (e.g. ``tcp/127.0.0.1:7447``)."""
+def client_config(endpoint: str, credential: Credential | None = None) -> zenoh.Config:
+    """A client session to the router at ``endpoint`` (e.g. ``tcp/127.0.0.1:7447``), logged in as
+    ``credential`` (and trusting its TLS CA) when given."""
     conf = _base("client")
     conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    if credential is not None:
+        conf.insert_json5("transport/auth/usrpwd/user", json.dumps(credential.user))
+        conf.insert_json5("transport/auth/usrpwd/password", json.dumps(credential.password))
+        if credential.tls_ca is not None:
+            conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(credential.tls_ca))
     return conf
 
 

@@ -78,7 +78,8 @@ class Observation(Message):
 
 @dataclasses.dataclass(frozen=True)
 class WorldState(Message):
-    """All true poses, coverage and the run's status at ``tick`` (world/state)."""
+    """All true poses, coverage and the run's status at ``tick`` (world/state); ``dropped`` counts the
+    messages the world has dropped so far (malformed, or from a sender that may not write on their key)."""
 
     KIND = "state"
     poses: dict[str, Cell]
@@ -87,6 +88,7 @@ class WorldState(Message):
     path_length: dict[str, int]
     done: bool = False
     reason: str | None = None
+    dropped: int = 0
 
 
 # --- agent -> world -----------------------------------------------------------------------------------
@@ -197,7 +199,8 @@ class RxBundle(Message):
 
 @dataclasses.dataclass(frozen=True)
 class Links(Message):
-    """The link graph at ``tick`` (netem/links): signal P_ij in dB, links, and cumulative radio counters."""
+    """The link graph at ``tick`` (netem/links): signal P_ij in dB, links, and cumulative radio counters
+    (``dropped``: the messages netem itself dropped as malformed or spoofed, not radio losses)."""
 
     KIND = "links"
     robots: tuple[str, ...]
@@ -209,6 +212,7 @@ class Links(Message):
     dropped_loss: int
     dropped_signal: int
     bytes_sent: int
+    dropped: int = 0
 
 
 # --- control ---------------------------------------------------------------------------------------------

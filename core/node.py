@@ -17,6 +17,7 @@ from typing import Any, Protocol, TypeVar
 
 import zenoh
 
+from fleet_emu.core.access import Credential, allowed_src
 from fleet_emu.core.bus import Inbox, client_config, publisher
 from fleet_emu.core.codec import Context, DecodeError, Message, decode
 from fleet_emu.core.errors import FleetError
@@ -48,11 +49,17 @@ class NodeBase:
         return self._seq
 
     def decode(self, key: str, data: bytes, expected: type[M], ctx: Context | None = None) -> M | None:
-        """Decode or count-and-drop: a malformed message is never fatal."""
+        """Decode or count-and-drop: a malformed message is never fatal, and neither is one whose ``src`` may
+        not write on its key (the second line of defence behind the router's access control)."""
         try:
             msg = decode(data, ctx, expected)
         except DecodeError as exc:
             self.drop(key, str(exc))
+            return None
+        parsed = self.keys.parse(key)
+        allowed = allowed_src(parsed) if parsed is not None else frozenset()
+        if allowed is not None and msg.src not in allowed:
+            self.drop(key, f"{msg.src!r} may not write on this key")
             return None
         return msg  # type: ignore[return-value]
 
@@ -115,18 +122,22 @@ async def run_node(node_coro, watch: bool = True) -> None:  # type: ignore[no-un
 
 def parse_child(parser: argparse.ArgumentParser, argv: list[str] | None, map_file: bool = False) -> argparse.Namespace:
     """The command line every child process takes: ``--run``, ``--connect``, ``--scenario FILE.json``
-    (written by ``fleet run``), and for the world and netem ``--map-file MAP.npz`` (the launcher's one build of
-    the true map). A bad file is one line on stderr and exit code 2."""
+    (written by ``fleet run``), for the world and netem ``--map-file MAP.npz`` (the launcher's one build of
+    the true map), and ``--auth-stdin`` (the credential comes on standard input, never on the command line or
+    in the environment, where other users could read it). A bad file is one line on stderr and exit code 2."""
     parser.add_argument("--run", required=True, help="run id (the <run> of the key expressions)")
     parser.add_argument("--connect", required=True, help="router endpoint, e.g. tcp/127.0.0.1:7447")
     parser.add_argument("--scenario", required=True, type=Path, help="scenario as JSON (written by fleet run)")
     if map_file:
         parser.add_argument("--map-file", required=True, type=Path, help="the true map (written by fleet run)")
+    parser.add_argument("--auth-stdin", action="store_true",
+                        help="read this process's bus credential (one JSON line) from standard input")
     args = parser.parse_args(argv)
     try:
         args.scenario = Scenario.from_json(args.scenario)
         if map_file:
             args.map_file = MapData.load(args.map_file)
+        args.credential = Credential.from_json(sys.stdin.readline()) if args.auth_stdin else None
     except (OSError, ValueError, KeyError, FleetError) as exc:
         print(f"{parser.prog}: error: bad input file: {exc}", file=sys.stderr)
         raise SystemExit(2) from None
@@ -143,5 +154,5 @@ def node_main(prog: str, build: Callable[[argparse.Namespace], Any], argv: list[
     args = parse_child(parser, argv, map_file)
     setup_logging()
     node = build(args)
-    with zenoh.open(client_config(args.connect)) as session:
+    with zenoh.open(client_config(args.connect, args.credential)) as session:
         asyncio.run(run_node(node.run(session)))

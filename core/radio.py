@@ -22,7 +22,6 @@ from collections.abc import Sequence
 import numpy as np
 
 from fleet_emu.core.grid import Cell
-from fleet_emu.core.kernels import count_walls
 
 COMM_MODELS = ("wall", "disk", "full", "ideal")
 
@@ -61,6 +60,8 @@ def link_matrix(occupied: np.ndarray, cells: Sequence[Cell], cell_size: float,
     robots at ``cells`` on a map whose walls are ``occupied``. The strength is eq. 4's on every model; the
     link follows the model: eq. 4's threshold (``wall``), distance within ``comm_range`` (``disk``), or every
     pair (``full``, ``ideal``)."""
+    from fleet_emu.core.kernels import count_walls  # numba: imported on first use, not with the CLI
+
     n = len(cells)
     strength = np.full((n, n), np.inf)
     for i in range(n):

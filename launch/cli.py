@@ -1,8 +1,9 @@
 """``fleet``: the user's entry point (DESIGN.md "CLI and the result contract").
 
 Bad input gets one line on stderr (``fleet: error: ...``) and exit code 2; a run in which a process of the
-fleet failed exits 1 (a robot too, when the others finished); Ctrl-C exits 130 after writing what was
-recorded.
+fleet failed exits 1 (a robot too, when the others finished); SIGINT (Ctrl-C) exits 130 and SIGTERM 143,
+after writing ``result.json`` and closing the recording (``launch/signals.py``). This module imports nothing
+heavy at the top, so that a signal during start-up meets the handler, not a half-imported module.
 """
 
 from __future__ import annotations
@@ -11,11 +12,13 @@ import argparse
 import sys
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from fleet_emu.core.errors import ConfigError, FleetError
-from fleet_emu.core.radio import COMM_MODELS
-from fleet_emu.core.scenario import Scenario
+
+if TYPE_CHECKING:
+    from fleet_emu.core.scenario import Scenario
+    from fleet_emu.launch.signals import Interrupts
 
 DEFAULT_SCENARIO = Path(__file__).resolve().parent / "scenarios" / "default.toml"
 
@@ -41,6 +44,8 @@ def _start(text: str) -> tuple[int, int] | str:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from fleet_emu.core.radio import COMM_MODELS
+
     p = _Parser(prog="fleet", description="Multi-robot exploration under realistic radio, over Eclipse Zenoh.")
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
     r = sub.add_parser("run", help="run one scenario (the default one with no arguments)")
@@ -62,10 +67,23 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--in-process", action="store_true", help="all nodes in this process (one session each)")
     r.add_argument("--no-record", action="store_true", help="do not write run.mcap")
     r.add_argument("--connect", help="use an external Zenoh router, e.g. tcp/192.0.2.1:7447")
+    r.add_argument("--credentials", type=Path, metavar="USERS",
+                   help="with --connect: the users file written by `fleet router-config`")
+    r.add_argument("--tls-ca", type=Path, metavar="CA.pem", help="with a tls/ --connect: the CA that signed the router")
     r.add_argument("--run-id", help="the <run> of the key expressions (default: a timestamp)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--grid-every", type=int, metavar="K",
                    help="Foxglove map/coverage/belief grids in run.mcap every K ticks (default: belief_every)")
+    rc = sub.add_parser("router-config", help="print a zenohd configuration with the fleet's authentication and "
+                                              "access control, and write its users file")
+    rc.add_argument("--robots", type=int, required=True, help="robots r0..r<N-1> that may join")
+    rc.add_argument("--users", type=Path, required=True,
+                    help="the users file (user:password lines, mode 0600); kept passwords are reused")
+    rc.add_argument("--listen", default=None, help="endpoint (default tcp/0.0.0.0:7447, or tls/0.0.0.0:7447 "
+                                                   "with --tls-cert)")
+    rc.add_argument("--run-id", default="*", help="the one run this router serves (default: any)")
+    rc.add_argument("--tls-cert", type=Path, help="the router's TLS certificate (PEM)")
+    rc.add_argument("--tls-key", type=Path, help="its private key (PEM)")
     sub.add_parser("maps", help="list the built-in maps")
     sub.add_parser("allocators", help="list the allocators (built-in and installed plugins) and their parameters")
     rep = sub.add_parser("report", help="metrics.json, plots and a table from a recording (RUN_DIR or RUN.mcap)")
@@ -77,6 +95,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
+    from fleet_emu.core.scenario import Scenario
+
     base = Scenario.load(args.scenario or DEFAULT_SCENARIO)
     return base.override(
         map=args.map, robots=args.robots, allocator=args.allocator, loss=args.loss,
@@ -84,33 +104,46 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
         start=args.start, max_ticks=args.max_ticks, target_coverage=args.target_coverage, comm=args.comm)
 
 
-def cmd_run(args: argparse.Namespace) -> int:
+def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     from rich.console import Console
 
     from fleet_emu.launch.progress import Progress, summary_table
     from fleet_emu.launch.runner import RunOptions, new_run_id, run_fleet
 
-    out = args.out
     console = Console(stderr=True)
-    try:
-        scenario = scenario_from_args(args)
-        run_id = args.run_id or new_run_id()
-        out = args.out or Path("runs") / run_id
-        if args.grid_every is not None and args.grid_every < 1:
-            raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
-        with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
-            opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
-                              connect=args.connect, run_id=run_id, grid_every=args.grid_every,
-                              on_progress=progress.update)
-            result = run_fleet(scenario, opts)
-    except KeyboardInterrupt:
-        print(f"fleet: interrupted; what was recorded is in {out}", file=sys.stderr)
-        return 130
+    scenario = scenario_from_args(args)
+    run_id = args.run_id or new_run_id()
+    out = args.out or Path("runs") / run_id
+    if args.grid_every is not None and args.grid_every < 1:
+        raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
+    if args.connect is None and (args.credentials or args.tls_ca):
+        raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
+    if args.connect is not None and args.credentials is None:
+        print("fleet: warning: --connect without --credentials: this run's bus is not authenticated "
+              "(see `fleet router-config`)", file=sys.stderr)
+    with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
+        opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
+                          connect=args.connect, run_id=run_id, grid_every=args.grid_every,
+                          on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
+                          interrupts=interrupts)
+        result = run_fleet(scenario, opts)
+    if interrupts.signum is not None:
+        when = "" if result["reason"] == "interrupted" else f" after the run ended ({result['reason']})"
+        print(f"fleet: interrupted by {interrupts.name}{when}; result.json and the recording are in {out}",
+              file=sys.stderr)
+        return interrupts.exit_code
     if not args.quiet:
         console.print(summary_table(result, str(out)))
     else:
         print(out / "result.json")
     return exit_code(result, out)
+
+
+def cmd_router_config(args: argparse.Namespace) -> int:
+    from fleet_emu.launch.router_config import router_config_text
+
+    print(router_config_text(args.robots, args.users, args.listen, args.run_id, args.tls_cert, args.tls_key))
+    return 0
 
 
 def exit_code(result: Mapping[str, Any], out: Path) -> int:
@@ -157,16 +190,40 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> None:
-    args = build_parser().parse_args(argv)
-    command = args.command or "run"
-    if args.command is None:
-        args = build_parser().parse_args(["run", *(argv or [])])
-    handlers = {"run": cmd_run, "maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report}
     try:
-        code = handlers[command](args)
+        args = build_parser().parse_args(argv)
+        command = args.command or "run"
+        if args.command is None:
+            args = build_parser().parse_args(["run", *(argv or [])])
+        if command == "run":
+            code = _run_with_signals(args)
+        else:
+            handlers = {"maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report,
+                        "router-config": cmd_router_config}
+            code = handlers[command](args)
     except FleetError as exc:  # every error meant for the user, caught once: one line, its exit code
         _fail(str(exc), code=exc.exit_code)
+    except KeyboardInterrupt:  # Ctrl-C outside a run (a report, a listing, parsing the command line)
+        print("fleet: interrupted", file=sys.stderr)
+        code = 130
     raise SystemExit(code)
+
+
+def _run_with_signals(args: argparse.Namespace) -> int:
+    """``fleet run`` with SIGINT and SIGTERM turned into requests (``launch/signals.py``): installed before
+    the run's heavy imports, restored after; a signal before the run could start still exits 130/143."""
+    from fleet_emu.launch.signals import Interrupts
+
+    interrupts = Interrupts().install()
+    try:
+        code = cmd_run(args, interrupts)
+    except FleetError:
+        if interrupts.signum is None:
+            raise
+        code = interrupts.exit_code  # bad input found after the user already asked to stop: still a stop
+    finally:
+        interrupts.restore()
+    return code
 
 
 if __name__ == "__main__":

@@ -22,6 +22,16 @@ import zenoh
 
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import allocator_config
+from fleet_emu.core.access import (
+    LAUNCHER,
+    RECORDER,
+    Credential,
+    acl_config,
+    dictionary_text,
+    fleet_nodes,
+    make_credentials,
+    read_dictionary,
+)
 from fleet_emu.core.bus import client_config, publisher, router_config, router_locators
 from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.grid import MapData
@@ -30,6 +40,7 @@ from fleet_emu.core.messages import Failed, Ready, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.result import Result, write_json_atomic
+from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import Supervisor
 from fleet_emu.recording.foxglove import FoxgloveFold
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
@@ -56,6 +67,9 @@ class RunOptions:
     run_id: str = ""
     grid_every: int | None = None  # Foxglove grids every k ticks (default: the scenario's belief_every)
     on_progress: Callable[[Monitor], None] | None = None
+    credentials: Path | None = None  # with ``connect``: the users file of `fleet router-config`
+    tls_ca: Path | None = None  # with a ``tls/`` ``connect``: the CA certificate that signed the router's
+    interrupts: Interrupts | None = None  # the CLI's signal state (None: Ctrl-C raises KeyboardInterrupt)
 
 
 def new_run_id() -> str:
@@ -72,16 +86,39 @@ def check(scenario: Scenario) -> MapData:
     return md
 
 
-def check_options(opts: RunOptions) -> None:
-    """The run's options that can be wrong before anything starts: the run id, and ``connect`` (its syntax,
-    and a router answering there within :data:`CONNECT_TIMEOUT`)."""
+def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] | None:
+    """Every process's login: fresh per-run passwords for the embedded router; with ``connect``, the users
+    file of ``fleet router-config`` (None without one: the external router is then not authenticated)."""
+    nodes = fleet_nodes(robot_ids(scenario.robots))
+    ca = str(opts.tls_ca.absolute()) if opts.tls_ca is not None else None
+    if opts.connect is None:
+        return {n: Credential(n, p) for n, p in make_credentials(nodes).items()}
+    if opts.credentials is None:
+        return None
+    try:
+        users = read_dictionary(opts.credentials.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise ConfigError(f"--credentials {opts.credentials}: cannot read it ({exc})") from None
+    missing = [n for n in nodes if n not in users]
+    if missing:
+        raise ConfigError(f"--credentials {opts.credentials} has no user {missing[0]!r}; make it with "
+                          f"`fleet router-config --robots {scenario.robots}` or more robots")
+    return {n: Credential(n, users[n], ca) for n in nodes}
+
+
+def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None) -> None:
+    """The run's options that can be wrong before anything starts: the run id, the TLS CA file, and
+    ``connect`` (its syntax, and a router answering there within :data:`CONNECT_TIMEOUT` and accepting the
+    launcher's credential)."""
     if opts.run_id and not RUN_ID.fullmatch(opts.run_id):
         raise ConfigError(f"--run-id must be letters, digits, '_', '-' or '.' (not first), at most 100 "
                           f"(got {opts.run_id!r})")
+    if opts.tls_ca is not None and not opts.tls_ca.is_file():
+        raise ConfigError(f"--tls-ca {opts.tls_ca}: no such file")
     if opts.connect is None:
         return
     try:
-        conf = client_config(opts.connect)
+        conf = client_config(opts.connect, creds[LAUNCHER] if creds else None)
         timeout_ms = int(CONNECT_TIMEOUT * 1000)
         conf.insert_json5("connect/timeout_ms", f'{{"router": -1, "peer": -1, "client": {timeout_ms}}}')
     except zenoh.ZError:
@@ -90,7 +127,8 @@ def check_options(opts: RunOptions) -> None:
     try:
         zenoh.open(conf).close()
     except zenoh.ZError:
-        raise ConfigError(f"--connect {opts.connect}: no Zenoh router answered (gave up after "
+        refused = " or it refused the credentials" if creds else ""
+        raise ConfigError(f"--connect {opts.connect}: no Zenoh router answered{refused} (gave up after "
                           f"{CONNECT_TIMEOUT:g} s)") from None
 
 
@@ -115,7 +153,8 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     Bad input (the scenario, the options, an unwritable ``out_dir``) raises ConfigError before any process
     starts and leaves no output directory behind."""
     map_data = check(scenario)
-    check_options(opts)
+    creds = credentials(scenario, opts)
+    check_options(opts, creds)
     run_id = opts.run_id or new_run_id()
     if opts.out_dir is not None:
         _make_out(opts.out_dir)
@@ -124,12 +163,12 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
         write_json_atomic(work / "scenario.json", scenario.to_dict())
         map_data.save(work / "map.npz")
         recording = work / "run.mcap" if opts.record and opts.out_dir is not None else None
-        result, failure = _run(scenario, map_data, run_id, work, recording, opts)
+        result, failure = _run(scenario, map_data, run_id, work, recording, opts, creds)
         if opts.out_dir is not None:
             write_json_atomic(work / "result.json", result.data)
         elif failure == "error":
             result.data["error"] += f" ({_last_log_line(work, result.data['error'])})"
-    if failure == "interrupted":
+    if failure == "interrupted" and opts.interrupts is None:
         raise KeyboardInterrupt
     if failure == "error":
         raise RunError(result["error"])
@@ -137,8 +176,9 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
 
 
 def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recording: Path | None,
-         opts: RunOptions) -> tuple[Result, str | None]:
-    """The run itself: router, recorder, nodes, the wait, the teardown; the result and how it failed."""
+         opts: RunOptions, creds: dict[str, Credential] | None) -> tuple[Result, str | None]:
+    """The run itself: router, recorder, nodes, the wait, the teardown; the result and how it failed.
+    A signal (``opts.interrupts``) is only ever a request: the teardown and the files are never cut short."""
     keys = Keys(run_id)
     robots = tuple(robot_ids(scenario.robots))
     monitor = Monitor(robots)
@@ -149,17 +189,22 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     sup = Supervisor(log_dir=work)
     pids: dict[str, Any] = {}
     t_start = time.monotonic()
+    signals = opts.interrupts
+    requested = signals.requested if signals else threading.Event()
+    hurry = signals.hurry if signals else threading.Event()
     interrupted = False
     error: str | None = None
     with contextlib.ExitStack() as stack:
         if opts.connect:
             endpoint = opts.connect
         else:
-            router = stack.enter_context(zenoh.open(router_config()))
+            router = stack.enter_context(_open_router(run_id, creds))
             endpoint = router_locators(router)[0]
-        session = stack.enter_context(zenoh.open(client_config(endpoint)))
+        login = creds or {}
+        session = stack.enter_context(zenoh.open(client_config(endpoint, login.get(LAUNCHER))))
+        listener = stack.enter_context(zenoh.open(client_config(endpoint, login.get(RECORDER))))
         samples: queue.Queue[tuple[str, bytes, int] | None] = queue.Queue()
-        sub = session.declare_subscriber(
+        sub = listener.declare_subscriber(
             keys.all, lambda s: samples.put((str(s.key_expr), s.payload.to_bytes(), time.time_ns())))
         pub_ready = publisher(session, keys.ready("launcher"))
         pub_stop = publisher(session, keys.stop)
@@ -169,31 +214,29 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         consumer.start()
         nodes_thread: threading.Thread | None = None
         try:
-            if opts.in_process:
-                nodes_thread = _start_in_process(scenario, map_data, run_id, endpoint)
+            if requested.is_set():
+                pass  # interrupted while starting: nothing more is started
+            elif opts.in_process:
+                nodes_thread = _start_in_process(scenario, map_data, run_id, endpoint, creds)
                 pids = {"world": os.getpid(), "netem": os.getpid(), "agents": [os.getpid()] * len(robots)}
             else:
-                common = ["--run", run_id, "--connect", endpoint, "--scenario", str(work / "scenario.json")]
-                truth = ["--map-file", str(work / "map.npz")]
-                sup.spawn("world", "fleet_emu.world", [*common, *truth])
-                sup.spawn("netem", "fleet_emu.netem", [*common, *truth])
-                for r in robots:
-                    sup.spawn(r, "fleet_emu.agents", ["--robot", r, *common])
+                _spawn_nodes(sup, scenario, run_id, endpoint, work, creds)
                 p = sup.pids()
                 pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
-            error = _wait(monitor, consumer, sup, nodes_thread, opts.on_progress,
+            error = _wait(monitor, consumer, sup, nodes_thread, opts.on_progress, requested,
                           lambda r: session.put(keys.failed(r), Failed(
                               src="launcher", tick=monitor.tick, seq=0, robot=r, reason="process exited").encode(),
                               congestion_control=zenoh.CongestionControl.BLOCK))
         except KeyboardInterrupt:
-            interrupted = True
+            requested.set()
         finally:
+            interrupted = requested.is_set() and monitor.stop is None  # a signal after the stop is teardown's
             if monitor.stop is None or interrupted:
                 with contextlib.suppress(zenoh.ZError):
                     pub_stop.put(Stop(src="launcher", tick=monitor.tick, seq=1,
                                       reason="interrupted" if interrupted else "aborted").encode())
-            if not sup.wait_all(STOP_GRACE):
-                sup.kill_all()
+            if not sup.wait_all(STOP_GRACE, hurry):
+                sup.kill_all(grace=0.5 if hurry.is_set() else 2.0)
             sup.kill_all()
             if nodes_thread is not None:
                 nodes_thread.join(STOP_GRACE)
@@ -208,6 +251,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     data = monitor.result(scenario.to_dict(), run_id, scenario.target_coverage)
     if interrupted:
         data["reason"] = "interrupted"
+        data.pop("error", None)
     elif error:
         data["reason"] = "error"
         data["error"] = error
@@ -216,6 +260,8 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         "recording": {"path": str(recording) if recording else None, "messages": messages},
         "wall_seconds": round(time.monotonic() - t_start, 3),
         "scenario": scenario.to_dict(),
+        "signal": signals.name if signals else ("SIGINT" if interrupted else None),
+        "authenticated": creds is not None,
     }
     failure = "interrupted" if interrupted else ("error" if error else None)
     return Result(data, tuple(monitor.coverage_curve), recording.parent if recording else None), failure
@@ -231,7 +277,8 @@ def _last_log_line(work: Path, error: str) -> str:
 
 
 def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: threading.Thread | None,
-          on_progress: Callable[[Monitor], None] | None, notify_failed: Callable[[str], None]) -> str | None:
+          on_progress: Callable[[Monitor], None] | None, requested: threading.Event,
+          notify_failed: Callable[[str], None]) -> str | None:
     """Until the world's stop and every live agent's report; returns an error line, or None.
     An agent process that exits early is announced to the world, which goes on without it. The world or
     netem exiting with an error before the stop fails the run at once; exiting cleanly (code 0) is a normal
@@ -243,6 +290,8 @@ def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: 
     while True:
         if on_progress is not None:
             on_progress(monitor)
+        if requested.is_set():
+            return None
         if monitor.stop is not None:
             stop_seen = stop_seen or time.monotonic()
             live = set(monitor.state.live) if monitor.state else set()
@@ -299,8 +348,38 @@ class _Consumer(threading.Thread):
                 self.changed.set()
 
 
-def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoint: str) -> threading.Thread:
-    """Every node in this process, each with its own Zenoh session to the same router."""
+def _open_router(run_id: str, creds: dict[str, Credential] | None) -> zenoh.Session:
+    """The embedded router: user/password authentication and access control for this run's users. The
+    users file lives in a private temporary directory only while the router opens (Zenoh reads it then)."""
+    if creds is None:
+        return zenoh.open(router_config())
+    with tempfile.TemporaryDirectory(prefix="fleet-auth-") as private:  # mode 0700
+        users = Path(private) / "users.txt"
+        fd = os.open(users, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        with os.fdopen(fd, "w") as f:
+            f.write(dictionary_text({n: c.password for n, c in creds.items()}))
+        return zenoh.open(router_config(dictionary_file=str(users), acl=acl_config(run_id, creds)))
+
+
+def _spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str, work: Path,
+                 creds: dict[str, Credential] | None) -> None:
+    """world, netem and one process per robot; each gets its own credential on standard input."""
+    common = ["--run", run_id, "--connect", endpoint, "--scenario", str(work / "scenario.json")]
+    auth = ["--auth-stdin"] if creds else []
+    truth = ["--map-file", str(work / "map.npz")]
+
+    def secret(node: str) -> str | None:
+        return creds[node].to_json() if creds else None
+
+    sup.spawn("world", "fleet_emu.world", [*common, *truth, *auth], secret("world"))
+    sup.spawn("netem", "fleet_emu.netem", [*common, *truth, *auth], secret("netem"))
+    for r in robot_ids(scenario.robots):
+        sup.spawn(r, "fleet_emu.agents", ["--robot", r, *common, *auth], secret(r))
+
+
+def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoint: str,
+                      creds: dict[str, Credential] | None) -> threading.Thread:
+    """Every node in this process, each with its own Zenoh session (and its own login) to the same router."""
     from fleet_emu.agents.node import AgentNode
     from fleet_emu.netem.node import NetemNode
     from fleet_emu.world.node import WorldNode
@@ -310,7 +389,8 @@ def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoi
 
     async def main() -> None:
         with contextlib.ExitStack() as stack:
-            sessions = [stack.enter_context(zenoh.open(client_config(endpoint))) for _ in nodes]
+            sessions = [stack.enter_context(zenoh.open(client_config(endpoint, creds[n.node_id] if creds else None)))
+                        for n in nodes]
             await asyncio.gather(*(n.run(s) for n, s in zip(nodes, sessions, strict=True)))
 
     thread = threading.Thread(target=lambda: asyncio.run(main()), daemon=True, name="nodes")

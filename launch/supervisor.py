@@ -9,6 +9,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -21,15 +22,22 @@ class Supervisor:
         self.log_dir = log_dir
         self._logs: list[object] = []
 
-    def spawn(self, name: str, module: str, args: list[str]) -> subprocess.Popen[bytes]:
-        """Start ``python -m module args`` in a new session (its own process group)."""
+    def spawn(self, name: str, module: str, args: list[str], secret: str | None = None) -> subprocess.Popen[bytes]:
+        """Start ``python -m module args`` in a new session (its own process group); ``secret`` (one line) is
+        written to its standard input, which is then closed."""
         stderr = None
         if self.log_dir is not None:
             stderr = open(self.log_dir / f"{name}.log", "wb")  # noqa: SIM115 (closed in kill_all)
             self._logs.append(stderr)
-        proc = subprocess.Popen([sys.executable, "-m", module, *args], stdin=subprocess.DEVNULL,
+        proc = subprocess.Popen([sys.executable, "-m", module, *args],
+                                stdin=subprocess.DEVNULL if secret is None else subprocess.PIPE,
                                 stdout=stderr, stderr=stderr, start_new_session=True)
         self.children[name] = proc
+        if secret is not None and proc.stdin is not None:
+            with contextlib.suppress(OSError):  # a child that died at once is seen by the runner's wait
+                proc.stdin.write(secret.encode() + b"\n")
+            with contextlib.suppress(OSError):
+                proc.stdin.close()
         return proc
 
     def pids(self) -> dict[str, int]:
@@ -39,12 +47,14 @@ class Supervisor:
         """Children that exited, with their exit codes."""
         return {n: p.returncode for n, p in self.children.items() if p.poll() is not None}
 
-    def wait_all(self, timeout: float) -> bool:
-        """Wait for every child to exit by itself; True if they all did."""
+    def wait_all(self, timeout: float, hurry: threading.Event | None = None) -> bool:
+        """Wait for every child to exit by itself; True if they all did. Setting ``hurry`` (a second Ctrl-C)
+        cuts the wait short."""
         deadline = time.monotonic() + timeout
-        for p in self.children.values():
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                p.wait(max(0.0, deadline - time.monotonic()))
+        while time.monotonic() < deadline and not (hurry is not None and hurry.is_set()):
+            if all(p.poll() is not None for p in self.children.values()):
+                return True
+            time.sleep(0.05)
         return all(p.poll() is not None for p in self.children.values())
 
     def kill_all(self, grace: float = 2.0) -> None:

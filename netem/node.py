@@ -102,9 +102,7 @@ class NetemNode(NodeBase):
                 self.states[st.tick] = st
         elif channel == "tx":
             b = self.decode(key, data, TxBundle, self.ctx_tx)  # envelopes only: payloads stay opaque
-            if b is not None and b.src != parsed.node:  # type: ignore[union-attr]
-                self.drop(key, f"tx bundle from {b.src} on another robot's key")
-            elif b is not None:
+            if b is not None:  # decode checked that the key's robot sent it
                 self.tx.setdefault(b.tick, {})[b.src] = b
         return True
 
@@ -141,7 +139,8 @@ class NetemNode(NodeBase):
         self.pub_links.put(Links(
             src="netem", tick=t, seq=self.next_seq(), robots=live, strength=strength.astype(np.float32),
             link=link, connected=bool(connected(link)), sent=c.sent, delivered=c.delivered,
-            dropped_loss=c.dropped_loss, dropped_signal=c.dropped_signal, bytes_sent=c.bytes_sent).encode())
+            dropped_loss=c.dropped_loss, dropped_signal=c.dropped_signal, bytes_sent=c.bytes_sent,
+            dropped=self.dropped).encode())
         if state.done:
             return link
         arriving = self.channel.deliver(t)

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from fleet_emu import __version__
+from fleet_emu.core.access import allowed_src
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import parse_key
 from fleet_emu.core.messages import AgentReport, Command, Links, Message, Stop, WorldState
@@ -48,6 +49,10 @@ class Monitor:
         try:
             msg = decode(data)
         except DecodeError:
+            self.malformed += 1
+            return None
+        allowed = allowed_src(got[1])
+        if allowed is not None and msg.src not in allowed:  # a spoofed sender: never folded
             self.malformed += 1
             return None
         self.fold(msg)
@@ -117,12 +122,20 @@ class Monitor:
             },
             "decision_ms": {"mean": round(float(ms.mean()), 4), "p95": round(float(np.percentile(ms, 95)), 4)},
             "failed": sorted(set(self.robots) - set(st.live)) if st else [],
-            "malformed_dropped": self.malformed + sum(r.dropped for r in self.reports.values()),
+            "malformed_dropped": sum(self.dropped_by().values()),
+            "malformed_dropped_by": self.dropped_by(),
             "agent_peak_rss_kb": {r: rep.peak_rss_kb for r, rep in sorted(self.reports.items())},
             "ticks_per_second": self.ticks_per_second(),
             "schema_version": SCHEMA_VERSION,
             "fleet_emu": __version__,
         }
+
+    def dropped_by(self) -> dict[str, int]:
+        """Messages each process dropped as malformed or spoofed: the launcher's own count, the world's and
+        netem's from their last state and links, each robot's from its report."""
+        return {"launcher": self.malformed, "world": self.state.dropped if self.state else 0,
+                "netem": self.links.dropped if self.links else 0,
+                **{r: rep.dropped for r, rep in sorted(self.reports.items())}}
 
     def ticks_per_second(self) -> float | None:
         """Lockstep speed from the first state to the last (start-up excluded)."""

@@ -157,7 +157,8 @@ class WorldNode(NodeBase):
                 cell_size=self.scenario.cell_size, cells=rd.cells, values=rd.values).encode())
         self.pub_state.put(WorldState(
             src="world", tick=t, seq=self.next_seq(), poses=dict(w.poses), live=tuple(w.live),
-            coverage=float(w.coverage), path_length=dict(w.path_length), done=w.done, reason=w.reason).encode())
+            coverage=float(w.coverage), path_length=dict(w.path_length), done=w.done, reason=w.reason,
+            dropped=self.dropped).encode())
 
     async def _barrier(self, inbox: Inbox) -> dict[str, tuple[int, int]]:
         """Wait for every live robot's command for this tick; fail the silent ones."""
@@ -188,9 +189,7 @@ class WorldNode(NodeBase):
             cmd = self.decode(key, data, Command, self.ctx)
             if cmd is None:
                 continue
-            if cmd.src != robot:
-                self.drop(key, f"cmd from {cmd.src} on {robot}'s key")
-            elif cmd.tick == t and robot in waiting:
+            if cmd.tick == t and robot in waiting:  # decode checked that robot sent it
                 moves[robot] = cmd.move
                 waiting.discard(robot)
         return moves

@@ -1,0 +1,149 @@
+"""Who may write what on the bus: one table, used twice.
+
+1. Zenoh's own access control (the first line): :func:`acl_config` turns the table into the router's
+   ``access_control`` block — default deny; every fleet user may subscribe to and receive the run's keys; each
+   may put only on the keys of its own role (and declare only its own liveliness token). The recorder puts
+   nothing. Users authenticate with Zenoh's user/password scheme (:func:`make_credentials`, one password per
+   process and run).
+2. Every receiver (the second line): :func:`allowed_src` says which senders a key may carry, and
+   ``NodeBase.decode`` / the launcher's monitor drop and count a message whose ``src`` disagrees with its key.
+
+The keys each node writes (README "Key expressions"):
+
+=========  ===================================================================================
+world      ``world/**`` (state, obs), ``ctl/hello``, ``ctl/stop``, ``ctl/ready/world``
+netem      ``radio/rx/*``, ``netem/links``, ``ctl/ready/netem``
+robot rK   ``robot/rK/**`` (cmd, belief), ``radio/tx/rK``, ``ctl/report/rK``, ``ctl/ready/rK``
+launcher   ``ctl/stop``, ``ctl/failed/*``, ``ctl/ready/launcher``
+recorder   nothing (it subscribes to ``fleet/<run>/**``)
+=========  ===================================================================================
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import secrets
+from collections.abc import Iterable
+from typing import Any
+
+from fleet_emu.core.keys import ROOT, ParsedKey
+
+WORLD, NETEM, LAUNCHER, RECORDER = "world", "netem", "launcher", "recorder"
+SERVICES = (WORLD, NETEM, LAUNCHER, RECORDER)
+
+#: Every message kind the router filters; receivers get all of them on the run's keys.
+_ALL_MESSAGES = ["put", "delete", "declare_subscriber", "query", "declare_queryable", "reply",
+                 "liveliness_token", "declare_liveliness_subscriber", "liveliness_query"]
+_SUBSCRIBE = ["declare_subscriber", "declare_liveliness_subscriber", "liveliness_query"]
+
+
+def role_of(node: str) -> str:
+    """The liveliness role of a node id (``r3`` is an ``agent``)."""
+    return node if node in SERVICES else "agent"
+
+
+def writes(node: str) -> list[str]:
+    """The key suffixes (after ``fleet/<run>/``) that ``node`` may put on."""
+    if node == WORLD:
+        return ["world/**", "ctl/hello", "ctl/stop", "ctl/ready/world"]
+    if node == NETEM:
+        return ["radio/rx/*", "netem/links", "ctl/ready/netem"]
+    if node == LAUNCHER:
+        return ["ctl/stop", "ctl/failed/*", "ctl/ready/launcher"]
+    if node == RECORDER:
+        return []
+    return [f"robot/{node}/**", f"radio/tx/{node}", f"ctl/report/{node}", f"ctl/ready/{node}"]
+
+
+def allowed_src(parsed: ParsedKey) -> frozenset[str] | None:
+    """The senders whose messages a key may carry (None: not a message key, e.g. a liveliness token)."""
+    match parsed.channel:
+        case "obs" | "state" | "hello":
+            return frozenset({WORLD})
+        case "stop":
+            return frozenset({WORLD, LAUNCHER})
+        case "rx" | "links":
+            return frozenset({NETEM})
+        case "failed":
+            return frozenset({LAUNCHER})
+        case "cmd" | "belief" | "tx" | "report" | "ready":
+            return frozenset({parsed.node}) if parsed.node else frozenset()
+    return None
+
+
+def acl_config(run: str, nodes: Iterable[str]) -> dict[str, Any]:
+    """The router's ``access_control`` block for ``nodes`` (user names = node ids) of run ``run`` (``"*"``
+    for a router that serves many runs)."""
+    prefix = f"{ROOT}/{run}"
+    nodes = list(nodes)
+    rules: list[dict[str, Any]] = [
+        {"id": "receive", "permission": "allow", "flows": ["egress"], "messages": _ALL_MESSAGES,
+         "key_exprs": [f"{prefix}/**"]},
+        {"id": "subscribe", "permission": "allow", "flows": ["ingress"], "messages": _SUBSCRIBE,
+         "key_exprs": [f"{prefix}/**"]},
+    ]
+    subjects: list[dict[str, Any]] = [{"id": "fleet", "usernames": nodes}]
+    policies: list[dict[str, Any]] = [{"rules": ["receive", "subscribe"], "subjects": ["fleet"]}]
+    for node in nodes:
+        own = [f"{prefix}/{k}" for k in writes(node)]
+        subjects.append({"id": f"user {node}", "usernames": [node]})
+        names = [f"token {node}"]
+        rules.append({"id": f"token {node}", "permission": "allow", "flows": ["ingress"],
+                      "messages": ["liveliness_token"], "key_exprs": [f"{prefix}/alive/{role_of(node)}/{node}"]})
+        if own:
+            rules.append({"id": f"put {node}", "permission": "allow", "flows": ["ingress"], "messages": ["put"],
+                          "key_exprs": own})
+            names.append(f"put {node}")
+        policies.append({"rules": names, "subjects": [f"user {node}"]})
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
+            "policies": policies}
+
+
+@dataclasses.dataclass(frozen=True)
+class Credential:
+    """One process's login on the bus (and, for a TLS router, the CA certificate that signs it)."""
+
+    user: str
+    password: str
+    tls_ca: str | None = None
+
+    def to_json(self) -> str:
+        return json.dumps(dataclasses.asdict(self))
+
+    @classmethod
+    def from_json(cls, text: str) -> Credential:
+        obj = json.loads(text)
+        if not isinstance(obj, dict) or not isinstance(obj.get("user"), str) \
+                or not isinstance(obj.get("password"), str):
+            raise ValueError("expected a JSON object with 'user' and 'password'")
+        ca = obj.get("tls_ca")
+        return cls(obj["user"], obj["password"], ca if isinstance(ca, str) else None)
+
+
+def fleet_nodes(robots: Iterable[str]) -> list[str]:
+    """Every user of a run: the services and the robots."""
+    return [*SERVICES, *robots]
+
+
+def make_credentials(nodes: Iterable[str]) -> dict[str, str]:
+    """A fresh random password per node (``secrets``: these are keys, not simulation draws)."""
+    return {n: secrets.token_urlsafe(24) for n in nodes}
+
+
+def dictionary_text(passwords: dict[str, str]) -> str:
+    """Zenoh's ``usrpwd`` dictionary file: ``user:password`` lines."""
+    return "".join(f"{u}:{p}\n" for u, p in passwords.items())
+
+
+def read_dictionary(text: str) -> dict[str, str]:
+    """The inverse of :func:`dictionary_text`; ValueError on a malformed line."""
+    out: dict[str, str] = {}
+    for n, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        user, sep, password = line.partition(":")
+        if not sep or not user or not password:
+            raise ValueError(f"line {n} is not user:password")
+        out[user] = password
+    return out
