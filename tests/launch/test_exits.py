@@ -33,7 +33,7 @@ class _Consumer:
 
 
 def _wait(monitor: Monitor, dead: dict[str, int]) -> str | None:
-    return runner._wait(monitor, _Consumer(), _Sup(dead), None, None, lambda _: None)  # type: ignore[arg-type]
+    return runner._wait(monitor, _Consumer(), _Sup(dead), None, None, threading.Event(), lambda _: None)  # type: ignore[arg-type]
 
 
 def test_a_clean_world_exit_waits_for_its_stop(monkeypatch: pytest.MonkeyPatch) -> None:
