@@ -160,14 +160,17 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
         _make_out(opts.out_dir)
     with contextlib.ExitStack() as files:
         work = opts.out_dir or Path(files.enter_context(tempfile.TemporaryDirectory(prefix="fleet-run-")))
-        write_json_atomic(work / "scenario.json", scenario.to_dict())
-        map_data.save(work / "map.npz")
         recording = work / "run.mcap" if opts.record and opts.out_dir is not None else None
-        result, failure = _run(scenario, map_data, run_id, work, recording, opts, creds)
-        if opts.out_dir is not None:
-            write_json_atomic(work / "result.json", result.data)
-        elif failure == "error":
-            result.data["error"] += f" ({_last_log_line(work, result.data['error'])})"
+        try:
+            write_json_atomic(work / "scenario.json", scenario.to_dict())
+            map_data.save(work / "map.npz")
+            result, failure = _run(scenario, map_data, run_id, work, recording, opts, creds)
+            if opts.out_dir is not None:
+                write_json_atomic(work / "result.json", result.data)
+            elif failure == "error":
+                result.data["error"] += f" ({_last_log_line(work, result.data['error'])})"
+        except OSError as exc:  # a full disk, a directory removed under the run
+            raise RunError(f"cannot write the run's files in {work}: {exc.strerror or exc}") from None
     if failure == "interrupted" and opts.interrupts is None:
         raise KeyboardInterrupt
     if failure == "error":
@@ -198,7 +201,10 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         if opts.connect:
             endpoint = opts.connect
         else:
-            router = stack.enter_context(_open_router(run_id, creds))
+            try:
+                router = stack.enter_context(_open_router(run_id, creds))
+            except zenoh.ZError as exc:
+                raise RunError(f"cannot open the embedded Zenoh router: {str(exc).splitlines()[0]}") from None
             endpoint = router_locators(router)[0]
         login = creds or {}
         session = stack.enter_context(zenoh.open(client_config(endpoint, login.get(LAUNCHER))))

@@ -37,7 +37,7 @@ from fleet_emu.recording.first_seen import FirstSeen
 from fleet_emu.recording.monitor import Monitor
 
 #: result.json keys that a recording cannot give back (they describe the launcher process, not the run)
-NOT_RECORDED = ("wall_seconds",)
+NOT_RECORDED = ("wall_seconds", "signal", "authenticated")
 
 
 def jain(x: list[float] | np.ndarray) -> float | None:
@@ -196,7 +196,7 @@ class RunMetrics:
     # --- results --------------------------------------------------------------------------------------------
 
     def result(self, recording_path: str | None = None) -> dict[str, Any]:
-        """result.json, recomputed: the monitor's result plus what the launcher adds (but ``wall_seconds``)."""
+        """result.json, recomputed: the monitor's result plus what the launcher adds (but :data:`NOT_RECORDED`)."""
         res = self.monitor.result(self.scenario, self.run_id, self.scenario["target_coverage"])
         if self.launcher_stop is not None and self.launcher_stop.reason == "interrupted":
             res["reason"] = "interrupted"

@@ -32,7 +32,8 @@ MAGIC = b"\x89MCAP0\r\n"
 class Run:
     """One recording, read and folded.
 
-    ``result`` holds the ``result.json`` keys as recomputed from the recording (but ``wall_seconds``);
+    ``result`` holds the ``result.json`` keys as recomputed from the recording (but ``metrics.NOT_RECORDED``:
+    the launcher's clock, the signal it got, whether its bus was authenticated);
     ``metrics`` what ``fleet report`` writes to ``metrics.json`` (``result`` plus the analysis groups and
     ``truncated``); ``fold`` the :class:`.metrics.RunMetrics` behind them (per-tick series, trajectories).
     """

@@ -17,6 +17,7 @@ import numpy as np
 from rich.console import Console
 
 from fleet_emu.core.errors import ReportError
+from fleet_emu.recording.metrics import NOT_RECORDED
 from fleet_emu.recording.plots import PLOTS, compare_plot
 from fleet_emu.recording.read import Run, load_recording
 from fleet_emu.recording.tables import compare_table, summary_table
@@ -88,7 +89,7 @@ def _check_result(run: Run, console: Console) -> None:
 
 def differences(result: dict[str, Any], metrics: dict[str, Any]) -> list[str]:
     """Keys of a live result.json whose values the recomputed ones (``Run.result``) do not reproduce."""
-    skip = {"wall_seconds", "pids"}  # the launcher's clock and process ids are not on the bus
+    skip = {*NOT_RECORDED, "pids"}  # the launcher's clock, signals and process ids are not on the bus
     out = []
     for k, v in result.items():
         if k in skip:

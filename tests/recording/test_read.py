@@ -16,6 +16,7 @@ from fleet_emu.core.version import SCHEMA_VERSION
 from fleet_emu.launch.cli import main as cli_main
 from fleet_emu.recording import Run, load_recording
 from fleet_emu.recording import recorder as recorder_module
+from fleet_emu.recording.metrics import NOT_RECORDED
 from fleet_emu.recording.recorder import TICK_NS, Recorder
 
 SCENARIO = {"robots": 2, "cell_size": 0.5, "map": "art", "seed": 3, "allocator": {"type": "minpos"},
@@ -30,11 +31,11 @@ def test_a_real_run_reads_back_as_its_result(small_run: Path, capsys: pytest.Cap
     assert sorted(p.name for p in small_run.iterdir()) == before  # writes nothing
     live = json.loads((small_run / "result.json").read_text())
     assert isinstance(run, Run) and not run.truncated
-    assert set(run.result) == set(live) - {"wall_seconds"}  # the launcher's clock is not on the bus
+    assert set(run.result) == set(live) - set(NOT_RECORDED)  # the launcher's clock and signals are not on the bus
     for key, value in live.items():
         if key == "pids":  # the world sends no Ready; netem and every agent do
             assert run.result[key]["agents"] == value["agents"] and run.result[key]["netem"] == value["netem"]
-        elif key != "wall_seconds":
+        elif key not in NOT_RECORDED:
             assert run.result[key] == value, key
     assert all(run.metrics[k] == v for k, v in run.result.items())
     assert run.metrics["truncated"] is False and "share" in run.metrics and "share" not in run.result
