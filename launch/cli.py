@@ -190,40 +190,44 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> None:
+    from fleet_emu.launch.signals import Interrupts
+
+    interrupts = Interrupts().install()  # first: a signal while parsing or importing is a request too
     try:
         args = build_parser().parse_args(argv)
         command = args.command or "run"
         if args.command is None:
             args = build_parser().parse_args(["run", *(argv or [])])
         if command == "run":
-            code = _run_with_signals(args)
+            code = _run_with_signals(args, interrupts)
         else:
+            interrupts.restore()  # a listing or a report: Ctrl-C simply stops it
+            if interrupts.requested.is_set():
+                raise KeyboardInterrupt
             handlers = {"maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report,
                         "router-config": cmd_router_config}
             code = handlers[command](args)
     except FleetError as exc:  # every error meant for the user, caught once: one line, its exit code
+        interrupts.restore()
         _fail(str(exc), code=exc.exit_code)
-    except KeyboardInterrupt:  # Ctrl-C outside a run (a report, a listing, parsing the command line)
+    except KeyboardInterrupt:
         print("fleet: interrupted", file=sys.stderr)
         code = 130
+    finally:
+        interrupts.restore()
     raise SystemExit(code)
 
 
-def _run_with_signals(args: argparse.Namespace) -> int:
-    """``fleet run`` with SIGINT and SIGTERM turned into requests (``launch/signals.py``): installed before
-    the run's heavy imports, restored after; a signal before the run could start still exits 130/143."""
-    from fleet_emu.launch.signals import Interrupts
-
-    interrupts = Interrupts().install()
+def _run_with_signals(args: argparse.Namespace, interrupts: Interrupts) -> int:
+    """``fleet run`` with SIGINT and SIGTERM turned into requests (``launch/signals.py``), from before the
+    run's heavy imports until it has written its files; a signal before the run could start still exits
+    130/143 after writing an interrupted ``result.json``."""
     try:
-        code = cmd_run(args, interrupts)
+        return cmd_run(args, interrupts)
     except FleetError:
         if interrupts.signum is None:
             raise
-        code = interrupts.exit_code  # bad input found after the user already asked to stop: still a stop
-    finally:
-        interrupts.restore()
-    return code
+        return interrupts.exit_code  # bad input found after the user already asked to stop: still a stop
 
 
 if __name__ == "__main__":
