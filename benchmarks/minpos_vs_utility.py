@@ -21,7 +21,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from compare_allocators import HOSPITAL, describe, run_one  # noqa: E402
+from compare_allocators import HOSPITAL, describe, run_one
 
 
 def mean_sd(xs: list[float]) -> str:
