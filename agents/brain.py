@@ -5,6 +5,16 @@ merge the observation and delivered map deltas into the belief, update teammates
 cluster frontiers, run the allocator, and step down the wavefront of the assigned cluster. It then
 broadcasts a pose beacon and a map delta of what it newly learned; a teammate heard again after a silence
 also gets the whole known map. No Zenoh, no files: the node shell does the I/O and passes a clock in.
+
+Teammates' positions. MinPos (section 4.3) ranks robots by their costs at the moment of the decision, but a
+beacon arrives a tick after it was sent, and in that tick its sender has moved. So a beacon carries both the
+sender's cell and the cell its command of the same tick moves it to (:class:`PoseBeacon`), and every
+allocator and the navigation see a teammate at that next cell (:meth:`Teammate.expected`): where it stands
+now if its move succeeded. Only what the teammate broadcast is used, plus one thing the robot knows for
+sure: no two robots share a cell, so a teammate announced onto the robot's own cell did not get there and
+is still on the cell it sent from. Navigation steps around a teammate heard last tick that stands still
+(it announced no move, or its move cannot have happened); one that is moving on is followed, since the world
+lets a line of robots advance in the same tick.
 """
 
 from __future__ import annotations
@@ -41,8 +51,18 @@ class BrainConfig:
 
 @dataclasses.dataclass
 class Teammate:
+    """A teammate's last beacon: ``cell`` where it stood when it sent it, ``next`` where its command of that
+    tick moves it, ``heard`` the tick it was heard."""
+
     cell: Cell
     heard: int
+    next: Cell | None = None
+
+    def expected(self, mine: Cell) -> Cell:
+        """Where the teammate stands now, as far as its beacon tells: its next cell, unless that is ``mine``
+        (the deciding robot's own cell, which the teammate cannot have entered)."""
+        nxt = self.cell if self.next is None else self.next
+        return self.cell if nxt == mine else nxt
 
 
 def brain_config(scenario: Scenario) -> BrainConfig:
@@ -119,7 +139,8 @@ class Brain:
                 belief.merge(msg.body.cells, msg.body.values)
             else:
                 protocol.append(msg)
-        poses = {self.me: obs.cell} | {r: tm.cell for r, tm in sorted(self.teammates.items())}
+        expected = {r: tm.expected(obs.cell) for r, tm in sorted(self.teammates.items())}
+        poses = {self.me: obs.cell} | expected
         problem = Problem(me=self.me, poses=poses, belief=belief.grid,
                           clusters=find_clusters(belief.grid, self.config.cluster_max), tick=t,
                           heard={r: tm.heard for r, tm in self.teammates.items()})
@@ -129,13 +150,14 @@ class Brain:
         move = STAY
         wants = False  # the robot wants to move but a teammate stands on every way down the wavefront
         if alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None:
-            blocked = {tm.cell for tm in self.teammates.values() if tm.heard >= t - 1}
+            blocked = {expected[r] for r, tm in self.teammates.items()
+                       if tm.heard >= t - 1 and expected[r] == tm.cell}
             dist = problem.wavefronts[alloc.cluster]
             move = next_move(dist, obs.cell, blocked)
             wants = move == STAY and dist[obs.cell] > 0
-        move = self._unstick(obs.cell, move, wants, belief.grid)
+        move = self._unstick(obs.cell, move, wants, belief.grid, set(expected.values()))
         outbox.extend(alloc.outbox)
-        news = [RadioMsg(PoseBeacon(cell=obs.cell))]
+        news = [RadioMsg(PoseBeacon(cell=obs.cell, next=(obs.cell[0] + move[0], obs.cell[1] + move[1])))]
         cells, values = belief.take_news()
         if len(cells):
             news.append(RadioMsg(MapDelta(cells=cells, values=values)))
@@ -152,17 +174,17 @@ class Brain:
         if (prev is None or t - prev.heard > self.config.resync_after) and self.belief is not None:
             cells, values = self.belief.known()
             outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=msg.src))
-        self.teammates[msg.src] = Teammate(cell=beacon.cell, heard=max(t, msg.tick))
+        self.teammates[msg.src] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
 
-    def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray) -> Cell:
+    def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray, occupied: set[Cell]) -> Cell:
         """A robot whose moves keep failing, or that keeps waiting for a teammate to clear its way (two
-        robots head-on in a corridor), tries a random free step, drawn from its own generator."""
+        robots head-on in a corridor), tries a random free step (not onto a cell in ``occupied``, the
+        teammates' expected cells), drawn from its own generator."""
         if (self.last_cell == cell and self.last_move != STAY) or wants:
             self.stuck += 1
         else:
             self.stuck = 0
         if (move != STAY or wants) and self.stuck >= self.config.unstick_after:
-            occupied = {tm.cell for tm in self.teammates.values()}
             options = [m for m in MOVES if _free(grid, (cell[0] + m[0], cell[1] + m[1]))
                        and (cell[0] + m[0], cell[1] + m[1]) not in occupied]
             if options:

@@ -234,3 +234,42 @@ def test_no_reachable_frontier_means_no_frontier() -> None:
     for w in VARIANTS:
         a = make_allocator({"type": "minpos", "wavefront": w}).allocate(problem(art, "r0"))
         assert a.status is AllocStatus.NO_FRONTIER
+
+
+# The position counts only teammates strictly closer (C_kj < C_ij): R0 and R1 are level toward F_A, so R0 is
+# first toward it, as toward F_B, and takes F_A, the nearer. Counting the level teammate (<=) would make it
+# second toward F_A and send it to F_B. F_A has the lower index, so the tie-break rule does not matter here.
+LEVEL = """
+#####?#######
+#..1...0....?
+#############
+"""
+F_A, F_B = (1, 5), (1, 11)
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_a_teammate_level_with_the_robot_is_not_ahead_of_it(variant: str) -> None:
+    p = problem(LEVEL, "r0")
+    assert [c.target for c in p.clusters] == [F_A, F_B]
+    assert p.costs[:, 0].tolist() == [2, 2]  # level toward F_A
+    assert positions(p.costs, p.index).tolist() == [0, 0]
+    assert target({"type": "minpos", "wavefront": variant}, LEVEL, "r0") == F_A
+    assert target({"type": "minpos", "wavefront": variant}, LEVEL, "r1") == F_A  # the same for R1
+
+
+# Equal positions go to the least cost, not the lowest index: R0 is first toward both; F_far (index 0) is
+# four steps away, F_near (index 1) two.
+NEAR_FAR = """
+########?####
+#?....0.....#
+#############
+"""
+F_FAR, F_NEAR = (1, 2), (1, 8)
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_equal_positions_go_to_the_least_cost_not_the_lowest_index(variant: str) -> None:
+    p = problem(NEAR_FAR, "r0")
+    assert [c.target for c in p.clusters] == [F_FAR, F_NEAR]
+    assert p.costs[0].tolist() == [4, 2]
+    assert target({"type": "minpos", "wavefront": variant}, NEAR_FAR, "r0") == F_NEAR
