@@ -72,7 +72,7 @@ def _spec(spec: str) -> tuple[str, dict[str, str]]:
     for item in filter(None, rest.split(",")):
         key, _, value = item.partition("=")
         if not key or not value:
-            raise SystemExit(f"trade_idle: {spec!r} is not NAME:PARAM=VALUE,...")
+            raise ValueError(f"{spec!r} is not NAME or NAME:PARAM=VALUE,...")
         params[key] = value
     return name, params
 
@@ -94,7 +94,10 @@ def main() -> None:
     a = p.parse_args()
     extra = ["--comm", a.comm] + (["--start", a.start] if a.start != "map" else [])
     for al in a.allocators:
-        _spec(al)  # a malformed spec stops here, before any run
+        try:
+            _spec(al)  # a malformed spec stops here (one line, exit 2), before any run
+        except ValueError as exc:
+            p.error(str(exc))
     jobs = [(m, loss, al, s) for m in a.maps for loss in a.loss for al in a.allocators for s in range(a.seeds)]
     results: dict[tuple[str, float, str, int], dict] = {}
     with ThreadPoolExecutor(a.jobs) as pool:
