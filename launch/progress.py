@@ -72,6 +72,7 @@ def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
         ("ticks", str(result["ticks"])),
         ("t90 / t99", f"{result['t90']} / {result['t99']}"),
         ("path length", f"{sum(result['path_length'])} cells ({', '.join(map(str, result['path_length']))})"),
+        ("idle robot-ticks", _idle(result)),
         ("connected", "-" if result["connected_fraction"] is None else f"{result['connected_fraction']:.1%}"),
         ("radio msgs", f"sent {radio['sent']}, delivered {radio['delivered']}, lost {radio['dropped_loss']}, "
                        f"out of range {radio['dropped_signal']}, {radio['bytes_sent'] / 1e6:.2f} MB"),
@@ -83,3 +84,11 @@ def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
     for k, v in rows:
         t.add_row(k, v)
     return t
+
+
+def _idle(result: Mapping[str, Any]) -> str:
+    """Idle robot-ticks, with their split by the robots' status (``WAITING`` in a protocol round,
+    ``ASSIGNED`` but blocked)."""
+    by = result.get("idle_by_status") or {}
+    split = ", ".join(f"{k.lower()} {v}" for k, v in sorted(by.items()))
+    return f"{result.get('idle_robot_ticks', '-')}" + (f" ({split})" if split else "")

@@ -14,6 +14,7 @@ import numpy as np
 from fleet_emu import __version__
 from fleet_emu.core.access import allowed_src
 from fleet_emu.core.codec import DecodeError, decode
+from fleet_emu.core.grid import Cell
 from fleet_emu.core.keys import parse_key
 from fleet_emu.core.messages import AgentReport, Command, Links, Message, Stop, WorldState
 from fleet_emu.core.version import SCHEMA_VERSION
@@ -40,6 +41,8 @@ class Monitor:
     coverage_curve: list[tuple[int, float]] = dataclasses.field(default_factory=list)
     first_state_ns: int | None = None
     last_state_ns: int | None = None
+    cells: dict[int, dict[str, Cell]] = dataclasses.field(default_factory=dict)  # tick -> live robots' cells
+    status: dict[tuple[int, str], str] = dataclasses.field(default_factory=dict)  # (tick, robot) -> cmd status
 
     def feed(self, key: str, data: bytes, wall_ns: int | None = None) -> Message | None:
         """Decode and fold one sample; returns the message (None if it is not one the monitor uses)."""
@@ -66,6 +69,7 @@ class Monitor:
             if self.state is None or msg.tick >= self.state.tick:
                 self.state = msg
             self.coverage_curve.append((msg.tick, msg.coverage))
+            self.cells[msg.tick] = {r: tuple(msg.poses[r]) for r in msg.live if r in msg.poses}
             if self.t90 is None and msg.coverage >= 0.90:
                 self.t90 = msg.tick
             if self.t99 is None and msg.coverage >= 0.99:
@@ -77,10 +81,22 @@ class Monitor:
                 self.links = msg
         elif isinstance(msg, Command):
             self.decision_ms.append(msg.decision_ms)
+            self.status[(msg.tick, msg.src)] = msg.status
         elif isinstance(msg, AgentReport):
             self.reports[msg.src] = msg
         elif isinstance(msg, Stop) and msg.src == "world":
             self.stop = msg
+
+    def idle(self) -> dict[str, int]:
+        """Idle robot-ticks by the status of the robot's command: a robot that had something to do (its
+        command for tick t is not ``NO_FRONTIER``) and is on the same cell at t + 1 (it waited, or its move
+        was blocked), live at both ticks. Counted from the states and commands alone, in any order."""
+        idle: dict[str, int] = {}
+        for (t, robot), status in sorted(self.status.items()):
+            before, after = self.cells.get(t, {}), self.cells.get(t + 1, {})
+            if status != "NO_FRONTIER" and robot in before and before[robot] == after.get(robot):
+                idle[status] = idle.get(status, 0) + 1
+        return idle
 
     @property
     def tick(self) -> int:
@@ -96,6 +112,7 @@ class Monitor:
         lk = self.links
         ms = np.array(self.decision_ms) if self.decision_ms else np.zeros(1)
         completed = bool(st is not None and st.coverage >= target)
+        idle = self.idle()
         return {
             "run_id": run_id,
             "seed": scenario["seed"],
@@ -112,6 +129,8 @@ class Monitor:
             "t90": self.t90,
             "t99": self.t99,
             "path_length": [st.path_length.get(r, 0) if st else 0 for r in self.robots],
+            "idle_robot_ticks": sum(idle.values()),
+            "idle_by_status": idle,
             "connected_fraction": round(self.connected_ticks / self.link_ticks, 6) if self.link_ticks else None,
             "radio": {
                 "sent": lk.sent if lk else 0,

@@ -30,12 +30,23 @@ Robustness under loss (our addition; the paper does not say how a robot recovers
   a seller that heard nobody would) and broadcasts that allocation;
 - a task held for ``task_timeout`` ticks is given up (broadcast as done).
 
-So a robot with a reachable frontier is ASSIGNED at most ``(retries + 1) * (time_max + award_timeout) +
-time_max`` ticks after it becomes free. While in a round it returns WAITING (the brain stays); with no
-reachable frontier it returns NO_FRONTIER but still takes part (it can sell to others). Ticks are the time unit.
-The paper gives no value for its timeMax or bidding period (its robots ran in continuous time): the defaults
-are the least that let robots that became free in the same tick, or one tick apart, meet in one round, as one
-tick is a message's latency here.
+So a robot with a reachable frontier is in a task at most ``(retries + 1) * (time_max + award_timeout) +
+time_max`` ticks after it becomes free. With no reachable frontier it returns NO_FRONTIER but still takes part
+(it can sell to others). Ticks are the time unit. The paper gives no value for its timeMax or bidding period
+(its robots ran in continuous time): the defaults are the least that let robots that became free in the same
+tick, or one tick apart, meet in one round, as one tick is a message's latency here.
+
+Between tasks (``explore_in_round``, default true). The paper does not stop a robot while it trades: Algorithm
+1 and section 4.2 only say what a robot not in a task broadcasts, listens for and decides, section 4.3's motion
+planning says how a task is carried out, and Fig. 1 shows a robot that "has completed the exploration of room 0"
+already "moving to next room". Its tasks are whole regions (rooms, corridors), so a round is short beside a task;
+ours are frontier clusters, done as soon as the robot has sensed them, so a round of ``time_max + bid_period``
+ticks comes every dozen ticks or so, and a robot standing still through it (``explore_in_round = false``, the
+first version) spent about a quarter of its ticks WAITING. So, during a round, the robot heads for the task it
+trades for: the one it bid for or picked as seller once it has one (while that frontier is there), else its
+current pick (the least-cost task not taken, the one it would bid for now), and its status is ASSIGNED. The
+rules of the round are untouched (same messages, same decisions from the same belief and position); only the
+position, and with it the costs, moves on meanwhile, and the award may send the robot elsewhere.
 """
 
 from __future__ import annotations
@@ -153,7 +164,7 @@ class Trade(Allocator, plugin_name="trade"):
 
     parameters = {"time_max": Param(2, ge=0), "bid_period": Param(2, ge=0), "award_timeout": Param(5, ge=1),
                   "retries": Param(1, ge=0), "task_radius": Param(3, ge=0), "claim_ttl": Param(100, ge=0),
-                  "task_timeout": Param(300, ge=1)}  # ticks, but task_radius (cells)
+                  "task_timeout": Param(300, ge=1), "explore_in_round": Param(True)}  # ticks, but task_radius
     time_max: int
     bid_period: int
     award_timeout: int
@@ -161,6 +172,7 @@ class Trade(Allocator, plugin_name="trade"):
     task_radius: int
     claim_ttl: int
     task_timeout: int
+    explore_in_round: bool
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -197,8 +209,13 @@ class Trade(Allocator, plugin_name="trade"):
             if alloc is not None:
                 return alloc
         out.append(RadioMsg(TradeNumber(number=self._number(s.me)), dst="*"))  # Alg. 1 line 2
-        status = AllocStatus.WAITING if self._pick(problem) is not None else AllocStatus.NO_FRONTIER
-        return Allocation(status, outbox=tuple(out))
+        pick = self._pick(problem)
+        if pick is None:
+            return Allocation.none(tuple(out))
+        if self.explore_in_round:  # on toward the task it trades for (module docstring, "Between tasks")
+            j = self._track(problem, s.pick[0]) if s.pick is not None else None
+            return Allocation.assigned(problem, self._index(problem, pick[0]) if j is None else j, tuple(out))
+        return Allocation(AllocStatus.WAITING, outbox=tuple(out))
 
     def _explore(self, problem: Problem, out: list[RadioMsg]) -> Allocation | None:
         """ASSIGNED to the allocated task's cluster; None (back to role allocation) when the task is done,
@@ -337,6 +354,11 @@ class Trade(Allocator, plugin_name="trade"):
             if d <= self.task_radius and problem.wavefronts[j][me] >= 0 and (best is None or d < best[0]):
                 best = (d, j)
         return None if best is None else best[1]
+
+    @staticmethod
+    def _index(problem: Problem, target: Cell) -> int:
+        """The cluster whose target is ``target`` (one of ``problem.clusters``, as ``_pick`` returns it)."""
+        return next(j for j, c in enumerate(problem.clusters) if c.target == target)
 
     @staticmethod
     def _number(robot: str) -> int:

@@ -10,7 +10,7 @@ import pytest
 
 from fleet_emu.agents.allocators import AllocStatus, Problem, make_allocator
 from fleet_emu.agents.allocators.conformance import api_test, seed_test
-from fleet_emu.agents.allocators.trade import TradeAllocation, TradeNumber, TradePurchase, greedy_table
+from fleet_emu.agents.allocators.trade import Phase, TradeAllocation, TradeNumber, TradePurchase, greedy_table
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.agents.navigation import next_move
 from fleet_emu.core.errors import ConfigError
@@ -49,13 +49,14 @@ def never(msg: RadioMsg, dst: str, tick: int) -> bool:
 class Fleet:
     """Allocators of several robots on one shared belief, messages delivered the next tick."""
 
-    def __init__(self, robots: list[str], **params: int) -> None:
+    def __init__(self, robots: list[str], **params: int | bool) -> None:
         self.allocs = {r: make_allocator({"type": "trade", **params}) for r in robots}
         for k, a in enumerate(self.allocs.values()):
             a.reset(np.random.default_rng(k))
         self.pending: list[RadioMsg] = []
         self.sent: list[RadioMsg] = []
         self.statuses: dict[str, list[AllocStatus]] = {r: [] for r in robots}
+        self.in_task: dict[str, list[bool]] = {r: [] for r in robots}  # allocated a task (not in a round)
         self.targets: dict[str, Cell | None] = dict.fromkeys(robots)
 
     def tick(self, t: int, belief: np.ndarray, poses: dict[str, Cell], drop: Drop = never,
@@ -69,6 +70,7 @@ class Fleet:
             p = Problem(me=r, poses=poses, belief=belief, clusters=clusters, tick=t)
             a = alloc.allocate(p, inbox)
             self.statuses[r].append(a.status)
+            self.in_task[r].append(alloc.s.phase is Phase.TASK)
             self.targets[r] = a.target
             chosen[r] = a.cluster if a.status is AllocStatus.ASSIGNED else None
             for m in a.outbox:
@@ -87,8 +89,9 @@ class Fleet:
             self.tick(t, grid, poses, drop, silent)
 
     def first_assigned(self, robot: str, after: int = 0) -> int | None:
-        for t, st in enumerate(self.statuses[robot]):
-            if t >= after and st is AllocStatus.ASSIGNED:
+        """The first tick the robot was in an allocated task (a round ended for it)."""
+        for t, in_task in enumerate(self.in_task[robot]):
+            if t >= after and in_task:
                 return t
         return None
 
@@ -114,7 +117,7 @@ def test_conformance() -> None:
     api_test({"type": "trade", "time_max": 0, "bid_period": 0, "award_timeout": 1, "retries": 0})
     assert make_allocator({"type": "trade"}).to_dict() == {
         "type": "trade", "time_max": 2, "bid_period": 2, "award_timeout": 5, "retries": 1, "task_radius": 3,
-        "claim_ttl": 100, "task_timeout": 300}
+        "claim_ttl": 100, "task_timeout": 300, "explore_in_round": True}
     with pytest.raises(ConfigError, match="time_max must be an integer >= 0"):
         make_allocator({"type": "trade", "time_max": -1})
 
@@ -126,11 +129,11 @@ def test_greedy_table_is_algorithm_2() -> None:
     assert greedy_table({"r1": ((0, 0), 2.0), "r0": ((0, 0), 2.0)}, 0) == {"r0": (0, 0)}  # tie: lower number
 
 
-def test_normal_round_allocates_distinct_tasks() -> None:
-    fleet = Fleet(["r0", "r1", "r2"])
+@pytest.mark.parametrize("explore_in_round", [True, False])
+def test_normal_round_allocates_distinct_tasks(explore_in_round: bool) -> None:
+    fleet = Fleet(["r0", "r1", "r2"], explore_in_round=explore_in_round)
     fleet.run_static(CORNERS, 12)
     # tick 0-1: numbers; tick 2: r0 seller, r1 and r2 buy; tick 4: r0 allocates; tick 5: buyers have it.
-    assert all(fleet.statuses[r][:2] == [AllocStatus.WAITING] * 2 for r in fleet.allocs)
     assert fleet.first_assigned("r0") == 2 + 2
     assert fleet.first_assigned("r1") == fleet.first_assigned("r2") == 2 + 2 + 1
     assert all(s is AllocStatus.ASSIGNED for st in fleet.statuses.values() for s in st[5:])
@@ -143,6 +146,42 @@ def test_normal_round_allocates_distinct_tasks() -> None:
     assert allocs[0].body.awards == {"r0": (0, 1), "r1": (4, 1), "r2": (0, 13)}
     numbers = [m for m in fleet.sent if isinstance(m.body, TradeNumber)]
     assert all(m.tick <= 4 for m in numbers)  # robots in a task stop broadcasting their numbers
+    in_round = {r: fleet.statuses[r][:fleet.first_assigned(r)] for r in fleet.allocs}
+    if explore_in_round:  # on toward the task each trades for, never standing still
+        assert all(st == [AllocStatus.ASSIGNED] * len(st) for st in in_round.values())
+    else:  # the first version: WAITING, the brain stays
+        assert all(st == [AllocStatus.WAITING] * len(st) for st in in_round.values())
+
+
+@pytest.mark.parametrize("art", [CORNERS, CONTENDED])
+def test_exploring_in_a_round_leaves_the_protocol_as_it_was(art: str) -> None:
+    """Same messages, same ticks in a task and same final tasks whether robots move during rounds or not (the
+    static map: only the robots' motion differs); during the round each heads for its pick, then its bid."""
+    runs = []
+    for explore in (True, False):
+        fleet = Fleet(["r0", "r1", "r2"], explore_in_round=explore)
+        fleet.run_static(art, 30)
+        runs.append(fleet)
+    moving, standing = runs
+    assert [(m.src, m.dst, m.body) for m in moving.sent] == [(m.src, m.dst, m.body) for m in standing.sent]
+    assert moving.in_task == standing.in_task and moving.targets == standing.targets
+    assert AllocStatus.WAITING not in {s for st in moving.statuses.values() for s in st}
+    assert AllocStatus.WAITING in {s for st in standing.statuses.values() for s in st}
+
+
+def test_a_buyer_heads_for_the_task_it_bid_for() -> None:
+    # r1 is as near r0's corner as r0: while electing it heads there (its pick) and keeps heading there while
+    # its purchase is out (ticks 2-4); outbid at tick 5, it heads for the corner left over while it elects and
+    # sells to itself, and is in that task from tick 9.
+    fleet = Fleet(["r0", "r1", "r2"])
+    grid, poses = from_ascii(CONTENDED)
+    targets = []
+    for t in range(10):
+        fleet.tick(t, grid, poses)
+        targets.append(fleet.targets["r1"])
+    assert targets == [(0, 1)] * 5 + [(4, 1)] * 5
+    assert fleet.first_assigned("r1") == 9
+    assert fleet.statuses["r1"] == [AllocStatus.ASSIGNED] * 10
 
 
 def test_outbid_buyer_gets_another_task() -> None:
@@ -165,7 +204,7 @@ def test_lost_message_does_not_deadlock(drop: Drop) -> None:
     for r in fleet.allocs:
         t = fleet.first_assigned(r)
         assert t is not None and t <= BOUND, (r, t)
-        assert all(s is AllocStatus.ASSIGNED for s in fleet.statuses[r][t:]), r
+        assert all(fleet.in_task[r][t:]), r
     assert len(set(fleet.targets.values())) == 3
 
 
@@ -232,10 +271,11 @@ def explore(ticks: int, loss: float, seed: int) -> tuple[Fleet, float]:
     return fleet, known.sum() / (truth == FREE).sum()
 
 
-def longest_wait(statuses: list[AllocStatus]) -> int:
+def longest_round(fleet: Fleet, robot: str) -> int:
+    """The longest run of ticks out of a task with a frontier to explore (in a protocol round)."""
     run = best = 0
-    for s in statuses:
-        run = run + 1 if s is AllocStatus.WAITING else 0
+    for busy, status in zip(fleet.in_task[robot], fleet.statuses[robot], strict=True):
+        run = 0 if busy or status is AllocStatus.NO_FRONTIER else run + 1
         best = max(best, run)
     return best
 
@@ -243,9 +283,10 @@ def longest_wait(statuses: list[AllocStatus]) -> int:
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_half_the_messages_lost_still_assigns(seed: int) -> None:
     fleet, coverage = explore(200, 0.5, seed)
-    for r, st in fleet.statuses.items():
-        assert longest_wait(st) <= BOUND, (r, longest_wait(st))
-        assert st.count(AllocStatus.ASSIGNED) > 0
+    for r, busy in fleet.in_task.items():
+        assert longest_round(fleet, r) <= BOUND, (r, longest_round(fleet, r))
+        assert any(busy)
+        assert AllocStatus.WAITING not in fleet.statuses[r]  # rounds or not, the robot explores
     rounds = [m for m in fleet.sent if isinstance(m.body, TradeAllocation)]
     assert len(rounds) > len(fleet.allocs)  # tasks were completed and traded again
     assert coverage == 1.0
@@ -254,5 +295,5 @@ def test_half_the_messages_lost_still_assigns(seed: int) -> None:
 def test_lossless_exploration_completes() -> None:
     fleet, coverage = explore(200, 0.0, 0)
     assert coverage == 1.0
-    for st in fleet.statuses.values():
-        assert longest_wait(st) <= BOUND
+    for r in fleet.allocs:
+        assert longest_round(fleet, r) <= BOUND

@@ -46,3 +46,21 @@ def test_ticks_per_second_fails_when_a_run_fails() -> None:
     lines = proc.stderr.strip().splitlines()
     assert lines[0].startswith("[1/2] 1 robots: FAILED (exit 2: fleet: error:") and "telepathy" in lines[0]
     assert lines[-1] == "ticks_per_second: 2 of 2 runs failed (see the lines above)"
+
+
+def test_trade_idle_reports_each_run_and_the_idle_ticks(small_map: Path) -> None:
+    proc = _bench("trade_idle.py", "--allocators", "hungarian", "trade:explore_in_round=false", "--seeds", "1",
+                  "--maps", str(small_map), "--start", "map", "--comm", "full")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 2 and all(" idle " in ln for ln in lines), proc.stderr
+    rows = [ln.split() for ln in proc.stdout.splitlines() if ln.startswith(small_map.stem)]
+    assert [r[2] for r in rows] == ["hungarian", "trade:explore_in_round=false"]
+    assert int(rows[1][-3]) > 0  # robots standing still through their rounds: idle robot-ticks
+    assert int(rows[1][-1]) > 0  # ... spent WAITING
+
+
+def test_trade_idle_bad_allocator_spec_is_one_line() -> None:
+    proc = _bench("trade_idle.py", "--allocators", "trade:explore_in_round")
+    assert proc.returncode == 2 and proc.stderr.strip().splitlines()[-1].endswith(
+        "'trade:explore_in_round' is not NAME or NAME:PARAM=VALUE,...")
