@@ -118,14 +118,11 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
         raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
     if args.connect is None and (args.credentials or args.tls_ca):
         raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
-    if args.connect is not None and args.credentials is None:
-        print("fleet: warning: --connect without --credentials: this run's bus is not authenticated "
-              "(see `fleet router-config`)", file=sys.stderr)
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
         opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
                           connect=args.connect, run_id=run_id, grid_every=args.grid_every,
                           on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
-                          interrupts=interrupts)
+                          interrupts=interrupts, on_warning=_warn)
         result = run_fleet(scenario, opts)
     if interrupts.signum is not None:
         when = "" if result["reason"] == "interrupted" else f" after the run ended ({result['reason']})"
@@ -137,6 +134,10 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     else:
         print(out / "result.json")
     return exit_code(result, out)
+
+
+def _warn(message: str) -> None:
+    print(f"fleet: warning: {message}", file=sys.stderr)
 
 
 def cmd_router_config(args: argparse.Namespace) -> int:
@@ -193,6 +194,7 @@ def main(argv: list[str] | None = None) -> None:
     from fleet_emu.launch.signals import Interrupts
 
     interrupts = Interrupts().install()  # first: a signal while parsing or importing is a request too
+    command = "run"
     try:
         args = build_parser().parse_args(argv)
         command = args.command or "run"
@@ -214,7 +216,9 @@ def main(argv: list[str] | None = None) -> None:
         print("fleet: interrupted", file=sys.stderr)
         code = 130
     finally:
-        interrupts.restore()
+        if command != "run":
+            interrupts.restore()
+    # after a run the handler stays: a signal while the interpreter exits is ignored, the run's files are written
     raise SystemExit(code)
 
 

@@ -70,6 +70,7 @@ class RunOptions:
     credentials: Path | None = None  # with ``connect``: the users file of `fleet router-config`
     tls_ca: Path | None = None  # with a ``tls/`` ``connect``: the CA certificate that signed the router's
     interrupts: Interrupts | None = None  # the CLI's signal state (None: Ctrl-C raises KeyboardInterrupt)
+    on_warning: Callable[[str], None] | None = None  # told once the input is checked (an unauthenticated bus)
 
 
 def new_run_id() -> str:
@@ -155,6 +156,9 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     map_data = check(scenario)
     creds = credentials(scenario, opts)
     check_options(opts, creds)
+    if opts.connect is not None and creds is None and opts.on_warning is not None:
+        opts.on_warning("--connect without --credentials: this run's bus is not authenticated "
+                        "(see `fleet router-config`)")
     run_id = opts.run_id or new_run_id()
     if opts.out_dir is not None:
         _make_out(opts.out_dir)

@@ -163,6 +163,7 @@ def test_malformed_messages_are_dropped_and_counted(small_map: Path, tmp_path: P
     assert res["completed"] and res["failed"] == []
     assert res["malformed_dropped"] > 0
     assert "Traceback" not in err
+    assert "fleet: warning: --connect without --credentials" in err  # said once the router answered
     for name in ("world", "netem", "r0", "r1", "r2"):
         log = (out / f"{name}.log").read_text()
         assert "Traceback" not in log, f"{name}: {log[-1500:]}"
