@@ -59,6 +59,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--comm", choices=COMM_MODELS,
                    help="radio: wall (eq. 4), disk (within --comm-range), full (all pairs), ideal (full, no loss)")
     r.add_argument("--out", type=Path, help="output directory (default runs/<run id>)")
+    r.add_argument("--engine", choices=("processes", "memory"), default="processes",
+                   help="processes: one OS process per node over Zenoh; memory: the same objects stepped in this "
+                        "process, no Zenoh (same result for a seed)")
     r.add_argument("--in-process", action="store_true", help="all nodes in this process (one session each)")
     r.add_argument("--no-record", action="store_true", help="do not write run.mcap")
     r.add_argument("--connect", help="use an external Zenoh router, e.g. tcp/192.0.2.1:7447")
@@ -88,7 +91,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from fleet_emu.launch.progress import Progress, summary_table
-    from fleet_emu.launch.runner import RunOptions, new_run_id, run_fleet
+    from fleet_emu.launch.runner import RunOptions, check_options, new_run_id, run_fleet
 
     out = args.out
     console = Console(stderr=True)
@@ -98,11 +101,21 @@ def cmd_run(args: argparse.Namespace) -> int:
         out = args.out or Path("runs") / run_id
         if args.grid_every is not None and args.grid_every < 1:
             raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
+        if args.engine == "memory" and (args.in_process or args.connect):
+            raise ConfigError(f"--engine memory runs without Zenoh: it takes no "
+                              f"{'--in-process' if args.in_process else '--connect'}")
         with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
-            opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
-                              connect=args.connect, run_id=run_id, grid_every=args.grid_every,
-                              on_progress=progress.update)
-            result = run_fleet(scenario, opts)
+            if args.engine == "memory":
+                from fleet_emu.launch.memory import run_memory
+
+                check_options(RunOptions(run_id=run_id))
+                result = run_memory(scenario, out, record=not args.no_record, run_id=run_id,
+                                    grid_every=args.grid_every, on_progress=progress.update)
+            else:
+                opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
+                                  connect=args.connect, run_id=run_id, grid_every=args.grid_every,
+                                  on_progress=progress.update)
+                result = run_fleet(scenario, opts)
     except KeyboardInterrupt:
         print(f"fleet: interrupted; what was recorded is in {out}", file=sys.stderr)
         return 130

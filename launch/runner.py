@@ -212,6 +212,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         data["reason"] = "error"
         data["error"] = error
     data |= {
+        "engine": "in-process" if opts.in_process else "processes",
         "pids": pids,
         "recording": {"path": str(recording) if recording else None, "messages": messages},
         "wall_seconds": round(time.monotonic() - t_start, 3),
