@@ -76,6 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--compare", action="store_true", help="one table and overlaid coverage curves of the runs")
     rep.add_argument("--out", type=Path, help="where --compare writes its PNG (default ./compare.png)")
     rep.add_argument("--no-plots", action="store_true", help="metrics.json and the table only")
+    from fleet_emu.sweep.cli import add_parser as add_sweep
+
+    add_sweep(sub)
     return p
 
 
@@ -169,12 +172,19 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from fleet_emu.sweep.cli import cmd_sweep as sweep
+
+    return sweep(args)
+
+
 def main(argv: list[str] | None = None) -> None:
     args = build_parser().parse_args(argv)
     command = args.command or "run"
     if args.command is None:
         args = build_parser().parse_args(["run", *(argv or [])])
-    handlers = {"run": cmd_run, "maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report}
+    handlers = {"run": cmd_run, "maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report,
+                "sweep": cmd_sweep}
     try:
         code = handlers[command](args)
     except FleetError as exc:  # every error meant for the user, caught once: one line, its exit code
