@@ -163,7 +163,8 @@ def _paper_table(paper: dict[str, Any], rows: list[dict[str, Any]], lines: list[
                  baseline: str | None) -> Any:
     """The paper's rows (``[[paper.rows]]``: what, allocator, metric, value, and optional robots/loss filters)
     with ours beside them; ``metric`` is one of :data:`METRICS`, ``std_ticks``, ``vs_baseline_pct`` (mean over
-    the matching groups) or ``vs_loss0_pct`` (the time's % change from loss 0, same robots)."""
+    the matching groups), ``mean_std_ticks`` (the time's std, mean over the matching groups) or ``vs_loss0_pct``
+    (the time's % change from loss 0, same robots, pooled)."""
     from rich.table import Table
 
     t = Table(title=f"the paper beside ours — {paper.get('source', '')}")
@@ -187,6 +188,9 @@ def paper_value(pr: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict
         vals = [ln["vs_baseline_pct"] for ln in lines if _matches(ln, keep, "allocator")]
         vals = [v for v in vals if not math.isnan(v)]
         return float(np.mean(vals)) if vals else None
+    if metric == "mean_std_ticks":
+        stds = [ln["ticks"][1] for ln in lines if _matches(ln, keep, "allocator") and ln["ticks"][2] > 1]
+        return float(np.mean(stds)) if stds else None
     sel = [r for r in rows if _matches(r, keep, "param.allocator")]
     if metric == "vs_loss0_pct":
         zero = [r for r in rows if _matches(r, keep | {"loss": 0.0}, "param.allocator")]
