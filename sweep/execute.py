@@ -4,8 +4,9 @@ they finish to ``rows.jsonl`` (so an interrupted sweep resumes) and at the end t
 
 A row is every ``result.json`` key flattened (``radio.sent``, ``scenario.radio.comm_range``; lists as JSON),
 the point's parameters (``param.allocator``, ``param.robots``, ..., ``param.seed``), its ``id``, ``status``
-(``ok`` or ``failed``), ``error`` and the coverage curve (``curve``: JSON, one value every ``curve_every``
-ticks).
+(``ok`` or ``failed``), ``error``, its wall and CPU seconds (``point_seconds``, ``point_cpu_seconds``: the
+worker's CPU time, what the run costs on an idle core) and the coverage curve (``curve``: JSON, one value
+every ``curve_every`` ticks).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ def run_point(point: Point) -> dict[str, Any]:
 
     row: dict[str, Any] = {"id": point.id, "engine": point.engine}
     row |= {f"param.{k}": v for k, v in point.params.items()}
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     try:
         scenario = Scenario.from_dict(point.scenario)
         if point.engine == "memory":
@@ -49,7 +50,8 @@ def run_point(point: Point) -> dict[str, Any]:
         last = traceback.extract_tb(exc.__traceback__)[-1:] if exc.__traceback__ else []
         where = f" ({last[0].filename.rsplit('/', 1)[-1]}:{last[0].lineno})" if last else ""
         return row | {"status": "failed", "error": f"{type(exc).__name__}: {exc}{where}",
-                      "point_seconds": round(time.perf_counter() - t0, 3)}
+                      "point_seconds": round(time.perf_counter() - t0, 3),
+                      "point_cpu_seconds": round(time.process_time() - cpu0, 3)}
     data = dict(flatten(result.to_dict()))
     data.pop("engine", None)
     ticks, cov = result.coverage_curve()
@@ -57,7 +59,8 @@ def run_point(point: Point) -> dict[str, Any]:
     failed = data.get("failed") not in (None, "[]")
     return row | data | {
         "status": "failed" if failed else "ok", "error": f"robots failed: {data['failed']}" if failed else None,
-        "point_seconds": round(time.perf_counter() - t0, 3), "curve_every": CURVE_EVERY, "curve": json.dumps(curve),
+        "point_seconds": round(time.perf_counter() - t0, 3), "point_cpu_seconds": round(time.process_time() - cpu0, 3),
+        "curve_every": CURVE_EVERY, "curve": json.dumps(curve),
     }
 
 
