@@ -39,15 +39,18 @@ def main() -> int:
     p.add_argument("--seeds", type=int, default=2)
     p.add_argument("--processes", action="store_true", help="also the default engine (one process per node)")
     p.add_argument("--quick", action="store_true", help="the two office scenarios only")
+    p.add_argument("--max-ticks", type=int, help="cut every run at this tick (a smoke test)")
     args = p.parse_args()
     scenarios = SCENARIOS[:2] if args.quick or not HOSPITAL.exists() else SCENARIOS
     engines = ["memory", "in-process"] + (["processes"] if args.processes else [])
     fe.Fleet(fe.Scenario().override(robots=2, max_ticks=5)).run()  # compile or load the kernels once
     rows = []
+    differ = 0
     for label, over in scenarios:
         times: dict[str, list[float]] = {e: [] for e in engines}
         for seed in range(args.seeds):
             s = fe.Scenario().override(seed=seed, **over)
+            s = s.override(max_ticks=min(args.max_ticks, s.max_ticks)) if args.max_ticks else s
             seen = None
             for engine in engines:
                 t0 = time.perf_counter()
@@ -55,6 +58,7 @@ def main() -> int:
                 times[engine].append(time.perf_counter() - t0)
                 keys = {k: v for k, v in res.items() if k not in UNTIMED}
                 if seen is not None and keys != seen:
+                    differ += 1
                     print(f"{label} seed {seed}: {engine} differs from memory", file=sys.stderr)
                 seen = seen or keys
             print(f"{label} seed {seed}: ticks {res['ticks']}, "
@@ -69,7 +73,9 @@ def main() -> int:
     total = {e: sum(t[e] for _, t in rows) for e in engines}
     print(f"{'all (sum)':34s}" + "".join(f"{total[e]:18.2f}" for e in engines)
           + "".join(f"{total[e] / total['memory']:22.1f}" for e in engines[1:]))
-    return 0
+    if differ:
+        print(f"engine_speed: {differ} run(s) differ between engines (see above)", file=sys.stderr)
+    return 1 if differ else 0
 
 
 if __name__ == "__main__":

@@ -46,3 +46,12 @@ def test_ticks_per_second_fails_when_a_run_fails() -> None:
     lines = proc.stderr.strip().splitlines()
     assert lines[0].startswith("[1/2] 1 robots: FAILED (exit 2: fleet: error:") and "telepathy" in lines[0]
     assert lines[-1] == "ticks_per_second: 2 of 2 runs failed (see the lines above)"
+
+
+def test_engine_speed_compares_the_engines_on_equal_runs() -> None:
+    proc = _bench("engine_speed.py", "--quick", "--seeds", "1", "--max-ticks", "15")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.strip().splitlines()
+    assert lines[0].split()[:4] == ["scenario", "memory", "s/run", "in-process"] and "in-process/memory" in lines[0]
+    assert len(lines) == 4 and lines[-1].startswith("all (sum)") and float(lines[-1].split()[-1]) > 0
+    assert "differs" not in proc.stderr
