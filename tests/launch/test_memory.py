@@ -86,3 +86,19 @@ def test_seeds_change_the_run_and_a_tick_limit_truncates(rooms: Path) -> None:
 def test_bad_scenario_is_refused_before_any_reset(rooms: Path) -> None:
     with pytest.raises(fe.ConfigError, match="no_such"):
         Fleet(scenario(rooms).override(allocator="no_such"))
+
+
+@pytest.mark.parametrize(("comm", "loss", "applied"), [("ideal", 0.3, 0.0), ("full", 0.3, 0.3), ("disk", 0.2, 0.2)])
+def test_result_and_recording_state_the_radio_model_and_the_loss_applied(
+        comm: str, loss: float, applied: float, rooms: Path, tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    from fleet_emu.launch.memory import run_memory
+
+    res = run_memory(scenario(rooms, comm=comm, loss=loss, max_ticks=30), tmp_path / "run", run_id="radio")
+    assert (res["comm"], res["loss"], res["loss_applied"]) == (comm, loss, applied)
+    assert (res["radio"]["dropped_loss"] > 0) == (applied > 0)
+    with open(tmp_path / "run" / "run.mcap", "rb") as f:
+        meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}["scenario"]
+    assert (meta["radio_model"], float(meta["loss_applied"])) == (comm, applied)
+    assert fe.load_recording(tmp_path / "run").result["loss_applied"] == applied
