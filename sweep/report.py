@@ -23,7 +23,7 @@ import numpy as np
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.sweep.execute import PARQUET
 
-GROUP = ("param.map", "comm", "loss_applied", "robots")
+GROUP = ("map", "comm", "loss_applied", "robots")
 
 
 def load(results: Path) -> tuple[list[dict[str, Any]], dict[str, Any], Path]:
@@ -152,7 +152,7 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
                 "connected %"):
         t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left")
     for ln in lines:
-        t.add_row(Path(str(ln["param.map"])).stem, f"{ln['comm']}, loss {ln['loss_applied']:g}", str(ln["robots"]),
+        t.add_row(Path(str(ln["map"])).stem, f"{ln['comm']}, loss {ln['loss_applied']:g}", str(ln["robots"]),
                   ln["allocator"], str(ln["runs"]), str(ln["ticks"][2]), _fmt(ln["ticks"]),
                   "-" if math.isnan(ln["vs_baseline_pct"]) else f"{ln['vs_baseline_pct']:+.1f} %",
                   _fmt(ln["moves"]), _fmt(ln["connected_pct"]))
