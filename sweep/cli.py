@@ -32,6 +32,8 @@ def add_parser(sub: Any) -> None:
     s.add_argument("--maps", type=Path, help="where the study's map files are (default: $FLEET_MAPS, ../shared/maps)")
     s.add_argument("--list", action="store_true", help="list the studies shipped with fleet-emu")
     s.add_argument("--limit", type=int, help="run only the first N points not yet done (a quick look)")
+    s.add_argument("--seeds", type=int, metavar="N",
+                   help="run only the study's first N seeds of every point (a quick look; a later call completes it)")
     s.add_argument("--baseline", help="report: the allocator to compare with (default: the study's)")
     s.add_argument("--no-plots", action="store_true", help="report: the tables only")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -56,11 +58,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.out is None:
         raise ConfigError("fleet sweep needs --out DIR (where the results go)")
     return sweep(args.args[0], args.out, jobs=args.jobs, dask=args.dask, maps=args.maps, limit=args.limit,
-                 quiet=args.quiet)
+                 seeds=args.seeds, quiet=args.quiet)
 
 
 def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | None = None, maps: Path | None = None,
-          limit: int | None = None, quiet: bool = False) -> int:
+          limit: int | None = None, seeds: int | None = None, quiet: bool = False) -> int:
     """Run a study into ``out``, resuming what is there; the exit code (see the module docstring)."""
     from rich.console import Console
 
@@ -72,13 +74,18 @@ def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | No
         raise ConfigError(f"--jobs must be at least 1 (got {jobs})")
     if limit is not None and limit < 1:
         raise ConfigError(f"--limit must be at least 1 (got {limit})")
+    if seeds is not None and seeds < 1:
+        raise ConfigError(f"--seeds must be at least 1 (got {seeds})")
     points = study.points(maps)
+    if seeds is not None:
+        points = [p for p in points if p.params["seed"] in study.seeds[:seeds]]
     _claim(out, study)
     done = {r["id"] for r in read_rows(out) if r.get("status") == "ok"}
     todo = [p for p in points if p.id not in done][:limit]
     jobs = jobs or os.cpu_count() or 1
     console = Console(stderr=True)
-    console.print(f"[bold]{study.name}[/bold]: {len(points)} runs, {len(done)} done, {len(todo)} to run "
+    console.print(f"[bold]{study.name}[/bold]: {len(points)} runs, {sum(p.id in done for p in points)} done, "
+                  f"{len(todo)} to run "
                   f"({study.engine} engine, {'Dask ' + dask if dask else f'{jobs} jobs'}) -> {out}")
     writer = RowWriter(out)
     failed = 0

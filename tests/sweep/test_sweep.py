@@ -50,6 +50,14 @@ def test_a_sweep_writes_one_row_per_run_and_resumes(study_dir: Path) -> None:
     assert {p.name for p in out.glob("*.png")} == {"time_vs_robots.png", "coverage_vs_tick.png"}
 
 
+def test_seeds_runs_the_first_seeds_and_a_later_call_completes(study_dir: Path) -> None:
+    out = study_dir / "out"
+    assert sweep(str(study_dir / "tiny.toml"), out, jobs=1, seeds=1, quiet=True) == 0
+    assert sorted(r["param.seed"] for r in read_rows(out)) == [0] * 4
+    assert sweep(str(study_dir / "tiny.toml"), out, jobs=1, quiet=True) == 0
+    assert sorted(r["param.seed"] for r in read_rows(out)) == [0] * 4 + [1] * 4
+
+
 def test_failed_runs_are_rows_and_set_the_exit_code(study_dir: Path) -> None:
     """Twenty robots do not fit the small map's start area: those runs fail, the others go on."""
     text = (study_dir / "tiny.toml").read_text().replace("robots = [2, 3]", "robots = [2, 20]")
