@@ -8,6 +8,7 @@ finished so far are kept and the tables written); otherwise 200 + the number of 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import shutil
 import sys
@@ -64,9 +65,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | None = None, maps: Path | None = None,
           limit: int | None = None, seeds: int | None = None, quiet: bool = False) -> int:
     """Run a study into ``out``, resuming what is there; the exit code (see the module docstring)."""
-    from rich.console import Console
-
-    from fleet_emu.sweep.execute import RowWriter, execute, read_rows, write_tables
+    from fleet_emu.sweep.execute import connect_dask
     from fleet_emu.sweep.study import Study
 
     study = Study.load(study_name)
@@ -79,7 +78,19 @@ def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | No
     points = study.points(maps)
     if seeds is not None:
         points = [p for p in points if p.params["seed"] in study.seeds[:seeds]]
-    _claim(out, study)
+    with contextlib.ExitStack() as stack:
+        client = stack.enter_context(connect_dask(dask)) if dask else None  # before anything is written
+        _claim(out, study)
+        return _run(study, points, out, jobs, client, dask, limit, quiet)
+
+
+def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any, dask: str | None,
+         limit: int | None, quiet: bool) -> int:
+    """The sweep proper, once every check passed and ``out`` is claimed."""
+    from rich.console import Console
+
+    from fleet_emu.sweep.execute import RowWriter, execute, read_rows, write_tables
+
     done = {r["id"] for r in read_rows(out) if r.get("status") == "ok"}
     todo = [p for p in points if p.id not in done][:limit]
     jobs = jobs or os.cpu_count() or 1
@@ -99,7 +110,7 @@ def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | No
             bar.update(task, advance=1, failed=failed)
 
         try:
-            execute(todo, jobs, on_row, dask)
+            execute(todo, jobs, on_row, client)
         except KeyboardInterrupt:
             interrupted = True
         finally:

@@ -103,10 +103,10 @@ class RowWriter:
         self._file.close()
 
 
-def execute(points: list[Point], jobs: int, on_row: Callable[[dict[str, Any]], None],
-            dask: str | None = None) -> None:
-    """Run the points (in any order), calling ``on_row`` with each row as it finishes."""
-    if dask:
+def execute(points: list[Point], jobs: int, on_row: Callable[[dict[str, Any]], None], dask: Any = None) -> None:
+    """Run the points (in any order), calling ``on_row`` with each row as it finishes; ``dask`` is a
+    :func:`connect_dask` client (or None for a local pool of ``jobs`` processes)."""
+    if dask is not None:
         _on_dask(points, dask, on_row)
     elif jobs <= 1:
         for p in points:
@@ -124,21 +124,28 @@ def execute(points: list[Point], jobs: int, on_row: Callable[[dict[str, Any]], N
                 raise
 
 
-def _on_dask(points: list[Point], address: str, on_row: Callable[[dict[str, Any]], None]) -> None:
-    """Each point a task on a Dask distributed cluster: every worker runs whole fleets."""
-    from distributed import Client, as_completed
-
+def connect_dask(address: str) -> Any:
+    """A client of the Dask scheduler at ``address``; a ConfigError (one line) when none answers in 10 s."""
     from fleet_emu.core.errors import ConfigError
 
     try:
-        client = Client(address, timeout="10s")
+        from distributed import Client
+    except ImportError:
+        raise ConfigError("--dask needs dask[distributed]: pip install 'fleet-emu[sweep]'") from None
+    try:
+        return Client(address, timeout="10s")
     except (OSError, TimeoutError, ValueError) as exc:
         raise ConfigError(f"--dask {address}: no Dask scheduler answered ({exc})") from None
-    with client:
-        futures = client.map(run_point, points, pure=False, key=[f"fleet-{p.id}" for p in points])
-        by_key = {f.key: p for f, p in zip(futures, points, strict=True)}
-        for fut in as_completed(futures):
-            on_row(_row_of(fut, by_key[fut.key]))
+
+
+def _on_dask(points: list[Point], client: Any, on_row: Callable[[dict[str, Any]], None]) -> None:
+    """Each point a task on a Dask distributed cluster: every worker runs whole fleets."""
+    from distributed import as_completed
+
+    futures = client.map(run_point, points, pure=False, key=[f"fleet-{p.id}" for p in points])
+    by_key = {f.key: p for f, p in zip(futures, points, strict=True)}
+    for fut in as_completed(futures):
+        on_row(_row_of(fut, by_key[fut.key]))
 
 
 def _row_of(fut: Any, point: Point) -> dict[str, Any]:

@@ -78,6 +78,7 @@ def test_failed_runs_are_rows_and_set_the_exit_code(study_dir: Path) -> None:
     (["tiny.toml", "--out", "x", "--jobs", "0"], "--jobs"),
     (["report"], "usage"),
     (["report", "nowhere"], "no sweep results"),
+    (["tiny.toml", "--out", "x", "--dask", "tcp://127.0.0.1:1"], "no Dask scheduler answered"),
 ])
 def test_bad_sweep_input_is_one_line(args: list[str], message: str, study_dir: Path) -> None:
     proc = fleet("sweep", *args, cwd=study_dir)
