@@ -164,7 +164,7 @@ def _paper_table(paper: dict[str, Any], rows: list[dict[str, Any]], lines: list[
     """The paper's rows (``[[paper.rows]]``: what, allocator, metric, value, and optional robots/loss filters)
     with ours beside them; ``metric`` is one of :data:`METRICS`, ``std_ticks``, ``vs_baseline_pct`` (mean over
     the matching groups), ``mean_std_ticks`` (the time's std, mean over the matching groups) or ``vs_loss0_pct``
-    (the time's % change from loss 0, same robots, pooled)."""
+    (the % change, from loss 0, of the mean times summed over the robot counts)."""
     from rich.table import Table
 
     t = Table(title=f"the paper beside ours — {paper.get('source', '')}")
@@ -192,9 +192,11 @@ def paper_value(pr: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict
         stds = [ln["ticks"][1] for ln in lines if _matches(ln, keep, "allocator") and ln["ticks"][2] > 1]
         return float(np.mean(stds)) if stds else None
     sel = [r for r in rows if _matches(r, keep, "param.allocator")]
-    if metric == "vs_loss0_pct":
-        zero = [r for r in rows if _matches(r, keep | {"loss": 0.0}, "param.allocator")]
-        return pct(stats(sel, "ticks")[0], stats(zero, "ticks")[0])
+    if metric == "vs_loss0_pct":  # the sum over robot counts of the mean times, at the loss and at no loss
+        zero = by([r for r in rows if _matches(r, keep | {"loss": 0.0}, "param.allocator")], "robots")
+        at = by(sel, "robots")
+        both = [n for n in at if n in zero]
+        return pct(sum(stats(at[n], "ticks")[0] for n in both), sum(stats(zero[n], "ticks")[0] for n in both))
     if metric == "std_ticks":
         return stats(sel, "ticks")[1]
     return stats(sel, metric)[0] if sel else None

@@ -40,7 +40,7 @@ def test_paper_rows_pick_their_runs() -> None:
         pytest.approx(-22.5)
     assert paper_value({"allocator": "minpos", "robots": [1], "metric": "vs_baseline_pct"}, ROWS, lines,
                        "nearest") == pytest.approx(-25.0)
-    assert paper_value({"allocator": "minpos", "robots": 2, "loss": 0.5, "metric": "vs_loss0_pct"}, ROWS, lines,
+    assert paper_value({"allocator": "minpos", "loss": 0.5, "metric": "vs_loss0_pct"}, ROWS, lines,
                        "nearest") == pytest.approx(100.0 * (96 - 48) / 48)
     assert paper_value({"allocator": "nearest", "metric": "connected_pct"}, ROWS, lines, "nearest") == 50.0
     assert paper_value({"allocator": "nearest", "metric": "mean_std_ticks"}, ROWS, lines, "nearest") == \
