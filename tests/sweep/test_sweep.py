@@ -106,3 +106,16 @@ def test_a_study_on_a_dask_cluster(study_dir: Path) -> None:
         assert sweep(str(study_dir / "tiny.toml"), out, dask=cluster.scheduler_address, limit=3, quiet=True) == 0
     rows = read_rows(out)
     assert len(rows) == 3 and all(r["status"] == "ok" and r["ticks"] > 0 for r in rows)
+
+
+def test_a_processes_study_runs_real_fleets_with_the_memory_rows(study_dir: Path) -> None:
+    text = (study_dir / "tiny.toml").read_text()
+    (study_dir / "real.toml").write_text(text.replace('engine = "memory"', 'engine = "processes"')
+                                         .replace('name = "tiny"', 'name = "real"'))
+    assert sweep(str(study_dir / "real.toml"), study_dir / "real", jobs=1, limit=1, quiet=True) == 0
+    assert sweep(str(study_dir / "tiny.toml"), study_dir / "mem", jobs=1, limit=1, quiet=True) == 0
+    (real,), (mem,) = read_rows(study_dir / "real"), read_rows(study_dir / "mem")
+    assert real["engine"] == "processes" and mem["engine"] == "memory" and real["id"] == mem["id"]
+    assert real["pids.world"] != real["pids.netem"] and mem["pids.world"] == mem["pids.netem"]
+    same = ("ticks", "coverage", "path_length", "radio.sent", "radio.bytes_sent", "curve")
+    assert [real[k] for k in same] == [mem[k] for k in same]
