@@ -52,7 +52,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             raise ConfigError("usage: fleet sweep report RESULTS (a sweep's --out directory or its results.parquet)")
         from fleet_emu.sweep.report import report
 
-        report(Path(args.args[1]), baseline=args.baseline, plots=not args.no_plots)
+        report(Path(args.args[1]), baseline=args.baseline, plots=not args.no_plots, seeds=args.seeds)
         return 0
     if len(args.args) != 1:
         raise ConfigError("usage: fleet sweep STUDY --out DIR (or --list, or report RESULTS)")

@@ -89,7 +89,12 @@ def by(rows: Iterable[dict[str, Any]], *keys: str) -> dict[tuple[Any, ...], list
     out: dict[tuple[Any, ...], list[dict[str, Any]]] = defaultdict(list)
     for r in rows:
         out[tuple(r.get(k) for k in keys)].append(r)
-    return dict(sorted(out.items(), key=lambda kv: tuple(str(x) for x in kv[0])))
+    return dict(sorted(out.items(), key=lambda kv: tuple(_order(x) for x in kv[0])))
+
+
+def _order(x: Any) -> tuple[int, Any]:
+    """Numbers in numeric order, before text (robot counts 1, 2, ..., 10)."""
+    return (0, x) if isinstance(x, int | float) and not isinstance(x, bool) else (1, str(x))
 
 
 def pct(a: float, b: float) -> float:
@@ -112,11 +117,16 @@ def summary(rows: list[dict[str, Any]], baseline: str | None) -> list[dict[str, 
     return lines
 
 
-def report(results: Path, baseline: str | None = None, plots: bool = True) -> None:
-    """Print the tables (and draw the figures) of a sweep's results."""
+def report(results: Path, baseline: str | None = None, plots: bool = True, seeds: int | None = None) -> None:
+    """Print the tables (and draw the figures) of a sweep's results; with ``seeds``, only the runs of the
+    study's first N seeds (every point then has the same seeds)."""
     from rich.console import Console
 
     rows, study, out = load(results)
+    if seeds is not None:
+        listed = study.get("study", {}).get("seeds", 0)
+        keep = set(listed[:seeds] if isinstance(listed, list) else range(seeds))
+        rows = [r for r in rows if r.get("param.seed") in keep]
     ok = [r for r in rows if r.get("status") == "ok"]
     failed = len(rows) - len(ok)
     allocators = sorted({r["param.allocator"] for r in ok})
@@ -126,7 +136,7 @@ def report(results: Path, baseline: str | None = None, plots: bool = True) -> No
     if not console.is_terminal:
         console = Console(width=160)
     console.print(f"[bold]{head.get('name', out.name)}[/bold]: {len(rows)} runs, {failed} failed; "
-                  f"baseline {baseline}")
+                  f"baseline {baseline}" + (f"; the first {seeds} seeds" if seeds else ""))
     lines = summary(ok, baseline)
     console.print(_summary_table(lines, baseline))
     paper = study.get("paper", {})

@@ -48,6 +48,8 @@ def test_a_sweep_writes_one_row_per_run_and_resumes(study_dir: Path) -> None:
     assert report.returncode == 0, report.stderr
     assert "baseline nearest" in report.stdout and "minpos" in report.stdout
     assert {p.name for p in out.glob("*.png")} == {"time_vs_robots.png", "coverage_vs_tick.png"}
+    first = fleet("sweep", "report", str(out), "--seeds", "1", "--no-plots")
+    assert "4 runs, 0 failed; baseline nearest; the first 1 seeds" in first.stdout
 
 
 def test_seeds_runs_the_first_seeds_and_a_later_call_completes(study_dir: Path) -> None:
