@@ -167,8 +167,18 @@ def seal(msg: RadioMsg, src: str, tick: int, seq: int) -> Envelope:
 
 
 def open_envelope(env: Envelope, ctx: Context | None = None) -> RadioMsg:
-    """Decode an envelope's payload; raises DecodeError (an unknown kind included)."""
-    body = decode_payload(env.payload_kind, env.payload, ctx)
+    """Decode an envelope's payload; raises DecodeError (an unknown kind included).
+
+    The decoded payload is kept on the envelope with the context it was checked against, and given again to
+    the next receiver with an equal context: in the memory engine one broadcast envelope object reaches every
+    teammate, and decoding it once is enough (a payload is immutable: frozen, its arrays read-only views of
+    the message bytes). Over Zenoh every receiver decodes its own copy, so nothing changes there."""
+    cached = env.__dict__.get("_opened")
+    if cached is not None and cached[0] == ctx:
+        body = cached[1]
+    else:
+        body = decode_payload(env.payload_kind, env.payload, ctx)
+        object.__setattr__(env, "_opened", (ctx, body))
     return RadioMsg(body=body, dst=env.dst, ttl=env.ttl, src=env.src, origin=env.origin, tick=env.tick,
                     seq=env.seq)
 

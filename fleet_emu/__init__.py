@@ -8,6 +8,7 @@ The public API, for scripts and notebooks (the ``fleet`` CLI is built on it)::
     result = fe.run(scenario, out="runs/greedy3")        # a real fleet: one process per robot, over Zenoh
     ticks, coverage = result.coverage_curve()
     run = fe.load_recording("runs/greedy3/run.mcap")     # the same fold as ``fleet report``
+    fast = fe.Fleet(scenario).run(seed=4)                 # the same objects in memory: no Zenoh, same result
 
 Names are imported on first use, so that a robot process (``python -m fleet_emu.agents``) loads only what it
 needs.
@@ -24,7 +25,7 @@ __version__ = "0.2.0"
 __all__ = [
     "__version__",
     # scenarios and runs
-    "Scenario", "RadioConfig", "run", "Result",
+    "Scenario", "RadioConfig", "run", "Result", "Fleet",
     # recordings
     "load_recording",
     # allocators
@@ -39,6 +40,7 @@ _LAZY = {
     "Scenario": "fleet_emu.core.scenario",
     "RadioConfig": "fleet_emu.core.radio",
     "Result": "fleet_emu.launch.result",
+    "Fleet": "fleet_emu.launch.memory",
     "load_recording": "fleet_emu.recording",
     "Allocator": "fleet_emu.agents.allocators",
     "Allocation": "fleet_emu.agents.allocators",
@@ -60,6 +62,7 @@ if TYPE_CHECKING:
     from fleet_emu.core.radio import RadioConfig
     from fleet_emu.core.scenario import Scenario
     from fleet_emu.core.version import SCHEMA_VERSION
+    from fleet_emu.launch.memory import Fleet
     from fleet_emu.launch.result import Result
     from fleet_emu.recording import load_recording
 
@@ -78,7 +81,7 @@ def __dir__() -> list[str]:
 
 def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | None = None,
         in_process: bool = False, connect: str | None = None, run_id: str = "",
-        grid_every: int | None = None) -> Result:
+        grid_every: int | None = None, engine: str = "processes") -> Result:
     """Run one scenario as a real fleet (world, netem and one process per robot over Zenoh; with
     ``in_process`` every node in this process, a session each) and return its :class:`Result`.
 
@@ -87,6 +90,8 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
     nothing is kept. Nothing is printed. Raises :class:`ConfigError` (or :class:`MapError`) on bad input before
     any process starts, and :class:`RunError` when a process of the fleet failed the run (the world, netem).
     A robot that failed does not raise: the run goes on without it and ``result["failed"]`` names it.
+    ``engine="memory"`` steps the same objects in this process with no Zenoh (:class:`Fleet`): the same
+    result for a seed, several times faster.
     """
     from fleet_emu.launch.runner import RunOptions, run_fleet
 
@@ -95,6 +100,16 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
         from fleet_emu.core.errors import ConfigError
 
         raise ConfigError("record=True needs an output directory (out=...)")
+    if engine not in ("processes", "memory") or (engine == "memory" and (in_process or connect)):
+        from fleet_emu.core.errors import ConfigError
+
+        raise ConfigError(f"engine must be 'processes' or 'memory' (the latter without in_process or connect), "
+                          f"got {engine!r}")
+    if engine == "memory":
+        from fleet_emu.launch.memory import run_memory
+
+        return run_memory(scenario, out_dir, record=out_dir is not None and record is not False, run_id=run_id,
+                          grid_every=grid_every)
     opts = RunOptions(out_dir=out_dir, in_process=in_process, record=out_dir is not None and record is not False,
                       connect=connect, run_id=run_id, grid_every=grid_every)
     return run_fleet(scenario, opts)

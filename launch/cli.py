@@ -64,6 +64,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--comm", choices=COMM_MODELS,
                    help="radio: wall (eq. 4), disk (within --comm-range), full (all pairs), ideal (full, no loss)")
     r.add_argument("--out", type=Path, help="output directory (default runs/<run id>)")
+    r.add_argument("--engine", choices=("processes", "memory"), default="processes",
+                   help="processes: one OS process per node over Zenoh; memory: the same objects stepped in this "
+                        "process, no Zenoh (same result for a seed)")
     r.add_argument("--in-process", action="store_true", help="all nodes in this process (one session each)")
     r.add_argument("--no-record", action="store_true", help="do not write run.mcap")
     r.add_argument("--connect", help="use an external Zenoh router, e.g. tcp/192.0.2.1:7447")
@@ -91,6 +94,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--compare", action="store_true", help="one table and overlaid coverage curves of the runs")
     rep.add_argument("--out", type=Path, help="where --compare writes its PNG (default ./compare.png)")
     rep.add_argument("--no-plots", action="store_true", help="metrics.json and the table only")
+    from fleet_emu.sweep.cli import add_parser as add_sweep
+
+    add_sweep(sub)
     return p
 
 
@@ -108,7 +114,7 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     from rich.console import Console
 
     from fleet_emu.launch.progress import Progress, summary_table
-    from fleet_emu.launch.runner import RunOptions, new_run_id, run_fleet
+    from fleet_emu.launch.runner import RunOptions, check_options, new_run_id, run_fleet
 
     console = Console(stderr=True)
     scenario = scenario_from_args(args)
@@ -116,14 +122,24 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     out = args.out or Path("runs") / run_id
     if args.grid_every is not None and args.grid_every < 1:
         raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
+    if args.engine == "memory" and (args.in_process or args.connect):
+        raise ConfigError(f"--engine memory runs without Zenoh: it takes no "
+                          f"{'--in-process' if args.in_process else '--connect'}")
     if args.connect is None and (args.credentials or args.tls_ca):
         raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
-        opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
-                          connect=args.connect, run_id=run_id, grid_every=args.grid_every,
-                          on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
-                          interrupts=interrupts, on_warning=_warn)
-        result = run_fleet(scenario, opts)
+        if args.engine == "memory":
+            from fleet_emu.launch.memory import run_memory
+
+            check_options(RunOptions(run_id=run_id))
+            result = run_memory(scenario, out, record=not args.no_record, run_id=run_id,
+                                grid_every=args.grid_every, on_progress=progress.update, interrupts=interrupts)
+        else:
+            opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
+                              connect=args.connect, run_id=run_id, grid_every=args.grid_every,
+                              on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
+                              interrupts=interrupts, on_warning=_warn)
+            result = run_fleet(scenario, opts)
     if interrupts.signum is not None:
         when = "" if result["reason"] == "interrupted" else f" after the run ended ({result['reason']})"
         print(f"fleet: interrupted by {interrupts.name}{when}; result.json and the recording are in {out}",
@@ -190,6 +206,12 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from fleet_emu.sweep.cli import cmd_sweep as sweep
+
+    return sweep(args)
+
+
 def main(argv: list[str] | None = None) -> None:
     from fleet_emu.launch.signals import Interrupts
 
@@ -207,7 +229,7 @@ def main(argv: list[str] | None = None) -> None:
             if interrupts.requested.is_set():
                 raise KeyboardInterrupt
             handlers = {"maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report,
-                        "router-config": cmd_router_config}
+                        "router-config": cmd_router_config, "sweep": cmd_sweep}
             code = handlers[command](args)
     except FleetError as exc:  # every error meant for the user, caught once: one line, its exit code
         interrupts.restore()

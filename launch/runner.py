@@ -189,7 +189,8 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     keys = Keys(run_id)
     robots = tuple(robot_ids(scenario.robots))
     monitor = Monitor(robots)
-    meta = {"run_id": run_id, "scenario": scenario.to_dict()}
+    engine = "in-process" if opts.in_process else "processes"
+    meta = {"run_id": run_id, "scenario": scenario.to_dict(), "engine": engine}
     recorder = Recorder(recording, meta) if recording is not None else None
     viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id), keys) \
         if recorder else None
@@ -266,6 +267,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         data["reason"] = "error"
         data["error"] = error
     data |= {
+        "engine": engine,
         "pids": pids,
         "recording": {"path": str(recording) if recording else None, "messages": messages},
         "wall_seconds": round(time.monotonic() - t_start, 3),

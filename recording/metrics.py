@@ -87,9 +87,10 @@ class TickSeries:
 class RunMetrics:
     """Fold of one run's recorded samples; ``metrics()`` is what ``fleet report`` writes to metrics.json."""
 
-    def __init__(self, scenario: dict[str, Any], run_id: str) -> None:
+    def __init__(self, scenario: dict[str, Any], run_id: str, engine: str | None = None) -> None:
         self.scenario = scenario
         self.run_id = run_id
+        self.engine = engine
         self.robots = tuple(robot_ids(int(scenario["robots"])))
         self.monitor = Monitor(self.robots)
         self.messages = 0
@@ -206,6 +207,8 @@ class RunMetrics:
                        "agents": [self.pids.get(r) for r in self.robots]}
         res["recording"] = {"path": recording_path, "messages": self.messages}
         res["scenario"] = self.scenario
+        if self.engine is not None:  # the recording's metadata says which engine ran it (none before it did)
+            res["engine"] = self.engine
         return res
 
     def coverage_stats(self) -> dict[str, Any]:

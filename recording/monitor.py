@@ -17,6 +17,7 @@ from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.grid import Cell
 from fleet_emu.core.keys import parse_key
 from fleet_emu.core.messages import AgentReport, Command, Links, Message, Stop, WorldState
+from fleet_emu.core.radio import RadioConfig
 from fleet_emu.core.version import SCHEMA_VERSION
 
 #: The channels the monitor folds (``ParsedKey.channel``); the rest is not even decoded.
@@ -122,6 +123,7 @@ class Monitor:
             "robots": scenario["robots"],
             "loss": scenario["radio"]["loss"],
             "comm": scenario["radio"]["comm"],
+            "loss_applied": RadioConfig(comm=scenario["radio"]["comm"], loss=scenario["radio"]["loss"]).applied_loss,
             "ticks": st.tick if st else 0,
             "completed": completed,
             "reason": (self.stop.reason if self.stop else None) or (st.reason if st else None),

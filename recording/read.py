@@ -158,6 +158,6 @@ def _fold_for(metadata: dict[str, str], mcap: Path) -> RunMetrics:
     try:
         scenario = json.loads(metadata["scenario"])
         run_id = metadata.get("run_id", "")
-        return RunMetrics(scenario, run_id)
+        return RunMetrics(scenario, run_id, metadata.get("engine"))
     except (KeyError, ValueError, TypeError) as exc:
         raise ReportError(f"{mcap}: unreadable scenario metadata ({exc})") from None

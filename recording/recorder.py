@@ -21,6 +21,7 @@ from mcap.writer import CompressionType, Writer
 
 import fleet_emu
 from fleet_emu.core.codec import peek_tick
+from fleet_emu.core.radio import RadioConfig
 from fleet_emu.core.version import SCHEMA_VERSION
 
 TICK_NS = 100_000_000  # one tick is shown as 100 ms of log time
@@ -37,7 +38,8 @@ class Recorder:
         self._writer = Writer(self._file, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library="fleet-emu")
         versions = {"schema_version": str(SCHEMA_VERSION), "fleet_emu_version": fleet_emu.__version__}
-        self._writer.add_metadata(SCENARIO_METADATA, {k: _text(v) for k, v in metadata.items()} | versions)
+        self._writer.add_metadata(SCENARIO_METADATA,
+                                  {k: _text(v) for k, v in metadata.items()} | _radio(metadata) | versions)
         self._channels: dict[str, int] = {}
         self._lock = threading.Lock()
         self._last_flush = time.monotonic()
@@ -105,3 +107,12 @@ class Recorder:
 
 def _text(value: Any) -> str:
     return value if isinstance(value, str) else json.dumps(value)
+
+
+def _radio(metadata: dict[str, Any]) -> dict[str, str]:
+    """The radio model and the loss its channel applies (none on ``ideal``), stated beside the scenario."""
+    radio = metadata.get("scenario", {}).get("radio") if isinstance(metadata.get("scenario"), dict) else None
+    if not isinstance(radio, dict):
+        return {}
+    config = RadioConfig(comm=radio.get("comm", "wall"), loss=radio.get("loss", 0.0))
+    return {"radio_model": config.comm, "loss_applied": repr(config.applied_loss)}

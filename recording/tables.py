@@ -6,6 +6,7 @@ from typing import Any
 
 from rich.table import Table
 
+from fleet_emu.launch.progress import radio_label
 from fleet_emu.recording.read import Run
 
 
@@ -36,7 +37,7 @@ def summary_table(run: Run) -> Table:
     rows = [
         ("map / allocator", f"{m['map']} / {m['allocator']}"),
         ("robots / seed", f"{m['robots']} / {m['seed']}"),
-        ("radio", f"{m['comm']}, loss {m['loss']}"),
+        ("radio", radio_label(m["comm"], m["loss"])),
         ("completed", f"{m['completed']} ({m['reason']})" + ("  [yellow]recording cut[/yellow]"
                                                             if m.get("truncated") else "")),
         ("coverage", fmt(m["coverage"], True)),
@@ -66,7 +67,7 @@ COMPARE_ROWS = (
     ("map", lambda m: m["map"]),
     ("allocator", lambda m: m["allocator"]),
     ("robots", lambda m: m["robots"]),
-    ("radio", lambda m: f"{m['comm']}, loss {m['loss']}"),
+    ("radio", lambda m: radio_label(m["comm"], m["loss"])),
     ("completed", lambda m: f"{m['completed']} ({m['reason']})"),
     ("coverage", lambda m: fmt(m["coverage"], True)),
     ("ticks", lambda m: m["ticks"]),

@@ -13,7 +13,7 @@ import pytest
 import fleet_emu as fe
 
 EXPORTED = {
-    "__version__", "Scenario", "RadioConfig", "run", "Result", "load_recording", "Allocator", "Allocation",
+    "__version__", "Scenario", "RadioConfig", "run", "Result", "Fleet", "load_recording", "Allocator", "Allocation",
     "AllocStatus", "Problem", "make_allocator", "FleetError", "ConfigError", "MapError", "DecodeError",
     "ReportError", "RunError", "SCHEMA_VERSION",
 }
@@ -66,3 +66,22 @@ def test_run_from_python_keeps_files_only_where_asked(tmp_path: Path, monkeypatc
     assert kept["coverage"] == quiet["coverage"] and kept["path_length"] == quiet["path_length"]
     with pytest.raises(fe.ConfigError, match="out"):
         fe.run(s, record=True)
+
+
+def test_fleet_in_memory_from_python(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``fe.Fleet`` and ``fe.run(engine="memory")``: the same run as over Zenoh, in this process."""
+    monkeypatch.chdir(tmp_path)
+    s = fe.Scenario().override(robots=2, max_ticks=40, allocator="nearest", seed=2)
+    env = fe.Fleet(s)
+    obs, _ = env.reset(seed=2)
+    assert sorted(obs) == env.agents == ["r0", "r1"]
+    stepped = env.run()
+    direct = fe.run(s, engine="memory")
+    assert list(tmp_path.iterdir()) == [] and direct.out_dir is None
+    assert stepped["path_length"] == direct["path_length"] and stepped.curve == direct.curve
+    assert direct["engine"] == "memory" and direct.ticks == 40
+    kept = fe.run(s, tmp_path / "kept", engine="memory")
+    assert {p.name for p in (tmp_path / "kept").iterdir()} >= {"result.json", "run.mcap", "scenario.json"}
+    assert fe.load_recording(tmp_path / "kept").result["path_length"] == kept["path_length"]
+    with pytest.raises(fe.ConfigError, match="engine"):
+        fe.run(s, engine="memory", in_process=True)

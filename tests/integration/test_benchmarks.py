@@ -64,3 +64,12 @@ def test_trade_idle_bad_allocator_spec_is_one_line() -> None:
     proc = _bench("trade_idle.py", "--allocators", "trade:explore_in_round")
     assert proc.returncode == 2 and proc.stderr.strip().splitlines()[-1].endswith(
         "'trade:explore_in_round' is not NAME or NAME:PARAM=VALUE,...")
+
+
+def test_engine_speed_compares_the_engines_on_equal_runs() -> None:
+    proc = _bench("engine_speed.py", "--quick", "--seeds", "1", "--max-ticks", "15")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.strip().splitlines()
+    assert lines[0].split()[:4] == ["scenario", "memory", "s/run", "in-process"] and "in-process/memory" in lines[0]
+    assert len(lines) == 4 and lines[-1].startswith("all (sum)") and float(lines[-1].split()[-1]) > 0
+    assert "differs" not in proc.stderr

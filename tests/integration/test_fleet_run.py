@@ -61,23 +61,25 @@ def _tick_messages(path: Path) -> dict[str, list[bytes]]:
 
 def _comparable(res: dict) -> dict:
     drop = {"run_id", "pids", "recording", "decision_ms", "wall_seconds", "ticks_per_second",
-            "agent_peak_rss_kb"}
+            "agent_peak_rss_kb", "engine"}
     return {k: v for k, v in res.items() if k not in drop}
 
 
 def test_same_seed_same_run_and_in_process_agrees(small_map: Path, tmp_path: Path) -> None:
     args = ["run", "--map", str(small_map), "--robots", "3", "--seed", "4", "--loss", "0.3", "--quiet"]
-    a, b, c = tmp_path / "a", tmp_path / "b", tmp_path / "c"
+    a, b, c, d = tmp_path / "a", tmp_path / "b", tmp_path / "c", tmp_path / "d"
     fleet(*args, "--out", str(a))
     fleet(*args, "--out", str(b))
     fleet(*args, "--out", str(c), "--in-process")
-    ra, rb, rc = result(a), result(b), result(c)
+    fleet(*args, "--out", str(d), "--engine", "memory")
+    ra, rb, rc, rd = result(a), result(b), result(c), result(d)
+    assert (ra["engine"], rc["engine"], rd["engine"]) == ("processes", "in-process", "memory")
     assert ra["radio"]["dropped_loss"] > 0
-    assert _comparable(ra) == _comparable(rb) == _comparable(rc)
-    ma, mb, mc = _tick_messages(a / "run.mcap"), _tick_messages(b / "run.mcap"), _tick_messages(c / "run.mcap")
-    assert ma.keys() == mb.keys() == mc.keys()
-    for topic in ma:
-        assert ma[topic] == mb[topic] == mc[topic], f"{topic} differs between runs"
+    assert _comparable(ra) == _comparable(rb) == _comparable(rc) == _comparable(rd)
+    ma, mb, mc, md = (_tick_messages(p / "run.mcap") for p in (a, b, c, d))
+    assert ma.keys() == mb.keys() == mc.keys() == md.keys()
+    for topic in ma:  # every message of every tick, the memory engine's too
+        assert ma[topic] == mb[topic] == mc[topic] == md[topic], f"{topic} differs between runs"
     again = tmp_path / "again"  # the scenario.json a run writes reproduces it
     fleet("run", "--scenario", str(a / "scenario.json"), "--quiet", "--out", str(again))
     assert _comparable(result(again)) == _comparable(ra)

@@ -1,0 +1,82 @@
+"""Time per run of the memory engine against the Zenoh engines on the same scenarios, as a ratio.
+
+    python3 benchmarks/engine_speed.py [--seeds 2] [--processes] [--quick]
+
+Each scenario runs with every seed on the memory engine (``fleet_emu.Fleet``, in this process, after one
+warm-up run), on the in-process Zenoh engine (``fe.run(in_process=True)``: every node in this process, a
+session each, through an embedded router) and, with ``--processes``, on the default one (one OS process per
+node). Every run's deterministic keys are checked equal across engines. Prints one table: seconds per run
+(mean over seeds) per engine, and the ratio in-process / memory (and processes / memory).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+HOSPITAL = ROOT.parent / "shared" / "maps" / "stage" / "hospital_section.yaml"
+UNTIMED = {"run_id", "decision_ms", "agent_peak_rss_kb", "ticks_per_second", "pids", "recording", "wall_seconds",
+           "engine"}
+
+SCENARIOS = [  # (label, overrides)
+    ("office x3 minpos wall 0.1", {"robots": 3, "allocator": "minpos"}),
+    ("office x4 trade full 0.3", {"robots": 4, "allocator": "trade", "comm": "full", "loss": 0.3}),
+    ("hospital x5 minpos ideal 100%", {"map": str(HOSPITAL), "robots": 5, "allocator": "minpos", "comm": "ideal",
+                                       "loss": 0.0, "target_coverage": 1.0, "max_ticks": 5000, "start": "random"}),
+    ("hospital x10 utility ideal 100%", {"map": str(HOSPITAL), "robots": 10, "allocator": "utility",
+                                         "comm": "ideal", "loss": 0.0, "target_coverage": 1.0, "max_ticks": 5000,
+                                         "start": "random"}),
+]
+
+
+def main() -> int:
+    import fleet_emu as fe
+
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--seeds", type=int, default=2)
+    p.add_argument("--processes", action="store_true", help="also the default engine (one process per node)")
+    p.add_argument("--quick", action="store_true", help="the two office scenarios only")
+    p.add_argument("--max-ticks", type=int, help="cut every run at this tick (a smoke test)")
+    args = p.parse_args()
+    scenarios = SCENARIOS[:2] if args.quick or not HOSPITAL.exists() else SCENARIOS
+    engines = ["memory", "in-process"] + (["processes"] if args.processes else [])
+    fe.Fleet(fe.Scenario().override(robots=2, max_ticks=5)).run()  # compile or load the kernels once
+    rows = []
+    differ = 0
+    for label, over in scenarios:
+        times: dict[str, list[float]] = {e: [] for e in engines}
+        for seed in range(args.seeds):
+            s = fe.Scenario().override(seed=seed, **over)
+            s = s.override(max_ticks=min(args.max_ticks, s.max_ticks)) if args.max_ticks else s
+            seen = None
+            for engine in engines:
+                t0 = time.perf_counter()
+                res = fe.Fleet(s).run() if engine == "memory" else fe.run(s, in_process=engine == "in-process")
+                times[engine].append(time.perf_counter() - t0)
+                keys = {k: v for k, v in res.items() if k not in UNTIMED}
+                if seen is not None and keys != seen:
+                    differ += 1
+                    print(f"{label} seed {seed}: {engine} differs from memory", file=sys.stderr)
+                seen = seen or keys
+            print(f"{label} seed {seed}: ticks {res['ticks']}, "
+                  + ", ".join(f"{e} {times[e][-1]:.2f} s" for e in engines), file=sys.stderr, flush=True)
+        rows.append((label, {e: sum(v) / len(v) for e, v in times.items()}))
+    head = f"{'scenario':34s}" + "".join(f"{e + ' s/run':>18s}" for e in engines) + \
+        "".join(f"{e + '/memory':>22s}" for e in engines[1:])
+    print(head)
+    for label, t in rows:
+        print(f"{label:34s}" + "".join(f"{t[e]:18.2f}" for e in engines)
+              + "".join(f"{t[e] / t['memory']:22.1f}" for e in engines[1:]))
+    total = {e: sum(t[e] for _, t in rows) for e in engines}
+    print(f"{'all (sum)':34s}" + "".join(f"{total[e]:18.2f}" for e in engines)
+          + "".join(f"{total[e] / total['memory']:22.1f}" for e in engines[1:]))
+    if differ:
+        print(f"engine_speed: {differ} run(s) differ between engines (see above)", file=sys.stderr)
+    return 1 if differ else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

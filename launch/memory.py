@@ -1,0 +1,354 @@
+"""The in-memory engine: the same :class:`World`, :class:`Channel` and :class:`Brain` objects the node processes
+run, stepped directly in lockstep, with no Zenoh, no threads and no clock (DESIGN.md "Engines").
+
+:class:`Fleet` follows PettingZoo's ``ParallelEnv`` (``reset(seed)`` gives the observations, ``step()`` one
+tick): each tick it does what the three node shells do, in their order (``world/node.py``, ``netem/node.py``,
+``agents/node.py``): the world's observations and state of tick t, netem's links (counters before tick t's
+sends) and rx bundles of t, every live robot's brain (tx bundle, command, belief snapshot: the same draws
+from each robot's one sequence counter), netem's sends of t, the world's moves. The launcher's own fold
+(:class:`~fleet_emu.recording.monitor.Monitor`) gets the same messages the bus would carry, so
+``result.json`` has the same deterministic keys as a run over Zenoh for the same seed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import os
+import resource
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fleet_emu.agents.allocators import make_allocator
+from fleet_emu.agents.brain import Brain, allocator_config, brain_config
+from fleet_emu.core.errors import RunError
+from fleet_emu.core.grid import Cell, MapData
+from fleet_emu.core.keys import Keys, robot_ids
+from fleet_emu.core.messages import (
+    AgentReport,
+    BeliefSnapshot,
+    Envelope,
+    Links,
+    Message,
+    Observation,
+    RxBundle,
+    Stop,
+    TxBundle,
+    WorldState,
+)
+from fleet_emu.core.radio import connected, link_matrix
+from fleet_emu.core.rng import generator
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.result import Result
+from fleet_emu.launch.signals import Interrupts
+from fleet_emu.netem.channel import Channel
+from fleet_emu.recording.monitor import Monitor
+from fleet_emu.world.maps import BUILTIN_MAPS, load_map
+from fleet_emu.world.node import build_world
+from fleet_emu.world.sim import Reading
+
+#: Called with (key expression, message, wall-clock ns) for every message the bus would carry (a recorder).
+Tap = Callable[[str, Message, int], None]
+
+
+@functools.lru_cache(maxsize=8)
+def _cached_map(name: str, cell_size: float, seed: int | None) -> MapData:
+    return load_map(name, cell_size, seed or 0)
+
+
+def fleet_map(scenario: Scenario) -> MapData:
+    """The scenario's true map; a map file is read once per process (its seed plays no part), a built-in
+    map is generated per seed."""
+    seed = scenario.seed if scenario.map in BUILTIN_MAPS else None
+    return _cached_map(scenario.map, scenario.cell_size, seed)
+
+
+class Fleet:
+    """A whole fleet in memory, after PettingZoo's ``ParallelEnv``: ``reset(seed)`` then ``step()`` until
+    ``done``; :meth:`result` is ``result.json``.
+
+    ``agents`` are the live robots, ``possible_agents`` all of them. Observations are the world's
+    :class:`Observation` messages of the tick; the reward of a tick is the coverage it added (shared by the
+    team). ``step(actions)`` takes optional moves (``{robot: (drow, dcol)}``) that replace the brains' for
+    those robots; every brain still runs and sends its radio messages. ``tap`` sees every message the bus
+    would carry (``fleet run --engine memory`` records them).
+    """
+
+    metadata: dict[str, Any] = {"name": "fleet_emu_memory_v0", "is_parallelizable": True}
+
+    def __init__(self, scenario: Scenario, *, run_id: str = "memory", tap: Tap | None = None) -> None:
+        scenario.validate()
+        make_allocator(allocator_config(scenario))  # a ConfigError now, not at the first reset
+        self.scenario = scenario
+        self.run_id = run_id
+        self.keys = Keys(run_id)
+        self.tap = tap
+        self.possible_agents: list[str] = robot_ids(scenario.robots)
+        self.agents: list[str] = []
+        self.monitor = Monitor(tuple(self.possible_agents))
+        self._started: float | None = None
+
+    # --- the ParallelEnv API ------------------------------------------------------------------------------
+
+    def reset(self, seed: int | None = None, options: Mapping[str, Any] | None = None
+              ) -> tuple[dict[str, Observation], dict[str, dict[str, Any]]]:
+        """Start a run (the scenario's seed, or ``seed``); the observations of tick 0 and an info per robot."""
+        if seed is not None:
+            self.scenario = self.scenario.override(seed=seed)
+        s = self.scenario
+        self.map = fleet_map(s)
+        self.world = build_world(s, self.map)
+        self.occupied = self.map.grid > 0
+        self.channel = Channel(s.radio.applied_loss, generator(s.seed, "netem"), s.radio.latency)
+        self.dropped = dict.fromkeys(self.possible_agents, 0)
+        self.brains = {r: Brain(r, make_allocator(allocator_config(s)), generator(s.seed, r), brain_config(s),
+                                team=frozenset(self.possible_agents), on_drop=self._on_drop(r))
+                       for r in self.possible_agents}
+        self.monitor = Monitor(tuple(self.possible_agents))
+        self._world_seq = self._netem_seq = 0
+        self._started = time.perf_counter()
+        self.done = False
+        self.reason: str | None = None
+        self._publish(self.world.reset())
+        return dict(self.obs), {r: {} for r in self.agents}
+
+    def step(self, actions: Mapping[str, Cell] | None = None
+             ) -> tuple[dict[str, Observation], dict[str, float], dict[str, bool], dict[str, bool], dict[str, Any]]:
+        """One tick: every live robot decides, netem sends, the world moves; PettingZoo's five dicts."""
+        if self.done:
+            raise RunError("step() after the run ended: call reset()")
+        w = self.world
+        t, live, before = w.tick, tuple(self.agents), w.coverage
+        bundles: dict[str, tuple[Envelope, ...]] = {}
+        moves: dict[str, Cell] = {}
+        for r in live:
+            brain = self.brains[r]
+            try:
+                cmd, out = brain.step(self.obs[r], self.rx.get(r, ()))
+            except Exception as exc:
+                raise RunError(f"robot {r} failed at tick {t}: {type(exc).__name__}: {exc}") from exc
+            bundles[r] = out
+            self._emit(self.keys.tx(r), TxBundle(src=r, tick=t, seq=brain.next_seq(), msgs=out))
+            self._emit(self.keys.cmd(r), cmd)
+            every = self.scenario.belief_every
+            if every and t % every == 0 and brain.belief is not None:
+                seq = brain.next_seq()  # drawn as the node does, recorded or not
+                if self.tap is not None:
+                    self._emit(self.keys.belief(r), BeliefSnapshot(src=r, tick=t, seq=seq, grid=brain.belief.grid))
+            moves[r] = cmd.move
+        if actions:
+            moves |= {r: tuple(m) for r, m in actions.items() if r in moves}  # type: ignore[misc]
+        self.channel.transmit(t, live, self.link, bundles)
+        self._publish(w.step(moves))
+        gain = w.coverage - before
+        rewards = dict.fromkeys(live, gain)
+        terminations = {r: self.done and self.reason == "coverage" for r in live}
+        truncations = {r: self.done and self.reason != "coverage" for r in live}
+        infos = {r: {"tick": w.tick, "coverage": w.coverage} for r in live}
+        return dict(self.obs), rewards, terminations, truncations, infos
+
+    def close(self) -> None:
+        """Nothing to release (kept for the ParallelEnv API)."""
+
+    # --- whole runs ---------------------------------------------------------------------------------------
+
+    def run(self, seed: int | None = None, on_tick: Callable[[Monitor], None] | None = None) -> Result:
+        """Reset and step to the end; the run's :class:`Result` (``result.json`` and the coverage curve)."""
+        self.reset(seed)
+        while not self.done:
+            self.step()
+            if on_tick is not None:
+                on_tick(self.monitor)
+        return self.result()
+
+    def result(self) -> Result:
+        """``result.json`` of the run so far (the launcher's fold, as over Zenoh; ``pids`` are this process)."""
+        s = self.scenario
+        data = self.monitor.result(s.to_dict(), self.run_id, s.target_coverage)
+        elapsed = time.perf_counter() - (self._started or time.perf_counter())
+        pid = os.getpid()
+        data |= {
+            "engine": "memory",
+            "pids": {"world": pid, "netem": pid, "agents": [pid] * s.robots},
+            "recording": {"path": None, "messages": 0},
+            "wall_seconds": round(elapsed, 3),
+            "signal": None,
+            "authenticated": None,  # no bus to authenticate
+            "scenario": s.to_dict(),
+        }
+        return Result(data, tuple(self.monitor.coverage_curve))
+
+    # --- the node shells' work, without the bus -----------------------------------------------------------
+
+    def _on_drop(self, robot: str) -> Callable[[str, str], None]:
+        def drop(_key: str, _why: str) -> None:
+            self.dropped[robot] += 1
+        return drop
+
+    def _emit(self, key: str, msg: Message) -> None:
+        """What a node would publish: the launcher's fold (and the tap) get it."""
+        now = time.time_ns()
+        self.monitor.fold(msg)
+        if isinstance(msg, WorldState):  # the fold's speed measure, as the launcher times the states
+            self.monitor.first_state_ns = self.monitor.first_state_ns or now
+            self.monitor.last_state_ns = now
+        if self.tap is not None:
+            self.tap(key, msg, now)
+
+    def _wseq(self) -> int:
+        self._world_seq += 1
+        return self._world_seq
+
+    def _nseq(self) -> int:
+        self._netem_seq += 1
+        return self._netem_seq
+
+    def _publish(self, readings: dict[str, Reading]) -> None:
+        """World then netem for the current tick (``WorldNode._publish``, ``NetemNode._publish_tick``)."""
+        w, s = self.world, self.scenario
+        t = w.tick
+        self.obs = {r: Observation(src="world", tick=t, seq=self._wseq(), robot=r, cell=readings[r].cell,
+                                   shape=w.shape, cell_size=s.cell_size, cells=readings[r].cells,
+                                   values=readings[r].values)
+                    for r in (() if w.done else w.live)}
+        for r, o in self.obs.items():
+            self._emit(self.keys.obs(r), o)
+        self._emit(self.keys.state, WorldState(
+            src="world", tick=t, seq=self._wseq(), poses=dict(w.poses), live=tuple(w.live),
+            coverage=float(w.coverage), path_length=dict(w.path_length), done=w.done, reason=w.reason))
+        live = tuple(r for r in self.possible_agents if r in w.live)
+        strength, self.link = link_matrix(self.occupied, [w.poses[r] for r in live], s.cell_size, s.radio)
+        c = self.channel.counters
+        self._emit(self.keys.links, Links(
+            src="netem", tick=t, seq=self._nseq(), robots=live, strength=strength.astype(np.float32),
+            link=self.link, connected=bool(connected(self.link)), sent=c.sent, delivered=c.delivered,
+            dropped_loss=c.dropped_loss, dropped_signal=c.dropped_signal, bytes_sent=c.bytes_sent))
+        self.agents = list(live)
+        if w.done:
+            self._finish()
+            return
+        arriving = self.channel.deliver(t)
+        self.rx = {r: tuple(arriving.get(r, ())) for r in live}
+        for r in live:
+            self._emit(self.keys.rx(r), RxBundle(src="netem", tick=t, seq=self._nseq(), dst=r, msgs=self.rx[r]))
+
+    def _finish(self) -> None:
+        """The world's stop and every live robot's report (``AgentNode.run`` after its lockstep)."""
+        w = self.world
+        self.done, self.reason = True, w.reason or "done"
+        self._emit(self.keys.stop, Stop(src="world", tick=w.tick, seq=self._wseq(), reason=self.reason))
+        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        for r in w.live:
+            brain = self.brains[r]
+            ms = np.array(brain.decision_ms or [0.0])
+            self._emit(self.keys.report(r), AgentReport(
+                src=r, tick=w.tick, seq=brain.next_seq(), decisions=len(brain.decision_ms),
+                decision_ms_mean=float(ms.mean()), decision_ms_p95=float(np.percentile(ms, 95)),
+                dropped=self.dropped[r], peak_rss_kb=rss))
+        self.agents = []
+
+
+def seed_test(scenario: Scenario, seed: int = 0, ticks: int = 60) -> None:
+    """PettingZoo's ``seed_test`` for :class:`Fleet`: two fleets reset with the same seed give the same
+    observations, rewards and ends, tick by tick, and a fleet reset again with that seed replays its run.
+    Raises AssertionError naming the first difference."""
+    a, b = Fleet(scenario), Fleet(scenario)
+    first = _trace(a, seed, ticks)
+    assert first == _trace(b, seed, ticks), "two fleets reset with the same seed differ"
+    assert first == _trace(a, seed, ticks), "a fleet reset again with the same seed differs"
+
+
+def _trace(fleet: Fleet, seed: int, ticks: int) -> list[Any]:
+    obs, _ = fleet.reset(seed)
+    out: list[Any] = [_digest(obs)]
+    for _ in range(ticks):
+        if fleet.done:
+            break
+        obs, rew, term, trunc, _info = fleet.step()
+        out.append((_digest(obs), rew, term, trunc, dict(fleet.world.poses)))
+    return out
+
+
+def _digest(obs: Mapping[str, Observation]) -> list[Any]:
+    return [(r, o.tick, o.cell, o.cells.tobytes(), o.values.tobytes()) for r, o in sorted(obs.items())]
+
+
+def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool = True, run_id: str = "",
+               grid_every: int | None = None, on_progress: Callable[[Monitor], None] | None = None,
+               interrupts: Interrupts | None = None) -> Result:
+    """``fleet run --engine memory``: one run in this process, writing what ``run_fleet`` writes under
+    ``out_dir`` (``result.json``, ``scenario.json``, ``map.npz``, and with ``record`` a ``run.mcap`` that
+    ``fleet report`` reads). Bad input raises ConfigError before anything is written. With ``interrupts``
+    (the CLI's signal state) a signal ends the run after the current tick, as ``run_fleet`` does; without,
+    Ctrl-C re-raises KeyboardInterrupt once the files are written."""
+    from fleet_emu.launch.result import write_json_atomic
+    from fleet_emu.launch.runner import _make_out, check, new_run_id
+
+    map_data = check(scenario)
+    run_id = run_id or new_run_id()
+    if out_dir is not None:
+        _make_out(out_dir)
+    with contextlib.ExitStack() as stack:
+        recording = out_dir / "run.mcap" if record and out_dir is not None else None
+        tap, finish = _recording_tap(stack, scenario, map_data, run_id, recording, grid_every)
+        fleet = Fleet(scenario, run_id=run_id, tap=tap)
+        if out_dir is not None:
+            write_json_atomic(out_dir / "scenario.json", scenario.to_dict())
+            map_data.save(out_dir / "map.npz")
+        interrupted = False
+
+        def tick(monitor: Monitor) -> None:
+            if on_progress is not None:
+                on_progress(monitor)
+            if interrupts is not None and interrupts.requested.is_set():
+                raise KeyboardInterrupt
+
+        try:
+            if interrupts is not None and interrupts.requested.is_set():
+                raise KeyboardInterrupt  # a signal before the first tick
+            result = fleet.run(on_tick=tick)
+        except KeyboardInterrupt:  # result.json of what ran, as the processes engine writes it
+            interrupted = True
+            result = fleet.result()
+            result.data["reason"] = "interrupted"
+        finally:
+            messages = finish()
+        result.data["signal"] = interrupts.name if interrupts is not None else ("SIGINT" if interrupted else None)
+        result.data["recording"] = {"path": str(recording) if recording else None, "messages": messages}
+        if out_dir is not None:
+            write_json_atomic(out_dir / "result.json", result.data)
+    if interrupted and interrupts is None:
+        raise KeyboardInterrupt
+    return Result(result.data, result.curve, out_dir)
+
+
+def _recording_tap(stack: contextlib.ExitStack, scenario: Scenario, map_data: MapData, run_id: str,
+                   recording: Path | None, grid_every: int | None) -> tuple[Tap | None, Callable[[], int]]:
+    """A tap that encodes every message into ``run.mcap`` (with the Foxglove channels), and its closer."""
+    if recording is None:
+        return None, lambda: 0
+    from fleet_emu.recording.foxglove import FoxgloveFold
+    from fleet_emu.recording.foxglove_writer import FoxgloveWriter
+    from fleet_emu.recording.recorder import Recorder
+
+    recorder = Recorder(recording, {"run_id": run_id, "scenario": scenario.to_dict(), "engine": "memory"})
+    viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, grid_every, run_id), Keys(run_id))
+    closed: list[int] = []
+
+    def tap(key: str, msg: Message, wall_ns: int) -> None:
+        data = msg.encode()
+        recorder.record(key, data, wall_ns)
+        viz.feed(key, data, msg)
+
+    def finish() -> int:
+        if not closed:
+            viz.finish()
+            closed.append(recorder.close())
+        return closed[0]
+
+    stack.callback(finish)
+    return tap, finish

@@ -1,0 +1,173 @@
+"""``fleet sweep STUDY --out DIR`` (a study's runs, in parallel, resumable), ``fleet sweep --list`` (the shipped
+studies) and ``fleet sweep report RESULTS`` (figures and tables).
+
+Exit codes: 0 when every run succeeded; 2 on bad input (one line, before any run); 130 on Ctrl-C (the rows
+finished so far are kept and the tables written); otherwise 200 + the number of failed runs (at most 255).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import shutil
+import sys
+import time
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from fleet_emu.core.errors import ConfigError
+
+FAILED_BASE = 200
+
+
+def add_parser(sub: Any) -> None:
+    """The ``sweep`` subcommand of ``fleet``."""
+    s = sub.add_parser("sweep", help="run a study (a grid of runs) in parallel; `fleet sweep report RESULTS`")
+    s.add_argument("args", nargs="*", metavar="STUDY",
+                   help="a study TOML or a shipped study's name; or: report RESULTS")
+    s.add_argument("--out", type=Path, help="the results directory (a second call resumes there)")
+    s.add_argument("--jobs", type=int, help="parallel runs (default: the number of cores)")
+    s.add_argument("--dask", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://192.0.2.10:8786")
+    s.add_argument("--maps", type=Path, help="where the study's map files are (default: $FLEET_MAPS, ../shared/maps)")
+    s.add_argument("--list", action="store_true", help="list the studies shipped with fleet-emu")
+    s.add_argument("--limit", type=int, help="run only the first N points not yet done (a quick look)")
+    s.add_argument("--seeds", type=int, metavar="N",
+                   help="run only the study's first N seeds of every point (a quick look; a later call completes it)")
+    s.add_argument("--baseline", help="report: the allocator to compare with (default: the study's)")
+    s.add_argument("--no-plots", action="store_true", help="report: the tables only")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from fleet_emu.sweep.study import shipped
+
+    if args.list:
+        for name, desc in shipped().items():
+            print(f"{name:14s} {desc}")
+        return 0
+    if args.args[:1] == ["report"]:
+        if len(args.args) != 2:
+            raise ConfigError("usage: fleet sweep report RESULTS (a sweep's --out directory or its results.parquet)")
+        from fleet_emu.sweep.report import report
+
+        report(Path(args.args[1]), baseline=args.baseline, plots=not args.no_plots, seeds=args.seeds)
+        return 0
+    if len(args.args) != 1:
+        raise ConfigError("usage: fleet sweep STUDY --out DIR (or --list, or report RESULTS)")
+    if args.out is None:
+        raise ConfigError("fleet sweep needs --out DIR (where the results go)")
+    return sweep(args.args[0], args.out, jobs=args.jobs, dask=args.dask, maps=args.maps, limit=args.limit,
+                 seeds=args.seeds, quiet=args.quiet)
+
+
+def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | None = None, maps: Path | None = None,
+          limit: int | None = None, seeds: int | None = None, quiet: bool = False) -> int:
+    """Run a study into ``out``, resuming what is there; the exit code (see the module docstring)."""
+    from fleet_emu.sweep.execute import connect_dask
+    from fleet_emu.sweep.study import Study
+
+    study = Study.load(study_name)
+    if jobs is not None and jobs < 1:
+        raise ConfigError(f"--jobs must be at least 1 (got {jobs})")
+    if limit is not None and limit < 1:
+        raise ConfigError(f"--limit must be at least 1 (got {limit})")
+    if seeds is not None and seeds < 1:
+        raise ConfigError(f"--seeds must be at least 1 (got {seeds})")
+    points = study.points(maps)
+    if seeds is not None:
+        points = [p for p in points if p.params["seed"] in study.seeds[:seeds]]
+    with contextlib.ExitStack() as stack:
+        client = stack.enter_context(connect_dask(dask)) if dask else None  # before anything is written
+        _claim(out, study)
+        return _run(study, points, out, jobs, client, dask, limit, quiet)
+
+
+def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any, dask: str | None,
+         limit: int | None, quiet: bool) -> int:
+    """The sweep proper, once every check passed and ``out`` is claimed."""
+    from rich.console import Console
+
+    from fleet_emu.sweep.execute import RowWriter, execute, read_rows, write_tables
+
+    done = {r["id"] for r in read_rows(out) if r.get("status") == "ok"}
+    todo = [p for p in points if p.id not in done][:limit]
+    jobs = jobs or os.cpu_count() or 1
+    console = Console(stderr=True)
+    console.print(f"[bold]{study.name}[/bold]: {len(points)} runs, {sum(p.id in done for p in points)} done, "
+                  f"{len(todo)} to run "
+                  f"({study.engine} engine, {'Dask ' + dask if dask else f'{jobs} jobs'}) -> {out}")
+    writer = RowWriter(out)
+    failed = 0
+    interrupted = False
+    t0 = time.monotonic()
+    with _bar(console, len(todo), quiet) as (bar, task):
+        def on_row(row: dict[str, Any]) -> None:
+            nonlocal failed
+            writer.write(row)
+            failed += row.get("status") != "ok"
+            bar.update(task, advance=1, failed=failed)
+
+        try:
+            execute(todo, jobs, on_row, client)
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            writer.close()
+    rows = read_rows(out)
+    parquet, csv = write_tables(rows, out)
+    failed_all = sum(r.get("status") != "ok" for r in rows)
+    console.print(f"{len(rows)} rows ({failed_all} failed) in {parquet} and {csv}; this call ran {len(todo)} in "
+                  f"{time.monotonic() - t0:.1f} s")
+    if interrupted:
+        print(f"fleet: interrupted; the finished runs are in {out} (run again to resume)", file=sys.stderr)
+        return 130
+    if failed_all:
+        print(f"fleet: error: {failed_all} of {len(rows)} runs failed (their rows hold the error)", file=sys.stderr)
+        return min(FAILED_BASE + failed_all, 255)
+    return 0
+
+
+def _claim(out: Path, study: Any) -> None:
+    """Make ``out`` and keep the study there; a directory holding another study's results is refused."""
+    kept = out / "study.toml"
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        if kept.exists():
+            from fleet_emu.sweep.study import Study
+
+            other = Study.from_dict(tomllib.loads(kept.read_text()), kept)
+            if other.name != study.name or other.grid != study.grid or other.fleet != study.fleet:
+                raise ConfigError(f"--out {out} holds the results of another study ({other.name}); "
+                                  f"choose another directory")
+        elif study.path is not None:
+            shutil.copyfile(study.path, kept)
+    except OSError as exc:
+        raise ConfigError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+
+
+class _bar:
+    """A rich progress bar with the count, the failures and an ETA (nothing with ``quiet``)."""
+
+    def __init__(self, console: Any, total: int, quiet: bool) -> None:
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        self.progress = Progress(TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(),
+                                 TextColumn("failed {task.fields[failed]}"), TimeElapsedColumn(),
+                                 TextColumn("ETA"), TimeRemainingColumn(), console=console, disable=quiet)
+        self.task = self.progress.add_task("runs", total=total, failed=0)
+
+    def __enter__(self) -> tuple[Any, Any]:
+        self.progress.start()
+        return self.progress, self.task
+
+    def __exit__(self, *exc: object) -> None:
+        self.progress.stop()

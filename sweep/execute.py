@@ -1,0 +1,187 @@
+"""Running a study's points: one row per run, in parallel (a local process pool, or a Dask cluster), written as
+they finish to ``rows.jsonl`` (so an interrupted sweep resumes) and at the end to ``results.parquet`` and
+``results.csv``.
+
+A row is every ``result.json`` key flattened (``radio.sent``, ``scenario.radio.comm_range``; lists as JSON),
+the point's parameters (``param.allocator``, ``param.robots``, ..., ``param.seed``), its ``id``, ``status``
+(``ok`` or ``failed``), ``error``, its wall and CPU seconds (``point_seconds``, ``point_cpu_seconds``: the
+worker's CPU time, what the run costs on an idle core) and the coverage curve (``curve``: JSON, one value
+every ``curve_every`` ticks).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import json
+import multiprocessing
+import time
+import traceback
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+from typing import Any
+
+from fleet_emu.sweep.study import Point
+
+ROWS = "rows.jsonl"
+PARQUET = "results.parquet"
+CSV = "results.csv"
+CURVE_EVERY = 5
+
+
+def run_point(point: Point) -> dict[str, Any]:
+    """One run of a study as a row; never raises (a failed run is a row with its error). Top-level and
+    picklable: a pool worker or a Dask worker runs it."""
+    from fleet_emu.core.scenario import Scenario
+
+    row: dict[str, Any] = {"id": point.id, "engine": point.engine}
+    row |= {f"param.{k}": v for k, v in point.params.items()}
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    try:
+        scenario = Scenario.from_dict(point.scenario)
+        if point.engine == "memory":
+            from fleet_emu.launch.memory import Fleet
+
+            result = Fleet(scenario, run_id=f"sweep-{point.id}").run()
+        else:
+            from fleet_emu.launch.runner import RunOptions, run_fleet
+
+            result = run_fleet(scenario, RunOptions(record=False, run_id=f"sweep-{point.id}"))
+    except Exception as exc:  # the row says what went wrong; the sweep goes on
+        last = traceback.extract_tb(exc.__traceback__)[-1:] if exc.__traceback__ else []
+        where = f" ({last[0].filename.rsplit('/', 1)[-1]}:{last[0].lineno})" if last else ""
+        return row | {"status": "failed", "error": f"{type(exc).__name__}: {exc}{where}",
+                      "point_seconds": round(time.perf_counter() - t0, 3),
+                      "point_cpu_seconds": round(time.process_time() - cpu0, 3)}
+    data = dict(flatten(result.to_dict()))
+    data.pop("engine", None)
+    ticks, cov = result.coverage_curve()
+    curve = [round(float(c), 4) for t, c in zip(ticks, cov, strict=True) if t % CURVE_EVERY == 0]
+    failed = data.get("failed") not in (None, "[]")
+    return row | data | {
+        "status": "failed" if failed else "ok", "error": f"robots failed: {data['failed']}" if failed else None,
+        "point_seconds": round(time.perf_counter() - t0, 3), "point_cpu_seconds": round(time.process_time() - cpu0, 3),
+        "curve_every": CURVE_EVERY, "curve": json.dumps(curve),
+    }
+
+
+def flatten(d: dict[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
+    """Nested dicts as dotted keys; lists as JSON text (one cell of a CSV)."""
+    for k, v in d.items():
+        if isinstance(v, dict):
+            yield from flatten(v, f"{prefix}{k}.")
+        elif isinstance(v, list | tuple):
+            yield f"{prefix}{k}", json.dumps(v)
+        else:
+            yield f"{prefix}{k}", v
+
+
+def read_rows(out: Path) -> list[dict[str, Any]]:
+    """The rows written so far (the last row of an id wins; a line cut by a crash is skipped)."""
+    path = out / ROWS
+    rows: dict[str, dict[str, Any]] = {}
+    if path.exists():
+        for line in path.read_text().splitlines():
+            try:
+                row = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            rows[row["id"]] = row
+    return list(rows.values())
+
+
+class RowWriter:
+    """Appends each finished row to ``rows.jsonl`` at once (flushed), so an interrupted sweep loses nothing."""
+
+    def __init__(self, out: Path) -> None:
+        self._file = (out / ROWS).open("a")
+
+    def write(self, row: dict[str, Any]) -> None:
+        self._file.write(json.dumps(row, default=str) + "\n")
+        self._file.flush()
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def execute(points: list[Point], jobs: int, on_row: Callable[[dict[str, Any]], None], dask: Any = None) -> None:
+    """Run the points (in any order), calling ``on_row`` with each row as it finishes; ``dask`` is a
+    :func:`connect_dask` client (or None for a local pool of ``jobs`` processes)."""
+    if dask is not None:
+        _on_dask(points, dask, on_row)
+    elif jobs <= 1:
+        for p in points:
+            on_row(run_point(p))
+    else:
+        ctx = multiprocessing.get_context("spawn")  # never fork: a worker may open Zenoh sessions
+        with cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+            futures = {pool.submit(run_point, p): p for p in points}
+            try:
+                for fut in cf.as_completed(futures):
+                    on_row(_row_of(fut, futures[fut]))
+            except BaseException:
+                for fut in futures:
+                    fut.cancel()
+                raise
+
+
+def connect_dask(address: str) -> Any:
+    """A client of the Dask scheduler at ``address``; a ConfigError (one line) when none answers in 10 s."""
+    from fleet_emu.core.errors import ConfigError
+
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ConfigError("--dask needs dask[distributed]: pip install 'fleet-emu[sweep]'") from None
+    try:
+        return Client(address, timeout="10s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ConfigError(f"--dask {address}: no Dask scheduler answered ({exc})") from None
+
+
+def _on_dask(points: list[Point], client: Any, on_row: Callable[[dict[str, Any]], None]) -> None:
+    """Each point a task on a Dask distributed cluster: every worker runs whole fleets."""
+    from distributed import as_completed
+
+    futures = client.map(run_point, points, pure=False, key=[f"fleet-{p.id}" for p in points])
+    by_key = {f.key: p for f, p in zip(futures, points, strict=True)}
+    for fut in as_completed(futures):
+        on_row(_row_of(fut, by_key[fut.key]))
+
+
+def _row_of(fut: Any, point: Point) -> dict[str, Any]:
+    """A future's row; a worker that died is a failed row."""
+    try:
+        return fut.result()
+    except Exception as exc:
+        return {"id": point.id, "engine": point.engine, **{f"param.{k}": v for k, v in point.params.items()},
+                "status": "failed", "error": f"worker failed: {type(exc).__name__}: {exc}"}
+
+
+def write_tables(rows: Iterable[dict[str, Any]], out: Path) -> tuple[Path, Path]:
+    """``results.parquet`` (pyarrow) and ``results.csv`` beside it, one row per run, rows sorted by id."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    import pyarrow.parquet as pq
+
+    rows = sorted(rows, key=lambda r: r["id"])
+    names: dict[str, None] = {}
+    for r in rows:
+        names |= dict.fromkeys(r)
+    table = pa.table({n: _column([r.get(n) for r in rows]) for n in names})
+    pq.write_table(table, out / PARQUET)
+    pacsv.write_csv(table, out / CSV)
+    return out / PARQUET, out / CSV
+
+
+def _column(values: list[Any]) -> Any:
+    """One column with one type: bool, int64, float64 (ints among floats), else text (JSON for the rest)."""
+    import pyarrow as pa
+
+    present = [v for v in values if v is not None]
+    if present and all(isinstance(v, bool) for v in present):
+        return pa.array(values, pa.bool_())
+    if present and all(isinstance(v, int) and not isinstance(v, bool) for v in present):
+        return pa.array(values, pa.int64())
+    if present and all(isinstance(v, int | float) and not isinstance(v, bool) for v in present):
+        return pa.array([None if v is None else float(v) for v in values], pa.float64())
+    return pa.array([None if v is None else v if isinstance(v, str) else json.dumps(v) for v in values], pa.string())

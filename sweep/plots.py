@@ -1,0 +1,76 @@
+"""The figures of ``fleet sweep report`` (matplotlib, Agg): time to target vs robot count with 95 % confidence
+bands, mean coverage vs tick, time vs loss; one line per allocator."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fleet_emu.sweep.report import by, ci95, time_to_target
+
+
+def draw(rows: list[dict[str, Any]], out: Path) -> list[Path]:
+    """Write the figures into ``out``; the paths written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    written = []
+    for name, x_key, x_label in (("time_vs_robots", "robots", "robots"),
+                                 ("time_vs_loss", "loss_applied", "loss probability")):
+        if name == "time_vs_loss" and len({r.get("loss_applied") for r in rows}) < 2:
+            continue
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for (alloc,), runs in by(rows, "param.allocator").items():
+            xs, mean, half = [], [], []
+            for (x,), pts in by(runs, x_key).items():
+                v = np.array([time_to_target(r) for r in pts], dtype=float)
+                v = v[~np.isnan(v)]
+                if len(v):
+                    xs.append(float(x))
+                    mean.append(v.mean())
+                    half.append(ci95(v) if len(v) > 1 else 0.0)
+            if not xs:
+                continue
+            order = np.argsort(xs)
+            x, m, h = np.array(xs)[order], np.array(mean)[order], np.nan_to_num(np.array(half)[order])
+            ax.plot(x, m, marker="o", label=str(alloc))
+            ax.fill_between(x, m - h, m + h, alpha=0.2)
+        ax.set_xlabel(x_label)
+        ax.set_ylabel("ticks to the target (mean, 95 % CI)")
+        ax.grid(alpha=0.3)
+        ax.legend()
+        written.append(_save(fig, out / f"{name}.png"))
+    written.append(_coverage(rows, out, plt))
+    return written
+
+
+def _coverage(rows: list[dict[str, Any]], out: Path, plt: Any) -> Path:
+    """Mean coverage against tick per allocator (a run that ended holds its last coverage)."""
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for (alloc,), runs in by(rows, "param.allocator").items():
+        curves = [np.array(json.loads(r["curve"]), dtype=float) for r in runs if r.get("curve")]
+        if not curves:
+            continue
+        every = int(runs[0].get("curve_every") or 1)
+        n = max(len(c) for c in curves)
+        padded = np.array([np.pad(c, (0, n - len(c)), mode="edge") for c in curves])
+        ax.plot(np.arange(n) * every, padded.mean(axis=0), label=f"{alloc} ({len(curves)} runs)")
+    ax.set_xlabel("tick")
+    ax.set_ylabel("coverage (mean over runs)")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    return _save(fig, out / "coverage_vs_tick.png")
+
+
+def _save(fig: Any, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    return path

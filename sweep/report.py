@@ -1,0 +1,221 @@
+"""``fleet sweep report RESULTS``: a sweep's rows as figures and tables.
+
+Figures (matplotlib, beside the results): time to target against robot count per allocator with 95 %
+confidence bands (``time_vs_robots.png``), mean coverage against tick per allocator (``coverage_vs_tick.png``),
+time against loss per allocator (``time_vs_loss.png``). Tables: per group (map, radio, loss, robots) and
+allocator, the mean ± std of the time to target (ticks; runs that reached the target), moves (cells
+travelled, the team's total) and connected time, with the % difference of the mean time to the baseline
+allocator's in the same group; then the study's ``[paper]`` rows, the paper's number beside ours.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from collections import defaultdict
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fleet_emu.core.errors import ConfigError
+from fleet_emu.sweep.execute import PARQUET
+
+GROUP = ("map", "comm", "loss_applied", "robots")
+
+
+def load(results: Path) -> tuple[list[dict[str, Any]], dict[str, Any], Path]:
+    """The rows of a results directory (or its parquet/CSV file), its ``study.toml`` (or {}) and the directory."""
+    out = results if results.is_dir() else results.parent
+    path = results / PARQUET if results.is_dir() else results
+    if not path.exists():
+        raise ConfigError(f"no sweep results at {results} (expected a sweep's --out directory or its {PARQUET})")
+    try:
+        if path.suffix == ".csv":
+            import pyarrow.csv as pacsv
+
+            table = pacsv.read_csv(path)
+        else:
+            import pyarrow.parquet as pq
+
+            table = pq.read_table(path)
+    except Exception as exc:
+        raise ConfigError(f"cannot read sweep results {path}: {exc}") from None
+    study = tomllib.loads((out / "study.toml").read_text()) if (out / "study.toml").exists() else {}
+    return table.to_pylist(), study, out
+
+
+def moves(row: dict[str, Any]) -> float:
+    return float(sum(json.loads(row["path_length"]))) if row.get("path_length") else math.nan
+
+
+def time_to_target(row: dict[str, Any]) -> float:
+    return float(row["ticks"]) if row.get("completed") else math.nan
+
+
+def connected_pct(row: dict[str, Any]) -> float:
+    v = row.get("connected_fraction")
+    return 100.0 * v if v is not None else math.nan
+
+
+METRICS: dict[str, Callable[[dict[str, Any]], float]] = {
+    "ticks": time_to_target, "moves": moves, "connected_pct": connected_pct,
+    "coverage_pct": lambda r: 100.0 * r["coverage"] if r.get("coverage") is not None else math.nan,
+}
+
+
+def ci95(values: np.ndarray) -> float:
+    """Half-width of the 95 % confidence interval of the mean (Student's t)."""
+    n = len(values)
+    if n < 2:
+        return math.nan
+    from scipy.stats import t
+
+    return float(t.ppf(0.975, n - 1) * values.std(ddof=1) / math.sqrt(n))
+
+
+def stats(rows: Iterable[dict[str, Any]], metric: str) -> tuple[float, float, int]:
+    """Mean, std (ddof 1) and count of a metric over rows (NaN left out)."""
+    v = np.array([METRICS[metric](r) for r in rows], dtype=float)
+    v = v[~np.isnan(v)]
+    if not len(v):
+        return math.nan, math.nan, 0
+    return float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else 0.0, len(v)
+
+
+def by(rows: Iterable[dict[str, Any]], *keys: str) -> dict[tuple[Any, ...], list[dict[str, Any]]]:
+    out: dict[tuple[Any, ...], list[dict[str, Any]]] = defaultdict(list)
+    for r in rows:
+        out[tuple(r.get(k) for k in keys)].append(r)
+    return dict(sorted(out.items(), key=lambda kv: tuple(_order(x) for x in kv[0])))
+
+
+def _order(x: Any) -> tuple[int, Any]:
+    """Numbers in numeric order, before text (robot counts 1, 2, ..., 10)."""
+    return (0, x) if isinstance(x, int | float) and not isinstance(x, bool) else (1, str(x))
+
+
+def pct(a: float, b: float) -> float:
+    return 100.0 * (a - b) / b if b and not math.isnan(a) and not math.isnan(b) else math.nan
+
+
+def summary(rows: list[dict[str, Any]], baseline: str | None) -> list[dict[str, Any]]:
+    """One line per (group, allocator): the metrics' mean and std, and the time's % difference to baseline."""
+    lines = []
+    for group, members in by(rows, *GROUP).items():
+        per_alloc = by(members, "param.allocator")
+        base = per_alloc.get((baseline,))
+        base_mean = stats(base, "ticks")[0] if base else math.nan
+        for (alloc,), runs in per_alloc.items():
+            line: dict[str, Any] = dict(zip(GROUP, group, strict=True)) | {"allocator": alloc, "runs": len(runs)}
+            for m in METRICS:
+                line[m] = stats(runs, m)
+            line["vs_baseline_pct"] = pct(line["ticks"][0], base_mean)
+            lines.append(line)
+    return lines
+
+
+def report(results: Path, baseline: str | None = None, plots: bool = True, seeds: int | None = None) -> None:
+    """Print the tables (and draw the figures) of a sweep's results; with ``seeds``, only the runs of the
+    study's first N seeds (every point then has the same seeds)."""
+    from rich.console import Console
+
+    rows, study, out = load(results)
+    if seeds is not None:
+        listed = study.get("study", {}).get("seeds", 0)
+        keep = set(listed[:seeds] if isinstance(listed, list) else range(seeds))
+        rows = [r for r in rows if r.get("param.seed") in keep]
+    ok = [r for r in rows if r.get("status") == "ok"]
+    failed = len(rows) - len(ok)
+    allocators = sorted({r["param.allocator"] for r in ok})
+    head = study.get("study", {})
+    baseline = baseline or head.get("baseline") or (allocators[0] if allocators else None)
+    console = Console()
+    if not console.is_terminal:
+        console = Console(width=160)
+    console.print(f"[bold]{head.get('name', out.name)}[/bold]: {len(rows)} runs, {failed} failed; "
+                  f"baseline {baseline}" + (f"; the first {seeds} seeds" if seeds else ""))
+    lines = summary(ok, baseline)
+    console.print(_summary_table(lines, baseline))
+    paper = study.get("paper", {})
+    if paper:
+        console.print(_paper_table(paper, ok, lines, baseline))
+    if plots and ok:
+        from fleet_emu.sweep.plots import draw
+
+        for path in draw(ok, out):
+            console.print(f"wrote {path}")
+
+
+def _fmt(mean_std: tuple[float, float, int], digits: int = 1) -> str:
+    mean, std, n = mean_std
+    return "-" if n == 0 else f"{mean:.{digits}f} ± {std:.{digits}f}"
+
+
+def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
+    from rich.table import Table
+
+    t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it)")
+    for col in ("map", "radio", "robots", "allocator", "runs", "reached", "time", f"vs {baseline}", "moves",
+                "connected %"):
+        t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left")
+    for ln in lines:
+        t.add_row(Path(str(ln["map"])).stem, f"{ln['comm']}, loss {ln['loss_applied']:g}", str(ln["robots"]),
+                  ln["allocator"], str(ln["runs"]), str(ln["ticks"][2]), _fmt(ln["ticks"]),
+                  "-" if math.isnan(ln["vs_baseline_pct"]) else f"{ln['vs_baseline_pct']:+.1f} %",
+                  _fmt(ln["moves"]), _fmt(ln["connected_pct"]))
+    return t
+
+
+def _paper_table(paper: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict[str, Any]],
+                 baseline: str | None) -> Any:
+    """The paper's rows (``[[paper.rows]]``: what, allocator, metric, value, and optional robots/loss filters)
+    with ours beside them; ``metric`` is one of :data:`METRICS`, ``std_ticks``, ``vs_baseline_pct`` (mean over
+    the matching groups), ``mean_std_ticks`` (the time's std, mean over the matching groups) or ``vs_loss0_pct``
+    (the % change, from loss 0, of the mean times summed over the robot counts)."""
+    from rich.table import Table
+
+    t = Table(title=f"the paper beside ours — {paper.get('source', '')}")
+    for col in ("what", "paper", "ours"):
+        t.add_column(col, justify="left" if col == "what" else "right")
+    for claim in paper.get("claims", []):
+        t.add_row(str(claim), "", "")
+    for pr in paper.get("rows", []):
+        ours = paper_value(pr, rows, lines, baseline)
+        t.add_row(str(pr.get("what", pr.get("metric"))), str(pr.get("value", "")),
+                  "-" if ours is None or math.isnan(ours) else f"{ours:.1f}")
+    return t
+
+
+def paper_value(pr: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict[str, Any]],
+                baseline: str | None) -> float | None:
+    """Our number for one ``[[paper.rows]]`` entry."""
+    keep = {k: pr[k] for k in ("allocator", "robots", "loss") if k in pr}
+    metric = pr.get("metric", "ticks")
+    if metric == "vs_baseline_pct":
+        vals = [ln["vs_baseline_pct"] for ln in lines if _matches(ln, keep, "allocator")]
+        vals = [v for v in vals if not math.isnan(v)]
+        return float(np.mean(vals)) if vals else None
+    if metric == "mean_std_ticks":
+        stds = [ln["ticks"][1] for ln in lines if _matches(ln, keep, "allocator") and ln["ticks"][2] > 1]
+        return float(np.mean(stds)) if stds else None
+    sel = [r for r in rows if _matches(r, keep, "param.allocator")]
+    if metric == "vs_loss0_pct":  # the sum over robot counts of the mean times, at the loss and at no loss
+        zero = by([r for r in rows if _matches(r, keep | {"loss": 0.0}, "param.allocator")], "robots")
+        at = by(sel, "robots")
+        both = [n for n in at if n in zero]
+        return pct(sum(stats(at[n], "ticks")[0] for n in both), sum(stats(zero[n], "ticks")[0] for n in both))
+    if metric == "std_ticks":
+        return stats(sel, "ticks")[1]
+    return stats(sel, metric)[0] if sel else None
+
+
+def _matches(r: dict[str, Any], keep: dict[str, Any], alloc_key: str) -> bool:
+    """Whether a row (or a summary line) is one a paper row is about; a list matches any of its values."""
+    for k, want in keep.items():
+        got = r.get(alloc_key if k == "allocator" else "loss_applied" if k == "loss" else k)
+        if not (got in want if isinstance(want, list) else got == want):
+            return False
+    return True

@@ -1,0 +1,201 @@
+"""A study: a grid of runs (allocators with parameters, robot counts, losses, radio models, maps, seeds, any
+scenario field), read from a TOML file, expanded into points with stable ids (so that a sweep can resume).
+
+```toml
+[study]
+name = "tiny"
+engine = "memory"          # or "processes": each point a real fleet over Zenoh
+seeds = 2                  # seeds 0..1, or a list [0, 5, 7]
+baseline = "nearest"       # the allocator `fleet sweep report` compares the others with
+[grid]                     # every key a list; the points are their product
+allocator = ["nearest", {type = "minpos", wavefront = "stop"}]
+robots = [2, 3]
+loss = [0.0]
+comm = ["ideal"]
+map = ["office"]
+[fleet]                    # any scenario field, fixed for every point
+max_ticks = 3000
+```
+
+A map that is not built in is a path: relative to the study file, to ``--maps DIR`` (or ``$FLEET_MAPS``), to
+the current directory, or to ``../shared/maps``. The ``[paper]`` table (``source``, ``claims``, ``rows``) is
+what ``fleet sweep report`` prints beside the study's numbers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import json
+import os
+import tomllib
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.scenario import Scenario
+
+STUDIES = Path(__file__).resolve().parent / "studies"
+ENGINES = ("memory", "processes")
+#: Grid keys that are not scenario fields.
+_RADIO = {"loss", "comm", "comm_range"}
+_STUDY_KEYS = {"name", "description", "engine", "seeds", "baseline", "maps"}
+
+
+@dataclasses.dataclass(frozen=True)
+class Point:
+    """One run of a study: its parameters (as the grid names them, and the seed), its stable id, and its
+    scenario as a dict (picklable, for a process pool or a Dask worker)."""
+
+    id: str
+    params: dict[str, Any]
+    scenario: dict[str, Any]
+    engine: str
+
+
+@dataclasses.dataclass(frozen=True)
+class Study:
+    name: str
+    grid: dict[str, list[Any]]
+    seeds: list[int]
+    fleet: dict[str, Any] = dataclasses.field(default_factory=dict)
+    engine: str = "memory"
+    baseline: str | None = None
+    description: str = ""
+    maps_hint: str = ""
+    paper: dict[str, Any] = dataclasses.field(default_factory=dict)
+    path: Path | None = None
+    text: str = ""
+
+    @classmethod
+    def load(cls, name_or_path: str | Path) -> Study:
+        """A study file, or the name of a shipped one (``fleet sweep --list``)."""
+        p = Path(name_or_path)
+        if not p.exists() and (STUDIES / f"{name_or_path}.toml").exists():
+            p = STUDIES / f"{name_or_path}.toml"
+        try:
+            text = p.read_text()
+        except FileNotFoundError:
+            raise ConfigError(f"study {name_or_path} not found (a TOML file, or one of: {', '.join(shipped())})") \
+                from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"cannot read study {p}: {exc}") from None
+        try:
+            raw = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"study {p} is not valid TOML: {exc}") from None
+        return cls.from_dict(raw, p, text)
+
+    @classmethod
+    def from_dict(cls, raw: dict[str, Any], path: Path | None = None, text: str = "") -> Study:
+        where = f"study {path or ''}".strip()
+        unknown = set(raw) - {"study", "grid", "fleet", "paper"}
+        if unknown:
+            raise ConfigError(f"{where}: unknown section(s) {', '.join(sorted(unknown))}")
+        head, grid, fleet = raw.get("study", {}), raw.get("grid", {}), raw.get("fleet", {})
+        if not all(isinstance(t, dict) for t in (head, grid, fleet)):
+            raise ConfigError(f"{where}: [study], [grid] and [fleet] must be tables")
+        if set(head) - _STUDY_KEYS:
+            raise ConfigError(f"{where}: unknown key(s) in [study]: {', '.join(sorted(set(head) - _STUDY_KEYS))}")
+        engine = head.get("engine", "memory")
+        if engine not in ENGINES:
+            raise ConfigError(f"{where}: engine must be one of {', '.join(ENGINES)} (got {engine!r})")
+        seeds = head.get("seeds", 1)
+        if isinstance(seeds, int) and not isinstance(seeds, bool) and seeds >= 1:
+            seeds = list(range(seeds))
+        if not (isinstance(seeds, list) and seeds and all(isinstance(s, int) and s >= 0 for s in seeds)):
+            raise ConfigError(f"{where}: seeds must be a count N >= 1 (seeds 0..N-1) or a list of seeds")
+        for k, v in grid.items():
+            if not isinstance(v, list) or not v:
+                raise ConfigError(f"{where}: [grid] {k} must be a non-empty list")
+        name = head.get("name") or (path.stem if path else "study")
+        study = cls(name=str(name), grid=dict(grid), seeds=list(seeds), fleet=dict(fleet), engine=engine,
+                    baseline=head.get("baseline"), description=str(head.get("description", "")),
+                    maps_hint=str(head.get("maps", "")), paper=dict(raw.get("paper", {})), path=path, text=text)
+        study.scenario({k: v[0] for k, v in grid.items()}, seeds[0], resolve=False)  # bad fields fail now
+        return study
+
+    def scenario(self, params: dict[str, Any], seed: int, maps_dir: Path | None = None,
+                 resolve: bool = True) -> Scenario:
+        """The scenario of one point: the defaults, ``[fleet]``, then the point's grid values."""
+        flat = {**self.fleet, **params, "seed": seed}
+        allocator = flat.pop("allocator", None)
+        radio = {k: flat.pop(k) for k in list(flat) if k in _RADIO}
+        if "map" in flat and resolve:
+            flat["map"] = resolve_map(str(flat["map"]), self, maps_dir)
+        s = Scenario().override(**flat, **radio)
+        if allocator is not None:
+            config = {"type": allocator} if isinstance(allocator, str) else dict(allocator)
+            if not isinstance(config.get("type"), str):
+                raise ConfigError(f"study {self.name}: an allocator needs a 'type' name (got {allocator!r})")
+            s = dataclasses.replace(s, allocator=config).validate()
+        return s
+
+    def points(self, maps_dir: Path | None = None) -> list[Point]:
+        """Every point of the grid, seeds innermost; a missing map is one ConfigError before any run."""
+        keys = list(self.grid)
+        out = []
+        for values in itertools.product(*(self.grid[k] for k in keys)):
+            params = dict(zip(keys, values, strict=True))
+            for seed in self.seeds:
+                s = self.scenario(params, seed, maps_dir)
+                label = {k: _label(v) for k, v in params.items()} | {"seed": seed}
+                out.append(Point(point_id(params, seed), label, s.to_dict(), self.engine))
+        return out
+
+
+def _label(value: Any) -> Any:
+    """A grid value as a column: an allocator table becomes ``minpos(wavefront=stop)``."""
+    if isinstance(value, dict):
+        extra = ",".join(f"{k}={v}" for k, v in sorted(value.items()) if k != "type")
+        return f"{value.get('type')}({extra})" if extra else str(value.get("type"))
+    return value
+
+
+def point_id(params: dict[str, Any], seed: int) -> str:
+    """A stable id of a point (its grid values and seed), for resuming."""
+    text = json.dumps({"params": params, "seed": seed}, sort_keys=True, default=str)
+    return hashlib.sha1(text.encode()).hexdigest()[:16]
+
+
+def map_roots(study: Study, maps_dir: Path | None) -> Iterator[Path]:
+    if study.path is not None:
+        yield study.path.parent
+    if maps_dir is not None:
+        yield maps_dir
+    if os.environ.get("FLEET_MAPS"):
+        yield Path(os.environ["FLEET_MAPS"])
+    yield Path.cwd()
+    yield Path.cwd().parent / "shared" / "maps"
+    yield Path(__file__).resolve().parents[1].parent / "shared" / "maps"
+
+
+def resolve_map(name: str, study: Study, maps_dir: Path | None) -> str:
+    """A built-in map name as is; a path found under one of :func:`map_roots`, made absolute; else one line
+    that says where to get it."""
+    from fleet_emu.world.maps import BUILTIN_MAPS
+
+    if name in BUILTIN_MAPS:
+        return name
+    p = Path(name).expanduser()
+    if p.is_absolute():
+        if p.exists():
+            return str(p)
+    else:
+        for root in map_roots(study, maps_dir):
+            if (root / p).exists():
+                return str((root / p).resolve())
+    hint = f"; get it from {study.maps_hint}" if study.maps_hint else ""
+    raise ConfigError(f"study {study.name}: map {name} not found (pass --maps DIR or set FLEET_MAPS to the "
+                      f"folder that holds it){hint}")
+
+
+def shipped() -> dict[str, str]:
+    """The studies shipped in the package: name -> description."""
+    out = {}
+    for p in sorted(STUDIES.glob("*.toml")):
+        head = tomllib.loads(p.read_text()).get("study", {})
+        out[p.stem] = str(head.get("description", ""))
+    return out

@@ -1,0 +1,104 @@
+"""The in-memory fleet's API (PettingZoo ``ParallelEnv``-like): reset(seed), step(), seeds, actions."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import fleet_emu as fe
+from fleet_emu.agents.allocators import allocator_names
+from fleet_emu.launch.memory import Fleet, seed_test
+
+ROOMS = """
+##################
+#.......#........#
+#.......#........#
+#................#
+#.......#........#
+####.#######.#####
+#.......#........#
+#................#
+#.......#........#
+##################
+"""
+
+
+@pytest.fixture(scope="module")
+def rooms(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    rows = [ln.strip() for ln in ROOMS.strip().splitlines()]
+    path = tmp_path_factory.mktemp("maps") / "rooms.png"
+    Image.fromarray(np.array([[0 if ch == "#" else 255 for ch in r] for r in rows], np.uint8), "L").save(path)
+    return path
+
+
+def scenario(rooms: Path, **over: object) -> fe.Scenario:
+    base = {"map": str(rooms), "robots": 3, "loss": 0.3, "sensor_range": 1.5, "max_ticks": 200, "start": (1, 1)}
+    return fe.Scenario().override(**(base | over))
+
+
+@pytest.mark.parametrize("allocator", allocator_names())
+def test_seed_test_passes_for_every_allocator(allocator: str, rooms: Path) -> None:
+    seed_test(scenario(rooms, allocator=allocator), seed=3, ticks=40)
+
+
+def test_reset_and_step_follow_parallel_env(rooms: Path) -> None:
+    env = Fleet(scenario(rooms, allocator="nearest"))
+    obs, infos = env.reset(seed=7)
+    assert env.scenario.seed == 7 and env.agents == env.possible_agents == ["r0", "r1", "r2"]
+    assert set(obs) == set(infos) == set(env.agents) and all(o.tick == 0 for o in obs.values())
+    total = env.world.coverage
+    while not env.done:
+        obs, rewards, terms, truncs, infos = env.step()
+        total += next(iter(rewards.values()), 0.0)
+    assert env.reason == "coverage" and all(terms.values()) and not any(truncs.values())
+    assert obs == {} and env.agents == []
+    assert total == pytest.approx(env.world.coverage)
+    res = env.result()
+    assert res.completed and res["engine"] == "memory" and res["seed"] == 7 and res.ticks == env.world.tick
+    with pytest.raises(fe.RunError, match="reset"):
+        env.step()
+
+
+def test_actions_replace_the_brains_moves(rooms: Path) -> None:
+    env = Fleet(scenario(rooms, allocator="nearest", robots=1))
+    env.reset(seed=0)
+    start = env.world.poses["r0"]
+    assert start == (1, 1)
+    env.step({"r0": (1, 0)})  # down, whatever the brain wanted
+    env.step({"r0": (0, 0)})
+    assert env.world.poses["r0"] == (2, 1) and env.result()["path_length"] == [1]
+
+
+def test_seeds_change_the_run_and_a_tick_limit_truncates(rooms: Path) -> None:
+    a = Fleet(scenario(rooms, start="random", max_ticks=12)).run(seed=1)
+    b = Fleet(scenario(rooms, start="random", max_ticks=12)).run(seed=2)
+    assert a.curve != b.curve
+    env = Fleet(scenario(rooms, max_ticks=3))
+    env.reset()
+    for _ in range(3):
+        _, _, terms, truncs, _ = env.step()
+    assert env.done and env.reason == "max_ticks" and all(truncs.values()) and not any(terms.values())
+
+
+def test_bad_scenario_is_refused_before_any_reset(rooms: Path) -> None:
+    with pytest.raises(fe.ConfigError, match="no_such"):
+        Fleet(scenario(rooms).override(allocator="no_such"))
+
+
+@pytest.mark.parametrize(("comm", "loss", "applied"), [("ideal", 0.3, 0.0), ("full", 0.3, 0.3), ("disk", 0.2, 0.2)])
+def test_result_and_recording_state_the_radio_model_and_the_loss_applied(
+        comm: str, loss: float, applied: float, rooms: Path, tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    from fleet_emu.launch.memory import run_memory
+
+    res = run_memory(scenario(rooms, comm=comm, loss=loss, max_ticks=30), tmp_path / "run", run_id="radio")
+    assert (res["comm"], res["loss"], res["loss_applied"]) == (comm, loss, applied)
+    assert (res["radio"]["dropped_loss"] > 0) == (applied > 0)
+    with open(tmp_path / "run" / "run.mcap", "rb") as f:
+        meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}["scenario"]
+    assert (meta["radio_model"], float(meta["loss_applied"])) == (comm, applied)
+    assert fe.load_recording(tmp_path / "run").result["loss_applied"] == applied

@@ -1,0 +1,53 @@
+"""The sweep report's numbers on hand-made rows: means, stds, % to the baseline, and the paper rows."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from fleet_emu.sweep.report import ci95, paper_value, summary
+
+
+def row(alloc: str, robots: int, ticks: int, loss: float = 0.0, completed: bool = True) -> dict:
+    return {"param.allocator": alloc, "robots": robots, "map": "office", "comm": "full", "loss_applied": loss,
+            "ticks": ticks, "completed": completed, "coverage": 0.99, "connected_fraction": 0.5,
+            "path_length": json.dumps([ticks, ticks]), "status": "ok"}
+
+
+ROWS = [row("nearest", 1, t) for t in (100, 120, 140)] + [row("minpos", 1, t) for t in (80, 90, 100)] + \
+       [row("nearest", 2, t) for t in (60, 60)] + [row("minpos", 2, t) for t in (45, 48, 51)] + \
+       [row("minpos", 2, 5000, completed=False)] + \
+       [row("minpos", 2, t, loss=0.5) for t in (90, 102)]
+
+
+def test_summary_means_stds_and_percent_to_the_baseline() -> None:
+    lines = {(ln["allocator"], ln["robots"], ln["loss_applied"]): ln for ln in summary(ROWS, "nearest")}
+    one = lines[("minpos", 1, 0.0)]
+    assert one["ticks"] == (90.0, 10.0, 3) and one["vs_baseline_pct"] == pytest.approx(-25.0)
+    two = lines[("minpos", 2, 0.0)]
+    assert two["runs"] == 4 and two["ticks"][2] == 3  # the run that did not reach the target has no time
+    assert two["vs_baseline_pct"] == pytest.approx(-20.0)
+    assert two["moves"][0] == pytest.approx((2 * (45 + 48 + 51) + 10000) / 4)
+    assert math.isnan(lines[("minpos", 2, 0.5)]["vs_baseline_pct"])  # no nearest at loss 0.5
+
+
+def test_paper_rows_pick_their_runs() -> None:
+    lines = summary(ROWS, "nearest")
+    assert paper_value({"allocator": "minpos", "metric": "vs_baseline_pct"}, ROWS, lines, "nearest") == \
+        pytest.approx(-22.5)
+    assert paper_value({"allocator": "minpos", "robots": [1], "metric": "vs_baseline_pct"}, ROWS, lines,
+                       "nearest") == pytest.approx(-25.0)
+    assert paper_value({"allocator": "minpos", "loss": 0.5, "metric": "vs_loss0_pct"}, ROWS, lines,
+                       "nearest") == pytest.approx(100.0 * (96 - 48) / 48)
+    assert paper_value({"allocator": "nearest", "metric": "connected_pct"}, ROWS, lines, "nearest") == 50.0
+    assert paper_value({"allocator": "nearest", "metric": "mean_std_ticks"}, ROWS, lines, "nearest") == \
+        pytest.approx(20.0 / 2)
+
+
+def test_ci95_is_students_t_half_width() -> None:
+    v = np.array([1.0, 2.0, 3.0, 4.0])
+    assert ci95(v) == pytest.approx(3.182446 * v.std(ddof=1) / 2, rel=1e-5)
+    assert math.isnan(ci95(np.array([1.0])))

@@ -1,0 +1,123 @@
+"""``fleet sweep``: parallel runs into Parquet and CSV, resuming, failed rows and the exit code, the report,
+and a study on a Dask cluster."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.memory import Fleet
+from fleet_emu.sweep.cli import sweep
+from fleet_emu.sweep.execute import read_rows
+from fleet_emu.sweep.study import Study
+
+from .conftest import fleet
+
+
+def test_a_sweep_writes_one_row_per_run_and_resumes(study_dir: Path) -> None:
+    out = study_dir / "out"
+    first = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out), "--jobs", "2", "--limit", "5")
+    assert first.returncode == 0, first.stderr
+    assert "5 to run" in first.stderr and len(read_rows(out)) == 5
+    again = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out), "--jobs", "2")
+    assert again.returncode == 0, again.stderr
+    assert "5 done, 3 to run" in again.stderr
+    table = pq.read_table(out / "results.parquet").to_pylist()
+    csv_lines = (out / "results.csv").read_text().strip().splitlines()
+    assert len(table) == 8 and len(csv_lines) == 9
+    row = next(r for r in table if r["param.allocator"] == "minpos" and r["param.robots"] == 3
+               and r["param.seed"] == 1)
+    assert row["status"] == "ok" and row["error"] is None and row["engine"] == "memory"
+    assert {"radio.sent", "decision_ms.mean", "scenario.radio.comm", "t99", "loss_applied", "curve"} <= set(row)
+    # the row is the run: the same scenario in memory gives the same numbers
+    study = Study.load(study_dir / "tiny.toml")
+    point = next(p for p in study.points() if p.id == row["id"])
+    res = Fleet(Scenario.from_dict(point.scenario)).run()
+    assert (row["ticks"], row["radio.sent"], json.loads(row["path_length"])) == \
+        (res["ticks"], res["radio"]["sent"], res["path_length"])
+    curve = json.loads(row["curve"])
+    assert curve[-1] <= res["coverage"] and len(curve) == res.ticks // row["curve_every"] + 1
+    done = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out))
+    assert done.returncode == 0 and "0 to run" in done.stderr
+
+    report = fleet("sweep", "report", str(out))
+    assert report.returncode == 0, report.stderr
+    assert "baseline nearest" in report.stdout and "minpos" in report.stdout
+    assert {p.name for p in out.glob("*.png")} == {"time_vs_robots.png", "coverage_vs_tick.png"}
+    first = fleet("sweep", "report", str(out), "--seeds", "1", "--no-plots")
+    assert "4 runs, 0 failed; baseline nearest; the first 1 seeds" in first.stdout
+
+
+def test_seeds_runs_the_first_seeds_and_a_later_call_completes(study_dir: Path) -> None:
+    out = study_dir / "out"
+    assert sweep(str(study_dir / "tiny.toml"), out, jobs=1, seeds=1, quiet=True) == 0
+    assert sorted(r["param.seed"] for r in read_rows(out)) == [0] * 4
+    assert sweep(str(study_dir / "tiny.toml"), out, jobs=1, quiet=True) == 0
+    assert sorted(r["param.seed"] for r in read_rows(out)) == [0] * 4 + [1] * 4
+
+
+def test_failed_runs_are_rows_and_set_the_exit_code(study_dir: Path) -> None:
+    """Twenty robots do not fit the small map's start area: those runs fail, the others go on."""
+    text = (study_dir / "tiny.toml").read_text().replace("robots = [2, 3]", "robots = [2, 20]")
+    (study_dir / "fail.toml").write_text(text.replace('name = "tiny"', 'name = "fail"'))
+    out = study_dir / "out"
+    assert sweep(str(study_dir / "fail.toml"), out, jobs=1, quiet=True) == 200 + 4
+    rows = read_rows(out)
+    bad = [r for r in rows if r["status"] == "failed"]
+    assert len(rows) == 8 and len(bad) == 4 and all(r["param.robots"] == 20 for r in bad)
+    assert all("do not fit the start area" in r["error"] for r in bad)
+    other = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out))  # another study's directory
+    assert other.returncode == 2 and other.stderr.count("\n") == 1 and "another study" in other.stderr
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["no_such_study", "--out", "x"], "not found"),
+    (["tiny.toml"], "--out"),
+    (["tiny.toml", "--out", "x", "--jobs", "0"], "--jobs"),
+    (["report"], "usage"),
+    (["report", "nowhere"], "no sweep results"),
+    (["tiny.toml", "--out", "x", "--dask", "tcp://127.0.0.1:1"], "no Dask scheduler answered"),
+])
+def test_bad_sweep_input_is_one_line(args: list[str], message: str, study_dir: Path) -> None:
+    proc = fleet("sweep", *args, cwd=study_dir)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and message in proc.stderr, proc.stderr
+    assert not (study_dir / "x").exists()
+
+
+def test_a_missing_map_is_one_line_exit_2(tmp_path: Path) -> None:
+    (tmp_path / "s.toml").write_text('[study]\nname = "s"\n[grid]\nmap = ["stage/no_such_map.yaml"]\n')
+    proc = fleet("sweep", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"))
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "no_such_map" in proc.stderr
+
+
+def test_list_names_the_shipped_studies() -> None:
+    out = fleet("sweep", "--list").stdout
+    assert [ln.split()[0] for ln in out.strip().splitlines()] == ["bautin-fig5", "benavides", "yan-loss"]
+
+
+def test_a_study_on_a_dask_cluster(study_dir: Path) -> None:
+    """``--dask ADDRESS`` sends the points to the scheduler; its workers run whole fleets."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) \
+            as cluster:
+        out = study_dir / "out"
+        assert sweep(str(study_dir / "tiny.toml"), out, dask=cluster.scheduler_address, limit=3, quiet=True) == 0
+    rows = read_rows(out)
+    assert len(rows) == 3 and all(r["status"] == "ok" and r["ticks"] > 0 for r in rows)
+
+
+def test_a_processes_study_runs_real_fleets_with_the_memory_rows(study_dir: Path) -> None:
+    text = (study_dir / "tiny.toml").read_text()
+    (study_dir / "real.toml").write_text(text.replace('engine = "memory"', 'engine = "processes"')
+                                         .replace('name = "tiny"', 'name = "real"'))
+    assert sweep(str(study_dir / "real.toml"), study_dir / "real", jobs=1, limit=1, quiet=True) == 0
+    assert sweep(str(study_dir / "tiny.toml"), study_dir / "mem", jobs=1, limit=1, quiet=True) == 0
+    (real,), (mem,) = read_rows(study_dir / "real"), read_rows(study_dir / "mem")
+    assert real["engine"] == "processes" and mem["engine"] == "memory" and real["id"] == mem["id"]
+    assert real["pids.world"] != real["pids.netem"] and mem["pids.world"] == mem["pids.netem"]
+    same = ("ticks", "coverage", "path_length", "radio.sent", "radio.bytes_sent", "curve")
+    assert [real[k] for k in same] == [mem[k] for k in same]
