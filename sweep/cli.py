@@ -11,10 +11,13 @@ import argparse
 import contextlib
 import os
 import shutil
+import signal
 import sys
 import time
 import tomllib
+from collections.abc import Iterator
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 from fleet_emu.core.errors import ConfigError
@@ -84,6 +87,23 @@ def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | No
         return _run(study, points, out, jobs, client, dask, limit, quiet)
 
 
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[list[int]]:
+    """SIGTERM stops a sweep as Ctrl-C does (the workers are interrupted, the rows kept, exit 143)."""
+    got: list[int] = []
+
+    def handle(signum: int, _frame: FrameType | None) -> None:
+        got.append(signum)
+        if len(got) == 1:
+            raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, handle)
+    try:
+        yield got
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any, dask: str | None,
          limit: int | None, quiet: bool) -> int:
     """The sweep proper, once every check passed and ``out`` is claimed."""
@@ -99,30 +119,32 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
                   f"{len(todo)} to run "
                   f"({study.engine} engine, {'Dask ' + dask if dask else f'{jobs} jobs'}) -> {out}")
     writer = RowWriter(out)
-    failed = 0
+    failed = ran = 0
     interrupted = False
     t0 = time.monotonic()
     with _bar(console, len(todo), quiet) as (bar, task):
         def on_row(row: dict[str, Any]) -> None:
-            nonlocal failed
+            nonlocal failed, ran
             writer.write(row)
+            ran += 1
             failed += row.get("status") != "ok"
             bar.update(task, advance=1, failed=failed)
 
-        try:
-            execute(todo, jobs, on_row, client)
-        except KeyboardInterrupt:
-            interrupted = True
-        finally:
-            writer.close()
+        with _sigterm_as_interrupt() as signals:
+            try:
+                execute(todo, jobs, on_row, client)
+            except KeyboardInterrupt:
+                interrupted = True
+            finally:
+                writer.close()
     rows = read_rows(out)
     parquet, csv = write_tables(rows, out)
     failed_all = sum(r.get("status") != "ok" for r in rows)
-    console.print(f"{len(rows)} rows ({failed_all} failed) in {parquet} and {csv}; this call ran {len(todo)} in "
-                  f"{time.monotonic() - t0:.1f} s")
+    console.print(f"{len(rows)} rows ({failed_all} failed) in {parquet} and {csv}; this call ran {ran} of "
+                  f"{len(todo)} in {time.monotonic() - t0:.1f} s")
     if interrupted:
         print(f"fleet: interrupted; the finished runs are in {out} (run again to resume)", file=sys.stderr)
-        return 130
+        return 128 + (signals[0] if signals else signal.SIGINT)
     if failed_all:
         print(f"fleet: error: {failed_all} of {len(rows)} runs failed (their rows hold the error)", file=sys.stderr)
         return min(FAILED_BASE + failed_all, 255)

@@ -12,8 +12,11 @@ every ``curve_every`` ticks).
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import json
 import multiprocessing
+import os
+import signal
 import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator
@@ -121,7 +124,17 @@ def execute(points: list[Point], jobs: int, on_row: Callable[[dict[str, Any]], N
             except BaseException:
                 for fut in futures:
                     fut.cancel()
+                _interrupt_workers(pool)
                 raise
+
+
+def _interrupt_workers(pool: cf.ProcessPoolExecutor) -> None:
+    """SIGINT to every worker (what a terminal's Ctrl-C does to the whole group): a worker's fleet tears its
+    processes down and writes its files before the pool shuts down, also when only this process got SIGTERM."""
+    for proc in list(getattr(pool, "_processes", {}).values()):
+        with contextlib.suppress(OSError, ValueError):
+            if proc.is_alive() and proc.pid is not None:
+                os.kill(proc.pid, signal.SIGINT)
 
 
 def connect_dask(address: str) -> Any:

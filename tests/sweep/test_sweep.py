@@ -121,3 +121,45 @@ def test_a_processes_study_runs_real_fleets_with_the_memory_rows(study_dir: Path
     assert real["pids.world"] != real["pids.netem"] and mem["pids.world"] == mem["pids.netem"]
     same = ("ticks", "coverage", "path_length", "radio.sent", "radio.bytes_sent", "curve")
     assert [real[k] for k in same] == [mem[k] for k in same]
+
+
+def test_sigterm_stops_a_sweep_keeps_its_rows_and_leaves_no_worker(tmp_path: Path) -> None:
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from .conftest import ROOT
+
+    (tmp_path / "long.toml").write_text('[study]\nname = "long"\nengine = "memory"\nseeds = 40\n[grid]\n'
+                                        'allocator = ["nearest"]\nrobots = [2]\nmap = ["office"]\n')
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "fleet_emu.launch", "sweep", str(tmp_path / "long.toml"), "--out",
+                             str(out), "--jobs", "2", "--quiet"], cwd=ROOT, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 240
+    while not (out / "rows.jsonl").exists() or not read_rows(out):
+        assert time.monotonic() < deadline and proc.poll() is None, "no row was written"
+        time.sleep(0.2)
+    workers = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True, text=True).stdout.split()
+    assert workers  # the pool's processes
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err[-2000:]
+    assert "Traceback" not in err and "interrupted" in err.strip().splitlines()[-1]
+    rows = read_rows(out)
+    assert 1 <= len(rows) < 40 and all(r["status"] == "ok" for r in rows)
+    assert len(pq.read_table(out / "results.parquet")) == len(rows)
+    deadline = time.monotonic() + 10
+    while any(_alive(int(p)) for p in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not [Path(f"/proc/{p}/cmdline").read_text() for p in workers if _alive(int(p))]
+
+
+def _alive(pid: int) -> bool:
+    import os
+
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
