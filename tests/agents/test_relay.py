@@ -7,6 +7,7 @@ sender's linked neighbours (a broadcast medium), unless that directed link is in
 from __future__ import annotations
 
 from collections import Counter
+from itertools import pairwise
 
 import pytest
 
@@ -17,7 +18,7 @@ CHAIN = ["a", "r1", "r2", "r3", "d"]  # a - r1 - r2 - r3 - d: only neighbours he
 
 
 def chain_links(names: list[str]) -> set[frozenset[str]]:
-    return {frozenset(p) for p in zip(names, names[1:], strict=False)}
+    return {frozenset(p) for p in pairwise(names)}
 
 
 def make(origin: str, dst: str, ttl: int, seq: int = 1) -> Envelope:
