@@ -79,9 +79,10 @@ def cell_boundary(grid: np.ndarray, center: Cell, r_comm: float) -> np.ndarray:
     return np.argwhere(ring)
 
 
-def frontier_distance(grid: np.ndarray) -> np.ndarray:
-    """Euclidean distance (cells) from every cell to the nearest frontier cell; ``inf`` with no frontier."""
-    mask = frontier_mask(grid)
+def frontier_distance(grid: np.ndarray, where: np.ndarray | None = None) -> np.ndarray:
+    """Euclidean distance (cells) from every cell to the nearest frontier cell (only those in ``where``, when
+    given); ``inf`` with no frontier."""
+    mask = frontier_mask(grid) if where is None else frontier_mask(grid) & where
     if not mask.any():
         return np.full(grid.shape, np.inf)
     return ndimage.distance_transform_edt(~mask)
@@ -130,12 +131,12 @@ def hinging_allowed(h: int, x_available: int, x_min: int) -> bool:
 
 
 def hinge_positions(grid: np.ndarray, leaves: Sequence[Cell], base: Cell, r_comm: float, sensor_range: float,
-                    hinges: int = 0, taken: Iterable[Cell] = ()) -> list[Cell]:
+                    hinges: int = 0, taken: Iterable[Cell] = (), fdist: np.ndarray | None = None) -> list[Cell]:
     """The node positions one Wavefront Expansion iteration proposes for a subtree with leaf nodes at
     ``leaves``: the EW less the ``taken`` cells, in bearing order, r_comm-filtered, capped at ``hinges``
-    (0: no cap)."""
+    (0: no cap). ``fdist``: :func:`frontier_distance` when the caller has it."""
     taken = set(taken)
-    ew = [c for c in bearing_order(exploration_wavefront(grid, leaves, r_comm, sensor_range), base)
+    ew = [c for c in bearing_order(exploration_wavefront(grid, leaves, r_comm, sensor_range, fdist), base)
           if c not in taken]
     chosen = filter_positions(ew, r_comm)
     return chosen[:hinges] if hinges > 0 else chosen
