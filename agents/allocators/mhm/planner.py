@@ -206,6 +206,7 @@ class MhmPlanner:
             if frontier == self.base:  # nothing to chain to: the base's own neighbour is unknown
                 self.given_up.add(frontier)
                 continue
+            self._note(f"chain to {frontier}: {lh}")
             for _ in range(3):  # step 11; a robot that could not leave keeps its cell up: try again
                 yield from self._break(self.tree[BASE_NODE].children)
             cf = yield from self._extend_chain(lh)  # step 12
@@ -255,6 +256,7 @@ class MhmPlanner:
                                         taken, self._fdist())
             if not positions or not hinging_allowed(len(positions), len(self.explorers()), cfg.x_min):
                 return
+            self._note(f"WE of {i}: hinge at {positions}")
             placed = yield from self._hinge(positions)
             if not placed:
                 return

@@ -1,21 +1,21 @@
-"""MHM's planner (section III-D) driven tick by tick on drawn maps by a small in-test world: robots step one
-4-connected cell per tick toward their goal inside the planner's safe area, sense a disk, and the base's team
-map is the union of what they sensed. Every tick the robots' link graph (``d < r_comm``, the paper's model)
-must join every robot to the base station."""
+"""MHM's planner (section III-D) driven tick by tick on drawn maps by the kinematic world of ``mhm.sim``:
+robots step toward their goals inside the planner's safe area, sense a disk, and the base's team map is the
+union of what they sensed. Every tick the link graph (``d < r_comm``, the paper's model) must join every robot
+to the base station."""
 
 from __future__ import annotations
 
+import ast
 import dataclasses
 import math
+from itertools import pairwise
 
-import numpy as np
 import pytest
 
-from fleet_emu.agents.allocators.mhm.planner import MhmConfig, MhmPlanner, View
+from fleet_emu.agents.allocators.mhm.planner import MhmConfig
+from fleet_emu.agents.allocators.mhm.sim import SimResult, simulate, worst
 from fleet_emu.agents.allocators.mhm.tree import BASE_NODE
-from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, UNKNOWN, Cell, from_ascii
-from fleet_emu.core.kernels import visible_cells, wavefront
-from fleet_emu.core.reach import base_connected
+from fleet_emu.core.grid import from_ascii
 
 # Two rooms off a hall, a long room along the bottom; every passage at least two cells wide, so that a node
 # robot standing in one does not block it.
@@ -42,72 +42,9 @@ OFFICE = """
 BASE = (2, 2)
 
 
-@dataclasses.dataclass
-class Outcome:
-    ticks: int
-    coverage: float
-    done: bool
-    worst_fraction: float
-    planner: MhmPlanner
-    nodes_seen: int
-
-
-def start_cells(free: np.ndarray, base: Cell, n: int) -> list[Cell]:
-    cols = free.shape[1]
-    dist = wavefront(free, np.array([base[0] * cols + base[1]], dtype=np.int64), -1)
-    cells = sorted((int(dist[r, c]), r, c) for r, c in np.argwhere(dist > 0))
-    return [(r, c) for _, r, c in cells[:n]]
-
-
-def simulate(art: str, robots: int, config: MhmConfig, seed: int = 0, max_ticks: int = 3000) -> Outcome:
+def run(art: str, robots: int, config: MhmConfig, seed: int = 0, max_ticks: int = 3000) -> SimResult:
     truth, _ = from_ascii(art)
-    occ = truth == OCCUPIED
-    belief = np.full(truth.shape, UNKNOWN, dtype=np.int8)
-    names = [f"r{k}" for k in range(robots)]
-    poses = dict(zip(names, start_cells(truth == FREE, BASE, robots), strict=True))
-    planner = MhmPlanner(BASE, names, config, np.random.default_rng(seed))
-    worst, nodes_seen, t = 1.0, 0, 0
-    rng = np.random.default_rng(seed + 1)
-    stuck = dict.fromkeys(names, 0)
-    for t in range(max_ticks):
-        for r, c in poses.values():
-            idx = visible_cells(occ, r, c, config.sensor_range)
-            belief.flat[idx] = truth.flat[idx]
-        orders = planner.step(View(t, belief, dict(poses)))
-        cells = [BASE, *poses.values()]
-        gap = np.array([[math.dist(a, b) for b in cells] for a in cells])
-        link = (gap < config.r_comm) & ~np.eye(len(cells), dtype=bool)
-        flags = base_connected(["base", *names], link)
-        worst = min(worst, sum(flags.values()) / len(flags))
-        nodes_seen = max(nodes_seen, sum(o.role == "node" for o in orders.values()))
-        for r, o in orders.items():
-            if o.role == "node":
-                assert o.goal == poses[r], f"tick {t}: node {r} is not where it hinged"
-        if planner.done:
-            break
-        passable = planner.passable()
-        for r in names:  # one step toward the goal, inside the safe area, never onto a teammate
-            o = orders[r]
-            if o.role == "node" or o.goal is None or o.goal == poses[r]:
-                continue
-            dist = wavefront(passable, np.array([o.goal[0] * truth.shape[1] + o.goal[1]], dtype=np.int64), -1)
-            here = poses[r]
-            taken = set(poses.values())
-            steps = [(here[0] + dr, here[1] + dc) for dr, dc in MOVES]
-            steps = [n for n in steps if 0 <= n[0] < truth.shape[0] and 0 <= n[1] < truth.shape[1]]
-            best = [n for n in steps if 0 <= dist[n] < dist[here] and n not in taken]
-            if best:
-                poses[r], stuck[r] = best[0], 0
-                continue
-            stuck[r] += 1  # blocked by a teammate: after two ticks, a random free step inside the safe area
-            sides = [n for n in steps if passable[n] and n not in taken]
-            if stuck[r] >= 2 and sides:
-                poses[r] = sides[int(rng.integers(len(sides)))]
-    free = truth == FREE
-    cols = truth.shape[1]
-    reach = wavefront(free, np.array([BASE[0] * cols + BASE[1]], dtype=np.int64), -1) >= 0
-    coverage = float((belief[reach] != UNKNOWN).mean())
-    return Outcome(t, coverage, planner.done, worst, planner, nodes_seen)
+    return simulate(truth, BASE, robots, config, seed, max_ticks)
 
 
 CONFIG = MhmConfig(r_comm=10.0, sensor_range=4.0, x_min=1, cluster_max=8, patience=40)
@@ -115,11 +52,11 @@ CONFIG = MhmConfig(r_comm=10.0, sensor_range=4.0, x_min=1, cluster_max=8, patien
 
 @pytest.mark.parametrize("robots", [6, 10])
 def test_mhm_keeps_every_robot_connected_and_explores(robots: int) -> None:
-    out = simulate(OFFICE, robots, CONFIG)
-    assert out.worst_fraction == 1.0  # the base-station constraint held on every tick
+    out = run(OFFICE, robots, CONFIG)
+    assert worst(out.connected) == 1.0  # the base-station constraint held on every tick
     assert out.done  # step 18 was reached
     assert out.coverage >= 0.95
-    assert out.nodes_seen >= 2  # robots did hinge
+    assert max(out.nodes) >= 2  # robots did hinge
     tree = out.planner.tree
     assert len(tree) > 3 and all(tree[i].processed for i in range(len(tree)) if tree[i].kind != "chain")
     for i in range(1, len(tree)):  # every node was within r_comm of its parent when it joined
@@ -127,14 +64,14 @@ def test_mhm_keeps_every_robot_connected_and_explores(robots: int) -> None:
 
 
 def test_a_seed_reproduces_the_run() -> None:
-    a = simulate(OFFICE, 6, CONFIG, seed=3)
-    b = simulate(OFFICE, 6, CONFIG, seed=3)
-    assert a.ticks == b.ticks and a.coverage == b.coverage
+    a = run(OFFICE, 6, CONFIG, seed=3)
+    b = run(OFFICE, 6, CONFIG, seed=3)
+    assert a.ticks == b.ticks and a.seen == b.seen and a.planner.events == b.planner.events
     assert [(n.pos, n.parent) for n in a.planner.tree.nodes] == [(n.pos, n.parent) for n in b.planner.tree.nodes]
 
 
 def test_routes_lead_every_robot_to_the_base() -> None:
-    planner = simulate(OFFICE, 6, dataclasses.replace(CONFIG), max_ticks=60).planner
+    planner = run(OFFICE, 6, CONFIG, max_ticks=60).planner
     routes = planner.routes()
     assert set(routes) == {f"r{k}" for k in range(6)}
     for robot in routes:
@@ -144,3 +81,54 @@ def test_routes_lead_every_robot_to_the_base() -> None:
             seen.add(hop)
             hop = routes[hop]
     assert planner.hinged() >= {BASE_NODE}
+
+
+def events(out: SimResult, prefix: str) -> list[tuple[int, str]]:
+    return [(t, e) for t, e in out.planner.events if e.startswith(prefix)]
+
+
+def test_eq1_no_hinge_leaves_fewer_than_x_min_explorers() -> None:
+    out = run(OFFICE, 4, dataclasses.replace(CONFIG, x_min=4))
+    phase2 = events(out, "phase 2")[0][0]
+    assert not [t for t, _ in events(out, "WE of") if t < phase2]  # H >= 1 > X_available - X_min = 0
+    assert worst(out.connected) == 1.0
+    out = run(OFFICE, 4, dataclasses.replace(CONFIG, x_min=3))
+    for _, e in events(out, "WE of"):  # with 4 robots and X_min = 3, one hinge at a time at most
+        assert len(ast.literal_eval(e.split("hinge at ")[1])) <= 1 or "WE of 0" not in e
+
+
+def test_single_hinge_variant() -> None:
+    out = run(OFFICE, 6, dataclasses.replace(CONFIG, hinges=1))
+    hinges = [ast.literal_eval(e.split("hinge at ")[1]) for _, e in events(out, "WE of")]
+    assert hinges and all(len(h) == 1 for h in hinges)
+    assert worst(out.connected) == 1.0 and out.done
+
+
+# A corridor three cells wide from the base, longer than five robots can chain with r_comm = 6. With X_min = 3
+# phase 1 hinges two nodes deep; phase 2's chain ignores X_min (step 10 asks only n_h < R_t) and goes further.
+CORRIDOR = "\n".join(["#" * 60, *["#" + "." * 58 + "#"] * 3, "#" * 60])
+
+
+def chain_start(out: SimResult) -> int:
+    return min(n.id for n in out.planner.tree.nodes if n.kind == "chain")
+
+
+def test_phase2_chains_toward_the_closest_frontier_until_step_18() -> None:
+    truth, _ = from_ascii(CORRIDOR)
+    config = MhmConfig(r_comm=6.0, sensor_range=3.0, x_min=3, cluster_max=6, patience=40)
+    out = simulate(truth, (2, 1), 5, config)
+    assert worst(out.connected) == 1.0 and out.done
+    chains = [(ast.literal_eval(e.split(": ", 1)[1]), ast.literal_eval(e[9:e.index(")") + 1]))
+              for _, e in events(out, "chain to")]
+    assert chains, "phase 2 never chained"
+    for lh, frontier in chains:
+        assert lh[-1] == frontier  # C_f stands on the frontier
+        assert all(math.dist(a, b) < 6.0 for a, b in pairwise([(2, 1), *lh]))  # every hop within r_comm
+        assert len(lh) < 5  # step 10: only chains shorter than the fleet are built
+    (_, stop), = events(out, "stop")
+    assert "needs" in stop and int(stop.split("needs ")[1].split()[0]) >= 5  # step 18 by step 10's test
+    phase1 = max(n.pos[1] for n in out.planner.tree.nodes if n.kind == "cell" and n.id < chain_start(out))
+    assert max(n.pos[1] for n in out.planner.tree.nodes) > phase1  # phase 2 reached beyond phase 1
+    assert 0.2 < out.coverage < 1.0
+    chain_nodes = [n for n in out.planner.tree.nodes if n.kind == "chain"]
+    assert chain_nodes and all(n.processed for n in chain_nodes)
