@@ -162,17 +162,20 @@ class MhmPlanner:
                 for r in self.robots}
 
     def routes(self) -> dict[str, str]:
-        """Each robot's next relay toward the base (``base`` or a node robot): a node robot's parent node, an
-        explorer's (or a new node's) nearest relay. The parent map the ``tree`` relay policy reads."""
-        relay_of = dict(self.node_of) | {BASE_NODE: "base"}
+        """Each robot's next relay toward the base (``base`` or a node robot): a node robot's parent node's;
+        a robot hinged in the current iteration, its nearest hinged node's; an explorer, its nearest relay's
+        (those two included; ties by id). The parent map the ``tree`` relay policy reads."""
+        tree_relays = [(self.tree[i].pos, "base" if i == BASE_NODE else self.node_of[i]) for i in sorted(self.hinged())]
         out: dict[str, str] = {}
         for i, r in self.node_of.items():
             p = self.tree.parent(i)
-            out[r] = relay_of.get(p, "base")  # type: ignore[arg-type]
+            out[r] = self.node_of.get(p, "base")  # type: ignore[arg-type]
+        for r, cell in self.pending.items():
+            out[r] = min(tree_relays, key=lambda pn: math.dist(pn[0], cell))[1]
+        relays = tree_relays + sorted((c, r) for r, c in self.pending.items())
         for r, cell in self.poses.items():
             if r not in out:
-                near = min(sorted(relay_of), key=lambda i: math.dist(self.tree[i].pos, cell))
-                out[r] = relay_of[near]
+                out[r] = min(relays, key=lambda pn: (math.dist(pn[0], cell), robot_order(pn[1])))[1]
         return out
 
     def _note(self, what: str) -> None:

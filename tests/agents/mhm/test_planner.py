@@ -70,15 +70,19 @@ def test_a_seed_reproduces_the_run() -> None:
     assert [(n.pos, n.parent) for n in a.planner.tree.nodes] == [(n.pos, n.parent) for n in b.planner.tree.nodes]
 
 
-def test_routes_lead_every_robot_to_the_base() -> None:
-    planner = run(OFFICE, 6, CONFIG, max_ticks=60).planner
+@pytest.mark.parametrize("ticks", [30, 90, 200])
+def test_routes_lead_every_robot_to_the_base_over_links(ticks: int) -> None:
+    out = run(OFFICE, 6, CONFIG, max_ticks=ticks)
+    planner = out.planner
     routes = planner.routes()
     assert set(routes) == {f"r{k}" for k in range(6)}
+    where = dict(planner.poses) | {"base": BASE}
     for robot in routes:
         seen, hop = set(), robot
         while hop != "base":
             assert hop not in seen, "a cycle in the routes"
             seen.add(hop)
+            assert math.dist(where[hop], where[routes[hop]]) < CONFIG.r_comm, f"{hop} -> {routes[hop]} out of range"
             hop = routes[hop]
     assert planner.hinged() >= {BASE_NODE}
 
