@@ -90,14 +90,14 @@ def simulate(truth: np.ndarray, base: Cell, robots: int, config: MhmConfig, seed
             o = orders[r]
             if o.role == "node" or o.goal is None or o.goal == poses[r]:
                 continue
-            _move(r, o.goal, poses, passable, stuck, rng)
+            step_toward(r, o.goal, poses, passable, stuck, rng)
     cols = truth.shape[1]
     reach = wavefront(truth == FREE, np.array([base[0] * cols + base[1]], dtype=np.int64), -1) >= 0
     coverage = float((belief[reach] != UNKNOWN).mean())
     return SimResult(t, coverage, planner.done, connected, seen, nodes, step_ms, planner)
 
 
-def _move(r: str, goal: Cell, poses: dict[str, Cell], passable: np.ndarray, stuck: dict[str, int],
+def step_toward(r: str, goal: Cell, poses: dict[str, Cell], passable: np.ndarray, stuck: dict[str, int],
           rng: np.random.Generator) -> None:
     """One step of robot ``r`` down the wavefront from ``goal``; a random free step after two blocked ticks."""
     rows, cols = passable.shape

@@ -10,12 +10,14 @@ import dataclasses
 import math
 from itertools import pairwise
 
+import numpy as np
 import pytest
 
-from fleet_emu.agents.allocators.mhm.planner import MhmConfig
-from fleet_emu.agents.allocators.mhm.sim import SimResult, simulate, worst
+from fleet_emu.agents.allocators.mhm.planner import MhmConfig, MhmPlanner, View
+from fleet_emu.agents.allocators.mhm.sim import SimResult, simulate, step_toward, worst
 from fleet_emu.agents.allocators.mhm.tree import BASE_NODE
-from fleet_emu.core.grid import from_ascii
+from fleet_emu.core.grid import OCCUPIED, from_ascii
+from fleet_emu.core.reach import base_connected
 
 # Two rooms off a hall, a long room along the bottom; every passage at least two cells wide, so that a node
 # robot standing in one does not block it.
@@ -136,3 +138,43 @@ def test_phase2_chains_toward_the_closest_frontier_until_step_18() -> None:
     assert 0.2 < out.coverage < 1.0
     chain_nodes = [n for n in out.planner.tree.nodes if n.kind == "chain"]
     assert chain_nodes and all(n.processed for n in chain_nodes)
+
+
+def test_breaking_a_subtree_brings_its_robots_into_the_parent_cell_without_losing_the_base() -> None:
+    """III-E.2 with moving robots: the subtree at node 2 (nodes 2 and 3, and the explorers in their cells)
+    is recalled into node 1's cell, deepest level first, and no robot loses its path to the base meanwhile."""
+    grid = np.zeros((30, 40), dtype=np.int8)
+    grid[[0, -1], :] = grid[:, [0, -1]] = OCCUPIED
+    config = MhmConfig(r_comm=8.0, sensor_range=3.0, patience=40)
+    planner = MhmPlanner((10, 3), ["r0", "r1", "r2", "r3", "r4"], config, np.random.default_rng(0))
+    tree = planner.tree
+    n1, n2 = tree.add((10, 10), BASE_NODE), tree.add((10, 17), 1)
+    n3 = tree.add((16, 21), n2)
+    planner.node_of = {n1: "r0", n2: "r1", n3: "r2"}
+    poses = {"r0": (10, 10), "r1": (10, 17), "r2": (16, 21), "r3": (21, 24), "r4": (8, 22)}
+    members_before = {"r3": n3, "r4": n2}  # the node each explorer is nearest to
+    for r, n in members_before.items():
+        assert min(planner.hinged(), key=lambda i: math.dist(tree[i].pos, poses[r])) == n
+    gen = planner._break([n2])
+    stuck = dict.fromkeys(poses, 0)
+    rng = np.random.default_rng(1)
+    for _ in range(400):
+        planner.view = View(0, grid, dict(poses))
+        cells = [(10, 3), *poses.values()]
+        gap = np.array([[math.dist(a, b) for b in cells] for a in cells])
+        flags = base_connected(["base", *poses], (gap < 8.0) & ~np.eye(len(cells), dtype=bool))
+        assert all(flags.values()), f"lost the base: {flags}"
+        try:
+            next(gen)
+        except StopIteration:
+            break
+        passable = planner.passable()
+        for r, goal in planner.goals.items():
+            if goal != poses[r]:
+                step_toward(r, goal, poses, passable, stuck, rng)
+    else:
+        pytest.fail("the break did not finish")
+    assert planner.node_of == {n1: "r0"}  # nodes 2 and 3 unhinged, node 1 kept
+    for r in ("r1", "r2", "r3", "r4"):  # every robot of the broken subtree is in node 1's cell
+        assert math.dist(poses[r], tree[n1].pos) < 8.0, r
+    assert planner.stalls == 0
