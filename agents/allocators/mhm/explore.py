@@ -76,14 +76,16 @@ def _greedy(dists: Sequence[np.ndarray], robots: Mapping[str, Cell]) -> tuple[di
 
 
 def assign_explorers(grid: np.ndarray, passable: np.ndarray, clusters: Sequence[Cluster],
-                     explorers: Mapping[str, Cell]) -> dict[str, Cell]:
-    """Goals for the explorers over ``passable`` cells: one explorer per cluster, nearest pairs first, then
-    the rest to their nearest cluster; an explorer that reaches no cluster gets none."""
+                     explorers: Mapping[str, Cell]) -> dict[str, tuple[Cell, int]]:
+    """Goals for the explorers over ``passable`` cells, with each one's path distance to it: one explorer per
+    cluster, nearest pairs first, then the rest to their nearest cluster; an explorer that reaches no cluster
+    gets none."""
     dists = [wavefront(passable, c.cells.astype(np.int64), -1) for c in clusters]
     taken, pairs = _greedy(dists, explorers)
     for _, _, j, r in pairs:  # sorted by distance: the first pair of a robot is its nearest cluster
         taken.setdefault(r, j)
-    return {r: descend(dists[j], explorers[r]) for r, j in sorted(taken.items(), key=lambda kv: robot_order(kv[0]))}
+    return {r: (descend(dists[j], explorers[r]), int(dists[j][explorers[r]]))
+            for r, j in sorted(taken.items(), key=lambda kv: robot_order(kv[0]))}
 
 
 def assign_positions(passable: np.ndarray, positions: Sequence[Cell], explorers: Mapping[str, Cell]

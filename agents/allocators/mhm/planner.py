@@ -293,21 +293,26 @@ class MhmPlanner:
     # --- physical actions ---------------------------------------------------------------------------------
 
     def _explore(self, centers: list[Cell]) -> Wait:
-        """Frontier exploration of the node cells at ``centers`` with every explorer, inside the safe area."""
+        """Frontier exploration of the node cells at ``centers`` with every explorer, inside the safe area.
+        Progress is a newly known cell or an explorer nearer its goal than it has been."""
         quiet, known = 0, -1
+        best: dict[tuple[str, Cell], int] = {}
         while True:
             area = cells_area(self.grid, centers, self.config.r_comm)
             clusters = area_clusters(self.grid, area, self.config.cluster_max)
-            goals = assign_explorers(self.grid, self.passable(), clusters, self.explorers()) if clusters else {}
+            targets = assign_explorers(self.grid, self.passable(), clusters, self.explorers()) if clusters else {}
             seen = int((self.grid != UNKNOWN).sum())
-            quiet, known = (quiet + 1, known) if seen == known else (0, seen)
-            if not goals or quiet > self.config.patience:
-                if goals:
+            closer = any(d < best.get((r, g), 1 << 30) for r, (g, d) in targets.items())
+            best.update({(r, g): min(d, best.get((r, g), 1 << 30)) for r, (g, d) in targets.items()})
+            quiet = 0 if seen != known or closer else quiet + 1
+            known = seen
+            if not targets or quiet > self.config.patience:
+                if targets:
                     self.stalls += 1
                     self._note(f"exploring {centers}: no progress, stopped")
                 self.goals = {}
                 return
-            self.goals = goals
+            self.goals = {r: g for r, (g, _) in targets.items()}
             yield
 
     def _hinge(self, positions: list[Cell]) -> Wait:
