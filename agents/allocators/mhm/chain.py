@@ -21,6 +21,7 @@ Choices where the paper is silent, and why:
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -35,11 +36,15 @@ def base_distance(grid: np.ndarray, base: Cell) -> np.ndarray:
     return wavefront(grid == FREE, source, -1)
 
 
-def closest_frontier(grid: np.ndarray, base: Cell, dist: np.ndarray | None = None) -> Cell | None:
-    """Step 8: the reachable frontier cell nearest the base station by path; None when there is none."""
+def closest_frontier(grid: np.ndarray, base: Cell, dist: np.ndarray | None = None,
+                     exclude: Iterable[Cell] = ()) -> Cell | None:
+    """Step 8: the reachable frontier cell nearest the base station by path, ``exclude`` left out; None
+    when there is none."""
     if dist is None:
         dist = base_distance(grid, base)
     cand = frontier_mask(grid) & (dist >= 0)
+    for c in exclude:
+        cand[c] = False
     if not cand.any():
         return None
     cells = np.argwhere(cand)
@@ -84,10 +89,11 @@ def chain_positions(path: list[Cell], r_comm: float) -> list[Cell]:
     return nodes
 
 
-def phase2_chain(grid: np.ndarray, base: Cell, r_comm: float) -> tuple[Cell, list[Cell]] | None:
-    """Steps 8-9: the closest frontier and L_h; None when no frontier is reachable."""
+def phase2_chain(grid: np.ndarray, base: Cell, r_comm: float,
+                 exclude: Iterable[Cell] = ()) -> tuple[Cell, list[Cell]] | None:
+    """Steps 8-9: the closest frontier (``exclude`` left out) and L_h; None when no frontier is reachable."""
     dist = base_distance(grid, base)
-    frontier = closest_frontier(grid, base, dist)
+    frontier = closest_frontier(grid, base, dist, exclude)
     if frontier is None or frontier == base:
         return None
     return frontier, chain_positions(path_from_base(dist, frontier), r_comm)

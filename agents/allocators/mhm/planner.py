@@ -46,7 +46,7 @@ from collections.abc import Generator, Mapping, Sequence
 import numpy as np
 
 from fleet_emu.agents.allocators.base import robot_order
-from fleet_emu.agents.allocators.mhm.chain import base_distance, chain_positions, path_from_base
+from fleet_emu.agents.allocators.mhm.chain import base_distance, phase2_chain
 from fleet_emu.agents.allocators.mhm.explore import (
     area_clusters,
     assign_explorers,
@@ -61,7 +61,6 @@ from fleet_emu.agents.allocators.mhm.wavefront import (
     hinge_positions,
     hinging_allowed,
 )
-from fleet_emu.agents.frontiers import frontier_mask
 from fleet_emu.core.grid import UNKNOWN, Cell
 from fleet_emu.core.kernels import wavefront
 
@@ -206,9 +205,6 @@ class MhmPlanner:
                                        f"frontier {found[0]} needs {len(found[1])} nodes"))
                 return
             frontier, lh = found
-            if frontier == self.base:  # nothing to chain to: the base's own neighbour is unknown
-                self.given_up.add(frontier)
-                continue
             self._note(f"chain to {frontier}: {lh}")
             for _ in range(3):  # step 11; a robot that could not leave keeps its cell up: try again
                 yield from self._break(self.tree[BASE_NODE].children)
@@ -409,14 +405,5 @@ class MhmPlanner:
         return frontier_distance(self.grid, base_distance(self.grid, self.base) >= 0)
 
     def _closest_frontier_chain(self) -> tuple[Cell, list[Cell]] | None:
-        """Steps 8-9 over reachable frontiers not given up."""
-        dist = base_distance(self.grid, self.base)
-        cand = frontier_mask(self.grid) & (dist >= 0)
-        for c in self.given_up:
-            cand[c] = False
-        if not cand.any():
-            return None
-        cells = np.argwhere(cand)
-        k = int(np.lexsort((cells[:, 1], cells[:, 0], dist[cand]))[0])
-        frontier = (int(cells[k, 0]), int(cells[k, 1]))
-        return frontier, chain_positions(path_from_base(dist, frontier), self.config.r_comm)
+        """Steps 8-9 over the reachable frontiers not given up."""
+        return phase2_chain(self.grid, self.base, self.config.r_comm, self.given_up)

@@ -16,7 +16,9 @@ import pytest
 from fleet_emu.agents.allocators.mhm.planner import MhmConfig, MhmPlanner, View
 from fleet_emu.agents.allocators.mhm.sim import SimResult, simulate, step_toward, worst
 from fleet_emu.agents.allocators.mhm.tree import BASE_NODE
+from fleet_emu.agents.relay import Relay
 from fleet_emu.core.grid import OCCUPIED, from_ascii
+from fleet_emu.core.messages import Envelope
 from fleet_emu.core.reach import base_connected
 
 # Two rooms off a hall, a long room along the bottom; every passage at least two cells wide, so that a node
@@ -178,3 +180,38 @@ def test_breaking_a_subtree_brings_its_robots_into_the_parent_cell_without_losin
     for r in ("r1", "r2", "r3", "r4"):  # every robot of the broken subtree is in node 1's cell
         assert math.dist(poses[r], tree[n1].pos) < 8.0, r
     assert planner.stalls == 0
+
+
+def test_orders_reach_every_robot_over_the_routes_tree() -> None:
+    """The base's orders travel over the relays: with the planner's routes and the ``tree`` relay policy, a
+    message from the base reaches each robot once, over links that exist (``d < r_comm``) at that tick, and
+    only relays on its path send it."""
+    planner = run(OFFICE, 10, CONFIG, max_ticks=150).planner
+    routes = planner.routes()
+    where = dict(planner.poses) | {"base": BASE}
+    names = list(where)
+    longest = 0
+    for seq, dst in enumerate(sorted(planner.poses), start=1):
+        relays = {n: Relay(n, "tree", routes) for n in names}
+        first = Envelope(src="base", tick=150, seq=seq, origin="base", dst=dst, ttl=8, payload_kind="order",
+                         payload=b"")
+        relays["base"].sent(first)
+        pending, delivered, sent = [first], 0, 0
+        while pending:
+            nxt = []
+            for env in pending:
+                sent += 1
+                for n in names:
+                    if n != env.src and math.dist(where[n], where[env.src]) < CONFIG.r_comm:
+                        d = relays[n].handle(env)
+                        delivered += d.deliver and n == dst
+                        nxt.extend([d.forward] if d.forward else [])
+            pending = nxt
+        hops = 1
+        hop = dst
+        while routes[hop] != "base":
+            hops, hop = hops + 1, routes[hop]
+        assert delivered == 1, dst
+        assert sent <= hops  # the relays on the tree path, or fewer when a later one hears an earlier one
+        longest = max(longest, hops)
+    assert longest >= 3  # some orders crossed two relays or more
