@@ -15,23 +15,25 @@ phase 2's in ``chain``, the explorers' in ``explore``):
   III-B keeps "the communication backbone to N_j or its children", and the Exploration Wavefront of C_j
   lies on T_j's leaf cells, whose nodes must be up for a hinge point on their boundary to be in range.
   Nodes of A and T_j that a previous break unhinged are hinged again, shallowest first, so that each robot
-  drives inside the safe area; never more than leaves X_min explorers.
+  drives inside the safe area, and never so many that fewer than X_min explorers remain.
 - *The pruning embellishment of III-C* is applied (the paper states it): a subtree whose leaf cells have no
   EW is marked processed without moving a robot. The other two embellishments (dynamic relaxation of X_min,
   a SHM fallback) are "not discussed" in the paper and are not implemented.
 - *Phase 2's RTG from C_f* takes C_f "as the base": eq. 2's J is limited to T_f's hinged nodes, so that the
   new cells join the subtree the RTG traverses (a chain node, with fewer hops, would otherwise adopt them and
   RTG from C_f would never expand them). The chain's nodes are tree nodes (kind ``chain``, processed), so
-  that routes and tree breaking see them.
+  that routes and tree breaking see them. The chain is hinged one node after the other (step 12's
+  "sequentially"), and C_f's cell is explored before its Wavefront Expansion, as step 1 does for C_0.
+  Step 11 is retried (three times at most) while a robot that could not leave keeps a cell up.
 - *An exploration frontier* for the EW and for phase 2 is a frontier cell reachable from the base over
   known-free cells: one seen across a gap that no robot can reach calls for no hinge.
-- *Waiting*: an action whose robots make no progress for ``patience`` ticks (blocked, or the map stops
-  changing while exploring) ends; a hinge position not reached by then is dropped, and a phase-2 frontier
-  whose chain could not be completed is not tried again. A recalled robot that cannot reach the parent cell
-  keeps its cell hinged, and the cell's ancestors with it: the constraint comes before the recall.
-  Recalled robots drive toward the parent's node until the last of them is in the cell, so that the first
-  ones in do not park on the cell's edge, often a doorway, in the way of the others.
-  ``stalls`` counts these.
+- *Waiting*: an action whose robots make no progress for ``patience`` ticks ends (progress: a robot nearer
+  its goal by path, or, while exploring, a newly known cell); a hinge position not reached by then is
+  dropped, and a phase-2 frontier whose chain could not be completed is not tried again. A recalled robot
+  that cannot reach the parent cell keeps its cell hinged, and the cell's ancestors with it: the constraint
+  comes before the recall. Recalled robots drive toward the parent's node until the last of them is in the
+  cell, so that the first ones in do not park on the cell's edge, often a doorway, in the way of the
+  others. ``stalls`` counts these.
 - *Membership for tree breaking*: an explorer belongs to the hinged node nearest it (Euclidean, lower id on
   ties), as the breaking starts. A recalled robot has arrived in the parent cell when it is within r_comm of
   the parent's node (the definition of a cell).
