@@ -26,7 +26,11 @@ phase 2's in ``chain``, the explorers' in ``explore``):
   "sequentially"), and C_f's cell is explored before its Wavefront Expansion, as step 1 does for C_0.
   Step 11 is retried (three times at most) while a robot that could not leave keeps a cell up.
 - *An exploration frontier* for the EW and for phase 2 is a frontier cell reachable from the base over
-  known-free cells: one seen across a gap that no robot can reach calls for no hinge.
+  known-free cells: one seen across a gap that no robot can reach calls for no hinge. For the EW, a
+  frontier cell still within R_s of a new node after its cell was explored (the frontier that put the node
+  there, which the exploration could not reach) is not one either, and an EW point where a tree node
+  already stands (hinged or not) is no candidate: without these two rules a sibling cell that RTG broke
+  could be created again at the same place, over and over.
 - *Waiting*: an action whose robots make no progress for ``patience`` ticks ends (progress: a robot nearer
   its goal by path, or, while exploring, a newly known cell); a hinge position not reached by then is
   dropped, and a phase-2 frontier whose chain could not be completed is not tried again. A recalled robot
@@ -58,11 +62,13 @@ from fleet_emu.agents.allocators.mhm.explore import (
 )
 from fleet_emu.agents.allocators.mhm.tree import BASE_NODE, ExplorationTree, break_stack, choose_parent
 from fleet_emu.agents.allocators.mhm.wavefront import (
+    disk,
     exploration_wavefront,
     frontier_distance,
     hinge_positions,
     hinging_allowed,
 )
+from fleet_emu.agents.frontiers import frontier_mask
 from fleet_emu.core.grid import UNKNOWN, Cell
 from fleet_emu.core.kernels import wavefront
 
@@ -118,6 +124,7 @@ class MhmPlanner:
         self.stalls = 0
         self.events: list[tuple[int, str]] = []  # (tick, what happened), for the record
         self.given_up: set[Cell] = set()
+        self.dead: np.ndarray | None = None  # frontier cells the exploration of their cell left (see _bury)
         self.view: View | None = None
         self._run_gen = self._run()
 
@@ -252,7 +259,7 @@ class MhmPlanner:
         while True:
             hinged = self.hinged()
             leaves = [self.tree[j].pos for j in self.tree.leaves(i) if j in hinged]
-            taken = [self.tree[j].pos for j in hinged]
+            taken = [n.pos for n in self.tree.nodes]  # a cell that exists is not created again
             positions = hinge_positions(self.grid, leaves, self.base, cfg.r_comm, cfg.sensor_range, cfg.hinges,
                                         taken, self._fdist())
             if not positions or not hinging_allowed(len(positions), len(self.explorers()), cfg.x_min):
@@ -263,6 +270,7 @@ class MhmPlanner:
                 return
             self.pending = {r: p for p, r in placed}
             yield from self._explore([p for p, _ in placed])
+            self._bury([p for p, _ in placed])
             allowed = self.hinged() if scope is None else self.hinged() & set(self.tree.subtree(scope))
             for p, r in placed:  # III-E.1, one new cell after the other
                 parent = choose_parent(self.tree, p, cfg.r_comm, allowed, self.rng)
@@ -403,8 +411,21 @@ class MhmPlanner:
         return out
 
     def _fdist(self) -> np.ndarray:
-        """Distance to the nearest exploration frontier reachable from the base."""
-        return frontier_distance(self.grid, base_distance(self.grid, self.base) >= 0)
+        """Distance to the nearest exploration frontier: reachable from the base, not given up."""
+        where = base_distance(self.grid, self.base) >= 0
+        if self.dead is not None:
+            where &= ~self.dead
+        return frontier_distance(self.grid, where)
+
+    def _bury(self, centers: list[Cell]) -> None:
+        """After new cells were explored: the frontier cells still within R_s of their nodes (those that put
+        the nodes there) could not be explored from them, and call for no hinge again."""
+        if self.dead is None:
+            self.dead = np.zeros(self.grid.shape, dtype=bool)
+        near = np.zeros(self.grid.shape, dtype=bool)
+        for p in centers:
+            near |= disk(self.grid.shape, p, self.config.sensor_range + 1e-6)
+        self.dead |= near & frontier_mask(self.grid)
 
     def _closest_frontier_chain(self) -> tuple[Cell, list[Cell]] | None:
         """Steps 8-9 over the reachable frontiers not given up."""

@@ -20,6 +20,7 @@ from fleet_emu.agents.relay import Relay
 from fleet_emu.core.grid import OCCUPIED, from_ascii
 from fleet_emu.core.messages import Envelope
 from fleet_emu.core.reach import base_connected
+from fleet_emu.world.maps import load_map
 
 # Two rooms off a hall, a long room along the bottom; every passage at least two cells wide, so that a node
 # robot standing in one does not block it.
@@ -218,3 +219,19 @@ def test_orders_reach_every_robot_over_the_routes_tree() -> None:
         assert sent <= hops  # the relays on the tree path, or fewer when a later one hears an earlier one
         longest = max(longest, hops)
     assert longest >= 3  # some orders crossed two relays or more
+
+
+@pytest.mark.parametrize("hinges", [0, 1])
+def test_no_cell_is_created_twice_on_a_generated_office(hinges: int) -> None:
+    """A regression: RTG broke a sibling cell and the next expansion created it again at the same place,
+    forever, without a tick passing. Tree nodes are unique now, and the run advances."""
+    m = load_map("office", 0.2, 0)  # 125 x 200 cells; the 128 columns around the start, as the benchmark's --quick
+    c0 = m.start[1] - 64
+    grid = m.grid[:, c0:c0 + 128].copy()
+    grid[[0, -1], :] = grid[:, [0, -1]] = OCCUPIED
+    config = MhmConfig(r_comm=16.0, sensor_range=6.0, hinges=hinges, patience=60)
+    out = simulate(grid, (m.start[0], 64), 6, config, max_ticks=3200)
+    positions = [n.pos for n in out.planner.tree.nodes if n.kind != "chain"]  # chains may share their hops
+    assert len(positions) == len(set(positions)) > 3
+    assert worst(out.connected) == 1.0
+    assert out.seen[-1] > 2 * out.seen[0]
