@@ -18,6 +18,7 @@ r_comm from its closest node. Choices, and why:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -43,6 +44,27 @@ def cells_area(grid: np.ndarray, centers: Iterable[Cell], r_comm: float) -> np.n
     for p in centers:
         mask |= cell_area(grid, p, r_comm)
     return mask
+
+
+def near_any(shape: tuple[int, int], centers: Iterable[Cell], radius: float) -> np.ndarray:
+    """Cells within ``radius`` (``d <= radius``) of any of ``centers``."""
+    mask = np.zeros(shape, dtype=bool)
+    for p in centers:
+        mask |= disk(shape, p, radius + 1e-6)
+    return mask
+
+
+def path_gaps(passable: np.ndarray, poses: Mapping[str, Cell], targets: Mapping[str, Cell]) -> dict[str, float]:
+    """Each robot's path distance over ``passable`` cells to its target (``inf``: no path)."""
+    cols = passable.shape[1]
+    out: dict[str, float] = {}
+    for goal in set(targets.values()):
+        dist = wavefront(passable, np.array([goal[0] * cols + goal[1]], dtype=np.int64), -1)
+        for r, g in targets.items():
+            if g == goal:
+                d = dist[poses[r]]
+                out[r] = float(d) if d >= 0 else math.inf
+    return out
 
 
 def area_clusters(grid: np.ndarray, area: np.ndarray, cluster_max: int) -> list[Cluster]:

@@ -58,11 +58,12 @@ from fleet_emu.agents.allocators.mhm.explore import (
     assign_explorers,
     assign_positions,
     cells_area,
+    near_any,
+    path_gaps,
     safe_area,
 )
 from fleet_emu.agents.allocators.mhm.tree import BASE_NODE, ExplorationTree, break_stack, choose_parent
 from fleet_emu.agents.allocators.mhm.wavefront import (
-    disk,
     exploration_wavefront,
     frontier_distance,
     hinge_positions,
@@ -70,7 +71,6 @@ from fleet_emu.agents.allocators.mhm.wavefront import (
 )
 from fleet_emu.agents.frontiers import frontier_mask
 from fleet_emu.core.grid import UNKNOWN, Cell
-from fleet_emu.core.kernels import wavefront
 
 Wait = Generator[None, None, object]
 
@@ -398,17 +398,8 @@ class MhmPlanner:
     # --- helpers ------------------------------------------------------------------------------------------
 
     def _path_gaps(self, targets: Mapping[str, Cell]) -> dict[str, float]:
-        """Each robot's path distance to its target over :meth:`passable` cells (``inf``: no path): progress
-        is measured along the way, not as the crow flies."""
-        passable, cols = self.passable(), self.grid.shape[1]
-        out: dict[str, float] = {}
-        for goal in set(targets.values()):
-            dist = wavefront(passable, np.array([goal[0] * cols + goal[1]], dtype=np.int64), -1)
-            for r, g in targets.items():
-                if g == goal:
-                    d = dist[self.poses[r]]
-                    out[r] = float(d) if d >= 0 else math.inf
-        return out
+        """Each robot's path distance to its target over :meth:`passable` cells: progress along the way."""
+        return path_gaps(self.passable(), self.poses, targets)
 
     def _fdist(self) -> np.ndarray:
         """Distance to the nearest exploration frontier: reachable from the base, not given up."""
@@ -422,10 +413,7 @@ class MhmPlanner:
         the nodes there) could not be explored from them, and call for no hinge again."""
         if self.dead is None:
             self.dead = np.zeros(self.grid.shape, dtype=bool)
-        near = np.zeros(self.grid.shape, dtype=bool)
-        for p in centers:
-            near |= disk(self.grid.shape, p, self.config.sensor_range + 1e-6)
-        self.dead |= near & frontier_mask(self.grid)
+        self.dead |= near_any(self.grid.shape, centers, self.config.sensor_range) & frontier_mask(self.grid)
 
     def _closest_frontier_chain(self) -> tuple[Cell, list[Cell]] | None:
         """Steps 8-9 over the reachable frontiers not given up."""
