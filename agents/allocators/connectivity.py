@@ -19,7 +19,21 @@ Allocation (section III-E-2): "the same allocation criterion as in the minPos ap
 utility function defined in Eq. 9 instead of just the path cost". The position of robot ``i`` toward ``T_j`` is
 the number of teammates with a higher utility for it, ``P_ij = |{k != i : U_kj > U_ij}|``; the robot takes the
 task of least position and, among those, of highest utility (then the lowest cluster index) — MinPos's
-Algorithm 3 on ``-U``. With ``beta = 0`` (and ``alpha > 0``) this is exactly MinPos.
+Algorithm 3 on ``-U``. With ``beta = 0`` (and ``alpha > 0``) this is exactly MinPos, whatever ``position``.
+
+Choices the paper leaves open, as parameters:
+
+- ``position``: how the deciding robot evaluates a teammate's eq. 9. Read literally (``"literal"``), teammate
+  ``k``'s eq. 8 at ``T_j`` sums over every robot but ``k``, the deciding robot at its own cell included. So the
+  nearer robot ``i`` gets to its target, the better that target looks for ``k`` (the signal from it to ``i``
+  grows), and ``i`` yields it: two robots each beside its own frontier swap them (tests), and on real maps runs
+  oscillate until the tick limit. Yet if ``k`` took ``T_j``, ``i`` would not be there. ``"without_self"``
+  (default) leaves the deciding robot out of its teammates' eq. 8, since where it will be depends on the very
+  decision; its own eq. 9 stays literal. ``"cost"`` takes the pair's term as common to both (positions on path
+  cost, as MinPos), so eq. 9 only chooses among the tasks of least position.
+- ``predict``: where a teammate is expected for eq. 8: its last known cell (``"pose"``, default, as the paper's
+  Fig. 4) or the target MinPos's rule gives it on the deciding robot's data (``"target"``).
+- ``beta`` and ``lam`` (below).
 
 What the robot can know (DESIGN.md): the signal is predicted on its *belief* map from teammates' *last known*
 poses. Walls are the cells the belief holds as occupied; unknown cells count as free by default (a robot cannot
@@ -54,7 +68,7 @@ from fleet_emu.core.kernels import count_walls
 from fleet_emu.core.messages import RadioMsg
 from fleet_emu.core.radio import RadioConfig, signal_db
 
-POSITIONS = ("cost", "utility", "without_me")
+POSITIONS = ("without_self", "literal", "cost")
 PREDICTIONS = ("pose", "target")
 
 
@@ -140,7 +154,7 @@ def predicted_cells(problem: Problem, predict: str) -> list[Cell]:
 
 
 def choose(problem: Problem, alpha: float, beta: float, lam: float, cell_size: float, radio: RadioConfig,
-           position: str = "cost", predict: str = "pose", unknown_walls: bool = False) -> int | None:
+           position: str = "without_self", predict: str = "pose", unknown_walls: bool = False) -> int | None:
     """The task the deciding robot takes (section III-E-2: MinPos's criterion on eq. 9), None if it reaches
     none. ``position="utility"``: positions counted on every robot's eq. 9 (:func:`utilities`), ties on the
     robot's utility. ``position="cost"``: a teammate and the deciding robot are compared on one eq. 8 (the
@@ -148,8 +162,8 @@ def choose(problem: Problem, alpha: float, beta: float, lam: float, cell_size: f
     elsewhere), so the connectivity term is common to both and the position is MinPos's, on path cost; among
     the tasks of least position the robot takes the one of highest eq. 9 utility (then the lowest index)."""
     cells = predicted_cells(problem, predict)
-    if position in ("utility", "without_me"):
-        without = problem.index if position == "without_me" else None
+    if position in ("literal", "without_self"):
+        without = problem.index if position == "without_self" else None
         u = utilities(problem, alpha, beta, lam, cell_size, radio, unknown_walls, cells, without)
         return minpos_choice(-u, problem.index)  # positions on -U: U_kj > U_ij counts as "closer"
     own = own_utility(problem, alpha, beta, lam, cell_size, radio, unknown_walls, cells)
@@ -168,7 +182,7 @@ class Connectivity(Allocator, plugin_name="connectivity"):
     parameters = {"alpha": Param(0.6, ge=0), "beta": Param(0.4, ge=0), "lam": Param(0.5, ge=0, le=1),
                   "comm_range": Param(10.0, gt=0), "cell_size": Param(0.5, gt=0), "path_loss": Param(2.0, ge=0),
                   "waf": Param(3.1, ge=0), "max_walls": Param(4, ge=0), "unknown_walls": Param(False),
-                  "position": Param("cost", choices=POSITIONS), "predict": Param("pose", choices=PREDICTIONS)}
+                  "position": Param("without_self", choices=POSITIONS), "predict": Param("pose", choices=PREDICTIONS)}
     # in a run the radio and the cell size are the scenario's, unless the [allocator] section sets its own
     scenario_fields = {"comm_range": "radio.comm_range", "path_loss": "radio.path_loss", "waf": "radio.waf",
                        "max_walls": "radio.max_walls", "cell_size": "cell_size"}
