@@ -37,6 +37,7 @@ class Scenario:
     max_ticks: int = 2000
     target_coverage: float = 0.99
     stall_ticks: int = 30
+    coverage_stall_ticks: int = 500  # ticks without coverage growth that end the run as a stall
     barrier_timeout: float = 10.0
     belief_every: int = 10
 
@@ -153,6 +154,7 @@ class Scenario:
         _integer("--seed", self.seed, 0, 2**63 - 1)
         _integer("--max-ticks", self.max_ticks, 1, 10**9)
         _integer("stall_ticks", self.stall_ticks, 1, 10**9)
+        _integer("coverage_stall_ticks", self.coverage_stall_ticks, 1, 10**9)
         _integer("belief_every", self.belief_every, 0, 10**9)
         _number("--cell-size", self.cell_size, 1e-3, 1e3)
         _number("--sensor-range", self.sensor_range, 0.0, math.inf, low_open=True)  # the world clamps it to the map
@@ -179,7 +181,8 @@ class Scenario:
         return self
 
 
-_TOP = {"name", "seed", "max_ticks", "target_coverage", "stall_ticks", "barrier_timeout", "belief_every"}
+_TOP = {"name", "seed", "max_ticks", "target_coverage", "stall_ticks", "coverage_stall_ticks", "barrier_timeout",
+        "belief_every"}
 _SECTIONS = ("map", "fleet", "radio", "allocator")
 
 

@@ -33,6 +33,7 @@ def build_world(scenario: Scenario, map_data: MapData) -> World:
         target_coverage=scenario.target_coverage,
         max_ticks=scenario.max_ticks,
         stall_ticks=scenario.stall_ticks,
+        coverage_stall_ticks=scenario.coverage_stall_ticks,
         start=scenario.start,
     )
     return World(map_data, robot_ids(scenario.robots), config, generator(scenario.seed, "world"))

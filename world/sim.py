@@ -24,6 +24,8 @@ class StartAreaError(ConfigError):
 class WorldConfig:
     """``sensor_range`` in cells; ``start_radius``: the start area is the free cells within this BFS
     distance of the start cell; ``stall_ticks``: ticks without any move or new sensed cell that end the run;
+    ``coverage_stall_ticks``: ticks without any growth of the coverage that end the run, whatever the robots do
+    (robots that keep moving back and forth stall too);
     ``start``: a cell, ``"random"`` (a cell drawn from the world's generator where the robots fit, in the map's
     main free component), or None for the map's own start."""
 
@@ -31,6 +33,7 @@ class WorldConfig:
     target_coverage: float = 0.99
     max_ticks: int = 2000
     stall_ticks: int = 30
+    coverage_stall_ticks: int = 500
     start: Cell | str | None = None
     start_radius: int = 4
 
@@ -97,6 +100,7 @@ class World:
         self._total = int(self._reachable.sum())
         self._sensed = np.zeros(self.shape, dtype=bool)
         self._idle = 0
+        self._flat = 0  # ticks since the coverage last grew
         readings = self._sense()
         self._check_end(progress=True)
         return readings
@@ -150,8 +154,9 @@ class World:
                 del pending[r]
                 changed = moved = True
         self.tick += 1
-        before = int(self._sensed.sum())
+        before, coverage = int(self._sensed.sum()), self.coverage
         readings = self._sense()
+        self._flat = 0 if self.coverage > coverage else self._flat + 1
         self._check_end(progress=moved or int(self._sensed.sum()) > before)
         return readings
 
@@ -177,5 +182,5 @@ class World:
             self.done, self.reason = True, "no_robots"
         elif self.tick >= self.config.max_ticks:
             self.done, self.reason = True, "max_ticks"
-        elif self._idle >= self.config.stall_ticks:
+        elif self._idle >= self.config.stall_ticks or self._flat >= self.config.coverage_stall_ticks:
             self.done, self.reason = True, "stall"

@@ -19,7 +19,21 @@ Allocation (section III-E-2): "the same allocation criterion as in the minPos ap
 utility function defined in Eq. 9 instead of just the path cost". The position of robot ``i`` toward ``T_j`` is
 the number of teammates with a higher utility for it, ``P_ij = |{k != i : U_kj > U_ij}|``; the robot takes the
 task of least position and, among those, of highest utility (then the lowest cluster index) — MinPos's
-Algorithm 3 on ``-U``. With ``beta = 0`` (and ``alpha > 0``) this is exactly MinPos.
+Algorithm 3 on ``-U``. With ``beta = 0`` (and ``alpha > 0``) this is exactly MinPos, whatever ``position``.
+
+Choices the paper leaves open, as parameters:
+
+- ``position``: how the deciding robot evaluates a teammate's eq. 9. Read literally (``"literal"``), teammate
+  ``k``'s eq. 8 at ``T_j`` sums over every robot but ``k``, the deciding robot at its own cell included. So the
+  nearer robot ``i`` gets to its target, the better that target looks for ``k`` (the signal from it to ``i``
+  grows), and ``i`` yields it: two robots each beside its own frontier swap them (tests), and on real maps runs
+  oscillate until the tick limit. Yet if ``k`` took ``T_j``, ``i`` would not be there. ``"without_self"``
+  (default) leaves the deciding robot out of its teammates' eq. 8, since where it will be depends on the very
+  decision; its own eq. 9 stays literal. ``"cost"`` takes the pair's term as common to both (positions on path
+  cost, as MinPos), so eq. 9 only chooses among the tasks of least position.
+- ``predict``: where a teammate is expected for eq. 8: its last known cell (``"pose"``, default, as the paper's
+  Fig. 4) or the target MinPos's rule gives it on the deciding robot's data (``"target"``).
+- ``beta`` and ``lam`` (below).
 
 What the robot can know (DESIGN.md): the signal is predicted on its *belief* map from teammates' *last known*
 poses. Walls are the cells the belief holds as occupied; unknown cells count as free by default (a robot cannot
@@ -47,12 +61,15 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
-from fleet_emu.agents.allocators.minpos import minpos_choice
+from fleet_emu.agents.allocators.minpos import minpos_choice, positions
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.grid import FREE, OCCUPIED, Cell
 from fleet_emu.core.kernels import count_walls
 from fleet_emu.core.messages import RadioMsg
 from fleet_emu.core.radio import RadioConfig, signal_db
+
+POSITIONS = ("without_self", "literal", "cost")
+PREDICTIONS = ("pose", "target")
 
 
 def wall_mask(belief: np.ndarray, unknown_walls: bool = False) -> np.ndarray:
@@ -76,9 +93,11 @@ def connectivity(walls: np.ndarray, target: Cell, others: Sequence[Cell], lam: f
 
 
 def utilities(problem: Problem, alpha: float, beta: float, lam: float, cell_size: float, radio: RadioConfig,
-              unknown_walls: bool = False) -> np.ndarray:
+              unknown_walls: bool = False, cells: Sequence[Cell] | None = None,
+              without: int | None = None) -> np.ndarray:
     """Eq. 9 for every robot with a known pose (rows, in ``problem.robots`` order) and every task (columns);
-    ``-inf`` where the robot cannot reach the task."""
+    ``-inf`` where the robot cannot reach the task. Row ``k``'s eq. 8 sums over every robot but ``k``, placed
+    at ``cells`` (default: the poses), the deciding robot included: eq. 9 read literally for every robot."""
     costs = problem.costs
     n, m = costs.shape
     reach = np.isfinite(costs)
@@ -86,18 +105,75 @@ def utilities(problem: Problem, alpha: float, beta: float, lam: float, cell_size
     if beta == 0.0 or lam == 0.0 or n < 2 or m == 0:
         return u
     walls = wall_mask(problem.belief, unknown_walls)
-    cells = list(problem.poses.values())
+    cells = list(problem.poses.values()) if cells is None else list(cells)
     targets = [c.target for c in problem.clusters]
     dist = np.array([[math.hypot(t[0] - p[0], t[1] - p[1]) for t in targets] for p in cells])  # (n, m)
     sig = np.array([[signal_at(walls, t, p, cell_size, radio) for t in targets] for p in cells])
     weights = lam ** np.arange(1, n, dtype=float)  # lambda^p, p = 1 .. n-1
     for k in range(n):
-        rows = np.array([r for r in range(n) if r != k])
+        rows = np.array([r for r in range(n) if r != k and (r != without or k == without)])
+        if len(rows) == 0:
+            continue
         order = np.argsort(dist[rows], axis=0, kind="stable")  # per task: the others by increasing distance
         ranked = np.take_along_axis(sig[rows], order, axis=0)
-        conn = weights @ ranked
+        conn = weights[: len(rows)] @ ranked
         u[k] = np.where(reach[k], u[k] + beta * conn, -np.inf)
     return u
+
+
+def own_utility(problem: Problem, alpha: float, beta: float, lam: float, cell_size: float, radio: RadioConfig,
+                unknown_walls: bool = False, cells: Sequence[Cell] | None = None) -> np.ndarray:
+    """Eq. 9 of the deciding robot for every task (``-inf`` where it cannot reach it): its path cost, and eq. 8
+    over its teammates placed at ``cells`` (every robot's, in ``problem.robots`` order; default the poses)."""
+    i = problem.index
+    cost = problem.costs[i]
+    reach = np.isfinite(cost)
+    u = np.where(reach, -alpha * np.where(reach, cost, 0.0) * cell_size, -np.inf)
+    if beta == 0.0 or lam == 0.0 or len(problem.poses) < 2 or not problem.clusters:
+        return u
+    walls = wall_mask(problem.belief, unknown_walls)
+    every = list(problem.poses.values()) if cells is None else list(cells)
+    others = [c for k, c in enumerate(every) if k != i]
+    conn = np.array([connectivity(walls, c.target, others, lam, cell_size, radio) for c in problem.clusters])
+    return np.where(reach, u + beta * conn, -np.inf)
+
+
+def predicted_cells(problem: Problem, predict: str) -> list[Cell]:
+    """Where each robot is expected to be for eq. 8 (``problem.robots`` order): its last known cell
+    (``"pose"``), or, for a teammate, the target of the cluster MinPos's rule gives it from the deciding
+    robot's data (``"target"``; its pose when it reaches none). The deciding robot keeps its own cell."""
+    cells = list(problem.poses.values())
+    if predict == "pose":
+        return cells
+    for k in range(len(cells)):
+        if k != problem.index:
+            j = minpos_choice(problem.costs, k)
+            if j is not None:
+                cells[k] = problem.clusters[j].target
+    return cells
+
+
+def choose(problem: Problem, alpha: float, beta: float, lam: float, cell_size: float, radio: RadioConfig,
+           position: str = "without_self", predict: str = "pose", unknown_walls: bool = False) -> int | None:
+    """The task the deciding robot takes (section III-E-2: MinPos's criterion on eq. 9), None if it reaches
+    none. ``position="utility"``: positions counted on every robot's eq. 9 (:func:`utilities`), ties on the
+    robot's utility. ``position="cost"``: a teammate and the deciding robot are compared on one eq. 8 (the
+    team without the two of them, wherever it is, and whichever of the pair takes the task, the other is
+    elsewhere), so the connectivity term is common to both and the position is MinPos's, on path cost; among
+    the tasks of least position the robot takes the one of highest eq. 9 utility (then the lowest index)."""
+    cells = predicted_cells(problem, predict)
+    if position in ("literal", "without_self"):
+        without = problem.index if position == "without_self" else None
+        u = utilities(problem, alpha, beta, lam, cell_size, radio, unknown_walls, cells, without)
+        return minpos_choice(-u, problem.index)  # positions on -U: U_kj > U_ij counts as "closer"
+    own = own_utility(problem, alpha, beta, lam, cell_size, radio, unknown_walls, cells)
+    reach = np.isfinite(problem.costs[problem.index])
+    if not reach.any():
+        return None
+    pos = positions(problem.costs, problem.index).astype(float)
+    pos[~reach] = np.inf
+    candidates = np.flatnonzero(pos == pos.min())
+    return int(candidates[np.argmax(own[candidates])])
 
 
 class Connectivity(Allocator, plugin_name="connectivity"):
@@ -105,7 +181,8 @@ class Connectivity(Allocator, plugin_name="connectivity"):
 
     parameters = {"alpha": Param(0.6, ge=0), "beta": Param(0.4, ge=0), "lam": Param(0.5, ge=0, le=1),
                   "comm_range": Param(10.0, gt=0), "cell_size": Param(0.5, gt=0), "path_loss": Param(2.0, ge=0),
-                  "waf": Param(3.1, ge=0), "max_walls": Param(4, ge=0), "unknown_walls": Param(False)}
+                  "waf": Param(3.1, ge=0), "max_walls": Param(4, ge=0), "unknown_walls": Param(False),
+                  "position": Param("without_self", choices=POSITIONS), "predict": Param("pose", choices=PREDICTIONS)}
     # in a run the radio and the cell size are the scenario's, unless the [allocator] section sets its own
     scenario_fields = {"comm_range": "radio.comm_range", "path_loss": "radio.path_loss", "waf": "radio.waf",
                        "max_walls": "radio.max_walls", "cell_size": "cell_size"}
@@ -118,6 +195,8 @@ class Connectivity(Allocator, plugin_name="connectivity"):
     waf: float
     max_walls: int
     unknown_walls: bool
+    position: str
+    predict: str
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -127,6 +206,6 @@ class Connectivity(Allocator, plugin_name="connectivity"):
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         if not problem.clusters:
             return Allocation.none()
-        u = utilities(problem, self.alpha, self.beta, self.lam, self.cell_size, self.radio, self.unknown_walls)
-        j = minpos_choice(-u, problem.index)  # positions on -U: U_kj > U_ij counts as "closer"
+        j = choose(problem, self.alpha, self.beta, self.lam, self.cell_size, self.radio, self.position,
+                   self.predict, self.unknown_walls)
         return Allocation.none() if j is None else Allocation.assigned(problem, j)

@@ -9,7 +9,8 @@ import pytest
 
 from fleet_emu.agents.allocators import AllocStatus, Problem, make_allocator
 from fleet_emu.agents.allocators.conformance import CROSS, WALLED, api_test, random_problem, seed_test
-from fleet_emu.agents.allocators.connectivity import connectivity, utilities, wall_mask
+from fleet_emu.agents.allocators.connectivity import connectivity, signal_at, utilities, wall_mask
+from fleet_emu.agents.allocators.minpos import positions
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import from_ascii
@@ -29,7 +30,11 @@ def test_conformance() -> None:
     api_test({"type": "connectivity", "alpha": 0.0, "beta": 1.0, "lam": 1.0, "unknown_walls": True})
     assert make_allocator({"type": "connectivity"}).to_dict() == {
         "type": "connectivity", "alpha": 0.6, "beta": 0.4, "lam": 0.5, "comm_range": 10.0, "cell_size": 0.5,
-        "path_loss": 2.0, "waf": 3.1, "max_walls": 4, "unknown_walls": False}
+        "path_loss": 2.0, "waf": 3.1, "max_walls": 4, "unknown_walls": False, "position": "without_self",
+        "predict": "pose"}
+    for position in ("literal", "cost"):
+        api_test({"type": "connectivity", "position": position, "predict": "target"})
+        seed_test({"type": "connectivity", "position": position, "predict": "target"})
     with pytest.raises(ConfigError, match=r"lam must be a number in \[0, 1\]"):
         make_allocator({"type": "connectivity", "lam": 1.5})
 
@@ -40,8 +45,11 @@ def test_beta_zero_is_minpos() -> None:
     rng = np.random.default_rng(3)
     problems = [problem(CROSS, me) for me in ("r0", "r1", "r2", "r3")] + [problem(WALLED)]
     problems += [random_problem(rng, me=f"r{k % 4}") for k in range(40)]
+    others = [make_allocator({"type": "connectivity", "beta": 0.0, "position": pos, "predict": pred})
+              for pos in ("literal", "cost") for pred in ("pose", "target")]
     for p in problems:
         assert conn.allocate(p) == minpos.allocate(p)
+        assert all(o.allocate(p) == minpos.allocate(p) for o in others)
 
 
 # r1's room has no door: r1 cannot reach any frontier (its positions never count), but its radio hears
@@ -136,3 +144,58 @@ def test_alone_is_minpos_on_cost() -> None:
     """)
     a = make_allocator({"type": "connectivity", "beta": 1.0}).allocate(p)
     assert a.status is AllocStatus.ASSIGNED and a.target == (0, 7)
+
+
+# Each robot stands one cell from its own frontier: L = (1, 1) for r0, M = (1, 6) (below the opening) for r1.
+SWAP = """
+######?#####
+?.0..1.....#
+############
+"""
+SIX = RadioConfig(comm_range=6.0)  # the paper's experiment
+
+
+def test_literal_eq9_makes_a_robot_yield_the_target_it_stands_by() -> None:
+    """The suspected cause, confirmed: read literally, a teammate's eq. 9 for a task sums the signal from that
+    task to the deciding robot's own cell, so the robot nearest a task hands it to the teammate it is far from."""
+    p = problem(SWAP)
+    targets = [c.target for c in p.clusters]
+    left = targets.index((1, 1))
+    assert list(p.costs[:, left]) == [1.0, 4.0]  # r0 is 1 step from L, r1 4
+    assert positions(p.costs, 0)[left] == 0  # MinPos: r0 is first
+    literal = utilities(p, 0.6, 0.4, 0.5, 0.5, SIX)
+    assert positions(-literal, 0)[left] == 1  # literal eq. 9: r1 counts as better placed for L than r0
+    mine = signal_at(wall_mask(p.belief), (1, 1), p.poses["r0"], 0.5, SIX)  # L to r0's own cell: 21.6 dB
+    without = utilities(p, 0.6, 0.4, 0.5, 0.5, SIX, without=0)
+    assert literal[1, left] - without[1, left] == pytest.approx(0.4 * 0.5 * mine)  # that term alone
+    assert positions(-without, 0)[left] == 0  # without it r0 stays first for L
+    # literal positions swap the pair (r0 to M, r1 to L: head-on in a corridor); MinPos and "cost" do not
+    lit = {"type": "connectivity", "comm_range": 6.0, "position": "literal"}
+    for me, own, other in (("r0", (1, 1), (1, 6)), ("r1", (1, 6), (1, 1))):
+        q = problem(SWAP, me)
+        assert make_allocator(lit).allocate(q).target == other
+        assert make_allocator({"type": "minpos"}).allocate(q).target == own
+        assert make_allocator({**lit, "position": "cost"}).allocate(q).target == own
+
+
+def test_positions_without_self_still_favour_the_connected_task() -> None:
+    """``without_self`` keeps the deciding robot first where it is nearest, and eq. 9 then picks, among the
+    tasks of least position, the one nearer the teammate's radio: here M, beside r1, over L, beside r0."""
+    p = problem(SWAP)
+    targets = [c.target for c in p.clusters]
+    u = utilities(p, 0.6, 0.4, 0.5, 0.5, SIX, without=0)
+    assert list(positions(-u, 0)) == [0, 0]
+    assert make_allocator({"type": "connectivity", "comm_range": 6.0}).allocate(p).target == (1, 6)
+    assert u[0, targets.index((1, 6))] > u[0, targets.index((1, 1))]
+    # with alpha near 1 the path cost wins: L
+    near_one = {"type": "connectivity", "comm_range": 6.0, "alpha": 0.99, "beta": 0.01}
+    assert make_allocator(near_one).allocate(p).target == (1, 1)
+
+
+def test_predicting_teammates_at_their_targets() -> None:
+    """``predict="target"`` places a teammate, for eq. 8, on the target MinPos gives it, not on its cell."""
+    from fleet_emu.agents.allocators.connectivity import predicted_cells
+
+    p = problem(SWAP)
+    assert predicted_cells(p, "pose") == [(1, 2), (1, 5)]
+    assert predicted_cells(p, "target") == [(1, 2), (1, 6)]  # r1 is MinPos-first for M

@@ -113,6 +113,31 @@ def test_tick_limit_stall_and_failure_end_the_run() -> None:
     assert f.done and f.reason == "no_robots"
 
 
+def test_a_robot_pacing_without_new_coverage_stalls_after_the_window() -> None:
+    """The coverage rule ends a run whose robots keep moving but sense nothing new (the move rule cannot)."""
+    pace = [(0, 1), (0, -1)]
+
+    def pacing(window: int, ticks: int) -> list[tuple[int, float, bool, str | None]]:
+        w = _world(ROOMS, 1, sensor_range=1.0, coverage_stall_ticks=window, max_ticks=50)
+        w.reset()
+        out = [(0, w.coverage, w.done, w.reason)]
+        for t in range(ticks):
+            w.step({"r0": pace[t % 2]})
+            out.append((w.tick, w.coverage, w.done, w.reason))
+            if w.done:
+                break
+        return out
+
+    trace = pacing(window=6, ticks=50)
+    grew = max(t for (t, c, _, _), (_, c0, _, _) in zip(trace[1:], trace, strict=False) if c > c0)
+    assert grew == 1  # the first step sensed a new column; the pacing after it senses nothing
+    tick, _, done, reason = trace[-1]
+    assert (tick, done, reason) == (grew + 6, True, "stall")
+    assert not any(d for _, _, d, _ in trace[:-1])
+    long = pacing(window=1000, ticks=50)  # without the coverage window the moves keep the run going
+    assert long[-1][2:] == (True, "max_ticks") and long[-1][0] == 50
+
+
 def test_random_start_comes_from_the_generator_and_fits_the_fleet() -> None:
     grid, _ = from_ascii(ROOMS)
     md = MapData(name="test", grid=grid, cell_size=0.5, start=(2, 2))

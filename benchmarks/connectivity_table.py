@@ -1,0 +1,125 @@
+"""Connectivity-aware exploration (Benavides et al. 2016, section IV) against MinPos: connected fraction and ticks.
+
+    python benchmarks/connectivity_table.py [--maps ../shared/maps/stage/hospital_section.yaml maze]
+        [--configs minpos conn:0.6:0.4 conn:0.4:0.6 conn:0.6:0.4:literal] [--seeds 6] [--loss 0.1]
+        [--max-ticks 3000] [--jobs 2] [--check]
+
+The paper's experiment: 2 robots, sensing 3 m, communication 6 m, stop at 95 % coverage; here on the wall radio
+(eq. 4) with 0.5 m cells and a random start per seed. A config is ``minpos`` or
+``conn:ALPHA:BETA[:POSITION[:PREDICT]]`` (the connectivity allocator's parameters, see its module docstring).
+Each run is stepped in this process (``benchmarks/lockstep.py``: the same World, Channel and Brain as ``fleet
+run``, without Zenoh); ``--check`` first compares one run against a real ``fleet run`` of the same scenario.
+Per cell: mean connected fraction, mean ticks (a run that did not reach the target counts at its last tick), and
+``kS/kT`` runs that ended as a stall / at the tick limit. One line per finished run goes to stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from lockstep import Outcome, simulate
+
+from fleet_emu.core.scenario import Scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+MAPS = ROOT.parent / "shared" / "maps"
+DEFAULT_MAPS = [str(MAPS / "stage" / m) for m in ("hospital_section.yaml", "autolab.yaml", "mbicp.yaml", "cave.yaml")]
+DEFAULT_MAPS.append("maze")
+SETTINGS = {"robots": 2, "sensor_range": 3.0, "comm_range": 6.0, "target_coverage": 0.95, "cell_size": 0.5,
+            "comm": "wall", "start": "random"}
+
+
+def allocator(config: str) -> dict:
+    """``minpos`` or ``conn:ALPHA:BETA[:POSITION[:PREDICT]]`` as an allocator table."""
+    if not config.startswith("conn:"):
+        return {"type": config}
+    parts = config.split(":")[1:]
+    out: dict = {"type": "connectivity", "alpha": float(parts[0]), "beta": float(parts[1])}
+    if len(parts) > 2:
+        out["position"] = parts[2]
+    if len(parts) > 3:
+        out["predict"] = parts[3]
+    return out
+
+
+def scenario(map_name: str, config: str, seed: int, loss: float, max_ticks: int) -> Scenario:
+    base = Scenario().override(map=map_name, seed=seed, loss=loss, max_ticks=max_ticks, **SETTINGS)
+    return dataclasses.replace(base, allocator=allocator(config)).validate()
+
+
+def run_one(map_name: str, config: str, seed: int, loss: float, max_ticks: int) -> Outcome:
+    return simulate(scenario(map_name, config, seed, loss, max_ticks))
+
+
+def check(map_name: str, loss: float) -> None:
+    """One run stepped here and the same scenario as a real fleet (``fleet run``) must agree."""
+    sc = scenario(map_name, "conn:0.6:0.4", 0, loss, 3000)
+    mine = simulate(sc)
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "s.json").write_text(json.dumps(sc.to_dict()))
+        subprocess.run([sys.executable, "-m", "fleet_emu.launch", "run", "--scenario", f"{tmp}/s.json", "--quiet",
+                        "--no-record", "--out", f"{tmp}/run"], cwd=ROOT, check=False, capture_output=True)
+        real = json.loads((Path(tmp) / "run" / "result.json").read_text())
+    same = (real["ticks"], real["path_length"], round(real["connected_fraction"], 6)) == (
+        mine.ticks, list(mine.path_length.values()), round(mine.connected_fraction, 6))
+    print(f"check on {Path(map_name).stem}: fleet run ticks {real['ticks']}, connected "
+          f"{real['connected_fraction']:.3f}; stepped here {mine.ticks}, {mine.connected_fraction:.3f}: "
+          f"{'identical' if same else 'DIFFERENT'}", file=sys.stderr)
+    if not same:
+        raise SystemExit(1)
+
+
+def cell(outcomes: list[Outcome]) -> str:
+    conn = statistics.mean(o.connected_fraction for o in outcomes)
+    ticks = statistics.mean(o.ticks for o in outcomes)
+    stalls = sum(o.reason == "stall" for o in outcomes)
+    limit = sum(o.reason == "max_ticks" for o in outcomes)
+    flags = (f" {stalls}S" if stalls else "") + (f" {limit}T" if limit else "")
+    return f"{conn:.0%}, {ticks:.0f}{flags}"
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--maps", nargs="+", default=DEFAULT_MAPS)
+    p.add_argument("--configs", nargs="+", default=["minpos", "conn:0.6:0.4", "conn:0.4:0.6"])
+    p.add_argument("--seeds", type=int, default=6)
+    p.add_argument("--loss", type=float, default=0.1)
+    p.add_argument("--max-ticks", type=int, default=3000)
+    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--check", action="store_true", help="first compare one stepped run with a real fleet run")
+    a = p.parse_args()
+    if a.check:
+        check(a.maps[0], a.loss)
+    jobs = [(m, c, s) for m in a.maps for c in a.configs for s in range(a.seeds)]
+    results: dict[tuple[str, str], list[Outcome]] = {}
+    with ProcessPoolExecutor(a.jobs) as pool:
+        futures = {pool.submit(run_one, m, c, s, a.loss, a.max_ticks): (m, c, s) for m, c, s in jobs}
+        for done, future in enumerate(as_completed(futures), start=1):
+            m, c, s = futures[future]
+            o = future.result()
+            results.setdefault((m, c), []).append(o)
+            print(f"[{done}/{len(jobs)}] {Path(m).stem} {c} seed {s}: {o.reason} at {o.ticks}, coverage "
+                  f"{o.coverage:.1%}, connected {o.connected_fraction:.1%}", file=sys.stderr, flush=True)
+    print(f"connected fraction, mean ticks (2 robots, sensing 3 m, range 6 m, 95 %, wall radio, loss {a.loss}, "
+          f"seeds 0..{a.seeds - 1}, tick limit {a.max_ticks}; kS/kT: runs ended as a stall / at the limit)")
+    print("| map | " + " | ".join(a.configs) + " |")
+    print("|---" * (len(a.configs) + 1) + "|")
+    for m in a.maps:
+        print(f"| {Path(m).stem} | " + " | ".join(cell(results[(m, c)]) for c in a.configs) + " |")
+    rows = [[results[(m, c)] for m in a.maps] for c in a.configs]
+    print("| mean of maps | " + " | ".join(
+        f"{statistics.mean(statistics.mean(o.connected_fraction for o in r) for r in row):.0%}, "
+        f"{statistics.mean(statistics.mean(o.ticks for o in r) for r in row):.0f}" for row in rows) + " |")
+
+
+if __name__ == "__main__":
+    main()
