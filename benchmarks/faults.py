@@ -168,7 +168,8 @@ class Descendants(threading.Thread):
 
 
 @contextlib.contextmanager
-def launched(args: list[str], out: Path, trial: Trial, hang: float = HANG) -> Iterator[tuple[subprocess.Popen, Descendants]]:
+def launched(args: list[str], out: Path, trial: Trial,
+             hang: float = HANG) -> Iterator[tuple[subprocess.Popen, Descendants]]:
     """``fleet run ARGS --out OUT --quiet`` with its descendants watched; on leaving, wait for its end (a hang
     after ``hang`` s is SIGTERMed, then killed), count orphans and read what it left."""
     out.parent.mkdir(parents=True, exist_ok=True)
