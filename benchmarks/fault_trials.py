@@ -58,7 +58,9 @@ def main() -> None:
     p.add_argument("--sensor-range", default="1.5")
     p.add_argument("--robots", type=int, default=3)
     p.add_argument("--max-ticks", type=int, default=60)
-    p.add_argument("--fuzz-ticks", type=int, default=400, help="the fuzz runs' tick limit (they must outlast it)")
+    p.add_argument("--fuzz-ticks", type=int, default=3000, help="the fuzz runs' tick limit")
+    p.add_argument("--fuzz-cell-size", default="0.05", help="a finer grid: fuzz runs outlast the fuzz")
+    p.add_argument("--fuzz-sensor-range", default="0.5")
     p.add_argument("--work", type=Path, help="keep every run here (default: a temporary directory)")
     a = p.parse_args()
     extra = ("--cell-size", a.cell_size, "--sensor-range", a.sensor_range)
@@ -91,7 +93,8 @@ def main() -> None:
         if a.sigint:
             go("SIGINT", a.sigint, lambda i: sigint_trial(spec, work, rng("sigint", i), f"sigint{i}", window))
         if a.fuzz:
-            fspec = RunSpec(a.map, a.robots, a.fuzz_ticks, 1.0, a.seed, extra)
+            fextra = ("--cell-size", a.fuzz_cell_size, "--sensor-range", a.fuzz_sensor_range)
+            fspec = RunSpec(a.map, a.robots, a.fuzz_ticks, 0.99, a.seed, fextra)
             ref = go("fuzz baseline (open)", 1, lambda i: plain_trial(fspec, work, "fuzzbase", True))[0].result
             go("fuzz (open router)", a.fuzz_runs,
                lambda i: fuzz_trial(fspec, work, rng("fuzz", i), f"fuzz{i}", a.fuzz, None, ref))
