@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 from typing import Any
 
+from fleet_emu.core.access import allowed_src
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import Message
@@ -39,6 +40,9 @@ class FoxgloveWriter:
                 try:
                     msg = decode(data)
                 except DecodeError:
+                    return
+                allowed = allowed_src(parsed)
+                if allowed is not None and msg.src not in allowed:  # a spoofed sender (the monitor's rule)
                     return
             self._write(self.fold.feed(msg))
         except Exception:  # a viewer channel must never stop the run

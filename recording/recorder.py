@@ -25,6 +25,7 @@ from fleet_emu.core.radio import RadioConfig
 from fleet_emu.core.version import SCHEMA_VERSION
 
 TICK_NS = 100_000_000  # one tick is shown as 100 ms of log time
+MAX_LOG_TICK = (2**64 - 1) // TICK_NS  # MCAP log times are unsigned 64-bit nanoseconds
 FLUSH_SECONDS = 1.0
 SCENARIO_METADATA = "scenario"
 
@@ -53,8 +54,8 @@ class Recorder:
         with self._lock:
             if self.closed:
                 return
-            if tick is None:  # a message without a tick (malformed, say) is logged at the latest tick
-                tick = self._last_tick
+            if tick is None or tick > MAX_LOG_TICK:  # no tick, or one no log time can hold (malformed, say):
+                tick = self._last_tick  # logged at the latest tick
             self._last_tick = tick
             channel = self._channels.get(key)
             if channel is None:
@@ -70,6 +71,8 @@ class Recorder:
         with self._lock:
             if self.closed:
                 return
+            if not 0 <= tick <= MAX_LOG_TICK:  # derived from a message with a tick no log time can hold
+                tick = self._last_tick
             channel = self._channels.get(topic)
             if channel is None:
                 channel = self._writer.register_channel(topic=topic, message_encoding=encoding, schema_id=schema_id)

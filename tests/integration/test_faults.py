@@ -1,0 +1,89 @@
+"""Fault trials, a few of each, with real processes (``benchmarks/fault_trials.py`` runs them by the hundred):
+kill -9 of a random robot at a random tick, SIGINT at a random moment, fuzzed messages on every key, and
+heavy loss. Each trial checks every invariant of issue 12 (``benchmarks/faults.py``: the run ended, result.json
+is there, run.mcap reads to the end with result.json's count, no orphan, no death but the kill, the right exit
+code); a failing trial lists what it broke."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchmarks.faults import RunSpec, Trial, fuzz_trial, kill_trial, loss_trial, plain_trial, sigint_trial
+from benchmarks.fuzz import UNKNOWN, fuzz_messages
+from fleet_emu.core.access import allowed_src
+from fleet_emu.core.codec import DecodeError, decode
+from fleet_emu.core.keys import Keys
+
+SEED = 12
+
+
+def _spec(small_map: Path, max_ticks: int = 50) -> RunSpec:
+    """Three robots with a short sensor on the two-room map: about 70 ticks to see every cell."""
+    return RunSpec(str(small_map), robots=3, max_ticks=max_ticks, target_coverage=1.0, seed=SEED,
+                   extra=("--sensor-range", "1.0"))
+
+
+def _ok(t: Trial) -> None:
+    assert t.failures == [], f"{t.label}: {t.failures} {t.notes}"
+
+
+def test_open_fuzz_is_never_a_message_a_node_may_accept() -> None:
+    """What an outsider sends either does not decode, or names a sender that may not write on its key, or comes
+    from a robot the fleet does not have on that robot's own key."""
+    import fleet_emu.agents.allocators  # noqa: F401  (registers every payload kind)
+
+    mutations: set[str] = set()
+    for key, data, mutation in fuzz_messages(np.random.default_rng(SEED), "fz", ["r0", "r1", "r2"], 5000):
+        mutations.add(mutation)
+        try:
+            msg = decode(data)
+        except DecodeError:
+            continue
+        parsed = Keys("fz").parse(key)
+        assert parsed is not None, key
+        allowed = allowed_src(parsed)
+        assert allowed is not None and (msg.src not in allowed or parsed.node in UNKNOWN), (key, mutation, msg)
+    assert mutations >= {"bytes", "shape", "field", "kind", "version", "spoof", "unknown", "oversized"}
+
+
+@pytest.mark.parametrize("i", range(2))
+def test_kill9_of_a_random_robot_at_a_random_tick(small_map: Path, tmp_path: Path, i: int) -> None:
+    t = kill_trial(_spec(small_map), tmp_path, np.random.default_rng([SEED, 1, i]), f"kill{i}", window=30)
+    assert t.notes == [], t.notes  # the robot was killed while the run went on
+    _ok(t)
+    assert t.exit_code == 1 and len(t.result["failed"]) == 1
+
+
+@pytest.mark.parametrize("i", range(2))
+def test_sigint_at_a_random_moment(tmp_path: Path, i: int) -> None:
+    long_run = RunSpec("office", robots=2, max_ticks=100000, target_coverage=1.0, seed=SEED)
+    t = sigint_trial(long_run, tmp_path, np.random.default_rng([SEED, 2, i]), f"sigint{i}", window=5.0)
+    _ok(t)
+    assert t.exit_code == 130 and t.result["reason"] == "interrupted"
+
+
+def test_fuzz_on_every_key_kills_nothing_and_changes_nothing(small_map: Path, tmp_path: Path) -> None:
+    spec = _spec(small_map, max_ticks=100)
+    base = plain_trial(spec, tmp_path, "fuzzbase", connect_open=True)
+    _ok(base)
+    t = fuzz_trial(spec, tmp_path, np.random.default_rng([SEED, 3]), "fuzz", 3000, None, base.result)
+    _ok(t)  # "changed" included: the seeded result is the baseline's
+    assert t.result["malformed_dropped"] > 0
+    assert set(t.result["malformed_dropped_by"]) >= {"world", "netem", "r0", "launcher"}
+
+
+def test_fuzz_from_a_robot_with_credentials_kills_nothing(small_map: Path, tmp_path: Path) -> None:
+    t = fuzz_trial(_spec(small_map, max_ticks=100), tmp_path, np.random.default_rng([SEED, 4]), "fuzzauth", 2000,
+                   "r1")
+    _ok(t)
+    assert t.result["authenticated"] is True
+
+
+@pytest.mark.parametrize("allocator", ["hungarian", "trade"])
+def test_loss_09_ends_by_the_tick_limit(small_map: Path, tmp_path: Path, allocator: str) -> None:
+    t = loss_trial(_spec(small_map, max_ticks=40), tmp_path, allocator, f"loss-{allocator}")
+    _ok(t)
+    assert t.result["ticks"] <= 40 and t.result["loss"] == 0.9
