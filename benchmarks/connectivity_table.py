@@ -7,8 +7,8 @@
 The paper's experiment: 2 robots, sensing 3 m, communication 6 m, stop at 95 % coverage; here on the wall radio
 (eq. 4) with 0.5 m cells and a random start per seed. A config is ``minpos`` or
 ``conn:ALPHA:BETA[:POSITION[:PREDICT]]`` (the connectivity allocator's parameters, see its module docstring).
-Each run is stepped in this process (``benchmarks/lockstep.py``: the same World, Channel and Brain as ``fleet
-run``, without Zenoh); ``--check`` first compares one run against a real ``fleet run`` of the same scenario.
+Each run is stepped in this process on the memory engine (``fleet_emu.Fleet``: the same World, Channel and Brain
+as ``fleet run``, without Zenoh); ``--check`` first compares one run against a real ``fleet run`` of it.
 Per cell: mean connected fraction, mean ticks (a run that did not reach the target counts at its last tick), and
 ``kS/kT`` runs that ended as a stall / at the tick limit. One line per finished run goes to stderr.
 """
@@ -25,10 +25,24 @@ import tempfile
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from lockstep import Outcome, simulate
-
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.memory import Fleet
+
+
+@dataclasses.dataclass(frozen=True)
+class Outcome:
+    """What ``result.json`` says of a run (the keys the table needs)."""
+
+    ticks: int
+    coverage: float
+    reason: str | None
+    connected_fraction: float
+    path_length: list[int]
+
+
+def simulate(sc: Scenario) -> Outcome:
+    r = Fleet(sc).run().data
+    return Outcome(r["ticks"], r["coverage"], r["reason"], r["connected_fraction"] or 0.0, r["path_length"])
 
 ROOT = Path(__file__).resolve().parents[1]
 MAPS = ROOT.parent / "shared" / "maps"
@@ -70,7 +84,7 @@ def check(map_name: str, loss: float) -> None:
                         "--no-record", "--out", f"{tmp}/run"], cwd=ROOT, check=False, capture_output=True)
         real = json.loads((Path(tmp) / "run" / "result.json").read_text())
     same = (real["ticks"], real["path_length"], round(real["connected_fraction"], 6)) == (
-        mine.ticks, list(mine.path_length.values()), round(mine.connected_fraction, 6))
+        mine.ticks, mine.path_length, round(mine.connected_fraction, 6))
     print(f"check on {Path(map_name).stem}: fleet run ticks {real['ticks']}, connected "
           f"{real['connected_fraction']:.3f}; stepped here {mine.ticks}, {mine.connected_fraction:.3f}: "
           f"{'identical' if same else 'DIFFERENT'}", file=sys.stderr)

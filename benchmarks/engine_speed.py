@@ -18,8 +18,6 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 HOSPITAL = ROOT.parent / "shared" / "maps" / "stage" / "hospital_section.yaml"
-UNTIMED = {"run_id", "decision_ms", "agent_peak_rss_kb", "ticks_per_second", "pids", "recording", "wall_seconds",
-           "engine"}
 
 SCENARIOS = [  # (label, overrides)
     ("office x3 minpos wall 0.1", {"robots": 3, "allocator": "minpos"}),
@@ -34,6 +32,7 @@ SCENARIOS = [  # (label, overrides)
 
 def main() -> int:
     import fleet_emu as fe
+    from fleet_emu.launch.result import deterministic
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=2)
@@ -56,7 +55,7 @@ def main() -> int:
                 t0 = time.perf_counter()
                 res = fe.Fleet(s).run() if engine == "memory" else fe.run(s, in_process=engine == "in-process")
                 times[engine].append(time.perf_counter() - t0)
-                keys = {k: v for k, v in res.items() if k not in UNTIMED}
+                keys = deterministic(res.data)
                 if seen is not None and keys != seen:
                     differ += 1
                     print(f"{label} seed {seed}: {engine} differs from memory", file=sys.stderr)

@@ -29,7 +29,8 @@ from faults import RunSpec, Trial, fuzz_trial, kill_trial, loss_trial, plain_tri
 
 from fleet_emu.agents.allocators import allocator_names
 
-MAP = "/work/shared/maps/ros/turtlebot3_world/map.yaml"  # 384 x 384 px at 0.05 m: 192 x 192 cells at 0.1 m
+# 384 x 384 px at 0.05 m: 192 x 192 cells at 0.1 m
+MAP = str(Path(__file__).resolve().parents[2] / "shared" / "maps" / "ros" / "turtlebot3_world" / "map.yaml")
 PHASES = {"kill": 1, "sigint": 2, "fuzz": 3, "fuzz-auth": 4}
 COLUMNS = ("trials", "ended", "valid rec", "result.json", "orphans", "deaths", "wrong exit", "changed")
 

@@ -12,6 +12,16 @@ from typing import Any
 
 import numpy as np
 
+#: ``result.json`` keys that depend on the clock, the processes, the engine or the bus, not on the seed: every
+#: other key is the same for a seed whatever the engine (DESIGN.md "Engines").
+UNTIMED = frozenset({"run_id", "decision_ms", "agent_peak_rss_kb", "ticks_per_second", "pids", "recording",
+                     "wall_seconds", "engine", "authenticated", "signal"})
+
+
+def deterministic(data: Mapping[str, Any]) -> dict[str, Any]:
+    """``result.json`` without the :data:`UNTIMED` keys: what a seed reproduces on every engine."""
+    return {k: v for k, v in data.items() if k not in UNTIMED}
+
 
 @dataclasses.dataclass(frozen=True)
 class Result(Mapping[str, Any]):

@@ -5,7 +5,8 @@ confidence bands (``time_vs_robots.png``), mean coverage against tick per alloca
 time against loss per allocator (``time_vs_loss.png``). Tables: per group (map, radio, loss, robots) and
 allocator, the mean ± std of the time to target (ticks; runs that reached the target), moves (cells
 travelled, the team's total) and connected time, with the % difference of the mean time to the baseline
-allocator's in the same group; then the study's ``[paper]`` rows, the paper's number beside ours.
+allocator's in the same group and the time's difference to it paired by seed (mean ± standard error); then
+the study's ``[paper]`` rows, the paper's number beside ours.
 """
 
 from __future__ import annotations
@@ -101,8 +102,21 @@ def pct(a: float, b: float) -> float:
     return 100.0 * (a - b) / b if b and not math.isnan(a) and not math.isnan(b) else math.nan
 
 
+def paired(runs: list[dict[str, Any]], base: list[dict[str, Any]]) -> tuple[float, float, int]:
+    """Mean and standard error (sd / sqrt(n)) of the time difference ``run - base`` paired by seed (a seed
+    draws the same start for every allocator), over the seeds where both reached the target; and n."""
+    mine = {r.get("param.seed"): time_to_target(r) for r in runs}
+    theirs = {r.get("param.seed"): time_to_target(r) for r in base}
+    d = np.array([mine[s] - theirs[s] for s in mine.keys() & theirs.keys()], dtype=float)
+    d = d[~np.isnan(d)]
+    if len(d) < 2:
+        return math.nan, math.nan, len(d)
+    return float(d.mean()), float(d.std(ddof=1) / math.sqrt(len(d))), len(d)
+
+
 def summary(rows: list[dict[str, Any]], baseline: str | None) -> list[dict[str, Any]]:
-    """One line per (group, allocator): the metrics' mean and std, and the time's % difference to baseline."""
+    """One line per (group, allocator): the metrics' mean and std, the time's % difference to baseline, and
+    the time's difference to baseline paired by seed (mean ± standard error)."""
     lines = []
     for group, members in by(rows, *GROUP).items():
         per_alloc = by(members, "param.allocator")
@@ -113,6 +127,7 @@ def summary(rows: list[dict[str, Any]], baseline: str | None) -> list[dict[str, 
             for m in METRICS:
                 line[m] = stats(runs, m)
             line["vs_baseline_pct"] = pct(line["ticks"][0], base_mean)
+            line["paired"] = paired(runs, base) if base and alloc != baseline else (math.nan, math.nan, 0)
             lines.append(line)
     return lines
 
@@ -158,13 +173,14 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
     from rich.table import Table
 
     t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it)")
-    for col in ("map", "radio", "robots", "allocator", "runs", "reached", "time", f"vs {baseline}", "moves",
-                "connected %"):
+    for col in ("map", "radio", "robots", "allocator", "runs", "reached", "time", f"vs {baseline}",
+                "paired Δ ± s.e.", "moves", "connected %"):
         t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left")
     for ln in lines:
         t.add_row(Path(str(ln["map"])).stem, f"{ln['comm']}, loss {ln['loss_applied']:g}", str(ln["robots"]),
                   ln["allocator"], str(ln["runs"]), str(ln["ticks"][2]), _fmt(ln["ticks"]),
                   "-" if math.isnan(ln["vs_baseline_pct"]) else f"{ln['vs_baseline_pct']:+.1f} %",
+                  "-" if math.isnan(ln["paired"][0]) else f"{ln['paired'][0]:+.1f} ± {ln['paired'][1]:.1f}",
                   _fmt(ln["moves"]), _fmt(ln["connected_pct"]))
     return t
 

@@ -7,6 +7,7 @@ from pathlib import Path
 from mcap.reader import make_reader
 
 from fleet_emu.core.messages import decode
+from fleet_emu.launch.result import deterministic
 
 from .conftest import all_pids, fleet, pid_alive, result
 
@@ -60,9 +61,7 @@ def _tick_messages(path: Path) -> dict[str, list[bytes]]:
 
 
 def _comparable(res: dict) -> dict:
-    drop = {"run_id", "pids", "recording", "decision_ms", "wall_seconds", "ticks_per_second",
-            "agent_peak_rss_kb", "engine"}
-    return {k: v for k, v in res.items() if k not in drop}
+    return deterministic(res)
 
 
 def test_same_seed_same_run_and_in_process_agrees(small_map: Path, tmp_path: Path) -> None:

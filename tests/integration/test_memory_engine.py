@@ -10,16 +10,9 @@ import pytest
 import fleet_emu as fe
 from fleet_emu.agents.allocators import allocator_names
 from fleet_emu.launch.memory import Fleet
+from fleet_emu.launch.result import deterministic
 
 from .conftest import fleet, result
-
-#: What depends on the clock, the processes or the engine; every other key must be equal.
-UNTIMED = {"run_id", "decision_ms", "agent_peak_rss_kb", "ticks_per_second", "pids", "recording", "wall_seconds",
-           "engine"}
-
-
-def deterministic(res: dict) -> dict:
-    return {k: v for k, v in res.items() if k not in UNTIMED}
 
 
 @pytest.mark.parametrize("loss", [0.0, 0.3])

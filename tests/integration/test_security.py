@@ -20,6 +20,7 @@ from fleet_emu.agents.protocol import MapDelta
 from fleet_emu.core.access import Credential, read_dictionary
 from fleet_emu.core.bus import client_config, router_locators
 from fleet_emu.core.messages import Command, Failed, Links, RadioMsg, RxBundle, Stop, TxBundle, WorldState, seal
+from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
 from tests.integration.conftest import ROOT, all_pids, fleet, pid_alive, result
 
@@ -131,8 +132,7 @@ def _tick_of(data: bytes, default: int) -> int:
 
 
 def _comparable(res: dict) -> dict:
-    drop = {"run_id", "pids", "recording", "decision_ms", "wall_seconds", "ticks_per_second", "agent_peak_rss_kb"}
-    return {k: v for k, v in res.items() if k not in drop}
+    return deterministic(res)
 
 
 def test_every_attack_leaves_the_seeded_result_unchanged(router, small_map: Path, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]

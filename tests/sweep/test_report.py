@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from fleet_emu.sweep.report import ci95, paper_value, summary
+from fleet_emu.sweep.report import ci95, paired, paper_value, summary
 
 
 def row(alloc: str, robots: int, ticks: int, loss: float = 0.0, completed: bool = True) -> dict:
@@ -51,3 +51,18 @@ def test_ci95_is_students_t_half_width() -> None:
     v = np.array([1.0, 2.0, 3.0, 4.0])
     assert ci95(v) == pytest.approx(3.182446 * v.std(ddof=1) / 2, rel=1e-5)
     assert math.isnan(ci95(np.array([1.0])))
+
+
+def test_the_paired_difference_matches_seeds_and_leaves_out_runs_that_did_not_finish() -> None:
+    def seeded(alloc: str, seed: int, ticks: int, completed: bool = True) -> dict:
+        return row(alloc, 2, ticks, completed=completed) | {"param.seed": seed}
+
+    base = [seeded("utility", s, t) for s, t in enumerate((100, 110, 130, 90))]
+    runs = [seeded("minpos", 0, 104), seeded("minpos", 1, 110), seeded("minpos", 2, 140),
+            seeded("minpos", 3, 5000, completed=False), seeded("minpos", 7, 10)]  # seed 7: no utility run
+    mean, se, n = paired(runs, base)
+    d = np.array([4.0, 0.0, 10.0])
+    assert n == 3 and mean == pytest.approx(d.mean()) and se == pytest.approx(d.std(ddof=1) / math.sqrt(3))
+    lines = {ln["allocator"]: ln for ln in summary(base + runs, "utility")}
+    assert lines["minpos"]["paired"] == pytest.approx((mean, se, n))
+    assert math.isnan(lines["utility"]["paired"][0])
