@@ -156,7 +156,8 @@ def predicted_cells(problem: Problem, predict: str) -> list[Cell]:
 def choose(problem: Problem, alpha: float, beta: float, lam: float, cell_size: float, radio: RadioConfig,
            position: str = "without_self", predict: str = "pose", unknown_walls: bool = False) -> int | None:
     """The task the deciding robot takes (section III-E-2: MinPos's criterion on eq. 9), None if it reaches
-    none. ``position="utility"``: positions counted on every robot's eq. 9 (:func:`utilities`), ties on the
+    none. ``position="literal"`` or ``"without_self"``: positions counted on every robot's eq. 9
+    (:func:`utilities`; ``"without_self"`` leaves the deciding robot out of its teammates' eq. 8), ties on the
     robot's utility. ``position="cost"``: a teammate and the deciding robot are compared on one eq. 8 (the
     team without the two of them, wherever it is, and whichever of the pair takes the task, the other is
     elsewhere), so the connectivity term is common to both and the position is MinPos's, on path cost; among
