@@ -18,6 +18,7 @@ draws from ``numpy.random.default_rng([seed, phase, i])``.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import tempfile
 import time
@@ -44,6 +45,10 @@ def row(name: str, trials: list[Trial]) -> str:
 
 
 def main() -> None:
+    # A background job of a non-interactive shell starts with SIGINT ignored, and the launchers it spawns would
+    # inherit that until their own handler is installed: a signal in their first half second would be lost.
+    # A handler here (exec resets it to the default) gives every launcher the terminal's default disposition.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--kill", type=int, default=100, help="kill -9 trials")
     p.add_argument("--sigint", type=int, default=50, help="SIGINT trials")

@@ -69,7 +69,7 @@ def test_bad_input_is_one_line_and_nonzero(args: list[str], match: str, tmp_path
             (tmp_path / "bad.toml").write_text(arg + "\n")
             args = [*args[:i], str(tmp_path / "bad.toml"), *args[i + 1:]]
     out = tmp_path / "x"
-    proc = fleet("run", "--out", str(out), *args, "--quiet", check=False, timeout=60)  # a later --out wins
+    proc = fleet("run", "--out", str(out), *args, "--quiet", check=False, timeout=180)  # a later --out wins
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("fleet: error:") and match in lines[0], proc.stderr

@@ -58,7 +58,9 @@ def test_outsiders_cannot_connect_and_a_robot_puts_only_on_its_own_keys(router) 
             _login(users, "world", endpoint) as world:
         sub = rec.declare_subscriber(f"fleet/{RUN}/**", lambda s: got.append(str(s.key_expr)))
         alive: list[str] = []
-        lsub = rec.liveliness().declare_subscriber(f"fleet/{RUN}/alive/**", lambda s: alive.append(str(s.key_expr)))
+        lsub = rec.liveliness().declare_subscriber(  # declared tokens (an undeclare is a DELETE sample)
+            f"fleet/{RUN}/alive/**",
+            lambda s: alive.append(str(s.key_expr)) if s.kind == zenoh.SampleKind.PUT else None)
         time.sleep(0.5)
         denied = ["robot/r2/cmd", "robot/r2/belief", "radio/tx/r2", "world/state", "world/obs/r1", "radio/rx/r1",
                   "netem/links", "ctl/stop", "ctl/failed/r1", "ctl/hello", "ctl/report/r2", "ctl/ready/world"]
