@@ -100,6 +100,8 @@ class Brain:
         self.last_move: Cell = STAY
         self.stuck = 0
         self.decision_ms: list[float] = []
+        self.decision_cpu_ms = 0.0  # this thread's CPU in the allocator, summed over decisions (issue 11)
+        self.step_cpu_ms = 0.0  # and in the whole of step (decision, belief, clusters, radio decode, navigation)
         self.ctx: Context | None = None
 
     def next_seq(self) -> int:
@@ -123,6 +125,7 @@ class Brain:
     def step(self, obs: Observation, inbox: Sequence[Envelope]) -> tuple[Command, tuple[Envelope, ...]]:
         """Decide the move for ``obs.tick`` and the radio messages to send."""
         t = obs.tick
+        c0 = time.thread_time()
         if self.belief is None:
             self.belief = Belief(obs.shape)
             self.ctx = Context(senders=self.team, shape=obs.shape)
@@ -144,9 +147,10 @@ class Brain:
         problem = Problem(me=self.me, poses=poses, belief=belief.grid,
                           clusters=find_clusters(belief.grid, self.config.cluster_max), tick=t,
                           heard={r: tm.heard for r, tm in self.teammates.items()})
-        t0 = self.clock()
+        t0, c1 = self.clock(), time.thread_time()
         alloc = self.allocator.allocate(problem, protocol)
         self.decision_ms.append((self.clock() - t0) * 1000.0)
+        self.decision_cpu_ms += (time.thread_time() - c1) * 1000.0
         move = STAY
         wants = False  # the robot wants to move but a teammate stands on every way down the wavefront
         if alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None:
@@ -164,6 +168,7 @@ class Brain:
         sealed = tuple(seal(m, self.me, t, self.next_seq()) for m in news + outbox)
         cmd = Command(src=self.me, tick=t, seq=self.next_seq(), move=move, target=alloc.target,
                       status=alloc.status.name, decision_ms=round(self.decision_ms[-1], 4))
+        self.step_cpu_ms += (time.thread_time() - c0) * 1000.0
         return cmd, sealed
 
     def _heard(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> None:

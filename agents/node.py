@@ -58,7 +58,8 @@ class AgentNode(NodeBase):
             pub_report.put(AgentReport(
                 src=self.robot, tick=tick, seq=self.next_seq(), decisions=len(self.brain.decision_ms),
                 decision_ms_mean=float(ms.mean()), decision_ms_p95=float(np.percentile(ms, 95)),
-                dropped=self.dropped, peak_rss_kb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss).encode())
+                dropped=self.dropped, peak_rss_kb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+                decision_cpu_ms=self.brain.decision_cpu_ms, step_cpu_ms=self.brain.step_cpu_ms).encode())
             await asyncio.sleep(0.05)
         finally:
             undeclare(handles)

@@ -271,6 +271,8 @@ class AgentReport(Message):
     decision_ms_p95: float
     dropped: int
     peak_rss_kb: int
+    decision_cpu_ms: float = 0.0  # thread CPU in the allocator, summed over the decisions (issue 11)
+    step_cpu_ms: float = 0.0  # thread CPU in the brain's whole step, summed (decision included)
 
 
 @dataclasses.dataclass(frozen=True)

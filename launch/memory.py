@@ -248,7 +248,8 @@ class Fleet:
             self._emit(self.keys.report(r), AgentReport(
                 src=r, tick=w.tick, seq=brain.next_seq(), decisions=len(brain.decision_ms),
                 decision_ms_mean=float(ms.mean()), decision_ms_p95=float(np.percentile(ms, 95)),
-                dropped=self.dropped[r], peak_rss_kb=rss))
+                dropped=self.dropped[r], peak_rss_kb=rss, decision_cpu_ms=brain.decision_cpu_ms,
+                step_cpu_ms=brain.step_cpu_ms))
         self.agents = []
 
 

@@ -71,6 +71,7 @@ class RunOptions:
     tls_ca: Path | None = None  # with a ``tls/`` ``connect``: the CA certificate that signed the router's
     interrupts: Interrupts | None = None  # the CLI's signal state (None: Ctrl-C raises KeyboardInterrupt)
     on_warning: Callable[[str], None] | None = None  # told once the input is checked (an unauthenticated bus)
+    on_spawn: Callable[[dict[str, Any]], None] | None = None  # told result.json's ``pids`` once the nodes start
 
 
 def new_run_id() -> str:
@@ -234,6 +235,8 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
                 _spawn_nodes(sup, scenario, run_id, endpoint, work, creds)
                 p = sup.pids()
                 pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
+            if pids and opts.on_spawn is not None:
+                opts.on_spawn(pids)  # e.g. benchmarks/scale.py samples their /proc while the run goes
             error = _wait(monitor, consumer, sup, nodes_thread, opts.on_progress, requested,
                           lambda r: session.put(keys.failed(r), Failed(
                               src="launcher", tick=monitor.tick, seq=0, robot=r, reason="process exited").encode(),

@@ -1,0 +1,378 @@
+"""How the multi-process fleet scales with robots on a 512 x 512-cell map (issue 11, part 1: the "before" table).
+
+    python benchmarks/scale.py [--robots 16 32 64 100] [--ticks 30] [--cells 512] [--maps maze PATH ...]
+
+For every map and robot count, one run of the default engine (one OS process per node over Zenoh, lockstep),
+allocator ``minpos`` with parallel wavefronts, the default radio (wall model, 10 % loss), no recording, for a
+fixed number of ticks (``max_ticks``, target coverage 1.0 so that no run ends early). Each map is fitted to
+about ``--cells`` cells across through its cell size: a built-in generator (``maze`` by default) and a real map
+(``../shared/maps/stage/cave.yaml``) resampled. The sensor and comm ranges are fixed in cells (``--sensor-cells``,
+``--comm-cells``: 8 and 20, the default scenario's 4 m and 10 m at 0.5 m cells) so that only the map grows.
+The fleet starts, for every robot count, around the same cell of each map: the most open one (most free cells
+within the world's start radius) of the map's main free component, nearest the map's own start. Each run is a
+child process of its own (``--one``), so that the launcher's memory is that run's alone.
+
+One table row per map and robot count (stdout):
+
+- ``start s``: wall time from calling the launcher to the world's first state (tick 0);
+- ``ticks/s``: lockstep speed from the first state to the last (``result.json``'s ``ticks_per_second``);
+- CPU in ms per robot-tick, from ``/proc/PID/stat`` (utime + stime) of every process, sampled when the state
+  of a tick reaches the launcher, from the first sampled tick to the last one before the stop (start-up and
+  teardown excluded): ``world``, ``netem``, and each agent's split with the agents' own thread-CPU clocks
+  (their ``ctl/report``): ``decide`` (the allocator's ``allocate``), ``brain`` (the rest of ``Brain.step``:
+  belief merge, frontier clusters, radio payload decode, navigation), ``a.bus`` (the agent process's CPU
+  outside ``Brain.step``: Zenoh's threads, message encode and decode, asyncio; ``decide`` and ``brain`` are
+  averaged over every decision of the run, the process CPU over the window); ``router`` is the run's launcher
+  process (the embedded Zenoh router and the launcher's fold); ``total`` their sum, and ``cores`` the CPU seconds
+  per wall second over the window (at most the machine's cores);
+- PSS in MB (``/proc/PID/smaps_rollup``, shared pages divided among the processes mapping them), sampled a
+  couple of ticks before the end while every process is alive: agents' mean and max, world, netem, and the
+  launcher (``launch``, with the router);
+- ``dec wall``: ``result.json``'s ``decision_ms.mean`` (perf_counter around ``allocate``: the wall time, which
+  counts the waits for a core when the agents outnumber them);
+- ``load1``: the 1-minute load average at the end of the run (the fleet's own processes, and other jobs on
+  the machine).
+
+A robot count above ``fleet_emu.core.scenario.MAX_ROBOTS`` is a ``cap`` row, not run; a fleet larger than the
+world's start area (the free cells within ``start_radius`` = 4 BFS steps: at most 41) a ``start`` row, not run
+either. Numba compiles the kernels into their cache on a fresh checkout: the first run's start-up then includes
+it. Progress goes to stderr. Exit 0 when every run finished, 1 when one failed (a ``failed`` row), 2 on a bad
+argument (one line).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any, NoReturn
+
+ROOT = Path(__file__).resolve().parents[1]
+REAL_MAP = ROOT.parent / "shared" / "maps" / "stage" / "cave.yaml"
+CLK_TCK = os.sysconf("SC_CLK_TCK")
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:  # one line, exit 2
+        _fail(message)
+
+
+def _fail(message: str) -> NoReturn:
+    print(f"scale: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+# --- /proc -----------------------------------------------------------------------------------------------
+
+def cpu_seconds(pid: int) -> float | None:
+    """utime + stime of a process (every thread, live or ended), None when it is gone."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    fields = stat.rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / CLK_TCK  # fields 14 and 15 of proc(5), after pid and comm
+
+
+def pss_kb(pid: int) -> int | None:
+    """Proportional set size of a process (kB), None when it is gone."""
+    try:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            if line.startswith("Pss:"):
+                return int(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+def machine() -> str:
+    """Cores, memory, CPU model and load: the header line of the table."""
+    model = next((ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()
+                  if ln.startswith("model name")), platform.machine())
+    mem_kb = next(int(ln.split()[1]) for ln in Path("/proc/meminfo").read_text().splitlines()
+                  if ln.startswith("MemTotal:"))
+    load = " ".join(f"{v:.2f}" for v in os.getloadavg())
+    return (f"{os.cpu_count()} cores ({model}), {mem_kb / 2**20:.1f} GiB memory, load average {load} at start, "
+            f"Python {platform.python_version()}, {platform.system()} {platform.release()}")
+
+
+# --- maps ------------------------------------------------------------------------------------------------
+
+def fit_cell_size(name: str, cells: int, seed: int) -> tuple[float, tuple[int, int]]:
+    """The cell size that makes ``name`` (a built-in map or a file) about ``cells`` cells across (its larger
+    side), and the map's shape there: a few rescaling steps, then a scan of +-5 % around the best."""
+    from fleet_emu.world.maps import load_map
+
+    def shape(cs: float) -> tuple[int, int]:
+        g = load_map(name, cs, seed).grid
+        return int(g.shape[0]), int(g.shape[1])
+
+    tried: dict[float, tuple[int, int]] = {}
+    cs = 0.5
+    for _ in range(4):
+        tried[cs] = shape(cs)
+        cs = cs * max(tried[cs]) / cells
+    best = min(tried, key=lambda c: abs(max(tried[c]) - cells))
+    for k in range(-5, 6):
+        c = round(best * (1 + k / 100), 6)
+        if c not in tried:
+            tried[c] = shape(c)
+    best = min(tried, key=lambda c: (abs(max(tried[c]) - cells), abs(c - best)))
+    return best, tried[best]
+
+
+def open_start(name: str, cs: float, seed: int) -> tuple[int, int]:
+    """The start cell of every run on this map: in the main free component (the map's own start's), the cell
+    with the most free cells within the world's start radius (Manhattan), the nearest the map's start first."""
+    import numpy as np
+    from scipy import ndimage
+
+    from fleet_emu.core.grid import FREE
+    from fleet_emu.world.maps import load_map
+    from fleet_emu.world.sim import WorldConfig
+
+    md = load_map(name, cs, seed)
+    free = md.grid == FREE
+    labels, _ = ndimage.label(free)
+    main = labels == labels[md.start]
+    r = WorldConfig().start_radius
+    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
+    diamond = (np.abs(yy) + np.abs(xx) <= r).astype(np.int32)
+    room = np.where(main, ndimage.correlate(free.astype(np.int32), diamond, mode="constant"), -1)
+    rows, cols = np.nonzero(room == room.max())
+    k = int(np.argmin((rows - md.start[0]) ** 2 + (cols - md.start[1]) ** 2))
+    return int(rows[k]), int(cols[k])
+
+
+# --- one run ---------------------------------------------------------------------------------------------
+
+@dataclasses.dataclass
+class Sampler:
+    """Samples the fleet's processes from the launcher's progress callback (issue 11): CPU times at the first
+    tick seen and at every later tick before the stop, PSS once near the end."""
+
+    ticks: int
+    pids: dict[str, Any] = dataclasses.field(default_factory=dict)
+    first: tuple[int, float, dict[str, float]] | None = None  # (tick, monotonic time, CPU seconds by process)
+    last: tuple[int, float, dict[str, float]] | None = None
+    pss: dict[str, int] = dataclasses.field(default_factory=dict)
+    monitor: Any = None
+
+    def spawned(self, pids: dict[str, Any]) -> None:
+        agents = pids["agents"]
+        self.pids = {"world": pids["world"], "netem": pids["netem"], "launcher": os.getpid(),
+                     **{f"r{i}": p for i, p in enumerate(agents)}}
+
+    def _cpu(self) -> dict[str, float]:
+        return {k: c for k, p in self.pids.items() if (c := cpu_seconds(p)) is not None}
+
+    def progress(self, monitor: Any) -> None:
+        self.monitor = monitor
+        if not self.pids or monitor.state is None:
+            return
+        tick = monitor.state.tick
+        if monitor.stop is None and (self.last is None or tick > self.last[0]):
+            self.last = (tick, time.monotonic(), self._cpu())
+            self.first = self.first or self.last
+        if not self.pss and (tick >= self.ticks - 2 or monitor.stop is not None):
+            self.pss = {k: v for k, p in self.pids.items() if (v := pss_kb(p)) is not None}
+
+
+def scenario_for(name: str, cs: float, robots: int, start: tuple[int, int], a: argparse.Namespace) -> Any:
+    """The default scenario on this map, cell size and fleet, minpos with parallel wavefronts."""
+    from fleet_emu.core.scenario import Scenario
+    from fleet_emu.launch.cli import DEFAULT_SCENARIO
+
+    base = Scenario.load(DEFAULT_SCENARIO)
+    sc = base.override(map=name, cell_size=cs, robots=robots, start=start, seed=a.seed, max_ticks=a.ticks,
+                       target_coverage=1.0, sensor_range=a.sensor_cells * cs, comm_range=a.comm_cells * cs)
+    return dataclasses.replace(sc, allocator={"type": "minpos", "wavefront": "parallel"}).validate()
+
+
+def run_one(name: str, cs: float, robots: int, start: tuple[int, int], a: argparse.Namespace) -> dict[str, Any]:
+    """One fleet run, in this process; the row's numbers (raises FleetError when the run failed)."""
+    from fleet_emu.launch.runner import RunOptions, run_fleet
+
+    sampler = Sampler(a.ticks)
+    t0 = time.time_ns()
+    result = run_fleet(scenario_for(name, cs, robots, start, a),
+                       RunOptions(record=False, on_progress=sampler.progress, on_spawn=sampler.spawned))
+    mon = sampler.monitor
+    first, last = sampler.first, sampler.last
+    if mon is None or first is None or last is None or last[0] <= first[0]:
+        raise RuntimeError(f"too few ticks sampled ({result['ticks']} ticks run): raise --ticks")
+    window_ticks, wall = last[0] - first[0], last[1] - first[1]
+    per = window_ticks * robots / 1000.0  # ms per robot-tick from CPU seconds
+    cpu = {k: last[2][k] - first[2].get(k, 0.0) for k in last[2]}
+    agents = [k for k in cpu if k.startswith("r")]
+    agent_ms = sum(cpu[k] for k in agents) / per
+    reports = list(mon.reports.values())
+    decisions = sum(r.decisions for r in reports) or 1
+    decide = sum(r.decision_cpu_ms for r in reports) / decisions
+    step = sum(r.step_cpu_ms for r in reports) / decisions
+    agent_pss = [sampler.pss[k] / 1024 for k in sampler.pss if k.startswith("r")] or [0.0]
+    row = {
+        "start": ((mon.first_state_ns or t0) - t0) / 1e9,
+        "ticks": result["ticks"],
+        "tps": result["ticks_per_second"] or 0.0,
+        "world": cpu.get("world", 0.0) / per,
+        "netem": cpu.get("netem", 0.0) / per,
+        "decide": decide,
+        "brain": step - decide,
+        "abus": agent_ms - step,
+        "router": cpu.get("launcher", 0.0) / per,
+        "cores": sum(cpu.values()) / wall if wall > 0 else 0.0,
+        "pss_mean": sum(agent_pss) / len(agent_pss),
+        "pss_max": max(agent_pss),
+        "pss_world": sampler.pss.get("world", 0) / 1024,
+        "pss_netem": sampler.pss.get("netem", 0) / 1024,
+        "pss_launcher": sampler.pss.get("launcher", 0) / 1024,
+        "dec_wall": result["decision_ms"]["mean"],
+    }
+    row["total"] = row["world"] + row["netem"] + agent_ms + row["router"]
+    return row
+
+
+# --- the table -------------------------------------------------------------------------------------------
+
+COLUMNS = [("map", 10, "s"), ("cells", 9, "s"), ("robots", 6, "d"), ("start s", 7, ".1f"), ("ticks", 5, "d"),
+           ("ticks/s", 7, ".2f"), ("world", 6, ".2f"), ("netem", 6, ".2f"), ("decide", 6, ".2f"),
+           ("brain", 6, ".2f"), ("a.bus", 6, ".2f"), ("router", 6, ".2f"), ("total", 6, ".2f"),
+           ("cores", 5, ".2f"), ("a.mean", 6, ".0f"), ("a.max", 6, ".0f"), ("world", 6, ".0f"),
+           ("netem", 6, ".0f"), ("launch", 6, ".0f"), ("dec wall", 8, ".2f"), ("load1", 5, ".2f")]
+KEYS = ["map", "cells", "robots", "start", "ticks", "tps", "world", "netem", "decide", "brain", "abus", "router",
+        "total", "cores", "pss_mean", "pss_max", "pss_world", "pss_netem", "pss_launcher", "dec_wall", "load1"]
+
+
+def header() -> str:
+    groups = " " * 51 + "| CPU ms per robot-tick" + " " * 38 + "| PSS MB" + " " * 28 + "|"
+    return groups + "\n" + " ".join(f"{name:>{w}}" for name, w, _ in COLUMNS)
+
+
+def line(row: dict[str, Any]) -> str:
+    cells = []
+    for key, (_, w, fmt) in zip(KEYS, COLUMNS, strict=True):
+        cells.append(f"{row[key]:>{w}{fmt}}" if key in row else f"{'':>{w}}")
+    text = " ".join(cells)
+    if "note" in row:
+        text = text[:sum(w + 1 for _, w, _ in COLUMNS[:3])] + row["note"]
+    return text
+
+
+def parse(argv: list[str] | None) -> argparse.Namespace:
+    p = _Parser(prog="scale.py", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--robots", type=int, nargs="+", default=[16, 32, 64, 100], help="fleet sizes")
+    p.add_argument("--ticks", type=int, default=30, help="ticks per run (the scenario's max_ticks)")
+    p.add_argument("--cells", type=int, default=512, help="cells across the maps (their larger side)")
+    p.add_argument("--maps", nargs="+", default=["maze", str(REAL_MAP)],
+                   help="built-in map names or map files (default: maze and ../shared/maps/stage/cave.yaml)")
+    p.add_argument("--sensor-cells", type=float, default=8.0, help="sensor range in cells")
+    p.add_argument("--comm-cells", type=float, default=20.0, help="comm range c in cells")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--one", nargs=5, metavar=("MAP", "CELL_SIZE", "ROBOTS", "ROW", "COL"),
+                   help=argparse.SUPPRESS)  # one run in this process: its row as one JSON line on stdout
+    a = p.parse_args(argv)
+    if min(a.robots) < 1:
+        _fail(f"--robots must be at least 1 (got {min(a.robots)})")
+    if a.ticks < 4:
+        _fail(f"--ticks must be at least 4 (got {a.ticks})")
+    if a.cells < 8:
+        _fail(f"--cells must be at least 8 (got {a.cells})")
+    if a.sensor_cells < 1 or a.comm_cells <= 0:
+        _fail("--sensor-cells must be at least 1 and --comm-cells positive")
+    return a
+
+
+def child(a: argparse.Namespace) -> None:
+    """``--one``: one run in this process, its row (or ``error``, or ``start_area`` when the fleet does not fit
+    the start area) as one JSON line on stdout."""
+    from fleet_emu.core.errors import FleetError
+    from fleet_emu.world.sim import StartAreaError
+
+    name, cs, robots, row, col = a.one
+    try:
+        out = run_one(name, float(cs), int(robots), (int(row), int(col)), a)
+    except StartAreaError as exc:
+        out = {"start_area": str(exc)}
+    except (FleetError, RuntimeError) as exc:
+        out = {"error": str(exc).splitlines()[0][:300]}
+    print(json.dumps(out), flush=True)
+
+
+def spawn_one(name: str, cs: float, robots: int, start: tuple[int, int], a: argparse.Namespace) -> dict[str, Any]:
+    """One run in a child process (``--one``): its JSON line, or an ``error``."""
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--one", name, repr(cs), str(robots), *map(str, start),
+           "--ticks", str(a.ticks), "--sensor-cells", str(a.sensor_cells), "--comm-cells", str(a.comm_cells),
+           "--seed", str(a.seed)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    lines = proc.stdout.strip().splitlines()
+    try:
+        return dict(json.loads(lines[-1]))
+    except (IndexError, ValueError):
+        err = proc.stderr.strip().splitlines()
+        return {"error": f"exit {proc.returncode}: {err[-1][:300] if err else 'no output'}"}
+
+
+def main(argv: list[str] | None = None) -> None:
+    a = parse(argv)
+    if a.one:
+        child(a)
+        return
+    from fleet_emu.core.errors import FleetError
+    from fleet_emu.core.scenario import MAX_ROBOTS
+
+    maps = []
+    for name in a.maps:
+        try:
+            cs, shape = fit_cell_size(name, a.cells, a.seed)
+            start = open_start(name, cs, a.seed)
+        except FleetError as exc:
+            _fail(f"map {name}: {exc}")
+        maps.append((name, Path(name).stem, cs, shape, start))
+        print(f"map {name}: {shape[0]} x {shape[1]} cells at {cs:.5g} m, start {start}", file=sys.stderr,
+              flush=True)
+    print(f"# benchmarks/scale.py (issue 11): {machine()}")
+    print(f"# minpos (parallel wavefronts), processes engine, wall radio, loss 0.1, {a.ticks} ticks, sensor "
+          f"{a.sensor_cells:g} cells, comm {a.comm_cells:g} cells, seed {a.seed}, robot cap {MAX_ROBOTS}")
+    print(header(), flush=True)
+    total, failed, done = len(maps) * len(a.robots), 0, 0
+    for name, label, cs, shape, start in maps:
+        for n in a.robots:
+            done += 1
+            row: dict[str, Any] = {"map": label[:10], "cells": f"{shape[0]}x{shape[1]}", "robots": n}
+            if n > MAX_ROBOTS:
+                row["note"] = f"cap: more than {MAX_ROBOTS} robots is refused today (core/scenario.py)"
+                print(f"[{done}/{total}] {label} {n} robots: over the cap of {MAX_ROBOTS}, not run",
+                      file=sys.stderr, flush=True)
+            else:
+                t = time.monotonic()
+                got = spawn_one(name, cs, n, start, a)
+                if "start_area" in got:
+                    row["note"] = "start: the start area holds fewer robots (world start_radius 4)"
+                    print(f"[{done}/{total}] {label} {n} robots: not run ({got['start_area']})", file=sys.stderr,
+                          flush=True)
+                elif "error" in got:
+                    failed += 1
+                    row["note"] = "failed"
+                    print(f"[{done}/{total}] {label} {n} robots: FAILED ({got['error']})", file=sys.stderr,
+                          flush=True)
+                else:
+                    row |= got
+                    row["load1"] = os.getloadavg()[0]
+                    print(f"[{done}/{total}] {label} {n} robots: {row['ticks']} ticks, {row['tps']:.2f} ticks/s, "
+                          f"start-up {row['start']:.1f} s, {time.monotonic() - t:.0f} s in all",
+                          file=sys.stderr, flush=True)
+            print(line(row), flush=True)
+    if failed:
+        print(f"scale: {failed} of {total} runs failed (see the lines above)", file=sys.stderr)
+        raise SystemExit(1)
+
+
+if __name__ == "__main__":
+    main()
