@@ -102,3 +102,25 @@ def test_result_and_recording_state_the_radio_model_and_the_loss_applied(
         meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}["scenario"]
     assert (meta["radio_model"], float(meta["loss_applied"])) == (comm, applied)
     assert fe.load_recording(tmp_path / "run").result["loss_applied"] == applied
+
+
+def test_a_signal_ends_a_memory_run_after_the_tick_and_keeps_its_files(rooms: Path, tmp_path: Path) -> None:
+    import signal
+
+    from mcap.reader import make_reader
+
+    from fleet_emu.launch.memory import run_memory
+    from fleet_emu.launch.signals import Interrupts
+
+    irq = Interrupts()
+
+    def progress(m: object) -> None:
+        if getattr(m, "tick", 0) == 5:
+            irq._handle(signal.SIGTERM, None)
+
+    s = fe.Scenario().override(map=str(rooms), robots=2, max_ticks=10000, seed=2)
+    res = run_memory(s, tmp_path / "run", on_progress=progress, interrupts=irq).data
+    assert res["reason"] == "interrupted" and res["signal"] == "SIGTERM" and 5 <= res["ticks"] <= 6
+    assert res["completed"] is False and (tmp_path / "run" / "result.json").exists()
+    with open(tmp_path / "run" / "run.mcap", "rb") as f:
+        assert make_reader(f).get_summary() is not None
