@@ -240,8 +240,19 @@ def main(argv: list[str] | None = None) -> None:
     finally:
         if command != "run":
             interrupts.restore()
-    # after a run the handler stays: a signal while the interpreter exits is ignored, the run's files are written
+    if command == "run":
+        _ignore_signals_while_exiting()
     raise SystemExit(code)
+
+
+def _ignore_signals_while_exiting() -> None:
+    """The run's files are written: a SIGINT or SIGTERM from here on changes nothing, so it is ignored. (The
+    handler would not do: the interpreter's finalization puts back the default action, and a signal then
+    would kill the process with -2/-15 instead of the run's exit code; an ignored signal stays ignored.)"""
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_IGN)
 
 
 def _run_with_signals(args: argparse.Namespace, interrupts: Interrupts) -> int:
