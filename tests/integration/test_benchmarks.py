@@ -73,3 +73,11 @@ def test_engine_speed_compares_the_engines_on_equal_runs() -> None:
     assert lines[0].split()[:4] == ["scenario", "memory", "s/run", "in-process"] and "in-process/memory" in lines[0]
     assert len(lines) == 4 and lines[-1].startswith("all (sum)") and float(lines[-1].split()[-1]) > 0
     assert "differs" not in proc.stderr
+
+
+def test_agent_memory_reports_each_run() -> None:
+    proc = _bench("agent_memory.py", "--robots", "2", "--ticks", "5", "--period", "0.2")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stderr.strip().splitlines()[0] == "[1/1] 2 robots: 5 ticks"
+    row = proc.stdout.strip().splitlines()[-1].split()
+    assert row[:2] == ["2", "5"] and all(float(x) > 0 for x in row[2:])  # the fork server's share too
