@@ -166,6 +166,16 @@ class Descendants(threading.Thread):
                 return pid
         return None
 
+    def find_robot(self, robot: str, run: str) -> int | None:
+        """Robot ``robot``'s live process: started as ``python -m fleet_emu.agents --robot ROBOT --run RUN``, or
+        forked by the fork server (its command line the server's, its name ``fleet ROBOT``; every descendant
+        is of this run)."""
+        for pid in self.alive():
+            with contextlib.suppress(OSError):
+                if Path(f"/proc/{pid}/comm").read_text().strip() == f"fleet {robot}":
+                    return pid
+        return self.find("fleet_emu.agents", robot, run)
+
 
 @contextlib.contextmanager
 def launched(args: list[str], out: Path, trial: Trial,
@@ -327,10 +337,10 @@ def kill_trial(spec: RunSpec, work: Path, rng: np.random.Generator, run: str, wi
         args = [*spec.args(), "--connect", endpoint, "--credentials", str(users), "--run-id", run]
         with launched(args, work / run, trial) as (proc, watch):
             if ticks.wait(lambda: ticks.tick >= at or ticks.done, proc) and not ticks.done:
-                pid = watch.find("fleet_emu.agents", victim, run)
+                pid = watch.find_robot(victim, run)
                 if pid is None:
                     watch.scan()
-                    pid = watch.find("fleet_emu.agents", victim, run)
+                    pid = watch.find_robot(victim, run)
                 if pid is not None:
                     os.kill(pid, signal.SIGKILL)
                     trial.label += f" (killed at tick {ticks.tick})"

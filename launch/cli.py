@@ -68,6 +68,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="processes: one OS process per node over Zenoh; memory: the same objects stepped in this "
                         "process, no Zenoh (same result for a seed)")
     r.add_argument("--in-process", action="store_true", help="all nodes in this process (one session each)")
+    r.add_argument("--fork-server", action=argparse.BooleanOptionalAction, default=None,
+                   help="fork the robot processes from one fork server that loaded the agent code once (default: "
+                        "on, unless FLEET_FORK_SERVER=0); --no-fork-server starts each robot afresh")
     r.add_argument("--no-record", action="store_true", help="do not write run.mcap")
     r.add_argument("--connect", help="use an external Zenoh router, e.g. tcp/192.0.2.1:7447")
     r.add_argument("--credentials", type=Path, metavar="USERS",
@@ -138,7 +141,7 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
             opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
                               connect=args.connect, run_id=run_id, grid_every=args.grid_every,
                               on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
-                              interrupts=interrupts, on_warning=_warn)
+                              interrupts=interrupts, on_warning=_warn, fork_server=args.fork_server)
             result = run_fleet(scenario, opts)
     if interrupts.signum is not None:
         when = "" if result["reason"] == "interrupted" else f" after the run ended ({result['reason']})"

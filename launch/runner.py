@@ -39,6 +39,7 @@ from fleet_emu.core.keys import RUN_ID, Keys, robot_ids
 from fleet_emu.core.messages import Failed, Ready, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.forked import fork_server_enabled
 from fleet_emu.launch.result import Result, write_json_atomic
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import Supervisor
@@ -72,6 +73,7 @@ class RunOptions:
     interrupts: Interrupts | None = None  # the CLI's signal state (None: Ctrl-C raises KeyboardInterrupt)
     on_warning: Callable[[str], None] | None = None  # told once the input is checked (an unauthenticated bus)
     on_spawn: Callable[[dict[str, Any]], None] | None = None  # told result.json's ``pids`` once the nodes start
+    fork_server: bool | None = None  # robots forked from one fork server (None: unless FLEET_FORK_SERVER=0)
 
 
 def new_run_id() -> str:
@@ -204,6 +206,8 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     interrupted = False
     error: str | None = None
     with contextlib.ExitStack() as stack:
+        if not opts.in_process and not requested.is_set() and fork_server_enabled(opts.fork_server):
+            sup.start_fork_server(work / "scenario.json")  # before any session: it loads while the router opens
         if opts.connect:
             endpoint = opts.connect
         else:
@@ -235,6 +239,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
                 _spawn_nodes(sup, scenario, run_id, endpoint, work, creds)
                 p = sup.pids()
                 pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
+                pids |= {"fork_server": p["fork_server"]} if "fork_server" in p else {}
             if pids and opts.on_spawn is not None:
                 opts.on_spawn(pids)  # e.g. benchmarks/scale.py samples their /proc while the run goes
             error = _wait(monitor, consumer, sup, nodes_thread, opts.on_progress, requested,

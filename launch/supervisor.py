@@ -1,6 +1,7 @@
 """Spawning and tearing down the fleet's processes: each child in its own process group, killed on every
 exit path of the runner (normal end, Ctrl-C, an exception); a child whose launcher dies exits by itself
-(``fleet_emu.core.node.watch_parent``)."""
+(``fleet_emu.core.node.watch_parent``). With a fork server (:mod:`fleet_emu.launch.forked`) the robots are
+forked by it instead of started afresh: the same handles, the same process groups, the same logs."""
 
 from __future__ import annotations
 
@@ -13,18 +14,35 @@ import threading
 import time
 from pathlib import Path
 
+from fleet_emu.launch.forked import ForkedProcess, ForkServer
+
+AGENTS = "fleet_emu.agents"
+Child = subprocess.Popen[bytes] | ForkedProcess
+
 
 class Supervisor:
     """Owns the child processes of one run."""
 
     def __init__(self, log_dir: Path | None = None) -> None:
-        self.children: dict[str, subprocess.Popen[bytes]] = {}
+        self.children: dict[str, Child] = {}
         self.log_dir = log_dir
+        self.server: ForkServer | None = None
         self._logs: list[object] = []
 
-    def spawn(self, name: str, module: str, args: list[str], secret: str | None = None) -> subprocess.Popen[bytes]:
+    def start_fork_server(self, scenario: Path | None = None) -> None:
+        """Start the robots' fork server now (it loads the agent code, and ``scenario``'s allocator, while the
+        rest starts): from then on, :meth:`spawn` forks every robot (module :data:`AGENTS`) from it."""
+        log = self.log_dir / "forkserver.log" if self.log_dir is not None else None
+        self.server = ForkServer(log, scenario)
+
+    def spawn(self, name: str, module: str, args: list[str], secret: str | None = None) -> Child:
         """Start ``python -m module args`` in a new session (its own process group); ``secret`` (one line) is
-        written to its standard input, which is then closed."""
+        written to its standard input, which is then closed. A robot comes from the fork server when there
+        is one (its standard input then reads ``secret``)."""
+        if module == AGENTS and self.server is not None:
+            log = self.log_dir / f"{name}.log" if self.log_dir is not None else None
+            child = self.children[name] = self.server.spawn(name, args, log, secret)
+            return child
         stderr = None
         if self.log_dir is not None:
             stderr = open(self.log_dir / f"{name}.log", "wb")  # noqa: SIM115 (closed in kill_all)
@@ -41,7 +59,9 @@ class Supervisor:
         return proc
 
     def pids(self) -> dict[str, int]:
-        return {name: p.pid for name, p in self.children.items()}
+        """Every child's pid, and the fork server's (``fork_server``) when there is one."""
+        server = {"fork_server": self.server.pid} if self.server is not None else {}
+        return {name: p.pid for name, p in self.children.items()} | server
 
     def dead(self) -> dict[str, int]:
         """Children that exited, with their exit codes."""
@@ -72,12 +92,16 @@ class Supervisor:
                     p.wait(2.0)
         for p in self.children.values():  # also any grandchildren left in the groups
             _signal_group(p, signal.SIGKILL)
+        if self.server is not None:  # it reaps and reports the robots it forked, then exits
+            self.server.close(grace)
         for f in self._logs:
             with contextlib.suppress(OSError):
                 f.close()  # type: ignore[attr-defined]
         self._logs.clear()
 
 
-def _signal_group(p: subprocess.Popen[bytes], sig: signal.Signals) -> None:
+def _signal_group(p: Child, sig: signal.Signals) -> None:
+    if p.pid <= 0:  # a robot the fork server never forked: never this process's own group
+        return
     with contextlib.suppress(ProcessLookupError, PermissionError):
         os.killpg(p.pid, sig)

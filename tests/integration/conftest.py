@@ -66,4 +66,36 @@ def pid_alive(pid: int) -> bool:
 
 
 def all_pids(res: dict) -> list[int]:
-    return sorted({res["pids"]["world"], res["pids"]["netem"], *res["pids"]["agents"]})
+    """Every process of the run: world, netem, the agents and the fork server (when there was one)."""
+    server = [res["pids"]["fork_server"]] if "fork_server" in res["pids"] else []
+    return sorted({res["pids"]["world"], res["pids"]["netem"], *res["pids"]["agents"], *server})
+
+
+def children_of(pid: int) -> list[int]:
+    """The direct children of ``pid``."""
+    found = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                if int((d / "stat").read_text().split(")")[-1].split()[1]) == pid:
+                    found.append(int(d.name))
+            except (OSError, ValueError, IndexError):
+                pass
+    return found
+
+
+def is_fork_server(pid: int) -> bool:
+    """Whether a launcher's child is the robots' fork server (the robots it forks share its command line)."""
+    try:
+        return b"fleet_emu.agents.forkserver" in Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return False
+
+
+def fleet_processes(launcher: int) -> list[int]:
+    """The fleet's node processes under a launcher: its children but the fork server, and the robots the fork
+    server forked."""
+    found = []
+    for pid in children_of(launcher):
+        found += children_of(pid) if is_fork_server(pid) else [pid]
+    return found

@@ -100,3 +100,11 @@ def test_scale_bad_argument_is_one_line() -> None:
     proc = _bench("scale.py", "--robots", "0")
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == ["scale: error: --robots must be at least 1 (got 0)"]
+
+
+def test_agent_memory_reports_each_run() -> None:
+    proc = _bench("agent_memory.py", "--robots", "2", "--ticks", "5", "--period", "0.2")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stderr.strip().splitlines()[0] == "[1/1] 2 robots: 5 ticks"
+    row = proc.stdout.strip().splitlines()[-1].split()
+    assert row[:2] == ["2", "5"] and all(float(x) > 0 for x in row[2:])  # the fork server's share too

@@ -21,7 +21,7 @@ from fleet_emu.agents.protocol import PoseBeacon
 from fleet_emu.core.bus import client_config, router_config, router_locators
 from fleet_emu.core.messages import Command, RadioMsg, TxBundle, seal
 
-from .conftest import ROOT, all_pids, fleet, pid_alive, result
+from .conftest import ROOT, all_pids, children_of, fleet, fleet_processes, pid_alive, result
 
 
 class Toml(str):
@@ -186,15 +186,8 @@ def _start(out: Path, *extra: str) -> subprocess.Popen[str]:
 
 
 def _children(pid: int) -> list[int]:
-    found = []
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                if int((d / "stat").read_text().split(")")[-1].split()[1]) == pid:
-                    found.append(int(d.name))
-            except (OSError, ValueError, IndexError):
-                pass
-    return found
+    """The fleet's node processes (world, netem, robots), whether the robots were forked or not."""
+    return fleet_processes(pid)
 
 
 def test_sigint_tears_down_and_keeps_the_recording(tmp_path: Path) -> None:
@@ -220,8 +213,8 @@ def test_children_exit_when_the_launcher_is_killed(tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = _start(out)
     _wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
-    children = _children(proc.pid)
-    assert len(children) == 5
+    children = _children(proc.pid) + children_of(proc.pid)  # the fork server too
+    assert len(_children(proc.pid)) == 5
     proc.kill()
     proc.wait(10)
     _wait_for(lambda: not any(pid_alive(p) for p in children), 15)
@@ -233,10 +226,10 @@ def test_a_killed_robot_is_failed_and_the_run_goes_on(small_map: Path, tmp_path:
         [sys.executable, "-m", "fleet_emu.launch", "run", "--map", str(small_map), "--robots", "3", "--out", str(out),
          "--quiet", "--comm", "ideal"],
         cwd=ROOT, stderr=subprocess.PIPE, text=True)
+    # no wait once it is going: robots forked from the fork server start at once, the small map takes seconds
     _wait_for(lambda: len(_children(proc.pid)) == 5 and (out / "run.mcap").exists(), 60)
     scenario = json.loads((out / "scenario.json").read_text())
     assert scenario["robots"] == 3
-    time.sleep(1.0)
     victim = sorted(_children(proc.pid))[-1]  # the last spawned: agent r2
     os.kill(victim, signal.SIGKILL)
     _, err = proc.communicate(timeout=240)

@@ -1,0 +1,216 @@
+"""The robots' fork server: imports the agent code (numpy, numba, scipy) and loads the compiled kernels once,
+then forks one process per robot on the launcher's request, so that the robots share those pages.
+
+``python -m fleet_emu.agents.forkserver [--scenario FILE.json]``, started by the launcher's
+:class:`~fleet_emu.launch.supervisor.Supervisor` in its own process group. It never opens a Zenoh session
+(Zenoh's runtime threads would not survive a fork): each forked robot opens its own, exactly as
+``python -m fleet_emu.agents`` does. The protocol is one JSON object a line:
+
+- on standard input, requests: ``{"name": "r0", "argv": [...], "log": "/out/r0.log", "secret": "..."}``
+  (``secret``: the robot's credential line, which it reads as its standard input; never on a command line or in
+  the environment). End of input (the launcher closed it, or died) ends the server: it kills what is left of
+  its robots, reaps them, reports them and exits.
+- on standard output, events: ``{"spawned": "r0", "pid": 123}`` (or ``{"failed": "r0", "error": "..."}``) for
+  each request, in order, and ``{"exited": 123, "code": 0}`` when a robot ends (``code`` as
+  :attr:`subprocess.Popen.returncode`: negative for a signal).
+
+Each robot is a direct child of the server, in a new session (its own process group), with its standard output
+and error on its log file and standard input on ``/dev/null``; its parent watchdog (``core.node.watch_parent``)
+watches the server, which watches the launcher through its standard input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import ctypes
+import gc
+import importlib
+import io
+import json
+import logging
+import os
+import select
+import signal
+import sys
+import time
+import traceback
+from typing import Any
+
+# What a robot runs, imported here once, before any fork (numpy, numba and scipy come with it; zenoh is only
+# imported: no session, no runtime thread exists until a robot opens one).
+from fleet_emu.agents.allocators import make_allocator
+from fleet_emu.agents.brain import allocator_config
+from fleet_emu.agents.node import main as agent_main
+from fleet_emu.core.errors import FleetError
+from fleet_emu.core.kernels import warm_up
+from fleet_emu.core.scenario import Scenario
+
+PRELOAD = {"hungarian": ("scipy.optimize",)}  # imported on use in a robot: loaded here when the run needs it
+POLL = 0.05  # seconds between looks for exited robots
+KILL_GRACE = 2.0  # seconds the robots left at the end get between SIGTERM and SIGKILL
+
+
+class Server:
+    """Reads requests on ``req`` and writes events on ``events`` (raw file descriptors)."""
+
+    def __init__(self, req: int, events: int) -> None:
+        self.req = req
+        self.events = events
+        self.alive: set[int] = set()
+
+    def emit(self, **event: Any) -> None:
+        data = (json.dumps(event) + "\n").encode()
+        with contextlib.suppress(BrokenPipeError):  # the launcher is gone: the end of input follows
+            while data:
+                data = data[os.write(self.events, data):]
+
+    def serve(self) -> None:
+        """Fork on request and report exits until the end of input; then end the robots left."""
+        buf = b""
+        while True:
+            ready, _, _ = select.select([self.req], [], [], POLL)
+            self.reap()
+            if not ready:
+                continue
+            chunk = os.read(self.req, 1 << 16)
+            if not chunk:
+                break
+            buf += chunk
+            while b"\n" in buf:
+                line, buf = buf.split(b"\n", 1)
+                self.handle(line)
+        self.end_all()
+
+    def handle(self, line: bytes) -> None:
+        try:
+            req = json.loads(line)
+            name, argv = str(req["name"]), [str(a) for a in req["argv"]]
+            log, secret = req.get("log"), req.get("secret")
+        except (ValueError, KeyError, TypeError) as exc:
+            self.emit(failed="?", error=f"bad request: {exc}")
+            return
+        try:
+            pid = self.fork(name, argv, log, secret)
+        except OSError as exc:
+            self.emit(failed=name, error=str(exc))
+            return
+        self.alive.add(pid)
+        self.emit(spawned=name, pid=pid)
+
+    def fork(self, name: str, argv: list[str], log: str | None, secret: str | None) -> int:
+        """Fork one robot; in the child, never return."""
+        logfd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644) if log else None
+        sys.stdout.flush()
+        sys.stderr.flush()
+        gc.freeze()  # what the server built is never scanned by the robots' collector: its pages stay shared
+        pid = os.fork()
+        if pid:
+            if logfd is not None:
+                os.close(logfd)
+            return pid
+        code = 1
+        try:
+            os.setsid()
+            set_name(f"fleet {name}")
+            os.close(self.req)
+            os.close(self.events)
+            if logfd is not None:
+                os.dup2(logfd, 1)
+                os.dup2(logfd, 2)
+                os.close(logfd)
+            for sig in (signal.SIGTERM, signal.SIGCHLD):
+                signal.signal(sig, signal.SIG_DFL)
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            sys.stdin = io.StringIO(secret + "\n" if secret is not None else "")
+            sys.argv = ["fleet_emu.agents", *argv]
+            code = run_robot(argv)
+        except BaseException:  # the child must never return into the server's loop
+            traceback.print_exc()
+        finally:
+            logging.shutdown()
+            with contextlib.suppress(Exception):
+                sys.stdout.flush()
+                sys.stderr.flush()
+            os._exit(code)
+        return 0  # unreachable
+
+    def reap(self) -> None:
+        """Report every robot that exited."""
+        while self.alive:
+            try:
+                pid, status = os.waitpid(-1, os.WNOHANG)
+            except ChildProcessError:
+                self.alive.clear()
+                return
+            if pid == 0:
+                return
+            self.alive.discard(pid)
+            self.emit(exited=pid, code=os.waitstatus_to_exitcode(status))
+
+    def end_all(self) -> None:
+        """SIGTERM the process group of every robot left, SIGKILL them after :data:`KILL_GRACE`, reap them."""
+        for sig, grace in ((signal.SIGTERM, KILL_GRACE), (signal.SIGKILL, 5.0)):
+            for pid in list(self.alive):
+                with contextlib.suppress(ProcessLookupError, PermissionError):
+                    os.killpg(pid, sig)
+            deadline = time.monotonic() + grace
+            while self.alive and time.monotonic() < deadline:
+                time.sleep(POLL)
+                self.reap()
+
+
+def set_name(name: str) -> None:
+    """The process's name as ``ps`` and ``top`` show it (its command line stays the server's)."""
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(15, name.encode()[:15], 0, 0, 0)  # PR_SET_NAME
+
+
+def run_robot(argv: list[str]) -> int:
+    """What ``python -m fleet_emu.agents ARGV`` does, as an exit code (uncaught exceptions print and give 1)."""
+    try:
+        agent_main(argv)
+    except SystemExit as exc:
+        if exc.code is None or isinstance(exc.code, int):
+            return exc.code or 0
+        print(exc.code, file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        traceback.print_exc()
+        return 128 + signal.SIGINT
+    return 0
+
+
+def preload(scenario_file: str | None) -> None:
+    """Load the kernels; with the run's scenario, build its allocator once too (a plugin is imported, a
+    kernel only it uses is loaded) and import what it imports on use (:data:`PRELOAD`)."""
+    warm_up()
+    if not scenario_file:
+        return
+    try:
+        config = allocator_config(Scenario.from_json(scenario_file))
+        make_allocator(config)
+    except (OSError, ValueError, KeyError, FleetError) as exc:  # the robots will say it, each in its log
+        print(f"forkserver: cannot preload the scenario's allocator: {exc}", file=sys.stderr)
+        return
+    for module in PRELOAD.get(str(config.get("type")), ()):
+        importlib.import_module(module)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="forkserver")
+    parser.add_argument("--scenario", help="the run's scenario (JSON): its allocator is loaded before any fork")
+    preload(parser.parse_args(argv).scenario)
+    # The protocol's pipes move off 0 and 1: a robot gets /dev/null and its log there, never the pipes.
+    req, events = os.dup(0), os.dup(1)
+    devnull = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(devnull, 0)
+    os.close(devnull)
+    os.dup2(2, 1)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher ends the server by closing its input
+    gc.collect()
+    Server(req, events).serve()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,73 @@
+"""The launcher's side of the fork server, without a router: exit codes reported, logs written, nothing left."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from fleet_emu.core.bus import router_config, router_locators
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.forked import NOT_STARTED, ForkServer, fork_server_enabled
+
+
+def _gone(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return True
+    return state == "Z"
+
+
+def test_a_robot_that_fails_at_once_is_reported_with_its_code_and_log(tmp_path: Path) -> None:
+    server = ForkServer(tmp_path / "forkserver.log")
+    try:
+        robot = server.spawn("r0", ["--robot", "r0"], tmp_path / "r0.log", "secret")  # no --run: usage error
+        assert robot.pid > 0
+        assert robot.wait(60) == 2
+        assert "the following arguments are required" in (tmp_path / "r0.log").read_text()
+    finally:
+        server.close()
+    assert server.proc.returncode == 0
+    assert _gone(server.pid) and _gone(robot.pid)
+
+
+def test_a_killed_server_fails_what_it_had_not_forked(tmp_path: Path) -> None:
+    server = ForkServer(tmp_path / "forkserver.log")
+    os.killpg(server.pid, signal.SIGKILL)
+    robot = server.spawn("r0", ["--robot", "r0"], tmp_path / "r0.log", None)
+    assert robot.pid == NOT_STARTED and robot.returncode == NOT_STARTED
+    server.close()
+    assert _gone(server.pid)
+
+
+def test_closing_the_server_ends_the_robots_it_has_left(tmp_path: Path) -> None:
+    scenario = tmp_path / "scenario.json"
+    scenario.write_text(json.dumps(Scenario().to_dict()))
+    with zenoh.open(router_config()) as router:  # a robot on a bus where no world ever says hello: it waits
+        server = ForkServer(tmp_path / "forkserver.log", scenario)
+        robot = server.spawn("r0", ["--robot", "r0", "--run", "x", "--connect", router_locators(router)[0],
+                                    "--scenario", str(scenario)], tmp_path / "r0.log", None)
+        with pytest.raises(subprocess.TimeoutExpired):
+            robot.wait(3.0)  # it opened its own session in the forked process, and runs
+        t0 = time.monotonic()
+        server.close()
+        assert robot.returncode == -signal.SIGTERM and time.monotonic() - t0 < 10
+    assert _gone(server.pid) and _gone(robot.pid)
+    assert "Traceback" not in (tmp_path / "r0.log").read_text()
+
+
+@pytest.mark.parametrize("flag, env, expected", [(None, None, True), (None, "0", False), (None, "1", True),
+                                                 (True, "0", True), (False, None, False)])
+def test_the_switch(monkeypatch: pytest.MonkeyPatch, flag: bool | None, env: str | None, expected: bool) -> None:
+    if env is None:
+        monkeypatch.delenv("FLEET_FORK_SERVER", raising=False)
+    else:
+        monkeypatch.setenv("FLEET_FORK_SERVER", env)
+    assert fork_server_enabled(flag) is expected
