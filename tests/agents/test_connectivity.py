@@ -199,3 +199,35 @@ def test_predicting_teammates_at_their_targets() -> None:
     p = problem(SWAP)
     assert predicted_cells(p, "pose") == [(1, 2), (1, 5)]
     assert predicted_cells(p, "target") == [(1, 2), (1, 6)]  # r1 is MinPos-first for M
+
+
+ABREAST = """
+##########
+?....0...?
+?...1....?
+##########
+"""
+MIRRORED = """
+##########
+?...0....?
+?....1...?
+##########
+"""
+
+
+def test_heavy_beta_abreast_robots_cross_and_flip_every_tick() -> None:
+    """Issue 13 part 5, the stalls of ``conn:0.4:0.6`` (maze seeds 2-5, mbicp, hospital_section at loss 0):
+    two robots abreast between two frontiers each take the frontier nearer its *teammate* (eq. 8 at the
+    teammate's pose; with ``without_self`` both are first everywhere), step toward it, stand abreast mirrored,
+    and take the other one: a period-2 cycle that senses nothing. Eq. 9 as the paper gives it, not a bug:
+    MinPos and ``position="cost"`` send each to its nearer frontier."""
+    conn = {"type": "connectivity", "comm_range": 6.0, "alpha": 0.4, "beta": 0.6}
+    left, right = (1, 1), (1, 8)  # the clusters' targets: L, R
+    for art, r0_near, r1_near in ((ABREAST, right, left), (MIRRORED, left, right)):
+        for me, near, far in (("r0", r0_near, r1_near), ("r1", r1_near, r0_near)):
+            p = problem(art, me)
+            assert {c.target for c in p.clusters} == {left, right}
+            assert make_allocator({"type": "minpos"}).allocate(p).target == near
+            assert make_allocator({**conn, "position": "cost"}).allocate(p).target == near
+            assert make_allocator(conn).allocate(p).target == far  # toward the teammate's side
+    # each robot's step toward its target turns ABREAST into MIRRORED and back: the allocation flips each tick
