@@ -20,13 +20,14 @@ is 1 when a run failed (exit other than 0 or 3; left out of the table, counted a
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
-import subprocess
 import sys
 import tempfile
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from compare_allocators import run_one as fleet_run
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "maps" / "stage"
@@ -35,23 +36,15 @@ MAPS = ["office", str(SHARED / "hospital_section.yaml"), str(SHARED / "autolab.y
 
 def run_one(spec: str, robots: int, seed: int, map_name: str, loss: float,
             extra: list[str]) -> dict:
-    """One ``fleet run``; its result.json, or ``{"error": ..., "code": ...}`` when it did not end normally."""
+    """One ``fleet run`` (``compare_allocators.run_one``) with the spec's parameters in a scenario file."""
     allocator, params = _spec(spec)
     with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "run"
-        cmd = [sys.executable, "-m", "fleet_emu.launch", "run", "--map", map_name, "--robots", str(robots),
-               "--allocator", allocator, "--seed", str(seed), "--loss", str(loss), "--quiet", "--no-record",
-               "--out", str(out), *extra]
         if params:
             scenario = Path(tmp) / "scenario.toml"
             lines = [f'type = "{allocator}"', *(f"{k} = {v}" for k, v in params.items())]
             scenario.write_text("[allocator]\n" + "\n".join(lines) + "\n")
-            cmd += ["--scenario", str(scenario)]
-        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
-        if proc.returncode not in (0, 3) or not (out / "result.json").exists():
-            lines = proc.stderr.strip().splitlines()
-            return {"error": lines[-1][:300] if lines else "no output", "code": proc.returncode}
-        return json.loads((out / "result.json").read_text())
+            extra = [*extra, "--scenario", str(scenario)]
+        return fleet_run(allocator, robots, seed, map_name, loss, extra)
 
 
 def ticks(result: dict) -> int:

@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +52,15 @@ def fleet(*args: str, timeout: float = 240, check: bool = True) -> subprocess.Co
 
 def result(out: Path) -> dict:
     return json.loads((out / "result.json").read_text())
+
+
+def wait_for(predicate, timeout: float) -> None:  # type: ignore[no-untyped-def]
+    """Poll ``predicate`` every 0.1 s; AssertionError after ``timeout`` seconds."""
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError("timed out waiting")
+        time.sleep(0.1)
 
 
 def pid_alive(pid: int) -> bool:

@@ -10,21 +10,13 @@ import sys
 import time
 from pathlib import Path
 
-from fleet_emu.launch.result import UNTIMED
-from tests.integration.conftest import ROOT, all_pids, children_of, fleet, is_fork_server, pid_alive, result
+from fleet_emu.launch.result import deterministic
+from tests.integration.conftest import ROOT, all_pids, children_of, fleet, is_fork_server, pid_alive, result, wait_for
 
 
 def _stat(pid: int) -> list[str]:
     """``/proc/PID/stat`` after the command: state, ppid, pgrp, session, ..."""
     return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-
-
-def _wait_for(predicate, timeout: float) -> None:  # type: ignore[no-untyped-def]
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError("timed out waiting")
-        time.sleep(0.1)
 
 
 def _start(out: Path, robots: int = 3) -> subprocess.Popen[str]:
@@ -43,19 +35,19 @@ def _server_and_robots(launcher: int, robots: int) -> tuple[int, list[int]]:
         found[:] = [(p, children_of(p)) for p in children_of(launcher) if is_fork_server(p)]
         return len(found) == 1 and len(found[0][1]) == robots
 
-    _wait_for(ready, 120)
+    wait_for(ready, 120)
     return found[0]
 
 
 def _nothing_left(pids: list[int]) -> None:
-    _wait_for(lambda: not any(pid_alive(p) for p in pids), 15)
+    wait_for(lambda: not any(pid_alive(p) for p in pids), 15)
 
 
 def test_robots_are_forked_each_in_its_own_session_with_its_own_log(tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = _start(out)
     server, robots = _server_and_robots(proc.pid, 3)
-    _wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
+    wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
     assert int(_stat(server)[2]) == server  # the server: its own process group
     for pid in robots:
         _, ppid, pgrp, session = _stat(pid)[:4]
@@ -79,7 +71,7 @@ def test_a_killed_fork_server_fails_its_robots_and_leaves_nothing(tmp_path: Path
     out = tmp_path / "run"
     proc = _start(out, robots=2)
     server, robots = _server_and_robots(proc.pid, 2)
-    _wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
+    wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
     os.kill(server, signal.SIGKILL)
     _nothing_left(robots)  # the robots go with it, at once
     _, err = proc.communicate(timeout=120)
@@ -94,10 +86,10 @@ def test_a_killed_robot_is_reported_and_the_launcher_leaves_nothing(tmp_path: Pa
     out = tmp_path / "run"
     proc = _start(out, robots=2)
     server, robots = _server_and_robots(proc.pid, 2)
-    _wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
+    wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
     victim = next(p for p in robots if Path(f"/proc/{p}/comm").read_text().strip() == "fleet r1")
     os.kill(victim, signal.SIGKILL)
-    _wait_for(lambda: not pid_alive(victim), 10)
+    wait_for(lambda: not pid_alive(victim), 10)
     time.sleep(2.0)
     assert pid_alive(server) and proc.poll() is None  # the run goes on without it
     proc.kill()  # and the launcher dies: the server sees its input end and ends the robot left
@@ -114,6 +106,6 @@ def test_forked_robots_give_the_same_result_as_fresh_ones(small_map: Path, tmp_p
         runs[flag] = result(out)
     forked, fresh = runs["--fork-server"], runs["--no-fork-server"]
     assert "fork_server" in forked["pids"] and "fork_server" not in fresh["pids"]
-    assert {k: v for k, v in forked.items() if k not in UNTIMED} == {k: v for k, v in fresh.items() if k not in UNTIMED}
+    assert deterministic(forked) == deterministic(fresh)
     for res in runs.values():
         _nothing_left(all_pids(res))

@@ -21,7 +21,7 @@ from fleet_emu.agents.protocol import PoseBeacon
 from fleet_emu.core.bus import client_config, router_config, router_locators
 from fleet_emu.core.messages import Command, RadioMsg, TxBundle, seal
 
-from .conftest import ROOT, all_pids, children_of, fleet, fleet_processes, pid_alive, result
+from .conftest import ROOT, all_pids, children_of, fleet, fleet_processes, pid_alive, result, wait_for
 
 
 class Toml(str):
@@ -170,14 +170,6 @@ def test_malformed_messages_are_dropped_and_counted(small_map: Path, tmp_path: P
         assert "dropped message" in log, f"{name} saw no malformed message"
 
 
-def _wait_for(predicate, timeout: float) -> None:  # type: ignore[no-untyped-def]
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError("timed out waiting")
-        time.sleep(0.1)
-
-
 def _start(out: Path, *extra: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
         [sys.executable, "-m", "fleet_emu.launch", "run", "--map", "office", "--robots", "3", "--max-ticks", "100000",
@@ -193,7 +185,7 @@ def _children(pid: int) -> list[int]:
 def test_sigint_tears_down_and_keeps_the_recording(tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = _start(out)
-    _wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
+    wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
     children = _children(proc.pid)
     assert len(children) == 5
     proc.send_signal(signal.SIGINT)
@@ -206,18 +198,18 @@ def test_sigint_tears_down_and_keeps_the_recording(tmp_path: Path) -> None:
         summary = make_reader(f).get_summary()
     assert summary is not None and sum(summary.statistics.channel_message_counts.values()) == \
         res["recording"]["messages"] > 0
-    _wait_for(lambda: not any(pid_alive(p) for p in all_pids(res)), 10)
+    wait_for(lambda: not any(pid_alive(p) for p in all_pids(res)), 10)
 
 
 def test_children_exit_when_the_launcher_is_killed(tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = _start(out)
-    _wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
+    wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
     children = _children(proc.pid) + children_of(proc.pid)  # the fork server too
     assert len(_children(proc.pid)) == 5
     proc.kill()
     proc.wait(10)
-    _wait_for(lambda: not any(pid_alive(p) for p in children), 15)
+    wait_for(lambda: not any(pid_alive(p) for p in children), 15)
 
 
 def test_a_killed_robot_is_failed_and_the_run_goes_on(small_map: Path, tmp_path: Path) -> None:
@@ -227,7 +219,7 @@ def test_a_killed_robot_is_failed_and_the_run_goes_on(small_map: Path, tmp_path:
          "--quiet", "--comm", "ideal"],
         cwd=ROOT, stderr=subprocess.PIPE, text=True)
     # no wait once it is going: robots forked from the fork server start at once, the small map takes seconds
-    _wait_for(lambda: len(_children(proc.pid)) == 5 and (out / "run.mcap").exists(), 60)
+    wait_for(lambda: len(_children(proc.pid)) == 5 and (out / "run.mcap").exists(), 60)
     scenario = json.loads((out / "scenario.json").read_text())
     assert scenario["robots"] == 3
     victim = sorted(_children(proc.pid))[-1]  # the last spawned: agent r2
