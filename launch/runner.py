@@ -132,8 +132,9 @@ def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None) 
         zenoh.open(conf).close()
     except zenoh.ZError:
         refused = " or it refused the credentials" if creds else ""
+        hint = "" if creds else "; a router with authentication needs --credentials"
         raise ConfigError(f"--connect {opts.connect}: no Zenoh router answered{refused} (gave up after "
-                          f"{CONNECT_TIMEOUT:g} s)") from None
+                          f"{CONNECT_TIMEOUT:g} s){hint}") from None
 
 
 def _make_out(out: Path) -> None:

@@ -260,3 +260,13 @@ def test_auth_flags_without_connect_are_one_line(args: list[str], message: str) 
     proc = fleet("run", *args, check=False)
     assert proc.returncode == 2 and proc.stderr.strip() == f"fleet: error: {message} (the embedded router " \
         "makes its own)"
+
+
+def test_an_authenticated_router_without_credentials_is_one_line_naming_them(router, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    endpoint, _ = router
+    out = tmp_path / "run"
+    proc = fleet("run", "--connect", endpoint, "--out", str(out), "--quiet", check=False, timeout=180)
+    assert proc.returncode == 2 and not out.exists()
+    assert proc.stderr.strip().splitlines() == [
+        f"fleet: error: --connect {endpoint}: no Zenoh router answered (gave up after 5 s); a router with "
+        "authentication needs --credentials"]
