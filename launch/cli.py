@@ -125,9 +125,9 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     out = args.out or Path("runs") / run_id
     if args.grid_every is not None and args.grid_every < 1:
         raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
-    if args.engine == "memory" and (args.in_process or args.connect):
-        raise ConfigError(f"--engine memory runs without Zenoh: it takes no "
-                          f"{'--in-process' if args.in_process else '--connect'}")
+    if args.engine == "memory" and (args.in_process or args.connect or args.fork_server is not None):
+        flag = "--in-process" if args.in_process else "--connect" if args.connect else "--[no-]fork-server"
+        raise ConfigError(f"--engine memory runs without Zenoh nor processes: it takes no {flag}")
     if args.connect is None and (args.credentials or args.tls_ca):
         raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
