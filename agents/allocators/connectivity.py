@@ -33,6 +33,15 @@ Choices the paper leaves open, as parameters:
   cost, as MinPos), so eq. 9 only chooses among the tasks of least position.
 - ``predict``: where a teammate is expected for eq. 8: its last known cell (``"pose"``, default, as the paper's
   Fig. 4) or the target MinPos's rule gives it on the deciding robot's data (``"target"``).
+- ``replan``: when the allocation is recomputed. Benavides adopts "the same allocation criterion as in the
+  minPos approach" (section III-E-2), and MinPos (Bautin et al. 2012, section 2) says the assignment "has to be
+  reevaluated at each time step or at least every time the robot observes the targeted frontier". ``"tick"``
+  recomputes at every decision; ``"observed"`` keeps the previous target until the robot has observed it, or can
+  no longer reach it, exactly as ``minpos``'s option of the same name (:func:`minpos.kept_cluster`: observed
+  means the target cell is no longer a frontier cell of the robot's belief, known free beside an unknown cell,
+  so that no cluster holds it). Eq. 8 and 9 are untouched; only when they are applied changes. With ``"tick"``,
+  a heavy ``beta`` lets two robots abreast between two frontiers swap targets every tick and sense nothing
+  (tests); with ``"observed"`` each keeps its target until it has seen it.
 - ``beta`` and ``lam`` (below).
 
 What the robot can know (DESIGN.md): the signal is predicted on its *belief* map from teammates' *last known*
@@ -61,7 +70,7 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
-from fleet_emu.agents.allocators.minpos import minpos_choice, positions
+from fleet_emu.agents.allocators.minpos import REPLANS, kept_cluster, minpos_choice, positions
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.grid import FREE, OCCUPIED, Cell
 from fleet_emu.core.kernels import count_walls
@@ -183,7 +192,8 @@ class Connectivity(Allocator, plugin_name="connectivity"):
     parameters = {"alpha": Param(0.6, ge=0), "beta": Param(0.4, ge=0), "lam": Param(0.5, ge=0, le=1),
                   "comm_range": Param(10.0, gt=0), "cell_size": Param(0.5, gt=0), "path_loss": Param(2.0, ge=0),
                   "waf": Param(3.1, ge=0), "max_walls": Param(4, ge=0), "unknown_walls": Param(False),
-                  "position": Param("without_self", choices=POSITIONS), "predict": Param("pose", choices=PREDICTIONS)}
+                  "position": Param("without_self", choices=POSITIONS), "predict": Param("pose", choices=PREDICTIONS),
+                  "replan": Param("tick", choices=REPLANS)}
     # in a run the radio and the cell size are the scenario's, unless the [allocator] section sets its own
     scenario_fields = {"comm_range": "radio.comm_range", "path_loss": "radio.path_loss", "waf": "radio.waf",
                        "max_walls": "radio.max_walls", "cell_size": "cell_size"}
@@ -198,6 +208,7 @@ class Connectivity(Allocator, plugin_name="connectivity"):
     unknown_walls: bool
     position: str
     predict: str
+    replan: str
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -207,6 +218,8 @@ class Connectivity(Allocator, plugin_name="connectivity"):
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         if not problem.clusters:
             return Allocation.none()
+        if self.replan == "observed" and (kept := kept_cluster(problem)) is not None:
+            return Allocation.assigned(problem, kept)
         j = choose(problem, self.alpha, self.beta, self.lam, self.cell_size, self.radio, self.position,
                    self.predict, self.unknown_walls)
         return Allocation.none() if j is None else Allocation.assigned(problem, j)

@@ -14,6 +14,20 @@ min P_ij" (then the lowest cluster index). Frontiers the robot cannot reach are 
   each robot it meets, and the first to reach the deciding robot wins
   (:func:`core.kernels.minpos_parallel`, which orders wavefronts by (robots met, distance, cluster index)
   and therefore breaks ties exactly as Algorithm 3 does). The cost matrix is never built.
+
+``replan`` selects when the assignment is recomputed. Section 2: "optimization has to be reevaluated at each
+time step or at least every time the robot observes the targeted frontier".
+
+- ``"tick"`` (default): Algorithm 3 at every decision, the first option.
+- ``"observed"``: the second option; the robot keeps its target until it has observed it. On this grid the
+  targeted frontier is the target cell of the robot's previous decision (``Problem.previous_target``, which
+  the Brain passes). It is *observed* once that cell is no longer a frontier cell of the robot's belief (known
+  free with an unknown 4-neighbour): its unknown neighbours have been sensed, by the robot or by a teammate
+  whose map delta arrived, so that no cluster holds it any more. Until then the robot is assigned the cluster
+  that holds the cell now (:func:`kept_cluster`; clusters are formed afresh every tick, so that cluster's
+  target may be another of its cells, and it is the one kept next), unless the robot cannot reach that cluster
+  on its belief any more (a wall found across the way): then, as when it was observed, or when there was no
+  previous target (the first decision, or one that found nothing), the robot decides afresh.
 """
 
 from __future__ import annotations
@@ -25,11 +39,29 @@ import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.params import Param
-from fleet_emu.core.grid import flat
+from fleet_emu.core.grid import Cell, flat
 from fleet_emu.core.kernels import minpos_parallel, wavefront
 from fleet_emu.core.messages import RadioMsg
 
 WAVEFRONTS = ("full", "stop", "parallel")
+REPLANS = ("tick", "observed")
+
+
+def kept_cluster(problem: Problem) -> int | None:
+    """With ``replan="observed"``: the cluster that holds the previous target cell while that cell is still a
+    frontier cell the robot reaches on its belief; None when there was no previous target, or it has been
+    observed (no cluster holds it), or the robot cannot reach it (module docstring)."""
+    target: Cell | None = problem.previous_target
+    shape = problem.belief.shape
+    if target is None or not (0 <= target[0] < shape[0] and 0 <= target[1] < shape[1]):
+        return None
+    cell = flat(shape, target)
+    me = flat(shape, problem.poses[problem.me])
+    for j, cluster in enumerate(problem.clusters):
+        k = int(np.searchsorted(cluster.cells, cell))
+        if k < cluster.size and cluster.cells[k] == cell:  # a frontier cell still: not yet observed
+            return j if wavefront(problem.passable, cluster.cells, me).ravel()[me] >= 0 else None
+    return None
 
 
 def positions(costs: np.ndarray, i: int) -> np.ndarray:
@@ -80,10 +112,12 @@ def parallel_choice(problem: Problem) -> int | None:
 
 
 class MinPos(Allocator, plugin_name="minpos"):
-    """``wavefront``: ``"full"`` (Algorithm 3 on the full cost matrix), ``"stop"`` or ``"parallel"``."""
+    """``wavefront``: ``"full"`` (Algorithm 3 on the full cost matrix), ``"stop"`` or ``"parallel"``;
+    ``replan``: ``"tick"`` or ``"observed"`` (module docstring)."""
 
-    parameters = {"wavefront": Param("full", choices=WAVEFRONTS)}
+    parameters = {"wavefront": Param("full", choices=WAVEFRONTS), "replan": Param("tick", choices=REPLANS)}
     wavefront: str
+    replan: str
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -94,6 +128,8 @@ class MinPos(Allocator, plugin_name="minpos"):
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         if not problem.clusters:
             return Allocation.none()
+        if self.replan == "observed" and (kept := kept_cluster(problem)) is not None:
+            return Allocation.assigned(problem, kept)
         if self.wavefront == "parallel":
             j = parallel_choice(problem)
         elif self.wavefront == "stop":
