@@ -231,3 +231,105 @@ def test_heavy_beta_abreast_robots_cross_and_flip_every_tick() -> None:
             assert make_allocator({**conn, "position": "cost"}).allocate(p).target == near
             assert make_allocator(conn).allocate(p).target == far  # toward the teammate's side
     # each robot's step toward its target turns ABREAST into MIRRORED and back: the allocation flips each tick
+
+
+def _with_previous(art: str, me: str, previous: tuple[int, int] | None) -> Problem:
+    p = problem(art, me)
+    p.previous_target = previous
+    return p
+
+
+def test_observed_replanning_keeps_the_abreast_robots_on_their_targets() -> None:
+    """The period-2 swap above, with MinPos's second option (section 2: reevaluate "at least every time the
+    robot observes the targeted frontier"): each robot keeps the frontier it took until it has observed it, so
+    the pair stops flipping and walks on to L and R. Stepped here down each cluster's wavefront; eq. 9 unchanged."""
+    from fleet_emu.agents.navigation import next_move
+
+    conn = {"type": "connectivity", "comm_range": 6.0, "alpha": 0.4, "beta": 0.6}
+    grid, poses = from_ascii(ABREAST)
+
+    def walk(replan: str) -> list[dict[str, tuple[int, int]]]:
+        cells, previous, out = dict(poses), {"r0": None, "r1": None}, []
+        for _ in range(4):
+            chosen, moved = {}, {}
+            for me in ("r0", "r1"):
+                p = Problem(me=me, poses=cells, belief=grid, clusters=find_clusters(grid, 4),
+                            previous_target=previous[me])
+                a = make_allocator({**conn, "replan": replan}).allocate(p)
+                chosen[me] = a.target
+                step = next_move(p.wavefronts[a.cluster], cells[me])
+                moved[me] = (cells[me][0] + step[0], cells[me][1] + step[1])
+            cells, previous = moved, chosen
+            out.append(chosen)
+        return out
+
+    left, right = (1, 1), (1, 8)
+    flips = walk("tick")
+    assert [t["r0"] for t in flips] == [left, right, left, right]  # the swap, every tick
+    kept = walk("observed")
+    assert kept == [{"r0": left, "r1": right}] * 4  # the first choice (toward the teammate's side), kept
+
+
+# r0 alone between two frontiers: L at (0, 1) four steps away, R at (0, 7) two steps away.
+LINE = """
+?....0..?
+"""
+SEEN = """
+.....0..?
+"""
+WALL = """
+?..#.0..?
+"""
+
+
+@pytest.mark.parametrize("config", [{"type": "minpos", "replan": "observed"},
+                                    {"type": "connectivity", "replan": "observed"},
+                                    {"type": "connectivity", "alpha": 0.4, "beta": 0.6, "replan": "observed"}],
+                         ids=["minpos", "conn", "conn-heavy-beta"])
+def test_observed_replanning_keeps_until_seen_or_unreachable(config: dict) -> None:
+    alloc = make_allocator(config)
+    assert alloc.allocate(_with_previous(LINE, "r0", None)).target == (0, 7)  # no previous target: decide
+    assert alloc.allocate(_with_previous(LINE, "r0", (0, 1))).target == (0, 1)  # L unobserved: kept
+    # L observed ((0, 0) now known: (0, 1) is no longer a frontier cell): decide afresh
+    assert alloc.allocate(_with_previous(SEEN, "r0", (0, 1))).target == (0, 7)
+    # L still a frontier cell, but a wall found across the way: unreachable, decide afresh
+    p = _with_previous(WALL, "r0", (0, 1))
+    assert (0, 1) in [c.target for c in p.clusters]
+    assert alloc.allocate(p).target == (0, 7)
+    # a previous target that is no frontier at all (a wall, off the grid): decide afresh
+    for cell in ((0, 3), (5, 5), (-1, 0)):
+        assert alloc.allocate(_with_previous(WALL, "r0", cell)).target == (0, 7)
+    # "tick" never keeps
+    tick = make_allocator({**config, "replan": "tick"})
+    assert tick.allocate(_with_previous(LINE, "r0", (0, 1))).target == (0, 7)
+
+
+# A frontier of five cells, one cluster; r0 last targeted (1, 1), and its cluster's target now is (2, 1).
+RECLUSTERED = """
+#######
+?.....#
+?....0#
+?.....#
+#######
+"""
+
+
+def test_observed_replanning_follows_the_cluster_that_holds_the_previous_target() -> None:
+    """Clusters are formed afresh every tick: the robot is assigned the cluster holding its previous target cell,
+    whose own target (returned, and kept next) may be another of its cells."""
+    p = _with_previous(RECLUSTERED, "r0", (1, 1))
+    (cluster,) = p.clusters
+    assert cluster.target == (2, 1)
+    a = make_allocator({"type": "connectivity", "replan": "observed"}).allocate(p)
+    assert (a.cluster, a.target) == (0, (2, 1))
+
+
+def test_replan_conformance() -> None:
+    for config in ({"type": "connectivity", "replan": "observed"},
+                   {"type": "connectivity", "alpha": 0.4, "beta": 0.6, "position": "cost", "replan": "observed"},
+                   {"type": "minpos", "replan": "observed", "wavefront": "parallel"}):
+        api_test(config)
+        seed_test(config)
+        assert make_allocator(config).to_dict()["replan"] == "observed"
+    with pytest.raises(ConfigError, match="replan"):
+        make_allocator({"type": "connectivity", "replan": "sometimes"})
