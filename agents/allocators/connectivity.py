@@ -36,12 +36,14 @@ Choices the paper leaves open, as parameters:
 - ``replan``: when the allocation is recomputed. Benavides adopts "the same allocation criterion as in the
   minPos approach" (section III-E-2), and MinPos (Bautin et al. 2012, section 2) says the assignment "has to be
   reevaluated at each time step or at least every time the robot observes the targeted frontier". ``"tick"``
-  recomputes at every decision; ``"observed"`` keeps the previous target until the robot has observed it, or can
-  no longer reach it, exactly as ``minpos``'s option of the same name (:func:`minpos.kept_cluster`: observed
+  recomputes at every decision; ``"observed"`` keeps the previous target until the robot has observed it, or
+  can no longer reach it, exactly as ``minpos``'s option of the same name (see its module docstring: observed
   means the target cell is no longer a frontier cell of the robot's belief, known free beside an unknown cell,
-  so that no cluster holds it). Eq. 8 and 9 are untouched; only when they are applied changes. With ``"tick"``,
-  a heavy ``beta`` lets two robots abreast between two frontiers swap targets every tick and sense nothing
-  (tests); with ``"observed"`` each keeps its target until it has seen it.
+  so that no cluster holds it; reachable means the robot can step toward it, a teammate heard last tick
+  holding the cell of the step counting as an obstacle, and the fresh decision ranks only the clusters so
+  reachable). Eq. 8 and 9 are untouched; only when they are applied changes. With ``"tick"``, a heavy ``beta``
+  lets two robots abreast between two frontiers swap targets every tick and sense nothing (tests); with
+  ``"observed"`` each keeps its target until it has seen it.
 - ``beta`` and ``lam`` (below).
 
 What the robot can know (DESIGN.md): the signal is predicted on its *belief* map from teammates' *last known*
@@ -70,7 +72,7 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
-from fleet_emu.agents.allocators.minpos import REPLANS, kept_cluster, minpos_choice, positions
+from fleet_emu.agents.allocators.minpos import REPLANS, minpos_choice, observed_choice, positions
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.grid import FREE, OCCUPIED, Cell
 from fleet_emu.core.kernels import count_walls
@@ -218,8 +220,11 @@ class Connectivity(Allocator, plugin_name="connectivity"):
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         if not problem.clusters:
             return Allocation.none()
-        if self.replan == "observed" and (kept := kept_cluster(problem)) is not None:
-            return Allocation.assigned(problem, kept)
-        j = choose(problem, self.alpha, self.beta, self.lam, self.cell_size, self.radio, self.position,
+        decide = problem
+        if self.replan == "observed":
+            kept, decide = observed_choice(problem)
+            if kept is not None:
+                return Allocation.assigned(problem, kept)
+        j = choose(decide, self.alpha, self.beta, self.lam, self.cell_size, self.radio, self.position,
                    self.predict, self.unknown_walls)
         return Allocation.none() if j is None else Allocation.assigned(problem, j)
