@@ -333,3 +333,46 @@ def test_replan_conformance() -> None:
         assert make_allocator(config).to_dict()["replan"] == "observed"
     with pytest.raises(ConfigError, match="replan"):
         make_allocator({"type": "connectivity", "replan": "sometimes"})
+
+
+# r0 last targeted R = (2, 5), behind r1: its only step nearer R, (2, 3), is r1's cell (the way round, through
+# row 1 or 3, starts with a step that is not nearer). L = (2, 1) is on r0's own side.
+HEAD_ON = """
+#######
+#.....#
+?.01..?
+#.....#
+#######
+"""
+APART = """
+#######
+#.....#
+?.0..1?
+#.....#
+#######
+"""
+
+
+@pytest.mark.parametrize("config", [{"type": "minpos", "replan": "observed"},
+                                    {"type": "connectivity", "alpha": 0.4, "beta": 0.6, "replan": "observed"}],
+                         ids=["minpos", "conn-heavy-beta"])
+def test_observed_replanning_gives_up_a_target_a_teammate_stands_in_front_of(config: dict) -> None:
+    """Head-on in a passage, a committed robot whose every step nearer its target is onto a teammate (heard last
+    tick) decides afresh among the clusters it can step toward: it turns to L instead of waiting for ever."""
+    alloc = make_allocator(config)
+    right, left = (2, 5), (2, 1)
+    for art in (HEAD_ON, APART):
+        assert {c.target for c in problem(art).clusters} == {left, right}
+    p = _with_previous(APART, "r0", right)
+    assert alloc.allocate(p).target == right  # not in the way: kept
+    p = _with_previous(HEAD_ON, "r0", right)
+    p.tick, p.heard = 7, {"r1": 6}
+    assert alloc.allocate(p).target == left  # r1 in the way: given up
+    p = _with_previous(HEAD_ON, "r0", right)
+    p.tick, p.heard = 7, {"r1": 5}  # r1 not heard for two ticks: not known to be there
+    assert alloc.allocate(p).target == right
+    # r1 in the way of both (r0 boxed in): ranked as if nobody blocked
+    boxed = HEAD_ON.replace("?.01", "?#01")
+    q = _with_previous(boxed, "r0", right)
+    assert [c.target for c in q.clusters] == [right]
+    assert alloc.allocate(q).target == right
