@@ -8,7 +8,7 @@ The paper's experiment: 2 robots, sensing 3 m, communication 6 m, stop at 95 % c
 (eq. 4) with 0.5 m cells and a random start per seed. A config is ``minpos`` or
 ``conn:ALPHA:BETA[:POSITION[:PREDICT]]`` (the connectivity allocator's parameters, see its module docstring),
 either followed by ``:NAME=VALUE`` items for any other parameter: ``conn:0.6:0.4:replan=observed``,
-``minpos:replan=observed``.
+``minpos:replan=observed`` (``conn:...`` alone is the allocator's default, ``replan="observed"``).
 Each run is stepped in this process on the memory engine (``fleet_emu.Fleet``: the same World, Channel and Brain
 as ``fleet run``, without Zenoh); ``--check`` first compares one run against a real ``fleet run`` of it.
 Per cell: mean connected fraction, mean ticks (a run that did not reach the target counts at its last tick), and
