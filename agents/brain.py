@@ -98,6 +98,7 @@ class Brain:
         self.seq = 0
         self.last_cell: Cell | None = None
         self.last_move: Cell = STAY
+        self.last_target: Cell | None = None  # the previous decision's target, passed to the allocator
         self.stuck = 0
         self.decision_ms: list[float] = []
         self.decision_cpu_ms = 0.0  # this thread's CPU in the allocator, summed over decisions (issue 11)
@@ -146,11 +147,13 @@ class Brain:
         poses = {self.me: obs.cell} | expected
         problem = Problem(me=self.me, poses=poses, belief=belief.grid,
                           clusters=find_clusters(belief.grid, self.config.cluster_max), tick=t,
-                          heard={r: tm.heard for r, tm in self.teammates.items()})
+                          heard={r: tm.heard for r, tm in self.teammates.items()},
+                          previous_target=self.last_target)
         t0, c1 = self.clock(), time.thread_time()
         alloc = self.allocator.allocate(problem, protocol)
         self.decision_ms.append((self.clock() - t0) * 1000.0)
         self.decision_cpu_ms += (time.thread_time() - c1) * 1000.0
+        self.last_target = alloc.target
         move = STAY
         wants = False  # the robot wants to move but a teammate stands on every way down the wavefront
         if alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None:
