@@ -101,6 +101,8 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--connect", required=True, help="the run's Zenoh router, e.g. tcp/192.0.2.1:7447")
     h.add_argument("--credentials", type=Path, metavar="FILE",
                    help="this host's login: a hostK:password line (of `fleet router-config --hosts N`'s users file)")
+    h.add_argument("--connect-timeout", type=float, default=5.0, metavar="S",
+                   help="seconds to keep trying the router (started before `fleet run`: give it time; default 5)")
     h.add_argument("--name", help="the host's user in --credentials when it holds several (default: its one host)")
     h.add_argument("--tls-ca", type=Path, metavar="CA.pem", help="with a tls/ --connect: the CA that signed the router")
     h.add_argument("--out", type=Path, help="where the robots' logs go (default runs/<run id>/<host>)")

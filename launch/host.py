@@ -35,7 +35,6 @@ from fleet_emu.core.messages import HostAssign, HostStatus
 from fleet_emu.core.node import undeclare
 from fleet_emu.launch.forked import fork_server_enabled
 from fleet_emu.launch.hosts import agent_argv
-from fleet_emu.launch.runner import CONNECT_TIMEOUT
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import AGENTS, Supervisor
 
@@ -196,12 +195,14 @@ class Host:
 def cmd_host(args: argparse.Namespace, interrupts: Interrupts) -> int:
     """``fleet host``: 0 after serving (``--once``), 130/143 on a signal, 2 on bad input or a refused login."""
     name, cred = host_login(args.credentials, args.name, args.tls_ca)
+    if not 0 < args.connect_timeout <= 3600:
+        raise ConfigError(f"--connect-timeout must be in (0, 3600] seconds (got {args.connect_timeout:g})")
     if cred is None:
         print("fleet: warning: fleet host without --credentials: only an unauthenticated router lets it in",
               file=sys.stderr)
     try:
         conf = client_config(args.connect, cred)
-        ms = int(CONNECT_TIMEOUT * 1000)
+        ms = int(args.connect_timeout * 1000)
         conf.insert_json5("connect/timeout_ms", f'{{"router": -1, "peer": -1, "client": {ms}}}')
     except zenoh.ZError:
         raise ConfigError(f"--connect {args.connect!r} is not a Zenoh endpoint (expected <protocol>/<address>, "
@@ -212,7 +213,7 @@ def cmd_host(args: argparse.Namespace, interrupts: Interrupts) -> int:
         refused = f" or it refused {name}'s credentials" if cred else "; a router with authentication needs " \
                                                                       "--credentials"
         raise ConfigError(f"--connect {args.connect}: no Zenoh router answered{refused} (gave up after "
-                          f"{CONNECT_TIMEOUT:g} s)") from None
+                          f"{args.connect_timeout:g} s)") from None
     out = args.out if args.out is not None else Path("runs")
     with session:
         host = Host(session, name, args.connect, cred.tls_ca if cred else None, out, args.fork_server, interrupts)
