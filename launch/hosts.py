@@ -109,6 +109,8 @@ def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str,
     ``remote``, first wait for its hosts and start their robots there. The hosts and their robots."""
     robots = robot_ids(scenario.robots)
     hosts = remote.gather(requested or threading.Event()) if remote is not None else []
+    if remote is not None and not hosts:  # a signal while waiting: nothing is started
+        raise KeyboardInterrupt
     where = placement(robots, hosts)
     common = ["--run", run_id, "--connect", endpoint, "--scenario", str(work / "scenario.json")]
     auth = ["--auth-stdin"] if creds else []
@@ -200,6 +202,7 @@ class Hosts:
                 self.alive.discard(host)
                 for robot in self.robots.values():  # its robots die with it (their parent watchdog)
                     if robot.host == host and robot.returncode is None:
+                        robot.pid = robot.pid or NOT_STARTED
                         robot.returncode = HOST_LOST
             self.changed.notify_all()
 
