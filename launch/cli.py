@@ -148,9 +148,8 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
         flag = next(f for f, v in (("--in-process", args.in_process), ("--connect", args.connect),
                                    ("--hosts", args.hosts), ("--listen", args.listen)) if v)
         raise ConfigError(f"--engine memory runs without Zenoh: it takes no {flag}")
-    if args.connect is None and (args.tls_ca or (args.credentials and not args.hosts)):
-        raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own; with "
-                          "--hosts, --credentials gives the hosts' logins)")
+    if args.connect is None and (args.tls_ca or (args.credentials and not args.hosts)):  # --hosts: the hosts' logins
+        raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
         if args.engine == "memory":
             from fleet_emu.launch.memory import run_memory
