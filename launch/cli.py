@@ -144,10 +144,11 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     out = args.out or Path("runs") / run_id
     if args.grid_every is not None and args.grid_every < 1:
         raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
-    if args.engine == "memory" and (args.in_process or args.connect or args.hosts or args.listen):
-        flag = next(f for f, v in (("--in-process", args.in_process), ("--connect", args.connect),
-                                   ("--hosts", args.hosts), ("--listen", args.listen)) if v)
-        raise ConfigError(f"--engine memory runs without Zenoh: it takes no {flag}")
+    memory_flags = (("--in-process", args.in_process), ("--connect", args.connect), ("--hosts", args.hosts),
+                    ("--listen", args.listen), ("--[no-]fork-server", args.fork_server is not None))
+    if args.engine == "memory" and any(v for _, v in memory_flags):
+        flag = next(f for f, v in memory_flags if v)
+        raise ConfigError(f"--engine memory runs without Zenoh nor processes: it takes no {flag}")
     if args.connect is None and (args.tls_ca or (args.credentials and not args.hosts)):  # --hosts: the hosts' logins
         raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
