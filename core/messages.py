@@ -13,6 +13,7 @@ import dataclasses
 
 import numpy as np
 
+from fleet_emu.core.access import Credential
 from fleet_emu.core.codec import Context, DecodeError, Message, Payload, decode, decode_payload, peek_tick
 from fleet_emu.core.grid import MOVES, STAY, Cell
 from fleet_emu.core.keys import HOST_ID, ROBOT_ID, RUN_ID
@@ -320,6 +321,13 @@ class HostAssign(Message):
             raise DecodeError("host_assign: bad robot ids")
         if not set(self.secrets) <= set(self.robots):
             raise DecodeError("host_assign: a secret for a robot not assigned")
+        for robot, secret in self.secrets.items():
+            try:
+                cred = Credential.from_json(secret)
+            except ValueError:
+                raise DecodeError(f"host_assign: {robot}'s credential is not a user and password") from None
+            if cred.user != robot:
+                raise DecodeError(f"host_assign: {robot}'s credential is {cred.user!r}'s")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -81,6 +81,7 @@ class Host:
         self.keys = HostKeys(name)
         self.requests: queue.Queue[bytes] = queue.Queue()
         self.dropped = 0
+        self.reported: set[str] = set()  # the current run's robots whose exit was reported
         self._seq = 0
         self._status = publisher(session, self.keys.status)
         self._handles = [self._status, session.declare_subscriber(
@@ -121,27 +122,31 @@ class Host:
             req = self.next_request(0.2)
             if req is None or req.end:
                 continue  # an end for a run this host no longer serves
-            self.run(req)
+            try:
+                self.run(req)
+            except OSError as exc:  # its output directory cannot be written: the launcher fails the robots
+                print(f"fleet host {self.name}: run {req.run}: {exc.strerror or exc}", file=sys.stderr)
+                self.report(req.run, "ended", error=str(exc.strerror or exc))
             if once:
                 return
 
     def run(self, req: HostAssign) -> None:
         """Start ``req``'s robots, report them, tear them down when the run ends for any reason."""
         self.report(req.run, "accepted")
-        keys = Keys(req.run)
+        self.reported = set()
         launcher = {"seen": False, "gone": False}
 
         def on_launcher(sample: zenoh.Sample) -> None:
             launcher["seen" if sample.kind == zenoh.SampleKind.PUT else "gone"] = True
 
-        watch = self.session.liveliness().declare_subscriber(keys.alive("launcher", "launcher"), on_launcher,
-                                                              history=True)
         with contextlib.ExitStack() as stack:
             work = self.out / req.run / self.name if self.out is not None else \
                 Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="fleet-host-")))
             work.mkdir(parents=True, exist_ok=True)
             scenario = work / "scenario.json"
             scenario.write_text(req.scenario)
+            watch = self.session.liveliness().declare_subscriber(Keys(req.run).alive("launcher", "launcher"),
+                                                                  on_launcher, history=True)
             sup = Supervisor(log_dir=work)
             try:
                 self._start(req, sup, scenario)
@@ -149,7 +154,8 @@ class Host:
             finally:
                 sup.kill_all()
                 for name, code in sup.dead().items():
-                    self.report(req.run, "exited", robot=name, code=code)
+                    if name not in self.reported:
+                        self.report(req.run, "exited", robot=name, code=code)
                 self.report(req.run, "ended")
                 undeclare([watch])
 
@@ -168,7 +174,7 @@ class Host:
 
     def _watch(self, req: HostAssign, sup: Supervisor, launcher: dict[str, bool]) -> None:
         """Report exits until every robot is gone, or the run must be torn down."""
-        reported: set[str] = set()
+        reported = self.reported
         start = time.monotonic()
         while not self.interrupts.requested.is_set():
             for name, code in sup.dead().items():

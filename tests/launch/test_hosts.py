@@ -67,7 +67,7 @@ def test_a_host_puts_nothing_in_a_run_and_only_its_own_lobby_keys() -> None:
 
 def test_host_messages_round_trip_and_bad_ones_are_dropped() -> None:
     msg = HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("r1", "r3"), scenario="{}",
-                     secrets={"r1": "{}"})
+                     secrets={"r1": '{"user": "r1", "password": "p"}'})
     assert decode(msg.encode(), expected=HostAssign) == msg
     status = HostStatus(src="host0", tick=0, seq=3, run="run1", event="exited", robot="r1", code=-9)
     assert decode(status.encode(), expected=HostStatus) == status
@@ -76,7 +76,7 @@ def test_host_messages_round_trip_and_bad_ones_are_dropped() -> None:
                 HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("r1", "r1")),
                 HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("world",)),
                 HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("r1",),
-                           secrets={"r2": "{}"}),
+                           secrets={"r2": '{"user": "r2", "password": "p"}'}),
                 HostStatus(src="host0", tick=0, seq=0, run="run1", event="rebooted")):
         with pytest.raises(DecodeError):
             decode(bad.encode())
@@ -109,3 +109,14 @@ def test_bad_host_options_are_one_line(tmp_path: Path) -> None:
     name, cred = host_login(one, None, None)
     assert name == "host0" and cred is not None and cred.user == "host0"
     assert host_login(None, None, None) == ("host0", None)
+
+
+def test_a_spawn_request_whose_credential_is_not_its_robots_is_dropped() -> None:
+    good = HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("r1",),
+                      secrets={"r1": '{"user": "r1", "password": "p"}'})
+    assert decode(good.encode()) == good
+    for secret in ('{"user": "r2", "password": "p"}', "not json", '{"user": "r1"}'):
+        bad = HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("r1",),
+                         secrets={"r1": secret})
+        with pytest.raises(DecodeError):
+            decode(bad.encode())
