@@ -13,15 +13,17 @@ import dataclasses
 
 import numpy as np
 
+from fleet_emu.core.access import Credential
 from fleet_emu.core.codec import Context, DecodeError, Message, Payload, decode, decode_payload, peek_tick
 from fleet_emu.core.grid import MOVES, STAY, Cell
+from fleet_emu.core.keys import HOST_ID, ROBOT_ID, RUN_ID
 
 __all__ = [
     "Context", "DecodeError", "Message", "Payload", "decode", "decode_payload", "peek_tick",
     "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope",
     "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Failed",
     "Stop",
-    "AgentReport", "BeliefSnapshot",
+    "AgentReport", "BeliefSnapshot", "HostAssign", "HostStatus",
 ]
 
 VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
@@ -288,3 +290,61 @@ class BeliefSnapshot(Message):
             raise DecodeError("belief: expected a 2-D int8 grid")
         if ctx is not None and ctx.shape is not None and self.grid.shape != ctx.shape:
             raise DecodeError("belief: grid shape differs from the map's")
+
+
+# --- the hosts' lobby (fleet-host/<host>/..., launch/hosts.py) --------------------------------------------
+
+HOST_EVENTS = frozenset({"accepted", "busy", "spawned", "exited", "ended"})
+
+
+@dataclasses.dataclass(frozen=True)
+class HostAssign(Message):
+    """The launcher's request to host ``host`` (fleet-host/<host>/spawn): start ``robots`` of run ``run``, whose
+    scenario (as ``scenario.json``) is ``scenario``; ``secrets`` maps each robot to its bus credential (JSON,
+    user and password: the host adds its own TLS CA), empty on an unauthenticated bus. ``end`` set: tear the
+    run's robots down instead."""
+
+    KIND = "host_assign"
+    host: str
+    run: str
+    robots: tuple[str, ...] = ()
+    scenario: str = ""
+    secrets: dict[str, str] = dataclasses.field(default_factory=dict)
+    fork_server: bool = True
+    end: bool = False
+
+    def validate(self, ctx: Context | None) -> None:
+        super().validate(ctx)
+        if not HOST_ID.fullmatch(self.host) or not RUN_ID.fullmatch(self.run):
+            raise DecodeError("host_assign: bad host or run id")
+        if not all(ROBOT_ID.fullmatch(r) for r in self.robots) or len(set(self.robots)) != len(self.robots):
+            raise DecodeError("host_assign: bad robot ids")
+        if not set(self.secrets) <= set(self.robots):
+            raise DecodeError("host_assign: a secret for a robot not assigned")
+        for robot, secret in self.secrets.items():
+            try:
+                cred = Credential.from_json(secret)
+            except ValueError:
+                raise DecodeError(f"host_assign: {robot}'s credential is not a user and password") from None
+            if cred.user != robot:
+                raise DecodeError(f"host_assign: {robot}'s credential is {cred.user!r}'s")
+
+
+@dataclasses.dataclass(frozen=True)
+class HostStatus(Message):
+    """A host's report (fleet-host/<host>/status) about run ``run``: ``accepted`` (or ``busy`` with another run),
+    ``spawned`` (``robot`` with its ``pid``), ``exited`` (``robot`` with its exit ``code``), ``ended`` (every
+    robot of the run is gone)."""
+
+    KIND = "host_status"
+    run: str
+    event: str
+    robot: str = ""
+    pid: int = 0
+    code: int = 0
+    error: str = ""
+
+    def validate(self, ctx: Context | None) -> None:
+        super().validate(ctx)
+        if self.event not in HOST_EVENTS:
+            raise DecodeError(f"host_status: unknown event {self.event!r}")
