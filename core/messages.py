@@ -21,7 +21,7 @@ __all__ = [
     "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope",
     "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Failed",
     "Stop",
-    "AgentReport", "BeliefSnapshot",
+    "AgentReport", "BeliefSnapshot", "WorldClock", "AgentTiming",
 ]
 
 VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
@@ -288,3 +288,37 @@ class BeliefSnapshot(Message):
             raise DecodeError("belief: expected a 2-D int8 grid")
         if ctx is not None and ctx.shape is not None and self.grid.shape != ctx.shape:
             raise DecodeError("belief: grid shape differs from the map's")
+
+
+# --- real-time mode only (``fleet run --realtime HZ``) ---------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class WorldClock(Message):
+    """The world's wall clock at ``tick`` (world/clock), published with every state of a real-time run and never
+    in lockstep. Counters are cumulative: ``late`` per robot the commands that arrived after the tick they were
+    stamped for had ended (each applied at the next tick), ``missed`` per robot the ticks in which no command at
+    all came from it (it stood still), ``overruns`` the ticks the world itself started after their scheduled
+    time, ``elapsed`` the seconds since tick 0 was scheduled."""
+
+    KIND = "clock"
+    hz: float
+    elapsed: float
+    overruns: int
+    late: dict[str, int]
+    missed: dict[str, int]
+
+
+@dataclasses.dataclass(frozen=True)
+class AgentTiming(Message):
+    """A robot's real-time summary when it stops (robot/<robot>/timing), sent just before its report and never
+    in lockstep: ``decisions`` made, ``plan_steps`` (ticks it stepped along its last plan while a decision
+    ran), ``waits`` (ticks a decision ran and it had no plan yet: it stood still), and percentiles of the wall
+    time of a whole decision (``decision_ms``: the brain's step in its worker thread) and of the allocator
+    alone (``allocator_ms``), each with keys p50, p90, p99, max and mean."""
+
+    KIND = "timing"
+    decisions: int
+    plan_steps: int
+    waits: int
+    decision_ms: dict[str, float]
+    allocator_ms: dict[str, float]
