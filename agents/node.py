@@ -178,13 +178,14 @@ class AgentNode(NodeBase):
                             self.drop(key, "observation for another robot or a past tick")
                         continue
                     latest = o.tick
+                    if worker is not None or self.brain.plan is not None:  # the last plan, until a decision
+                        self.pub_cmd.put(self.timing.stale_command(
+                            self.robot, o.tick, self.next_seq(), o.cell, self.brain.plan).encode())
                     if worker is None:
                         worker = self._decide(o, absorbed, received)
                         absorbed, received = [], []
                     else:
                         absorbed.append(o)
-                        self.pub_cmd.put(self.timing.stale_command(
-                            self.robot, o.tick, self.next_seq(), o.cell, self.brain.plan).encode())
                 elif channel == "rx":
                     b = self.decode(key, data, RxBundle)
                     if b is not None and b.dst == self.robot:

@@ -3,21 +3,24 @@ last plan while it decides.
 
 The world ticks on the wall clock and does not wait (:mod:`world.realtime`). The robot's decision — the
 brain's whole step: merging its map, frontier clusters, the allocator, navigation — runs in a worker thread,
-one decision at a time, so the node shell stays free on its event loop. Each observation is handled so:
+one decision at a time, so the node shell stays free on its event loop. On each observation the shell first
+sends, at once, a step along the robot's last plan (:class:`agents.brain.Plan`: the next cell down the
+wavefront of the last decided target, from the cell this observation gives), or a stay while a decision runs
+and the robot has no plan yet (its first ticks). These commands carry the status ``STALE`` and are counted
+(``plan_steps``, ``waits``). Then:
 
-- no decision running: a decision starts on it, with every radio message received since the last one, after
-  merging the observations that came while the last one ran (:meth:`Brain.absorb`);
-- a decision running: the shell sends at once a step along the robot's last plan (:class:`agents.brain.Plan`:
-  the next cell down the wavefront of the last decided target, from the cell this observation gives), or a
-  stay while it has no plan yet. These commands carry the status ``STALE`` and are counted (``plan_steps``,
-  ``waits``).
+- no decision running: a decision starts on this observation, with every radio message received since the
+  last one, after merging the observations that came while the last one ran (:meth:`Brain.absorb`);
+- a decision running: the observation is kept for the next decision's map.
 
-When a decision ends, its command — stamped with the tick of the observation it started from — and its
-radio bundle go out at once. If the world has moved on since that tick, the command is late: the world
-applies it at its next tick and counts it. So an allocator slower than 1/HZ acts on stale plans, and its
-late moves, computed for a cell the robot has since left, may go nowhere useful (into a wall, which the
-world refuses, or away from the target): the failure mode is the real one, not hidden. A decision that ends
-starts no other at once; the next starts on the next observation (at most one tick later).
+When a decision ends, its command — stamped with the tick of the observation it started from — and its radio
+bundle go out at once. The world applies the last command it received from the robot in a tick: a decision
+that ends within its tick overrides that tick's plan step; one that ends later is late, and the world applies
+it at its next tick (the plan step of that tick, sent earlier, is overridden) and counts it. So an allocator
+slower than 1/HZ acts on stale plans, and its late moves, computed for a cell the robot has since left, may go
+nowhere useful (into a wall, which the world refuses, or away from the target): the failure mode is the real
+one, not hidden. A decision that ends starts no other at once; the next starts on the next observation (at
+most one tick later).
 
 Only the worker touches the brain while a decision runs; the shell reads the plan the last decision left (a
 frozen snapshot) and draws sequence numbers under the brain's lock. :class:`Timing` is the pure bookkeeping.

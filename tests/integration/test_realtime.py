@@ -38,8 +38,8 @@ def test_a_real_time_run_writes_the_real_time_keys(small_map: Path, tmp_path: Pa
     assert rt["world_overruns"] >= 0 and rt["ticks_per_second"] > 0
     for r, row in rt["robots"].items():
         assert row["decisions"] >= 1, r
-        # every observation the robot took started a decision or was answered from its last plan (or a stay)
-        assert row["decisions"] + row["plan_steps"] + row["waits"] <= res["ticks"] + 1, (r, row)
+        # at most one decision, and one step along the last plan (or a stay), per observation
+        assert row["decisions"] <= res["ticks"] + 1 and row["plan_steps"] + row["waits"] <= res["ticks"] + 1, row
         assert row["late_commands"] >= 0 and row["missed_ticks"] >= 0
         assert set(row["decision_ms"]) == PERCENTILE_KEYS and set(row["allocator_ms"]) == PERCENTILE_KEYS
         assert row["decision_ms"]["p50"] <= row["decision_ms"]["p90"] <= row["decision_ms"]["max"]
