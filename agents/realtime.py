@@ -34,13 +34,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fleet_emu.core.grid import STAY, Cell
-from fleet_emu.core.messages import Command
+from fleet_emu.core.messages import STALE, Command
 
 if TYPE_CHECKING:
     from fleet_emu.agents.brain import Plan
 
-#: The status of a command the shell sent without a decision (a step along the last plan, or a stay).
-STALE = "STALE"
 PERCENTILES = (50, 90, 99)
 
 

@@ -21,7 +21,7 @@ __all__ = [
     "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope",
     "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Failed",
     "Stop",
-    "AgentReport", "BeliefSnapshot", "WorldClock", "AgentTiming",
+    "AgentReport", "BeliefSnapshot", "WorldClock", "AgentTiming", "STALE",
 ]
 
 VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
@@ -92,6 +92,11 @@ class WorldState(Message):
 
 
 # --- agent -> world -----------------------------------------------------------------------------------
+
+#: The status of a command a robot sends in real-time mode without a decision: a step along its last plan, or a
+#: stay while it has none (``agents/realtime.py``); never sent in lockstep.
+STALE = "STALE"
+
 
 @dataclasses.dataclass(frozen=True)
 class Command(Message):

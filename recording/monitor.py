@@ -16,14 +16,22 @@ from fleet_emu.core.access import allowed_src
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.grid import Cell
 from fleet_emu.core.keys import parse_key
-from fleet_emu.core.messages import AgentReport, AgentTiming, Command, Links, Message, Stop, WorldClock, WorldState
+from fleet_emu.core.messages import (
+    STALE,
+    AgentReport,
+    AgentTiming,
+    Command,
+    Links,
+    Message,
+    Stop,
+    WorldClock,
+    WorldState,
+)
 from fleet_emu.core.radio import RadioConfig
 from fleet_emu.core.version import SCHEMA_VERSION
 
 #: The channels the monitor folds (``ParsedKey.channel``); the rest is not even decoded.
 _FOLDED = frozenset({"state", "links", "stop", "report", "cmd", "clock", "timing"})
-#: The status of a command a robot sent in real-time mode without a decision (``agents.realtime.STALE``).
-STALE = "STALE"
 
 
 @dataclasses.dataclass
