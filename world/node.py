@@ -183,14 +183,15 @@ class WorldNode(NodeBase):
     async def _realtime(self, inbox: Inbox, readings: dict[str, Reading], hz: float) -> None:
         """Tick on the wall clock until the run is done (or the launcher stops it)."""
         w = self.world
-        clock = TickClock(hz, time.monotonic())
-        latch = CommandLatch(self.robots, clock.t0)
+        start = time.monotonic()
+        clock = TickClock(hz, start)  # its t0 moves on an overrun; ``start`` stays
+        latch = CommandLatch(self.robots, start)
         while True:
             self._publish(readings)
             now = time.monotonic()
             assert self.pub_clock is not None
             self.pub_clock.put(WorldClock(
-                src="world", tick=w.tick, seq=self.next_seq(), hz=hz, elapsed=round(now - clock.t0, 6),
+                src="world", tick=w.tick, seq=self.next_seq(), hz=hz, elapsed=round(now - start, 6),
                 overruns=clock.overruns, late=dict(latch.late), missed=dict(latch.missed)).encode())
             if w.done:
                 return
