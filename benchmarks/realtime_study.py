@@ -22,7 +22,8 @@ One row per map, robot count and allocator (stdout):
 - ``t99``: the first tick at 99 % coverage (``-`` when the run ended without it), and ``t99 s`` the same in wall
   seconds at HZ; ``ticks`` and ``reason``: where and why the run ended; ``cov``: the final coverage;
 - ``tps``: ticks per second the world achieved, and ``ovr`` its overruns (ticks it started late);
-- ``late``: late commands per robot (mean over the robots), ``miss``: ticks without any command, per robot;
+- ``late``: late decisions per robot (mean over the robots; applied a tick late), ``lstep``: late steps along
+  the last plan (the robot's process itself slow to answer), ``miss``: ticks without any command, per robot;
   ``dec``: decisions per robot, ``plan``: ticks a robot stepped along its last plan while deciding, per robot;
 - decision wall time in ms (the brain's whole step in the robot's worker thread): ``p50`` and ``p90`` the median
   over the robots of each robot's percentile, ``p99`` and ``max`` the largest over the robots.
@@ -109,7 +110,8 @@ def run_one(scenario: Any, hz: float) -> dict[str, Any]:
     return {
         "t99": res["t99"], "t99s": res["t99"] / hz if res["t99"] is not None else None, "ticks": res["ticks"],
         "reason": res["reason"], "cov": res["coverage"], "tps": rt.get("ticks_per_second") or 0.0,
-        "ovr": rt.get("world_overruns", 0), "late": mean("late_commands"), "miss": mean("missed_ticks"),
+        "ovr": rt.get("world_overruns", 0), "late": mean("late_commands"),
+        "lstep": mean("late_steps"), "miss": mean("missed_ticks"),
         "dec": mean("decisions"), "plan": mean("plan_steps"),
         "p50": statistics.median(r["decision_ms"]["p50"] for r in robots),
         "p90": statistics.median(r["decision_ms"]["p90"] for r in robots),
@@ -120,9 +122,10 @@ def run_one(scenario: Any, hz: float) -> dict[str, Any]:
 
 COLUMNS = [("map", 8, "s"), ("cells", 9, "s"), ("robots", 6, "d"), ("allocator", 10, "s"), ("t99", 5, "s"),
            ("t99 s", 6, "s"), ("ticks", 5, "d"), ("reason", 9, "s"), ("cov", 5, ".3f"), ("tps", 5, ".2f"),
-           ("ovr", 4, "d"), ("late", 6, ".1f"), ("miss", 5, ".1f"), ("dec", 6, ".1f"), ("plan", 6, ".1f"),
+           ("ovr", 4, "d"), ("late", 6, ".1f"), ("lstep", 6, ".1f"), ("miss", 5, ".1f"), ("dec", 6, ".1f"),
+           ("plan", 6, ".1f"),
            ("p50", 7, ".1f"), ("p90", 7, ".1f"), ("p99", 7, ".1f"), ("max", 7, ".1f"), ("load1", 5, ".2f")]
-KEYS = ["map", "cells", "robots", "allocator", "t99", "t99s", "ticks", "reason", "cov", "tps", "ovr", "late",
+KEYS = ["map", "cells", "robots", "allocator", "t99", "t99s", "ticks", "reason", "cov", "tps", "ovr", "late", "lstep",
         "miss", "dec", "plan", "p50", "p90", "p99", "max", "load1"]
 
 

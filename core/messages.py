@@ -300,8 +300,9 @@ class BeliefSnapshot(Message):
 @dataclasses.dataclass(frozen=True)
 class WorldClock(Message):
     """The world's wall clock at ``tick`` (world/clock), published with every state of a real-time run and never
-    in lockstep. Counters are cumulative: ``late`` per robot the commands that arrived after the tick they were
-    stamped for had ended (each applied at the next tick), ``missed`` per robot the ticks in which no command at
+    in lockstep. Counters are cumulative: ``late`` per robot the decisions whose command arrived after the tick
+    it was stamped for had ended (each applied at the next tick), ``late_steps`` the same for the steps along
+    the last plan (status ``STALE``), ``missed`` per robot the ticks in which no command at
     all came from it (it stood still), ``overruns`` the ticks the world itself started after their scheduled
     time, ``elapsed`` the seconds since tick 0 was scheduled."""
 
@@ -310,6 +311,7 @@ class WorldClock(Message):
     elapsed: float
     overruns: int
     late: dict[str, int]
+    late_steps: dict[str, int]
     missed: dict[str, int]
 
 

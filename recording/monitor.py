@@ -171,15 +171,17 @@ class Monitor:
 
     def realtime(self) -> dict[str, Any]:
         """A real-time run's keys (none in lockstep, which publishes no clock): ``realtime_hz``, and under
-        ``realtime`` the world's ``overruns``, its achieved rate, and per robot its ``late_commands`` (applied a
-        tick late), ``missed_ticks`` (no command at all: it stood), ``decisions``, ``plan_steps``, ``waits`` and
-        its decision-time percentiles (``decision_ms``: the whole step in its worker thread; ``allocator_ms``)."""
+        ``realtime`` the world's ``overruns``, its achieved rate, and per robot its ``late_commands``
+        (decisions applied a tick late), ``late_steps`` (steps along the last plan that came late),
+        ``missed_ticks`` (no command at all: it stood), ``decisions``, ``plan_steps``, ``waits`` and its
+        decision-time percentiles (``decision_ms``: the whole step in its worker thread; ``allocator_ms``)."""
         ck = self.clock
         assert ck is not None
         robots = {}
         for r in self.robots:
             tm = self.timing.get(r)
-            robots[r] = {"late_commands": ck.late.get(r, 0), "missed_ticks": ck.missed.get(r, 0)} | (
+            robots[r] = {"late_commands": ck.late.get(r, 0), "late_steps": ck.late_steps.get(r, 0),
+                         "missed_ticks": ck.missed.get(r, 0)} | (
                 {"decisions": tm.decisions, "plan_steps": tm.plan_steps, "waits": tm.waits,
                  "decision_ms": tm.decision_ms, "allocator_ms": tm.allocator_ms} if tm is not None else
                 {"decisions": None, "plan_steps": None, "waits": None, "decision_ms": None, "allocator_ms": None})

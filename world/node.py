@@ -24,7 +24,7 @@ from fleet_emu.core.codec import Context
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import Keys, robot_ids
-from fleet_emu.core.messages import Command, Failed, Hello, Observation, Ready, Stop, WorldClock, WorldState
+from fleet_emu.core.messages import STALE, Command, Failed, Hello, Observation, Ready, Stop, WorldClock, WorldState
 from fleet_emu.core.node import NodeBase, node_main, undeclare
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
@@ -192,7 +192,8 @@ class WorldNode(NodeBase):
             assert self.pub_clock is not None
             self.pub_clock.put(WorldClock(
                 src="world", tick=w.tick, seq=self.next_seq(), hz=hz, elapsed=round(now - start, 6),
-                overruns=clock.overruns, late=dict(latch.late), missed=dict(latch.missed)).encode())
+                overruns=clock.overruns, late=dict(latch.late), late_steps=dict(latch.late_steps),
+                missed=dict(latch.missed)).encode())
             if w.done:
                 return
             deadline = clock.deadline(w.tick, now)
@@ -223,7 +224,7 @@ class WorldNode(NodeBase):
                 continue
             cmd = self.decode(key, data, Command, self.ctx)
             if cmd is not None and parsed.node in self.world.live \
-                    and not latch.receive(parsed.node, cmd.tick, cmd.move, t, time.monotonic()):
+                    and not latch.receive(parsed.node, cmd.tick, cmd.move, t, time.monotonic(), cmd.status != STALE):
                 self.drop(key, f"command stamped for tick {cmd.tick}, not yet published (now {t})")
 
     async def _barrier(self, inbox: Inbox) -> dict[str, tuple[int, int]]:

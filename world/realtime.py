@@ -8,8 +8,10 @@ every time is passed in, so these are unit-tested without a clock.
   now. The lost time is not caught up with back-to-back ticks, which would leave the robots no time at all.
 - :class:`CommandLatch`. Between two ticks the world keeps, per robot, the last command received (in arrival
   order, whatever tick it is stamped with). A command stamped for an earlier tick than the one the world is
-  collecting for arrived after its tick ended: it is *late*, counted per robot, and applied at the next tick
-  like any other (unless the same robot sends another before that tick). A robot from which nothing came
+  collecting for arrived after its tick ended: it is *late*, and applied at the next tick like any other
+  (unless the same robot sends another before that tick). Late commands are counted per robot in two kinds:
+  decisions (``late``) and the steps along its last plan a robot sends while it decides (``late_steps``, status
+  ``STALE``: late when the robot's process itself is slow to answer). A robot from which nothing came
   between two ticks stands still that tick (*missed*, counted). A command stamped for a tick the world has
   not published yet cannot be genuine and is refused.
 """
@@ -49,17 +51,19 @@ class CommandLatch:
 
     def __init__(self, robots: list[str], now: float) -> None:
         self.late = {r: 0 for r in robots}
+        self.late_steps = {r: 0 for r in robots}
         self.missed = {r: 0 for r in robots}
         self.heard = {r: now for r in robots}
         self._moves: dict[str, Cell] = {}
 
-    def receive(self, robot: str, stamped: int, move: Cell, tick: int, now: float) -> bool:
-        """A command of ``robot`` stamped for tick ``stamped``, received at ``now`` while the world collects
-        for ``tick``; False (refused) when it is stamped for a tick not yet published."""
+    def receive(self, robot: str, stamped: int, move: Cell, tick: int, now: float, decided: bool = True) -> bool:
+        """A command of ``robot`` stamped for tick ``stamped`` (``decided``: a decision's, not a step along the
+        last plan), received at ``now`` while the world collects for ``tick``; False (refused) when it is
+        stamped for a tick not yet published."""
         if stamped > tick:
             return False
         if stamped < tick:
-            self.late[robot] += 1
+            (self.late if decided else self.late_steps)[robot] += 1
         self._moves[robot] = move
         self.heard[robot] = now
         return True

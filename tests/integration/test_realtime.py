@@ -40,7 +40,7 @@ def test_a_real_time_run_writes_the_real_time_keys(small_map: Path, tmp_path: Pa
         assert row["decisions"] >= 1, r
         # at most one decision, and one step along the last plan (or a stay), per observation
         assert row["decisions"] <= res["ticks"] + 1 and row["plan_steps"] + row["waits"] <= res["ticks"] + 1, row
-        assert row["late_commands"] >= 0 and row["missed_ticks"] >= 0
+        assert row["late_commands"] >= 0 and row["late_steps"] >= 0 and row["missed_ticks"] >= 0
         assert set(row["decision_ms"]) == PERCENTILE_KEYS and set(row["allocator_ms"]) == PERCENTILE_KEYS
         assert row["decision_ms"]["p50"] <= row["decision_ms"]["p90"] <= row["decision_ms"]["max"]
     assert rt["late_commands"] == sum(row["late_commands"] for row in rt["robots"].values())

@@ -32,8 +32,10 @@ def test_the_last_command_received_is_applied_and_late_ones_are_counted() -> Non
     assert latch.receive("r1", 6, DOWN, tick=7, now=1.0)  # decided on tick 6's observation: late
     assert latch.receive("r1", 7, STAY, tick=7, now=1.01) is True  # then on time: the last one received wins
     assert latch.receive("r2", 5, DOWN, tick=7, now=1.02)  # late, and the only one: applied now
-    assert latch.take(["r0", "r1", "r2"]) == {"r0": UP, "r1": STAY, "r2": DOWN}
+    assert latch.receive("r0", 6, DOWN, tick=7, now=1.03, decided=False)  # a late step along the last plan
+    assert latch.take(["r0", "r1", "r2"]) == {"r0": DOWN, "r1": STAY, "r2": DOWN}
     assert latch.late == {"r0": 0, "r1": 1, "r2": 1}
+    assert latch.late_steps == {"r0": 1, "r1": 0, "r2": 0}
     assert latch.missed == {"r0": 0, "r1": 0, "r2": 0}
 
 
