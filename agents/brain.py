@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import operator
+import threading
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -65,6 +66,22 @@ class Teammate:
         return self.cell if nxt == mine else nxt
 
 
+@dataclasses.dataclass(frozen=True)
+class Plan:
+    """What a decision leaves for the ticks after it (real-time mode, :mod:`agents.realtime`): the wavefront
+    of the target cluster (``dist``, None when nothing was assigned), the target and status, and the cells
+    navigation kept clear of (teammates standing still, as of the decision)."""
+
+    dist: np.ndarray | None
+    target: Cell | None
+    status: str
+    blocked: frozenset[Cell] = frozenset()
+
+    def step(self, cell: Cell) -> Cell:
+        """The next step along the plan from ``cell`` (stay when at the target, or off the plan's wavefront)."""
+        return STAY if self.dist is None else next_move(self.dist, cell, self.blocked)
+
+
 def brain_config(scenario: Scenario) -> BrainConfig:
     return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)))
 
@@ -104,11 +121,25 @@ class Brain:
         self.decision_cpu_ms = 0.0  # this thread's CPU in the allocator, summed over decisions (issue 11)
         self.step_cpu_ms = 0.0  # and in the whole of step (decision, belief, clusters, radio decode, navigation)
         self.ctx: Context | None = None
+        self.plan: Plan | None = None  # what the last step decided, for the ticks until the next decision
+        self._seq_lock = threading.Lock()  # real-time mode draws from the counter in two threads
 
     def next_seq(self) -> int:
         """The robot's one sequence counter: envelopes, commands, bundles and reports all draw from it."""
-        self.seq += 1
-        return self.seq
+        with self._seq_lock:
+            self.seq += 1
+            return self.seq
+
+    def _belief(self, obs: Observation) -> Belief:
+        if self.belief is None:
+            self.belief = Belief(obs.shape)
+            self.ctx = Context(senders=self.team, shape=obs.shape)
+        return self.belief
+
+    def absorb(self, obs: Observation) -> None:
+        """Merge what the sensor saw at a tick the robot made no decision for (real-time mode: it came while a
+        decision ran); it goes out as map news with the next step's."""
+        self._belief(obs).merge(obs.cells, obs.values)
 
     def open(self, inbox: Sequence[Envelope]) -> list[RadioMsg]:
         """Decode what the radio delivered, checked against the grid and the team; a message that does not
@@ -127,10 +158,7 @@ class Brain:
         """Decide the move for ``obs.tick`` and the radio messages to send."""
         t = obs.tick
         c0 = time.thread_time()
-        if self.belief is None:
-            self.belief = Belief(obs.shape)
-            self.ctx = Context(senders=self.team, shape=obs.shape)
-        belief = self.belief
+        belief = self._belief(obs)
         belief.merge(obs.cells, obs.values)
         outbox: list[RadioMsg] = []
         protocol: list[RadioMsg] = []
@@ -156,12 +184,14 @@ class Brain:
         self.last_target = alloc.target
         move = STAY
         wants = False  # the robot wants to move but a teammate stands on every way down the wavefront
+        dist, blocked = None, set()
         if alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None:
             blocked = {expected[r] for r, tm in self.teammates.items()
                        if tm.heard >= t - 1 and expected[r] == tm.cell}
             dist = problem.wavefronts[alloc.cluster]
             move = next_move(dist, obs.cell, blocked)
             wants = move == STAY and dist[obs.cell] > 0
+        self.plan = Plan(dist, alloc.target, alloc.status.name, frozenset(blocked))
         move = self._unstick(obs.cell, move, wants, belief.grid, set(expected.values()))
         outbox.extend(alloc.outbox)
         news = [RadioMsg(PoseBeacon(cell=obs.cell, next=(obs.cell[0] + move[0], obs.cell[1] + move[1])))]

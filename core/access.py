@@ -11,9 +11,9 @@
 The keys each node writes (README "Key expressions"):
 
 =========  ===================================================================================
-world      ``world/**`` (state, obs), ``ctl/hello``, ``ctl/stop``, ``ctl/ready/world``
+world      ``world/**`` (state, obs, clock), ``ctl/hello``, ``ctl/stop``, ``ctl/ready/world``
 netem      ``radio/rx/*``, ``netem/links``, ``ctl/ready/netem``
-robot rK   ``robot/rK/**`` (cmd, belief), ``radio/tx/rK``, ``ctl/report/rK``, ``ctl/ready/rK``
+robot rK   ``robot/rK/**`` (cmd, belief, timing), ``radio/tx/rK``, ``ctl/report/rK``, ``ctl/ready/rK``
 launcher   ``ctl/stop``, ``ctl/failed/*``, ``ctl/ready/launcher``
 recorder   nothing (it subscribes to ``fleet/<run>/**``)
 host K     nothing in the run (it reads the run's keys, e.g. the launcher's liveliness token)
@@ -68,7 +68,7 @@ def writes(node: str) -> list[str]:
 def allowed_src(parsed: ParsedKey) -> frozenset[str] | None:
     """The senders whose messages a key may carry (None: not a message key, e.g. a liveliness token)."""
     match parsed.channel:
-        case "obs" | "state" | "hello":
+        case "obs" | "state" | "clock" | "hello":
             return frozenset({WORLD})
         case "stop":
             return frozenset({WORLD, LAUNCHER})
@@ -76,7 +76,7 @@ def allowed_src(parsed: ParsedKey) -> frozenset[str] | None:
             return frozenset({NETEM})
         case "failed":
             return frozenset({LAUNCHER})
-        case "cmd" | "belief" | "tx" | "report" | "ready":
+        case "cmd" | "belief" | "timing" | "tx" | "report" | "ready":
             return frozenset({parsed.node}) if parsed.node else frozenset()
     return None
 

@@ -12,7 +12,8 @@ HOST_ROOT = "fleet-host"  # the hosts' lobby: outside ``fleet/<run>/**``, so nev
 @dataclasses.dataclass(frozen=True)
 class ParsedKey:
     """What a key of a run names: its ``channel`` (``obs``, ``state``, ``cmd``, ``belief``, ``tx``, ``rx``,
-    ``links``, ``hello``, ``ready``, ``stop``, ``failed``, ``report``, ``alive``), the robot or node id in it,
+    ``links``, ``hello``, ``ready``, ``stop``, ``failed``, ``report``, ``alive``, and in real-time runs
+    ``clock`` and ``timing``), the robot or node id in it,
     and for liveliness tokens the role."""
 
     channel: str
@@ -38,6 +39,7 @@ class Keys:
         self.run = run
         self.all = key(run, "**")
         self.state = key(run, "world", "state")
+        self.clock = key(run, "world", "clock")
         self.links = key(run, "netem", "links")
         self.hello = key(run, "ctl", "hello")
         self.ready_all = key(run, "ctl", "ready", "*")
@@ -51,6 +53,9 @@ class Keys:
 
     def belief(self, robot: str) -> str:
         return key(self.run, "robot", robot, "belief")
+
+    def timing(self, robot: str) -> str:
+        return key(self.run, "robot", robot, "timing")
 
     def tx(self, robot: str) -> str:
         return key(self.run, "radio", "tx", robot)
@@ -89,9 +94,9 @@ def parse_key(key_expr: object) -> tuple[str, ParsedKey] | None:
     match parts[2:]:
         case ["world", "obs", robot]:
             parsed = ParsedKey("obs", robot)
-        case ["world", "state"] | ["netem", "links"] | ["ctl", "hello"] | ["ctl", "stop"]:
+        case ["world", ("state" | "clock")] | ["netem", "links"] | ["ctl", "hello"] | ["ctl", "stop"]:
             parsed = ParsedKey(parts[-1])
-        case ["robot", robot, ("cmd" | "belief") as channel]:
+        case ["robot", robot, ("cmd" | "belief" | "timing") as channel]:
             parsed = ParsedKey(channel, robot)
         case ["radio", ("tx" | "rx") as channel, robot]:
             parsed = ParsedKey(channel, robot)

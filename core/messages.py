@@ -23,7 +23,7 @@ __all__ = [
     "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope",
     "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Failed",
     "Stop",
-    "AgentReport", "BeliefSnapshot", "HostAssign", "HostStatus",
+    "AgentReport", "BeliefSnapshot", "HostAssign", "HostStatus", "WorldClock", "AgentTiming", "STALE",
 ]
 
 VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
@@ -94,6 +94,11 @@ class WorldState(Message):
 
 
 # --- agent -> world -----------------------------------------------------------------------------------
+
+#: The status of a command a robot sends in real-time mode without a decision: a step along its last plan, or a
+#: stay while it has none (``agents/realtime.py``); never sent in lockstep.
+STALE = "STALE"
+
 
 @dataclasses.dataclass(frozen=True)
 class Command(Message):
@@ -348,3 +353,39 @@ class HostStatus(Message):
         super().validate(ctx)
         if self.event not in HOST_EVENTS:
             raise DecodeError(f"host_status: unknown event {self.event!r}")
+
+
+# --- real-time mode only (``fleet run --realtime HZ``) ---------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class WorldClock(Message):
+    """The world's wall clock at ``tick`` (world/clock), published with every state of a real-time run and never
+    in lockstep. Counters are cumulative: ``late`` per robot the decisions whose command arrived after the tick
+    it was stamped for had ended (each applied at the next tick), ``late_steps`` the same for the steps along
+    the last plan (status ``STALE``), ``missed`` per robot the ticks in which no command at
+    all came from it (it stood still), ``overruns`` the ticks the world itself started after their scheduled
+    time, ``elapsed`` the seconds since tick 0 was scheduled."""
+
+    KIND = "clock"
+    hz: float
+    elapsed: float
+    overruns: int
+    late: dict[str, int]
+    late_steps: dict[str, int]
+    missed: dict[str, int]
+
+
+@dataclasses.dataclass(frozen=True)
+class AgentTiming(Message):
+    """A robot's real-time summary when it stops (robot/<robot>/timing), sent just before its report and never
+    in lockstep: ``decisions`` made, ``plan_steps`` (ticks it stepped along its last plan while a decision
+    ran), ``waits`` (ticks a decision ran and it had no plan yet: it stood still), and percentiles of the wall
+    time of a whole decision (``decision_ms``: the brain's step in its worker thread) and of the allocator
+    alone (``allocator_ms``), each with keys p50, p90, p99, max and mean."""
+
+    KIND = "timing"
+    decisions: int
+    plan_steps: int
+    waits: int
+    decision_ms: dict[str, float]
+    allocator_ms: dict[str, float]

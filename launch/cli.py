@@ -43,6 +43,16 @@ def _start(text: str) -> tuple[int, int] | str:
     return (row, col)
 
 
+def _hz(text: str) -> float:
+    try:
+        hz = float(text)
+    except ValueError:
+        hz = float("nan")
+    if not 0 < hz <= 1000:  # NaN fails too
+        raise argparse.ArgumentTypeError(f"expected ticks per second, a number > 0 and <= 1000, got {text!r}")
+    return hz
+
+
 def build_parser() -> argparse.ArgumentParser:
     from fleet_emu.core.radio import COMM_MODELS
 
@@ -68,6 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="processes: one OS process per node over Zenoh; memory: the same objects stepped in this "
                         "process, no Zenoh (same result for a seed)")
     r.add_argument("--in-process", action="store_true", help="all nodes in this process (one session each)")
+    r.add_argument("--realtime", type=_hz, metavar="HZ",
+                   help="real time: the world ticks HZ times a second on the wall clock, whether or not every robot "
+                        "has answered (not deterministic; default: lockstep)")
     r.add_argument("--fork-server", action=argparse.BooleanOptionalAction, default=None,
                    help="fork the robot processes from one fork server that loaded the agent code once (default: "
                         "on, unless FLEET_FORK_SERVER=0); --no-fork-server starts each robot afresh")
@@ -144,6 +157,8 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     out = args.out or Path("runs") / run_id
     if args.grid_every is not None and args.grid_every < 1:
         raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
+    if args.engine == "memory" and args.realtime is not None:
+        raise ConfigError("--realtime needs the processes engine: --engine memory is lockstep only")
     memory_flags = (("--in-process", args.in_process), ("--connect", args.connect), ("--hosts", args.hosts),
                     ("--listen", args.listen), ("--[no-]fork-server", args.fork_server is not None))
     if args.engine == "memory" and any(v for _, v in memory_flags):
@@ -163,7 +178,7 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
                               connect=args.connect, run_id=run_id, grid_every=args.grid_every,
                               on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
                               interrupts=interrupts, on_warning=_warn, fork_server=args.fork_server,
-                              hosts=args.hosts, listen=args.listen,
+                              hosts=args.hosts, listen=args.listen, realtime_hz=args.realtime,
                               **({"host_timeout": args.host_timeout} if args.host_timeout is not None else {}))
             result = run_fleet(scenario, opts)
     if interrupts.signum is not None:

@@ -96,15 +96,16 @@ def check_hosts(hosts: int, in_process: bool, connect: str | None, listen: str |
         raise ConfigError("--listen is the embedded router's: it takes no --connect")
 
 
-def agent_argv(robot: str, run_id: str, endpoint: str, scenario_file: Path, auth: bool) -> list[str]:
+def agent_argv(robot: str, run_id: str, endpoint: str, scenario_file: Path, auth: bool,
+               realtime_hz: float | None = None) -> list[str]:
     """The command line of robot ``robot`` (``python -m fleet_emu.agents ARGV``), here or on a host."""
     return ["--robot", robot, "--run", run_id, "--connect", endpoint, "--scenario", str(scenario_file),
-            *(["--auth-stdin"] if auth else [])]
+            *(["--realtime", repr(float(realtime_hz))] if realtime_hz else []), *(["--auth-stdin"] if auth else [])]
 
 
 def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str, work: Path,
                 creds: dict[str, Credential] | None, remote: Hosts | None = None,
-                requested: threading.Event | None = None) -> dict[str, list[str]]:
+                requested: threading.Event | None = None, realtime_hz: float | None = None) -> dict[str, list[str]]:
     """world, netem and one process per robot, each with its own credential on standard input; with
     ``remote``, first wait for its hosts and start their robots there. The hosts and their robots."""
     robots = robot_ids(scenario.robots)
@@ -113,6 +114,7 @@ def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str,
         raise KeyboardInterrupt
     where = placement(robots, hosts)
     common = ["--run", run_id, "--connect", endpoint, "--scenario", str(work / "scenario.json")]
+    common += ["--realtime", repr(float(realtime_hz))] if realtime_hz else []
     auth = ["--auth-stdin"] if creds else []
     truth = ["--map-file", str(work / "map.npz")]
 
@@ -123,8 +125,8 @@ def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str,
     sup.spawn("netem", "fleet_emu.netem", [*common, *truth, *auth], secret("netem"))
     for r in robots:
         if where[r] is None:
-            sup.spawn(r, "fleet_emu.agents", agent_argv(r, run_id, endpoint, work / "scenario.json", bool(creds)),
-                      secret(r))
+            sup.spawn(r, "fleet_emu.agents", agent_argv(r, run_id, endpoint, work / "scenario.json", bool(creds),
+                                                        realtime_hz), secret(r))
     plan = {h: [r for r in robots if where[r] == h] for h in hosts}
     if remote is not None:
         secrets = {r: json.dumps({"user": creds[r].user, "password": creds[r].password}) for r in robots} \

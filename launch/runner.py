@@ -53,6 +53,7 @@ from fleet_emu.world.node import build_world
 
 STOP_GRACE = 5.0
 CONNECT_TIMEOUT = 5.0  # seconds ``--connect`` keeps trying an external router before giving up
+MAX_HZ = 1000.0  # the fastest real-time rate accepted
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,6 +79,7 @@ class RunOptions:
     hosts: int = 0  # robots dealt between this machine and this many `fleet host`s (``launch/hosts.py``)
     listen: str | None = None  # the embedded router's endpoint (default: loopback, a port the OS picks)
     host_timeout: float = HOST_TIMEOUT  # seconds to wait for the hosts
+    realtime_hz: float | None = None  # real time: the world ticks at this rate on the wall clock (None: lockstep)
 
 
 def new_run_id() -> str:
@@ -116,13 +118,19 @@ def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] |
 
 
 def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None) -> None:
-    """The run's options that can be wrong before anything starts: the run id, the TLS CA file, and
+    """The run's options that can be wrong before anything starts: the run id, the real-time rate, the TLS CA
+    file, and
     ``connect`` (its syntax, and a router answering there within :data:`CONNECT_TIMEOUT` and accepting the
     launcher's credential)."""
     if opts.run_id and not RUN_ID.fullmatch(opts.run_id):
         raise ConfigError(f"--run-id must be letters, digits, '_', '-' or '.' (not first), at most 100 "
                           f"(got {opts.run_id!r})")
     check_hosts(opts.hosts, opts.in_process, opts.connect, opts.listen)
+    if opts.hosts and opts.realtime_hz is not None:
+        raise ConfigError("--realtime runs every robot on this machine today: it takes no --hosts")
+    hz = opts.realtime_hz
+    if hz is not None and (isinstance(hz, bool) or not isinstance(hz, int | float) or not 0 < hz <= MAX_HZ):
+        raise ConfigError(f"--realtime must be a number of ticks per second > 0 and <= {MAX_HZ:g} (got {hz!r})")
     if opts.tls_ca is not None and not opts.tls_ca.is_file():
         raise ConfigError(f"--tls-ca {opts.tls_ca}: no such file")
     if opts.connect is None:
@@ -201,6 +209,8 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     monitor = Monitor(robots)
     engine = "in-process" if opts.in_process else "processes"
     meta = {"run_id": run_id, "scenario": scenario.to_dict(), "engine": engine}
+    if opts.realtime_hz:
+        meta["realtime_hz"] = opts.realtime_hz
     recorder = Recorder(recording, meta) if recording is not None else None
     viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id), keys) \
         if recorder else None
@@ -241,10 +251,11 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
             if requested.is_set():
                 pass  # interrupted while starting: nothing more is started
             elif opts.in_process:
-                nodes_thread = _start_in_process(scenario, map_data, run_id, endpoint, creds)
+                nodes_thread = _start_in_process(scenario, map_data, run_id, endpoint, creds, opts.realtime_hz)
                 pids = {"world": os.getpid(), "netem": os.getpid(), "agents": [os.getpid()] * len(robots)}
             else:
-                plan = spawn_nodes(sup, scenario, run_id, endpoint, work, creds, remote, requested)
+                plan = spawn_nodes(sup, scenario, run_id, endpoint, work, creds, remote, requested,
+                                   opts.realtime_hz)
                 p = sup.pids()
                 pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
                 pids |= ({"fork_server": p["fork_server"]} if "fork_server" in p else {}) | \
@@ -279,6 +290,8 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         viz.finish()
     messages = recorder.close() if recorder else 0
     data = monitor.result(scenario.to_dict(), run_id, scenario.target_coverage)
+    if opts.realtime_hz:
+        data.setdefault("realtime_hz", opts.realtime_hz)  # also when stopped before tick 0
     if interrupted:
         data["reason"] = "interrupted"
         data.pop("error", None)
@@ -393,14 +406,15 @@ def _open_router(run_id: str, creds: dict[str, Credential] | None, listen: str) 
 
 
 def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoint: str,
-                      creds: dict[str, Credential] | None) -> threading.Thread:
+                      creds: dict[str, Credential] | None, realtime_hz: float | None = None) -> threading.Thread:
     """Every node in this process, each with its own Zenoh session (and its own login) to the same router."""
     from fleet_emu.agents.node import AgentNode
     from fleet_emu.netem.node import NetemNode
     from fleet_emu.world.node import WorldNode
 
-    nodes = [WorldNode(scenario, run_id, map_data), NetemNode(scenario, run_id, map_data)]
-    nodes += [AgentNode(scenario, run_id, r) for r in robot_ids(scenario.robots)]
+    nodes = [WorldNode(scenario, run_id, map_data, realtime_hz=realtime_hz),
+             NetemNode(scenario, run_id, map_data, realtime_hz=realtime_hz)]
+    nodes += [AgentNode(scenario, run_id, r, realtime_hz=realtime_hz) for r in robot_ids(scenario.robots)]
 
     async def main() -> None:
         with contextlib.ExitStack() as stack:
