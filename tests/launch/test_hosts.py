@@ -120,3 +120,13 @@ def test_a_spawn_request_whose_credential_is_not_its_robots_is_dropped() -> None
                          secrets={"r1": secret})
         with pytest.raises(DecodeError):
             decode(bad.encode())
+
+
+def test_realtime_with_hosts_is_refused_and_local_robots_get_the_rate() -> None:
+    from fleet_emu.launch.runner import RunOptions, check_options
+
+    with pytest.raises(ConfigError, match="--realtime runs every robot on this machine today: it takes no --hosts"):
+        check_options(RunOptions(hosts=1, listen="tcp/127.0.0.1:7447", realtime_hz=10.0))
+    argv = agent_argv("r0", "run1", "tcp/127.0.0.1:7447", Path("s.json"), True, 10.0)
+    assert argv[argv.index("--realtime") + 1] == "10.0" and "--realtime" not in agent_argv(
+        "r0", "run1", "tcp/127.0.0.1:7447", Path("s.json"), True)
