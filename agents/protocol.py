@@ -1,10 +1,15 @@
 """The brain's own radio protocol: pose beacons and map deltas (DESIGN.md "What it is": a robot knows only what
-its sensor and its radio tell it). Each is a :class:`~fleet_emu.core.codec.Payload`, sealed in an envelope by
-the brain; netem never decodes them."""
+its sensor and its radio tell it), and the map recovery's request and fill (``agents/mapsync.py``). Each is a
+:class:`~fleet_emu.core.codec.Payload`, sealed in an envelope by the brain; netem never decodes them.
+
+The recovery's numbers (``PoseBeacon.maps``, ``MapDelta.n``) are optional and left out of the encoding when
+absent, so that a fleet without map sync (an ideal radio) sends exactly the bytes it sent before they existed."""
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
+from typing import Any
 
 import numpy as np
 
@@ -13,6 +18,22 @@ from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
 from fleet_emu.core.messages import check_cell, check_cells
 
+#: At most this many delta numbers in a request or a fill (a receiver missing more asks for the whole map).
+MAX_SEQS = 64
+
+
+def _without_none(obj: dict[str, Any], *names: str) -> dict[str, Any]:
+    """The encoded fields without the optional ``names`` that are None (absent, not nil, on the radio)."""
+    return {k: v for k, v in obj.items() if not (k in names and v is None)}
+
+
+def check_seqs(seqs: tuple[int, ...], what: str) -> None:
+    """Delta numbers: at most :data:`MAX_SEQS`, each >= 1, strictly ascending."""
+    if len(seqs) > MAX_SEQS:
+        raise DecodeError(f"{what}: more than {MAX_SEQS} delta numbers")
+    if any(s < 1 for s in seqs) or any(b <= a for a, b in itertools.pairwise(seqs)):
+        raise DecodeError(f"{what}: delta numbers must be >= 1 and strictly ascending")
+
 
 @dataclasses.dataclass(frozen=True)
 class PoseBeacon(Payload):
@@ -20,11 +41,17 @@ class PoseBeacon(Payload):
     the cell its command of that same tick moves it to (``cell`` when it stays). The beacon arrives a tick
     later, when the robot has made that move, so ``next`` is where a teammate should expect it (MinPos
     section 4.3 compares every robot's cost at the moment of the decision). ``next`` is absent (None) in a
-    schema-2 recording made before it existed: the teammate is then expected at ``cell``."""
+    schema-2 recording made before it existed: the teammate is then expected at ``cell``. ``maps``, with map
+    sync on, is the number of map deltas the robot has broadcast so far, that of this tick included (a
+    receiver that has fewer asks for the missing ones); absent without map sync."""
 
     KIND = "pose"
     cell: Cell
     next: Cell | None = None
+    maps: int | None = None
+
+    def fields_obj(self) -> dict[str, Any]:
+        return _without_none(super().fields_obj(), "maps")
 
     @property
     def expected(self) -> Cell:
@@ -37,16 +64,57 @@ class PoseBeacon(Payload):
             check_cell(self.next, ctx.shape if ctx else None, "pose")
             if abs(self.next[0] - self.cell[0]) + abs(self.next[1] - self.cell[1]) > 1:
                 raise DecodeError(f"pose: next cell {self.next} is not one step from {self.cell}")
+        if self.maps is not None and self.maps < 0:
+            raise DecodeError("pose: negative map delta count")
 
 
 @dataclasses.dataclass(frozen=True)
 class MapDelta(Payload):
-    """Cells a robot learned (flat indices and their values): the news of one tick, or its whole known map for
-    a teammate heard again after a silence."""
+    """Cells a robot learned (flat indices and their values): the news of one tick, or (without map sync) its
+    whole known map for a teammate heard again after a silence. ``n``, with map sync on, numbers the robot's
+    broadcast deltas 1, 2, ...; absent without map sync."""
 
     KIND = "map"
     cells: np.ndarray
     values: np.ndarray
+    n: int | None = None
+
+    def fields_obj(self) -> dict[str, Any]:
+        return _without_none(super().fields_obj(), "n")
 
     def validate(self, ctx: Context | None) -> None:
         check_cells(self.cells, self.values, ctx.shape if ctx else None, "map")
+        if self.n is not None and self.n < 1:
+            raise DecodeError("map: delta number must be >= 1")
+
+
+@dataclasses.dataclass(frozen=True)
+class MapRequest(Payload):
+    """Map sync: a robot asks the teammate it is addressed to for the broadcast deltas numbered ``seqs`` that
+    it missed; ``seqs`` empty asks for the whole known map (more than :data:`MAX_SEQS` missing)."""
+
+    KIND = "mapreq"
+    seqs: tuple[int, ...]
+
+    def validate(self, ctx: Context | None) -> None:
+        check_seqs(self.seqs, "mapreq")
+
+
+@dataclasses.dataclass(frozen=True)
+class MapFill(Payload):
+    """Map sync: the answer to a :class:`MapRequest`, addressed to the requester, or the whole map pushed to a
+    teammate heard for the first time or again after a silence. ``cells``/``values``: the cells of the deltas
+    ``seqs`` with their values now, or the whole known map; it stands for the deltas ``seqs`` and for every
+    delta numbered up to ``upto`` (0: none; a whole map has ``upto`` = the deltas sent so far)."""
+
+    KIND = "mapfill"
+    cells: np.ndarray
+    values: np.ndarray
+    seqs: tuple[int, ...] = ()
+    upto: int = 0
+
+    def validate(self, ctx: Context | None) -> None:
+        check_cells(self.cells, self.values, ctx.shape if ctx else None, "mapfill")
+        check_seqs(self.seqs, "mapfill")
+        if self.upto < 0:
+            raise DecodeError("mapfill: negative upto")

@@ -1,0 +1,167 @@
+"""Map sync: map deltas lost on the radio are recovered while robots stay in contact.
+
+Both papers whose allocators assume a common map take map sharing for granted: MinPos (Bautin et al. 2012,
+section 4.3: coordination "is achieved only by cooperatively building the map and by sharing robots
+locations"; section 2 assumes a WiFi network covering the whole area) and the trade-based exploration (Yan et
+al. 2011, section 3: "all robots share a joint occupancy grid map"; section 4.3). Neither says how a map
+survives a lossy radio; the emulator's robots share maps only over it. The brain broadcasts, each
+tick, a delta of the cells it newly learned; one delta lost on a link (the radio's loss, or a link that broke
+for a few ticks) was never sent again while the two robots kept hearing each other, and the receiver could
+miss those cells for the rest of the run.
+
+The scheme is a negative acknowledgement (NACK) with selective repeat, the usual choice for broadcast over a
+lossy shared medium (an ACK per receiver and delta would cost a message per pair and tick even when nothing
+is lost):
+
+- The sender numbers its broadcast deltas 1, 2, ... (``MapDelta.n``) and every pose beacon carries the latest
+  number (``PoseBeacon.maps``), so a receiver sees a lost delta at the next delta or the next beacon it hears,
+  even when the sender has learned nothing since (a robot that has finished exploring).
+- A receiver missing deltas from a teammate it heard within the last ``retry_after`` ticks (in contact) sends
+  that teammate a :class:`MapRequest` (a radio message addressed to it, delivered or lost like any other)
+  naming the missing numbers; more than :data:`~fleet_emu.agents.protocol.MAX_SEQS` missing asks for the whole
+  map.
+- The sender answers with a :class:`MapFill`, addressed to the requester: the cells of the deltas asked for
+  (it keeps the cell indices of its last ``history`` deltas) with their values now, or its whole known map
+  when a delta asked for is older than that. A request or a fill lost on the radio is retried: a number still
+  missing ``retry_after`` ticks after it was asked is asked again (the round trip is two ticks at the usual
+  latency of one). Only the cells are sent again, never a whole map unless needed: the radio cost is the
+  lost news itself, plus a small request.
+- A teammate heard for the first time, or again after ``resync_after`` silent ticks, still gets the sender's
+  whole map unasked (the brain's rule before map sync), now as a fill that stands for every delta so far; the
+  receiver holds its own requests to that teammate for ``retry_after`` ticks, so as not to ask for what is on
+  its way.
+
+Choices the papers leave open, as parameters (:class:`SyncConfig`): ``retry_after`` (3 ticks: one round trip
+plus one tick), ``history`` (64 deltas kept per robot). Map sync is on when the radio can lose a message
+(``brain_config``: every model but ``ideal``, and ``full`` only with a loss): on a radio that delivers
+everything it would only add bytes, and runs there stay bit-identical to runs before it existed.
+
+A functional core: the state below is plain data stepped by the brain; no clock, no I/O.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import OrderedDict
+
+import numpy as np
+
+from fleet_emu.agents.belief import Belief
+from fleet_emu.agents.protocol import MAX_SEQS, MapFill, MapRequest
+
+
+@dataclasses.dataclass(frozen=True)
+class SyncConfig:
+    """``retry_after``: ticks after which a number still missing is asked again, and within which a teammate
+    must have been heard to be asked at all; ``history``: how many of its own deltas' cells a robot keeps to
+    answer with."""
+
+    retry_after: int = 3
+    history: int = 64
+
+
+@dataclasses.dataclass
+class Peer:
+    """What a robot knows of one teammate's deltas: ``top``, the highest number it knows exists; ``missing``,
+    the numbers up to ``top`` neither received nor filled, each with the tick it was last asked for (None:
+    not yet); ``whole``: too many are missing, ask for the whole map."""
+
+    top: int = 0
+    missing: dict[int, int | None] = dataclasses.field(default_factory=dict)
+    whole: int | None = None
+    wants_whole: bool = False
+
+    def exists(self, n: int) -> None:
+        """Delta ``n`` was sent (a delta or a beacon said so): every number above ``top`` up to it is missing."""
+        if n <= self.top:
+            return
+        if self.wants_whole or n - self.top + len(self.missing) > MAX_SEQS:
+            self.missing.clear()
+            self.wants_whole = True
+        else:
+            self.missing.update(dict.fromkeys(range(self.top + 1, n + 1)))
+        self.top = n
+
+    def received(self, n: int) -> None:
+        """Delta ``n`` arrived."""
+        self.exists(n)
+        self.missing.pop(n, None)
+
+    def filled(self, seqs: tuple[int, ...], upto: int) -> None:
+        """A fill arrived, standing for the deltas ``seqs`` and every delta up to ``upto``."""
+        for n in seqs:
+            self.missing.pop(n, None)
+        if upto:
+            self.missing = {n: at for n, at in self.missing.items() if n > upto}
+            if upto >= self.top:
+                self.wants_whole, self.whole = False, None
+            self.top = max(self.top, upto)
+
+    def hold(self, t: int) -> None:
+        """Count everything missing now as asked at ``t`` (a whole map is on its way)."""
+        self.missing = dict.fromkeys(self.missing, t)
+        if self.wants_whole:
+            self.whole = t
+
+    def request(self, t: int, retry_after: int) -> MapRequest | None:
+        """The request to send at ``t``: the numbers never asked, or asked ``retry_after`` ticks ago or more."""
+        if self.wants_whole:
+            if self.whole is not None and t - self.whole < retry_after:
+                return None
+            self.whole = t
+            return MapRequest(seqs=())
+        due = sorted(n for n, at in self.missing.items() if at is None or t - at >= retry_after)
+        if not due:
+            return None
+        for n in due:
+            self.missing[n] = t
+        return MapRequest(seqs=tuple(due))
+
+
+class MapSync:
+    """One robot's map sync: its own deltas' numbers and cells, and a :class:`Peer` per teammate."""
+
+    def __init__(self, config: SyncConfig) -> None:
+        self.config = config
+        self.sent = 0
+        self.history: OrderedDict[int, np.ndarray] = OrderedDict()
+        self.peers: dict[str, Peer] = {}
+        self.asked = 0  # requests made, fills sent (answers and pushes): for tests and benchmarks
+        self.answered = 0
+
+    def peer(self, robot: str) -> Peer:
+        return self.peers.setdefault(robot, Peer())
+
+    def number(self, cells: np.ndarray) -> int:
+        """Number the delta about to be broadcast, keeping its cells for a later fill."""
+        self.sent += 1
+        self.history[self.sent] = cells
+        while len(self.history) > self.config.history:
+            self.history.popitem(last=False)
+        return self.sent
+
+    def whole(self, belief: Belief) -> MapFill:
+        """The whole known map, standing for every delta sent so far."""
+        self.answered += 1
+        cells, values = belief.known()
+        return MapFill(cells=cells, values=values, upto=self.sent)
+
+    def answer(self, request: MapRequest, belief: Belief) -> MapFill:
+        """The fill for ``request``: the asked deltas' cells with their values now, or the whole map when one
+        of them is no longer kept (or was never sent)."""
+        if not request.seqs or any(n not in self.history for n in request.seqs):
+            return self.whole(belief)
+        self.answered += 1
+        cells = np.unique(np.concatenate([self.history[n] for n in request.seqs])).astype(np.int32)
+        return MapFill(cells=cells, values=belief.grid.reshape(-1)[cells].copy(), seqs=request.seqs)
+
+    def requests(self, t: int, heard: dict[str, int]) -> list[tuple[str, MapRequest]]:
+        """The requests to send at ``t``, to teammates heard within ``retry_after`` ticks, in id order."""
+        out = []
+        for robot in sorted(self.peers):
+            if robot in heard and t - heard[robot] <= self.config.retry_after:
+                req = self.peers[robot].request(t, self.config.retry_after)
+                if req is not None:
+                    self.asked += 1
+                    out.append((robot, req))
+        return out
