@@ -45,9 +45,9 @@ from fleet_emu.core.scenario import Scenario
 @dataclasses.dataclass(frozen=True)
 class BrainConfig:
     """``cluster_max``: frontier cells one sensing covers (MinPos 4.1); ``resync_after``: ticks of silence
-    after which a teammate heard again gets the whole known map; ``map_sync``: recover lost map deltas
-    (``agents/mapsync.py``, with ``sync``'s parameters), off by default and on in a run whose radio can lose
-    a message (:func:`brain_config`)."""
+    after which a teammate heard again gets the whole known map (without map sync); ``map_sync``: recover
+    lost map deltas (``agents/mapsync.py``, with ``sync``'s parameters), off by default and on in a run whose
+    radio can lose a message (:func:`brain_config`)."""
 
     cluster_max: int = 16
     resync_after: int = 10
@@ -146,14 +146,12 @@ class Brain:
         outbox: list[RadioMsg] = []
         protocol: list[RadioMsg] = []
         sync = self.sync
-        rejoined: list[str] = []
         for msg in self.open(inbox):
             if msg.src == self.me:
                 continue
             body = msg.body
             if isinstance(body, PoseBeacon):
-                if self._heard(msg, body, t, outbox):
-                    rejoined.append(msg.src)
+                self._heard(msg, body, t, outbox)
                 if sync is not None and body.maps is not None:
                     sync.peer(msg.src).exists(body.maps)
             elif isinstance(body, MapDelta):
@@ -170,8 +168,6 @@ class Brain:
             else:
                 protocol.append(msg)
         if sync is not None:
-            for r in rejoined:  # its whole map is on its way (sent when it heard us): ask later if it is not
-                sync.peer(r).hold(t)
             heard = {r: tm.heard for r, tm in self.teammates.items()}
             outbox.extend(RadioMsg(req, dst=r) for r, req in sync.requests(t, heard))
         expected = {r: tm.expected(obs.cell) for r, tm in sorted(self.teammates.items())}
@@ -206,20 +202,17 @@ class Brain:
         self.step_cpu_ms += (time.thread_time() - c0) * 1000.0
         return cmd, sealed
 
-    def _heard(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> bool:
-        """A teammate's pose; one heard for the first time, or again after a silence, gets our whole map
-        (True then)."""
+    def _heard(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> None:
+        """A teammate's pose; without map sync, one heard for the first time, or again after a silence, gets
+        our whole map (with map sync it asks for the deltas it missed: ``agents/mapsync.py``)."""
         prev = self.teammates.get(msg.src)
         if prev is not None and msg.tick < prev.heard:
-            return False
-        rejoined = (prev is None or t - prev.heard > self.config.resync_after) and self.belief is not None
-        if rejoined and self.sync is not None:
-            outbox.append(RadioMsg(self.sync.whole(self.belief), dst=msg.src))  # type: ignore[arg-type]
-        elif rejoined:
-            cells, values = self.belief.known()  # type: ignore[union-attr]
+            return
+        if (prev is None or t - prev.heard > self.config.resync_after) and self.belief is not None \
+                and self.sync is None:
+            cells, values = self.belief.known()
             outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=msg.src))
         self.teammates[msg.src] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
-        return rejoined
 
     def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray, occupied: set[Cell]) -> Cell:
         """A robot whose moves keep failing, or that keeps waiting for a teammate to clear its way (two

@@ -18,21 +18,20 @@ is lost):
   even when the sender has learned nothing since (a robot that has finished exploring).
 - A receiver missing deltas from a teammate it heard within the last ``retry_after`` ticks (in contact) sends
   that teammate a :class:`MapRequest` (a radio message addressed to it, delivered or lost like any other)
-  naming the missing numbers; more than :data:`~fleet_emu.agents.protocol.MAX_SEQS` missing asks for the whole
-  map.
+  naming the oldest :data:`~fleet_emu.agents.protocol.MAX_SEQS` missing numbers (the rest in the next ticks).
 - The sender answers with a :class:`MapFill`, addressed to the requester: the cells of the deltas asked for
   (it keeps the cell indices of its last ``history`` deltas) with their values now, or its whole known map
-  when a delta asked for is older than that. A request or a fill lost on the radio is retried: a number still
+  when a delta asked for is no longer kept. A request or a fill lost on the radio is retried: a number still
   missing ``retry_after`` ticks after it was asked is asked again (the round trip is two ticks at the usual
-  latency of one). Only the cells are sent again, never a whole map unless needed: the radio cost is the
-  lost news itself, plus a small request.
-- A teammate heard for the first time, or again after ``resync_after`` silent ticks, still gets the sender's
-  whole map unasked (the brain's rule before map sync), now as a fill that stands for every delta so far; the
-  receiver holds its own requests to that teammate for ``retry_after`` ticks, so as not to ask for what is on
-  its way.
+  latency of one). Only the lost news is sent again, plus a small request.
+- A teammate heard for the first time, or again after ``resync_after`` silent ticks, is no longer sent the
+  whole map unasked (the brain's rule without map sync): the receiver sees the gap in the first beacon it
+  hears and asks for the deltas it lacks, which is less than the whole map whenever it had the teammate's
+  earlier deltas (a delta holds every cell its robot newly learned, from its sensor or from a teammate, so
+  the deltas together are the whole map).
 
 Choices the papers leave open, as parameters (:class:`SyncConfig`): ``retry_after`` (3 ticks: one round trip
-plus one tick), ``history`` (64 deltas kept per robot). Map sync is on when the radio can lose a message
+plus one tick), ``history`` (512 deltas kept per robot). Map sync is on when the radio can lose a message
 (``brain_config``: every model but ``ideal``, and ``full`` only with a loss): on a radio that delivers
 everything it would only add bytes, and runs there stay bit-identical to runs before it existed.
 
@@ -49,6 +48,9 @@ import numpy as np
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.protocol import MAX_SEQS, MapFill, MapRequest
 
+#: A gap in a teammate's numbers larger than this is not listed number by number: the whole map is asked.
+MAX_GAP = 4096
+
 
 @dataclasses.dataclass(frozen=True)
 class SyncConfig:
@@ -57,27 +59,28 @@ class SyncConfig:
     answer with."""
 
     retry_after: int = 3
-    history: int = 64
+    history: int = 512
 
 
 @dataclasses.dataclass
 class Peer:
     """What a robot knows of one teammate's deltas: ``top``, the highest number it knows exists; ``missing``,
     the numbers up to ``top`` neither received nor filled, each with the tick it was last asked for (None:
-    not yet); ``whole``: too many are missing, ask for the whole map."""
+    not yet). A gap of more than :data:`MAX_GAP` (only a corrupt or hostile number makes one) is not listed:
+    the robot asks for the whole map instead (``whole``: the top it must reach, ``whole_asked``: when)."""
 
     top: int = 0
     missing: dict[int, int | None] = dataclasses.field(default_factory=dict)
     whole: int | None = None
-    wants_whole: bool = False
+    whole_asked: int | None = None
 
     def exists(self, n: int) -> None:
         """Delta ``n`` was sent (a delta or a beacon said so): every number above ``top`` up to it is missing."""
         if n <= self.top:
             return
-        if self.wants_whole or n - self.top + len(self.missing) > MAX_SEQS:
+        if self.whole is not None or n - self.top > MAX_GAP:
             self.missing.clear()
-            self.wants_whole = True
+            self.whole = n
         else:
             self.missing.update(dict.fromkeys(range(self.top + 1, n + 1)))
         self.top = n
@@ -93,24 +96,20 @@ class Peer:
             self.missing.pop(n, None)
         if upto:
             self.missing = {n: at for n, at in self.missing.items() if n > upto}
-            if upto >= self.top:
-                self.wants_whole, self.whole = False, None
-            self.top = max(self.top, upto)
-
-    def hold(self, t: int) -> None:
-        """Count everything missing now as asked at ``t`` (a whole map is on its way)."""
-        self.missing = dict.fromkeys(self.missing, t)
-        if self.wants_whole:
-            self.whole = t
+            if self.whole is not None and upto >= self.whole:
+                self.whole = self.whole_asked = None
+            if upto > self.top:
+                self.top = upto
 
     def request(self, t: int, retry_after: int) -> MapRequest | None:
-        """The request to send at ``t``: the numbers never asked, or asked ``retry_after`` ticks ago or more."""
-        if self.wants_whole:
-            if self.whole is not None and t - self.whole < retry_after:
+        """The request to send at ``t``: the oldest :data:`MAX_SEQS` numbers never asked, or asked
+        ``retry_after`` ticks ago or more (the rest in the next ticks)."""
+        if self.whole is not None:
+            if self.whole_asked is not None and t - self.whole_asked < retry_after:
                 return None
-            self.whole = t
+            self.whole_asked = t
             return MapRequest(seqs=())
-        due = sorted(n for n, at in self.missing.items() if at is None or t - at >= retry_after)
+        due = sorted(n for n, at in self.missing.items() if at is None or t - at >= retry_after)[:MAX_SEQS]
         if not due:
             return None
         for n in due:

@@ -98,8 +98,7 @@ def test_a_lost_delta_is_recovered_within_three_ticks() -> None:
     run.step()  # tick 6: r1 merges them
     assert run.knows("r1", lost)
     assert run.brains["r1"].sync.peer("r0").missing == {}  # type: ignore[union-attr]
-    # one request; two fills: this answer and the whole map r0 pushed to r1 when it first heard it (tick 1)
-    assert (run.brains["r1"].sync.asked, run.brains["r0"].sync.answered) == (1, 2)  # type: ignore[union-attr]
+    assert (run.brains["r1"].sync.asked, run.brains["r0"].sync.answered) == (1, 1)  # type: ignore[union-attr]
 
 
 def test_without_map_sync_the_lost_delta_stays_lost() -> None:
@@ -156,14 +155,22 @@ def test_a_gap_seen_from_a_delta_or_a_beacon_is_asked_for_and_retried() -> None:
     assert p.missing == {} and p.request(20, 3) is None
 
 
-def test_too_many_missing_asks_for_the_whole_map() -> None:
+def test_many_missing_are_asked_oldest_first_in_chunks() -> None:
     p = Peer()
     p.received(1)
-    p.received(MAX_SEQS + 10)
-    assert p.request(0, 3) == MapRequest(seqs=())
-    assert p.request(1, 3) is None
-    p.filled((), MAX_SEQS + 10)
-    assert not p.wants_whole and p.request(9, 3) is None
+    p.received(MAX_SEQS + 12)  # 2 .. MAX_SEQS + 11 lost
+    assert p.request(0, 3) == MapRequest(seqs=tuple(range(2, MAX_SEQS + 2)))
+    assert p.request(1, 3) == MapRequest(seqs=tuple(range(MAX_SEQS + 2, MAX_SEQS + 12)))
+    assert p.request(2, 3) is None
+
+
+def test_an_absurd_gap_asks_for_the_whole_map_without_listing_it() -> None:
+    p = Peer()
+    p.received(10**12)  # a corrupt or hostile number: no list of a trillion entries
+    assert p.missing == {} and p.request(0, 3) == MapRequest(seqs=())
+    assert p.request(1, 3) is None and p.request(3, 3) == MapRequest(seqs=())
+    p.filled((), 10**12)
+    assert p.request(9, 3) is None
 
 
 def test_the_sender_answers_with_the_asked_cells_or_its_whole_map() -> None:
