@@ -34,7 +34,7 @@ from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.agents.mapsync import MapSync, SyncConfig
 from fleet_emu.agents.navigation import next_move
-from fleet_emu.agents.protocol import MapDelta, MapFill, MapRequest, PoseBeacon
+from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
 from fleet_emu.core.codec import Context
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import FREE, MOVES, STAY, Cell
@@ -154,6 +154,8 @@ class Brain:
                 self._heard(msg, body, t, outbox)
                 if sync is not None and body.maps is not None:
                     sync.peer(msg.src).exists(body.maps)
+                if sync is not None and body.want is not None and self.me in body.want:
+                    outbox.append(RadioMsg(sync.answer(body.want[self.me], belief), dst=msg.src))
             elif isinstance(body, MapDelta):
                 belief.merge(body.cells, body.values)
                 if sync is not None and body.n is not None:
@@ -162,14 +164,11 @@ class Brain:
                 belief.merge(body.cells, body.values)
                 if sync is not None:
                     sync.peer(msg.src).filled(body.seqs, body.upto)
-            elif isinstance(body, MapRequest):
-                if sync is not None and msg.dst == self.me:
-                    outbox.append(RadioMsg(sync.answer(body, belief), dst=msg.src))
             else:
                 protocol.append(msg)
+        want = None
         if sync is not None:
-            heard = {r: tm.heard for r, tm in self.teammates.items()}
-            outbox.extend(RadioMsg(req, dst=r) for r, req in sync.requests(t, heard))
+            want = sync.requests(t, {r: tm.heard for r, tm in self.teammates.items()})
         expected = {r: tm.expected(obs.cell) for r, tm in sorted(self.teammates.items())}
         poses = {self.me: obs.cell} | expected
         problem = Problem(me=self.me, poses=poses, belief=belief.grid,
@@ -193,7 +192,7 @@ class Brain:
         n = sync.number(cells) if sync is not None and len(cells) else None
         delta = MapDelta(cells=cells, values=values, n=n)
         news = [RadioMsg(PoseBeacon(cell=obs.cell, next=(obs.cell[0] + move[0], obs.cell[1] + move[1]),
-                                    maps=sync.sent if sync is not None else None))]
+                                    maps=sync.sent if sync is not None else None, want=want))]
         if len(cells):
             news.append(RadioMsg(delta))
         sealed = tuple(seal(m, self.me, t, self.next_seq()) for m in news + outbox)

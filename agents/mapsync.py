@@ -16,14 +16,16 @@ is lost):
 - The sender numbers its broadcast deltas 1, 2, ... (``MapDelta.n``) and every pose beacon carries the latest
   number (``PoseBeacon.maps``), so a receiver sees a lost delta at the next delta or the next beacon it hears,
   even when the sender has learned nothing since (a robot that has finished exploring).
-- A receiver missing deltas from a teammate it heard within the last ``retry_after`` ticks (in contact) sends
-  that teammate a :class:`MapRequest` (a radio message addressed to it, delivered or lost like any other)
-  naming the oldest :data:`~fleet_emu.agents.protocol.MAX_SEQS` missing numbers (the rest in the next ticks).
-- The sender answers with a :class:`MapFill`, addressed to the requester: the cells of the deltas asked for
-  (it keeps the cell indices of its last ``history`` deltas) with their values now, or its whole known map
-  when a delta asked for is no longer kept. A request or a fill lost on the radio is retried: a number still
-  missing ``retry_after`` ticks after it was asked is asked again (the round trip is two ticks at the usual
-  latency of one). Only the lost news is sent again, plus a small request.
+- A receiver missing deltas from a teammate it heard within the last ``retry_after`` ticks (in contact) asks
+  that teammate for the oldest :data:`~fleet_emu.agents.protocol.MAX_SEQS` missing numbers (the rest in the
+  next ticks). The request rides on the pose beacon the receiver broadcasts every tick anyway
+  (``PoseBeacon.want``, a list of numbers per teammate asked), delivered to that teammate or lost like any
+  radio message: an envelope of its own would cost its header, most of a request's bytes.
+- The sender answers with a :class:`~fleet_emu.agents.protocol.MapFill`, addressed to the requester: the
+  cells of the deltas asked for (it keeps the cell indices of its last ``history`` deltas) with their values
+  now, or its whole known map when a delta asked for is no longer kept. A request or a fill lost on the radio
+  is retried: a number still missing ``retry_after`` ticks after it was asked is asked again (the round trip
+  is two ticks at the usual latency of one). Only the lost news is sent again, plus a few bytes of request.
 - A teammate heard for the first time, or again after ``resync_after`` silent ticks, is no longer sent the
   whole map unasked (the brain's rule without map sync): the receiver sees the gap in the first beacon it
   hears and asks for the deltas it lacks, which is less than the whole map whenever it had the teammate's
@@ -46,7 +48,7 @@ from collections import OrderedDict
 import numpy as np
 
 from fleet_emu.agents.belief import Belief
-from fleet_emu.agents.protocol import MAX_SEQS, MapFill, MapRequest
+from fleet_emu.agents.protocol import MAX_SEQS, MapFill
 
 #: A gap in a teammate's numbers larger than this is not listed number by number: the whole map is asked.
 MAX_GAP = 4096
@@ -101,20 +103,20 @@ class Peer:
             if upto > self.top:
                 self.top = upto
 
-    def request(self, t: int, retry_after: int) -> MapRequest | None:
-        """The request to send at ``t``: the oldest :data:`MAX_SEQS` numbers never asked, or asked
-        ``retry_after`` ticks ago or more (the rest in the next ticks)."""
+    def request(self, t: int, retry_after: int) -> tuple[int, ...] | None:
+        """The numbers to ask for at ``t`` (empty: the whole map), None for none: the oldest :data:`MAX_SEQS`
+        never asked, or asked ``retry_after`` ticks ago or more (the rest in the next ticks)."""
         if self.whole is not None:
             if self.whole_asked is not None and t - self.whole_asked < retry_after:
                 return None
             self.whole_asked = t
-            return MapRequest(seqs=())
+            return ()
         due = sorted(n for n, at in self.missing.items() if at is None or t - at >= retry_after)[:MAX_SEQS]
         if not due:
             return None
         for n in due:
             self.missing[n] = t
-        return MapRequest(seqs=tuple(due))
+        return tuple(due)
 
 
 class MapSync:
@@ -145,22 +147,23 @@ class MapSync:
         cells, values = belief.known()
         return MapFill(cells=cells, values=values, upto=self.sent)
 
-    def answer(self, request: MapRequest, belief: Belief) -> MapFill:
-        """The fill for ``request``: the asked deltas' cells with their values now, or the whole map when one
-        of them is no longer kept (or was never sent)."""
-        if not request.seqs or any(n not in self.history for n in request.seqs):
+    def answer(self, seqs: tuple[int, ...], belief: Belief) -> MapFill:
+        """The fill for a request of the deltas ``seqs``: their cells with their values now, or the whole map
+        when ``seqs`` is empty or one of them is no longer kept (or was never sent)."""
+        if not seqs or any(n not in self.history for n in seqs):
             return self.whole(belief)
         self.answered += 1
-        cells = np.unique(np.concatenate([self.history[n] for n in request.seqs])).astype(np.int32)
-        return MapFill(cells=cells, values=belief.grid.reshape(-1)[cells].copy(), seqs=request.seqs)
+        cells = np.unique(np.concatenate([self.history[n] for n in seqs])).astype(np.int32)
+        return MapFill(cells=cells, values=belief.grid.reshape(-1)[cells].copy(), seqs=seqs)
 
-    def requests(self, t: int, heard: dict[str, int]) -> list[tuple[str, MapRequest]]:
-        """The requests to send at ``t``, to teammates heard within ``retry_after`` ticks, in id order."""
-        out = []
+    def requests(self, t: int, heard: dict[str, int]) -> dict[str, tuple[int, ...]] | None:
+        """The requests to send at ``t`` (``PoseBeacon.want``), to teammates heard within ``retry_after``
+        ticks, in id order; None when there is none."""
+        out = {}
         for robot in sorted(self.peers):
             if robot in heard and t - heard[robot] <= self.config.retry_after:
                 req = self.peers[robot].request(t, self.config.retry_after)
                 if req is not None:
                     self.asked += 1
-                    out.append((robot, req))
-        return out
+                    out[robot] = req
+        return out or None

@@ -1,9 +1,10 @@
 """The brain's own radio protocol: pose beacons and map deltas (DESIGN.md "What it is": a robot knows only what
-its sensor and its radio tell it), and the map recovery's request and fill (``agents/mapsync.py``). Each is a
+its sensor and its radio tell it), and the map recovery's fill (``agents/mapsync.py``). Each is a
 :class:`~fleet_emu.core.codec.Payload`, sealed in an envelope by the brain; netem never decodes them.
 
-The recovery's numbers (``PoseBeacon.maps``, ``MapDelta.n``) are optional and left out of the encoding when
-absent, so that a fleet without map sync (an ideal radio) sends exactly the bytes it sent before they existed."""
+The recovery's fields (``PoseBeacon.maps`` and ``want``, ``MapDelta.n``) are optional and left out of the
+encoding when absent, so that a fleet without map sync (an ideal radio) sends exactly the bytes it sent
+before they existed."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
 from fleet_emu.core.messages import check_cell, check_cells
 
-#: At most this many delta numbers in a request or a fill (a receiver missing more asks for the whole map).
+#: At most this many delta numbers in a request or a fill (a receiver missing more asks again next tick).
 MAX_SEQS = 64
 
 
@@ -43,15 +44,19 @@ class PoseBeacon(Payload):
     section 4.3 compares every robot's cost at the moment of the decision). ``next`` is absent (None) in a
     schema-2 recording made before it existed: the teammate is then expected at ``cell``. ``maps``, with map
     sync on, is the number of map deltas the robot has broadcast so far, that of this tick included (a
-    receiver that has fewer asks for the missing ones); absent without map sync."""
+    receiver that has fewer asks for the missing ones); ``want``, the robot's requests for deltas it missed,
+    per teammate: the numbers it asks that teammate for (empty: its whole map), piggybacked on the beacon it
+    sends anyway rather than each in an envelope of its own. Both absent without map sync (and ``want``
+    when the robot misses nothing)."""
 
     KIND = "pose"
     cell: Cell
     next: Cell | None = None
     maps: int | None = None
+    want: dict[str, tuple[int, ...]] | None = None
 
     def fields_obj(self) -> dict[str, Any]:
-        return _without_none(super().fields_obj(), "maps")
+        return _without_none(super().fields_obj(), "maps", "want")
 
     @property
     def expected(self) -> Cell:
@@ -66,6 +71,10 @@ class PoseBeacon(Payload):
                 raise DecodeError(f"pose: next cell {self.next} is not one step from {self.cell}")
         if self.maps is not None and self.maps < 0:
             raise DecodeError("pose: negative map delta count")
+        for robot, seqs in (self.want or {}).items():
+            if ctx is not None and ctx.senders is not None and robot not in ctx.senders:
+                raise DecodeError(f"pose: request to an unknown robot {robot!r}")
+            check_seqs(seqs, "pose")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,23 +98,11 @@ class MapDelta(Payload):
 
 
 @dataclasses.dataclass(frozen=True)
-class MapRequest(Payload):
-    """Map sync: a robot asks the teammate it is addressed to for the broadcast deltas numbered ``seqs`` that
-    it missed; ``seqs`` empty asks for the whole known map (more than :data:`MAX_SEQS` missing)."""
-
-    KIND = "mapreq"
-    seqs: tuple[int, ...]
-
-    def validate(self, ctx: Context | None) -> None:
-        check_seqs(self.seqs, "mapreq")
-
-
-@dataclasses.dataclass(frozen=True)
 class MapFill(Payload):
-    """Map sync: the answer to a :class:`MapRequest`, addressed to the requester, or the whole map pushed to a
-    teammate heard for the first time or again after a silence. ``cells``/``values``: the cells of the deltas
-    ``seqs`` with their values now, or the whole known map; it stands for the deltas ``seqs`` and for every
-    delta numbered up to ``upto`` (0: none; a whole map has ``upto`` = the deltas sent so far)."""
+    """Map sync: the answer to a request (:attr:`PoseBeacon.want`), addressed to the requester.
+    ``cells``/``values``: the cells of the deltas ``seqs`` with their values now, or the whole known map; it
+    stands for the deltas ``seqs`` and for every delta numbered up to ``upto`` (0: none; a whole map has
+    ``upto`` = the deltas sent so far)."""
 
     KIND = "mapfill"
     cells: np.ndarray

@@ -11,8 +11,10 @@ pairs, at the last tick (``gap_end``) and over every tick of the run (``gap_mean
 tick are still in flight (one tick of latency), so the gap is never 0 while robots explore; a delta lost for
 good stays in it. ``conflict`` counts cells both know with different values (0: sensing is exact). The radio
 columns split the messages every robot emitted (each envelope once, as ``bytes_sent`` counts) by payload kind;
-``recovery`` is the map-sync kinds (``mapreq``, ``mapfill``). Run it with the project's environment before and
-after a change (it uses only ``fe.Fleet``), and compare the JSON files it writes.
+``rec.bytes`` is what map sync adds: its fills (``mapfill``), and the bytes its fields add to beacons (the
+delta count ``maps``, the requests ``want``) and to deltas (their number ``n``); ``asks`` counts the beacons
+that carry a request. Run it with the project's environment before and after a change (it uses only
+``fe.Fleet``), and compare the JSON files it writes.
 """
 
 from __future__ import annotations
@@ -26,12 +28,26 @@ from pathlib import Path
 
 import numpy as np
 
+import fleet_emu.agents.protocol as proto
 from fleet_emu.core.grid import UNKNOWN
-from fleet_emu.core.messages import TxBundle
+from fleet_emu.core.messages import TxBundle, open_envelope
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
 
-RECOVERY = ("mapreq", "mapfill")
+RECOVERY = ("mapfill",)
+
+
+def sync_overhead(env: object) -> tuple[int, bool]:
+    """The bytes map sync adds to a beacon or a delta (its fields), and whether a beacon carries a request."""
+    kind = env.payload_kind  # type: ignore[attr-defined]
+    if kind not in ("pose", "map"):
+        return 0, False
+    body = open_envelope(env).body  # type: ignore[arg-type]
+    if kind == "pose":
+        bare = proto.PoseBeacon(cell=body.cell, next=body.next)
+        return len(env.payload) - len(bare.encode()), getattr(body, "want", None) is not None  # type: ignore
+    bare = proto.MapDelta(cells=body.cells, values=body.values)
+    return len(env.payload) - len(bare.encode()), False  # type: ignore[attr-defined]
 
 
 def gaps(grids: list[np.ndarray]) -> tuple[float, int]:
@@ -58,6 +74,9 @@ def run_seed(scenario: Scenario, seed: int) -> dict:
             for env in msg.msgs:
                 count[env.payload_kind] += 1
                 size[env.payload_kind] += len(env.encode())
+                extra, asks = sync_overhead(env)
+                size["sync_fields"] += extra
+                count["asks"] += asks
 
     fleet = Fleet(scenario, tap=tap)
     fleet.reset(seed)
@@ -90,15 +109,15 @@ def main() -> None:
     rows = []
     print(f"{a.map}, {a.robots} robots, {a.allocator}, comm {a.comm}, loss {a.loss}", file=sys.stderr)
     print(f"{'seed':>4} {'ticks':>6} {'gap_end':>8} {'gap_mean':>8} {'conflict':>8} {'sent':>7} {'bytes':>9}"
-          f" {'rec.msgs':>8} {'rec.bytes':>9}")
+          f" {'asks':>5} {'fills':>5} {'rec.bytes':>9}")
     for seed in range(a.seeds):
         r = run_seed(base, seed)
         rows.append(r)
-        rec_n = sum(r["count"].get(k, 0) for k in RECOVERY)
-        rec_b = sum(r["bytes"].get(k, 0) for k in RECOVERY)
+        rec_b = sum(r["bytes"].get(k, 0) for k in (*RECOVERY, "sync_fields"))
         flag = "" if r["completed"] else "*"
         print(f"{seed:>4} {r['ticks']:>5}{flag:1} {r['gap_end']:>8.1f} {r['gap_mean']:>8.1f} {r['conflict']:>8}"
-              f" {r['radio']['sent']:>7} {r['radio']['bytes_sent']:>9} {rec_n:>8} {rec_b:>9}", flush=True)
+              f" {r['radio']['sent']:>7} {r['radio']['bytes_sent']:>9} {r['count'].get('asks', 0):>5}"
+              f" {r['count'].get('mapfill', 0):>5} {rec_b:>9}", flush=True)
     mean = statistics.mean
     kinds = sorted({k for r in rows for k in r["bytes"]})
     print(f"mean {mean(r['ticks'] for r in rows):>6.1f} {mean(r['gap_end'] for r in rows):>8.1f}"

@@ -13,7 +13,7 @@ from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.brain import Brain, BrainConfig, brain_config
 from fleet_emu.agents.mapsync import MapSync, Peer, SyncConfig
-from fleet_emu.agents.protocol import MAX_SEQS, MapDelta, MapFill, MapRequest, PoseBeacon
+from fleet_emu.agents.protocol import MAX_SEQS, MapDelta, MapFill, PoseBeacon
 from fleet_emu.core.grid import UNKNOWN, MapData, from_ascii
 from fleet_emu.core.messages import Envelope, Observation, RadioMsg, RxBundle, decode, open_envelope, seal
 from fleet_emu.core.messages import decode_payload as decode_body
@@ -92,7 +92,8 @@ def test_a_lost_delta_is_recovered_within_three_ticks() -> None:
         run.step()
     lost = _lost_cells(run)
     assert len(lost) and not run.knows("r1", lost)
-    run.step()  # tick 4: r0's beacon says 4 deltas were sent, r1 has 3: r1 asks r0
+    run.step()  # tick 4: r0's beacon says 4 deltas were sent, r1 has 3: r1's beacon asks r0 for delta 4
+    assert _wants(run.brains["r1"].sync, 4)  # type: ignore[arg-type]
     run.step()  # tick 5: r0 answers with the cells of delta 4
     assert not run.knows("r1", lost)
     run.step()  # tick 6: r1 merges them
@@ -108,16 +109,23 @@ def test_without_map_sync_the_lost_delta_stays_lost() -> None:
     assert not run.knows("r1", _lost_cells(run))  # the bug map sync fixes: nothing is ever sent again
 
 
+def _asks(env: Envelope) -> bool:
+    return env.payload_kind == PoseBeacon.KIND and open_envelope(env).body.want is not None  # type: ignore[attr-defined]
+
+
+def _wants(sync: MapSync, n: int) -> bool:
+    return sync.peer("r0").missing.get(n) is not None  # asked, not yet filled
+
+
 def test_a_lost_request_is_retried() -> None:
     def drop(t: int, r: str, env: Envelope) -> bool:
-        first_request = r == "r1" and env.payload_kind == MapRequest.KIND and not any(
-            d[2].payload_kind == MapRequest.KIND for d in run.dropped)
+        first_request = r == "r1" and _asks(env) and not any(_asks(d[2]) for d in run.dropped)
         return _delta_of(3, "r0")(t, r, env) or first_request
 
     run = Run(drop)
     for _ in range(9):  # ticks 0-8: the request of tick 4 is lost, asked again at 4 + 3 = 7, answered at 8
         run.step()
-    assert [(t, r) for t, r, env in run.dropped if env.payload_kind == MapRequest.KIND] == [(4, "r1")]
+    assert [(t, r) for t, r, env in run.dropped if _asks(env)] == [(4, "r1")]
     assert not run.knows("r1", _lost_cells(run))
     run.step()  # tick 9: merged
     assert run.knows("r1", _lost_cells(run))
@@ -144,13 +152,13 @@ def test_a_gap_seen_from_a_delta_or_a_beacon_is_asked_for_and_retried() -> None:
     p = Peer()
     p.received(1)
     p.received(4)  # 2 and 3 lost
-    assert p.request(10, 3) == MapRequest(seqs=(2, 3))
+    assert p.request(10, 3) == (2, 3)
     p.exists(5)  # a beacon: delta 5 was sent, not received
-    assert p.request(11, 3) == MapRequest(seqs=(5,))  # only what was never asked
+    assert p.request(11, 3) == (5,)  # only what was never asked
     assert p.request(12, 3) is None
     p.filled((2, 3), 0)
     assert p.request(13, 3) is None
-    assert p.request(14, 3) == MapRequest(seqs=(5,))  # asked at 11, no fill: asked again
+    assert p.request(14, 3) == (5,)  # asked at 11, no fill: asked again
     p.filled((), 5)  # a whole map up to 5
     assert p.missing == {} and p.request(20, 3) is None
 
@@ -159,16 +167,16 @@ def test_many_missing_are_asked_oldest_first_in_chunks() -> None:
     p = Peer()
     p.received(1)
     p.received(MAX_SEQS + 12)  # 2 .. MAX_SEQS + 11 lost
-    assert p.request(0, 3) == MapRequest(seqs=tuple(range(2, MAX_SEQS + 2)))
-    assert p.request(1, 3) == MapRequest(seqs=tuple(range(MAX_SEQS + 2, MAX_SEQS + 12)))
+    assert p.request(0, 3) == tuple(range(2, MAX_SEQS + 2))
+    assert p.request(1, 3) == tuple(range(MAX_SEQS + 2, MAX_SEQS + 12))
     assert p.request(2, 3) is None
 
 
 def test_an_absurd_gap_asks_for_the_whole_map_without_listing_it() -> None:
     p = Peer()
     p.received(10**12)  # a corrupt or hostile number: no list of a trillion entries
-    assert p.missing == {} and p.request(0, 3) == MapRequest(seqs=())
-    assert p.request(1, 3) is None and p.request(3, 3) == MapRequest(seqs=())
+    assert p.missing == {} and p.request(0, 3) == ()
+    assert p.request(1, 3) is None and p.request(3, 3) == ()
     p.filled((), 10**12)
     assert p.request(9, 3) is None
 
@@ -179,9 +187,9 @@ def test_the_sender_answers_with_the_asked_cells_or_its_whole_map() -> None:
     sync = MapSync(SyncConfig(history=2))
     for cells in ([0, 1], [2], [5, 6]):
         sync.number(np.array(cells, dtype=np.int32))
-    fill = sync.answer(MapRequest(seqs=(2, 3)), belief)
+    fill = sync.answer((2, 3), belief)
     assert fill.seqs == (2, 3) and fill.cells.tolist() == [2, 5, 6] and fill.upto == 0
-    whole = sync.answer(MapRequest(seqs=(1,)), belief)  # delta 1 is no longer kept
+    whole = sync.answer((1,), belief)  # delta 1 is no longer kept
     assert whole.seqs == () and whole.upto == 3 and len(whole.cells) == 12
 
 
@@ -189,17 +197,21 @@ def test_requests_go_only_to_teammates_in_contact() -> None:
     sync = MapSync(SyncConfig(retry_after=3))
     sync.peer("r1").received(2)
     sync.peer("r2").received(2)
-    assert [r for r, _ in sync.requests(10, {"r1": 9, "r2": 6})] == ["r1"]
+    assert sync.requests(10, {"r1": 9, "r2": 6}) == {"r1": (1,)}
+    assert sync.requests(11, {"r1": 9, "r2": 6}) is None  # asked at 10
 
 
 # --- messages ------------------------------------------------------------------------------------------------
 
 
 @pytest.mark.parametrize(("kind", "body"), [
-    ("mapreq", {"seqs": [3, 2]}),
-    ("mapreq", {"seqs": [0]}),
-    ("mapreq", {"seqs": list(range(1, MAX_SEQS + 2))}),
-    ("mapreq", {"seqs": "1"}),
+    ("pose", {"cell": [1, 1], "next": None, "want": {"r1": [3, 2]}}),
+    ("pose", {"cell": [1, 1], "next": None, "want": {"r1": [0]}}),
+    ("pose", {"cell": [1, 1], "next": None, "want": {"r1": list(range(1, MAX_SEQS + 2))}}),
+    ("pose", {"cell": [1, 1], "next": None, "want": {"r1": "1"}}),
+    ("pose", {"cell": [1, 1], "next": None, "want": {"r9": [1]}}),
+    ("mapfill", {"cells": {"dtype": "int32", "shape": [0], "data": b""},
+                 "values": {"dtype": "int8", "shape": [0], "data": b""}, "seqs": [2, 2]}),
     ("mapfill", {"cells": None, "values": None}),
     ("map", {"cells": {"dtype": "int32", "shape": [0], "data": b""},
              "values": {"dtype": "int8", "shape": [0], "data": b""}, "n": 0}),
@@ -235,14 +247,18 @@ def test_map_sync_is_on_where_the_radio_can_lose_a_message(comm: str, loss: floa
     assert brain_config(Scenario().override(comm=comm, loss=loss)).map_sync is on
 
 
-def test_a_brain_without_sync_ignores_requests() -> None:
+def test_a_brain_without_sync_ignores_requests_and_merges_fills() -> None:
     brain = Brain("r0", make_allocator({"type": "nearest"}), np.random.default_rng(0), BrainConfig(),
                   team=frozenset({"r0", "r1"}))
     grid, marks = from_ascii("####\n#0.#\n####")
     cells = np.flatnonzero(grid.ravel() != UNKNOWN).astype(np.int32)
     obs = Observation(src="world", tick=1, seq=0, robot="r0", cell=marks["r0"], shape=grid.shape, cell_size=0.5,
                       cells=cells, values=grid.ravel()[cells].copy())
-    req = seal(RadioMsg(MapRequest(seqs=(1,)), dst="r0"), "r1", 0, 1)
-    _, out = brain.step(obs, (req,))
-    assert [e.payload_kind for e in out] == [PoseBeacon.KIND, MapDelta.KIND]
+    req = seal(RadioMsg(PoseBeacon(cell=(1, 2), want={"r0": (1,)})), "r1", 0, 1)
+    fill = seal(RadioMsg(MapFill(cells=np.array([0], dtype=np.int32), values=np.array([100], dtype=np.int8),
+                                 seqs=(1,)), dst="r0"), "r1", 0, 2)
+    _, out = brain.step(obs, (req, fill))
+    # its news, and its whole map for r1 heard for the first time (the rule without map sync); no fill
+    assert [(e.payload_kind, e.dst) for e in out] == [("pose", "*"), ("map", "*"), ("map", "r1")]
+    assert brain.belief.grid[0, 0] == 100  # type: ignore[union-attr]
 
