@@ -155,11 +155,14 @@ class Brain:
                 if sync is not None and body.maps is not None:
                     sync.peer(msg.src).exists(body.maps)
                 if sync is not None and body.want is not None and self.me in body.want:
-                    outbox.append(RadioMsg(sync.answer(body.want[self.me], belief), dst=msg.src))
+                    fill = sync.answer(body.want[self.me], belief)
+                    if fill is not None:
+                        outbox.append(RadioMsg(fill, dst=msg.src))
             elif isinstance(body, MapDelta):
                 belief.merge(body.cells, body.values)
                 if sync is not None and body.n is not None:
                     sync.peer(msg.src).received(body.n)
+                    sync.peer(msg.src).filled(body.covers or (), 0)
             elif isinstance(body, MapFill):
                 belief.merge(body.cells, body.values)
                 if sync is not None:
@@ -189,8 +192,13 @@ class Brain:
         move = self._unstick(obs.cell, move, wants, belief.grid, set(expected.values()))
         outbox.extend(alloc.outbox)
         cells, values = belief.take_news()
-        n = sync.number(cells) if sync is not None and len(cells) else None
-        delta = MapDelta(cells=cells, values=values, n=n)
+        n = covers = None
+        if sync is not None:
+            cells, covers = sync.news(cells)  # with the cells of deltas asked for again
+            if covers is not None:
+                values = belief.grid.reshape(-1)[cells].copy()
+            n = sync.number(cells) if len(cells) else None
+        delta = MapDelta(cells=cells, values=values, n=n, covers=covers)
         news = [RadioMsg(PoseBeacon(cell=obs.cell, next=(obs.cell[0] + move[0], obs.cell[1] + move[1]),
                                     maps=sync.sent if sync is not None else None, want=want))]
         if len(cells):

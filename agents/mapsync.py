@@ -21,11 +21,14 @@ is lost):
   next ticks). The request rides on the pose beacon the receiver broadcasts every tick anyway
   (``PoseBeacon.want``, a list of numbers per teammate asked), delivered to that teammate or lost like any
   radio message: an envelope of its own would cost its header, most of a request's bytes.
-- The sender answers with a :class:`~fleet_emu.agents.protocol.MapFill`, addressed to the requester: the
-  cells of the deltas asked for (it keeps the cell indices of its last ``history`` deltas) with their values
-  now, or its whole known map when a delta asked for is no longer kept. A request or a fill lost on the radio
-  is retried: a number still missing ``retry_after`` ticks after it was asked is asked again (the round trip
-  is two ticks at the usual latency of one). Only the lost news is sent again, plus a few bytes of request.
+- The sender puts the cells of the deltas asked for (it keeps the cell indices of its last ``history``
+  deltas) in its next broadcast delta, with their values now, and lists their numbers in it
+  (``MapDelta.covers``): a delta is broadcast anyway, and one emission reaches every teammate that missed
+  the same delta, so a resent delta costs its cells and nothing else. When a number asked for is no longer
+  kept, the requester gets the whole known map instead (a :class:`~fleet_emu.agents.protocol.MapFill`
+  addressed to it). A request or a resent delta lost on the radio is retried: a number still missing
+  ``retry_after`` ticks after it was asked is asked again (the round trip is two ticks at the usual latency
+  of one). Only the lost news is sent again, plus a few bytes of request.
 - A teammate heard for the first time, or again after ``resync_after`` silent ticks, is no longer sent the
   whole map unasked (the brain's rule without map sync): the receiver sees the gap in the first beacon it
   hears and asks for the deltas it lacks, which is less than the whole map whenever it had the teammate's
@@ -127,8 +130,11 @@ class MapSync:
         self.sent = 0
         self.history: OrderedDict[int, np.ndarray] = OrderedDict()
         self.peers: dict[str, Peer] = {}
-        self.asked = 0  # requests made, fills sent (answers and pushes): for tests and benchmarks
-        self.answered = 0
+        self.pending: set[int] = set()  # numbers asked for, to send again in the next delta
+        self.asked = 0  # for tests and benchmarks: requests made, whole maps sent, deltas and cells sent again
+        self.wholes = 0
+        self.resent = 0
+        self.resent_cells = 0
 
     def peer(self, robot: str) -> Peer:
         return self.peers.setdefault(robot, Peer())
@@ -143,18 +149,35 @@ class MapSync:
 
     def whole(self, belief: Belief) -> MapFill:
         """The whole known map, standing for every delta sent so far."""
-        self.answered += 1
+        self.wholes += 1
         cells, values = belief.known()
         return MapFill(cells=cells, values=values, upto=self.sent)
 
-    def answer(self, seqs: tuple[int, ...], belief: Belief) -> MapFill:
-        """The fill for a request of the deltas ``seqs``: their cells with their values now, or the whole map
-        when ``seqs`` is empty or one of them is no longer kept (or was never sent)."""
+    def answer(self, seqs: tuple[int, ...], belief: Belief) -> MapFill | None:
+        """A teammate asks for the deltas ``seqs``: they go again in the next broadcast delta (None), or the
+        whole map goes to the teammate when ``seqs`` is empty or one of them is no longer kept (or was never
+        sent)."""
         if not seqs or any(n not in self.history for n in seqs):
             return self.whole(belief)
-        self.answered += 1
-        cells = np.unique(np.concatenate([self.history[n] for n in seqs])).astype(np.int32)
-        return MapFill(cells=cells, values=belief.grid.reshape(-1)[cells].copy(), seqs=seqs)
+        self.pending.update(seqs)
+        return None
+
+    def news(self, cells: np.ndarray) -> tuple[np.ndarray, tuple[int, ...] | None]:
+        """The cells of the delta about to be broadcast: this tick's news, and the cells of the oldest
+        :data:`MAX_SEQS` deltas asked for again (the rest in the next ticks), with their numbers (``covers``;
+        None when none is)."""
+        if not self.pending:
+            return cells, None
+        again = tuple(sorted(self.pending)[:MAX_SEQS])
+        self.pending.difference_update(again)
+        again = tuple(n for n in again if n in self.history)  # one left pending may have been forgotten since
+        if not again:
+            return cells, None
+        extra = np.concatenate([self.history[n] for n in again])
+        out = np.union1d(cells, extra).astype(np.int32)
+        self.resent += len(again)
+        self.resent_cells += len(out) - len(cells)
+        return out, again
 
     def requests(self, t: int, heard: dict[str, int]) -> dict[str, tuple[int, ...]] | None:
         """The requests to send at ``t`` (``PoseBeacon.want``), to teammates heard within ``retry_after``

@@ -80,29 +80,34 @@ class PoseBeacon(Payload):
 @dataclasses.dataclass(frozen=True)
 class MapDelta(Payload):
     """Cells a robot learned (flat indices and their values): the news of one tick, or (without map sync) its
-    whole known map for a teammate heard again after a silence. ``n``, with map sync on, numbers the robot's
-    broadcast deltas 1, 2, ...; absent without map sync."""
+    whole known map for a teammate heard again after a silence. With map sync on, ``n`` numbers the robot's
+    broadcast deltas 1, 2, ..., and ``covers`` lists earlier deltas whose cells this one carries again
+    because a teammate asked for them (:attr:`PoseBeacon.want`); both absent without map sync."""
 
     KIND = "map"
     cells: np.ndarray
     values: np.ndarray
     n: int | None = None
+    covers: tuple[int, ...] | None = None
 
     def fields_obj(self) -> dict[str, Any]:
-        return _without_none(super().fields_obj(), "n")
+        return _without_none(super().fields_obj(), "n", "covers")
 
     def validate(self, ctx: Context | None) -> None:
         check_cells(self.cells, self.values, ctx.shape if ctx else None, "map")
         if self.n is not None and self.n < 1:
             raise DecodeError("map: delta number must be >= 1")
+        if self.covers is not None:
+            check_seqs(self.covers, "map")
+            if self.n is None or (self.covers and self.covers[-1] >= self.n):
+                raise DecodeError("map: covers a delta not before its own")
 
 
 @dataclasses.dataclass(frozen=True)
 class MapFill(Payload):
-    """Map sync: the answer to a request (:attr:`PoseBeacon.want`), addressed to the requester.
-    ``cells``/``values``: the cells of the deltas ``seqs`` with their values now, or the whole known map; it
-    stands for the deltas ``seqs`` and for every delta numbered up to ``upto`` (0: none; a whole map has
-    ``upto`` = the deltas sent so far)."""
+    """Map sync: the whole known map, addressed to a teammate that asked (:attr:`PoseBeacon.want`) for the
+    whole map or for a delta no longer kept. It stands for the deltas ``seqs`` and for every delta numbered up
+    to ``upto`` (a whole map has ``upto`` = the deltas sent so far, ``seqs`` empty)."""
 
     KIND = "mapfill"
     cells: np.ndarray

@@ -11,10 +11,12 @@ pairs, at the last tick (``gap_end``) and over every tick of the run (``gap_mean
 tick are still in flight (one tick of latency), so the gap is never 0 while robots explore; a delta lost for
 good stays in it. ``conflict`` counts cells both know with different values (0: sensing is exact). The radio
 columns split the messages every robot emitted (each envelope once, as ``bytes_sent`` counts) by payload kind;
-``rec.bytes`` is what map sync adds: its fills (``mapfill``), and the bytes its fields add to beacons (the
-delta count ``maps``, the requests ``want``) and to deltas (their number ``n``); ``asks`` counts the beacons
-that carry a request. Run it with the project's environment before and after a change (it uses only
-``fe.Fleet``), and compare the JSON files it writes.
+``rec.bytes`` is what map sync adds: the cells it sends again inside deltas (5 bytes a cell: an int32 index
+and an int8 value), its whole-map fills (``mapfill``), and the bytes its fields add to beacons (the delta
+count ``maps``, the requests ``want``) and to deltas (their number ``n``, the numbers sent again
+``covers``); ``asks`` counts the beacons that carry a request, ``resent`` the deltas sent again. Run it with
+the project's environment before and after a change (it uses only ``fe.Fleet``), and compare the JSON files
+it writes.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from fleet_emu.core.messages import TxBundle, open_envelope
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
 
-RECOVERY = ("mapfill",)
+RECOVERY = ("mapfill", "resent_cells", "sync_fields")
 
 
 def sync_overhead(env: object) -> tuple[int, bool]:
@@ -86,6 +88,9 @@ def run_seed(scenario: Scenario, seed: int) -> dict:
         grids = [b.belief.grid for b in fleet.brains.values() if b.belief is not None]
         per_tick.append(gaps(grids)[0])
     res = fleet.result()
+    syncs = [s for b in fleet.brains.values() if (s := getattr(b, "sync", None)) is not None]
+    size["resent_cells"] = 5 * sum(s.resent_cells for s in syncs)
+    count["resent"] = sum(s.resent for s in syncs)
     gap_end, conflict = gaps([b.belief.grid for b in fleet.brains.values() if b.belief is not None])
     return {"seed": seed, "ticks": res["ticks"], "completed": res["completed"], "coverage": res["coverage"],
             "radio": res["radio"], "gap_end": gap_end, "gap_mean": float(np.mean(per_tick)) if per_tick else 0.0,
@@ -109,22 +114,23 @@ def main() -> None:
     rows = []
     print(f"{a.map}, {a.robots} robots, {a.allocator}, comm {a.comm}, loss {a.loss}", file=sys.stderr)
     print(f"{'seed':>4} {'ticks':>6} {'gap_end':>8} {'gap_mean':>8} {'conflict':>8} {'sent':>7} {'bytes':>9}"
-          f" {'asks':>5} {'fills':>5} {'rec.bytes':>9}")
+          f" {'asks':>5} {'resent':>6} {'fills':>5} {'rec.bytes':>9}")
     for seed in range(a.seeds):
         r = run_seed(base, seed)
         rows.append(r)
-        rec_b = sum(r["bytes"].get(k, 0) for k in (*RECOVERY, "sync_fields"))
+        rec_b = sum(r["bytes"].get(k, 0) for k in RECOVERY)
         flag = "" if r["completed"] else "*"
         print(f"{seed:>4} {r['ticks']:>5}{flag:1} {r['gap_end']:>8.1f} {r['gap_mean']:>8.1f} {r['conflict']:>8}"
               f" {r['radio']['sent']:>7} {r['radio']['bytes_sent']:>9} {r['count'].get('asks', 0):>5}"
-              f" {r['count'].get('mapfill', 0):>5} {rec_b:>9}", flush=True)
+              f" {r['count'].get('resent', 0):>6} {r['count'].get('mapfill', 0):>5} {rec_b:>9}", flush=True)
     mean = statistics.mean
     kinds = sorted({k for r in rows for k in r["bytes"]})
     print(f"mean {mean(r['ticks'] for r in rows):>6.1f} {mean(r['gap_end'] for r in rows):>8.1f}"
           f" {mean(r['gap_mean'] for r in rows):>8.1f} {mean(r['conflict'] for r in rows):>8.1f}"
           f" {mean(r['radio']['sent'] for r in rows):>7.0f} {mean(r['radio']['bytes_sent'] for r in rows):>9.0f}"
           f"  ({sum(not r['completed'] for r in rows)} runs short of the target)")
-    print("bytes per run by payload kind: " + ", ".join(
+    recovery = mean(sum(r["bytes"].get(k, 0) for k in RECOVERY) for r in rows)
+    print(f"recovery bytes per run {recovery:.0f}; per run by kind (and messages): " + ", ".join(
         f"{k} {mean(r['bytes'].get(k, 0) for r in rows):.0f} ({mean(r['count'].get(k, 0) for r in rows):.0f} msgs)"
         for k in kinds))
     if a.json:

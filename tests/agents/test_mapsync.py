@@ -94,12 +94,13 @@ def test_a_lost_delta_is_recovered_within_three_ticks() -> None:
     assert len(lost) and not run.knows("r1", lost)
     run.step()  # tick 4: r0's beacon says 4 deltas were sent, r1 has 3: r1's beacon asks r0 for delta 4
     assert _wants(run.brains["r1"].sync, 4)  # type: ignore[arg-type]
-    run.step()  # tick 5: r0 answers with the cells of delta 4
+    run.step()  # tick 5: r0's delta carries the cells of delta 4 again
     assert not run.knows("r1", lost)
     run.step()  # tick 6: r1 merges them
     assert run.knows("r1", lost)
     assert run.brains["r1"].sync.peer("r0").missing == {}  # type: ignore[union-attr]
-    assert (run.brains["r1"].sync.asked, run.brains["r0"].sync.answered) == (1, 1)  # type: ignore[union-attr]
+    r0, r1 = run.brains["r0"].sync, run.brains["r1"].sync
+    assert (r1.asked, r0.resent, r0.wholes) == (1, 1, 0)  # type: ignore[union-attr]
 
 
 def test_without_map_sync_the_lost_delta_stays_lost() -> None:
@@ -132,17 +133,17 @@ def test_a_lost_request_is_retried() -> None:
     assert run.brains["r1"].sync.asked == 2  # type: ignore[union-attr]
 
 
-def test_a_lost_fill_is_asked_again() -> None:
-    def drop(t: int, r: str, env: Envelope) -> bool:
-        return _delta_of(3, "r0")(t, r, env) or (t == 5 and r == "r0" and env.payload_kind == MapFill.KIND)
-
-    run = Run(drop)
-    for _ in range(9):  # ticks 0-8: asked at 4, the fill of tick 5 lost, asked again at 7, answered at 8
+def test_a_lost_resent_delta_is_asked_again() -> None:
+    run = Run(lambda t, r, env: _delta_of(3, "r0")(t, r, env) or _delta_of(5, "r0")(t, r, env))
+    for _ in range(8):  # ticks 0-7: delta 4 lost, asked at 4; delta 6 (carrying 4 again) lost at 5
         run.step()
-    assert run.brains["r1"].sync.asked == 2  # type: ignore[union-attr]
-    assert not run.knows("r1", _lost_cells(run))
-    run.step()  # tick 9: merged
-    assert run.knows("r1", _lost_cells(run))
+    lost = open_envelope(run.dropped[0][2]).body.cells  # type: ignore[attr-defined]
+    assert not run.knows("r1", lost)
+    for _ in range(2):  # 6 asked at 6, sent again at 7 (with 4's cells in it: they were in delta 6), merged at 8;
+        run.step()      # 4 asked again at 7, sent again at 8, merged at 9
+    assert run.knows("r1", lost)
+    assert run.brains["r1"].sync.peer("r0").missing == {}  # type: ignore[union-attr]
+    assert run.brains["r0"].sync.resent == 3  # type: ignore[union-attr]
 
 
 # --- the pure state ----------------------------------------------------------------------------------------
@@ -181,16 +182,18 @@ def test_an_absurd_gap_asks_for_the_whole_map_without_listing_it() -> None:
     assert p.request(9, 3) is None
 
 
-def test_the_sender_answers_with_the_asked_cells_or_its_whole_map() -> None:
+def test_the_sender_resends_the_asked_cells_in_its_next_delta_or_its_whole_map() -> None:
     belief = Belief((3, 4))
     belief.merge(np.arange(12, dtype=np.int32), np.zeros(12, dtype=np.int8))
     sync = MapSync(SyncConfig(history=2))
     for cells in ([0, 1], [2], [5, 6]):
         sync.number(np.array(cells, dtype=np.int32))
-    fill = sync.answer((2, 3), belief)
-    assert fill.seqs == (2, 3) and fill.cells.tolist() == [2, 5, 6] and fill.upto == 0
+    assert sync.answer((2, 3), belief) is None  # queued for the next delta
+    cells, covers = sync.news(np.array([9], dtype=np.int32))
+    assert cells.tolist() == [2, 5, 6, 9] and covers == (2, 3)
+    assert sync.news(np.array([10], dtype=np.int32))[1] is None  # sent once
     whole = sync.answer((1,), belief)  # delta 1 is no longer kept
-    assert whole.seqs == () and whole.upto == 3 and len(whole.cells) == 12
+    assert whole is not None and whole.seqs == () and whole.upto == 3 and len(whole.cells) == 12
 
 
 def test_requests_go_only_to_teammates_in_contact() -> None:
@@ -212,6 +215,10 @@ def test_requests_go_only_to_teammates_in_contact() -> None:
     ("pose", {"cell": [1, 1], "next": None, "want": {"r9": [1]}}),
     ("mapfill", {"cells": {"dtype": "int32", "shape": [0], "data": b""},
                  "values": {"dtype": "int8", "shape": [0], "data": b""}, "seqs": [2, 2]}),
+    ("map", {"cells": {"dtype": "int32", "shape": [0], "data": b""},
+             "values": {"dtype": "int8", "shape": [0], "data": b""}, "n": 3, "covers": [3]}),
+    ("map", {"cells": {"dtype": "int32", "shape": [0], "data": b""},
+             "values": {"dtype": "int8", "shape": [0], "data": b""}, "covers": [1]}),
     ("mapfill", {"cells": None, "values": None}),
     ("map", {"cells": {"dtype": "int32", "shape": [0], "data": b""},
              "values": {"dtype": "int8", "shape": [0], "data": b""}, "n": 0}),
