@@ -194,10 +194,11 @@ class Brain:
         cells, values = belief.take_news()
         n = covers = None
         if sync is not None:
+            fresh = cells
             cells, covers = sync.news(cells)  # with the cells of deltas asked for again
             if covers is not None:
                 values = belief.grid.reshape(-1)[cells].copy()
-            n = sync.number(cells) if len(cells) else None
+            n = sync.number(fresh) if len(cells) else None  # a later request for it gets its news only
         delta = MapDelta(cells=cells, values=values, n=n, covers=covers)
         news = [RadioMsg(PoseBeacon(cell=obs.cell, next=(obs.cell[0] + move[0], obs.cell[1] + move[1]),
                                     maps=sync.sent if sync is not None else None, want=want))]

@@ -140,7 +140,9 @@ class MapSync:
         return self.peers.setdefault(robot, Peer())
 
     def number(self, cells: np.ndarray) -> int:
-        """Number the delta about to be broadcast, keeping its cells for a later fill."""
+        """Number the delta about to be broadcast, keeping its news ``cells`` to send them again on request
+        (not the cells it carries again: a teammate that missed this delta and those it covers asks for
+        them as well)."""
         self.sent += 1
         self.history[self.sent] = cells
         while len(self.history) > self.config.history:

@@ -139,8 +139,8 @@ def test_a_lost_resent_delta_is_asked_again() -> None:
         run.step()
     lost = open_envelope(run.dropped[0][2]).body.cells  # type: ignore[attr-defined]
     assert not run.knows("r1", lost)
-    for _ in range(2):  # 6 asked at 6, sent again at 7 (with 4's cells in it: they were in delta 6), merged at 8;
-        run.step()      # 4 asked again at 7, sent again at 8, merged at 9
+    for _ in range(2):  # 6 asked at 6, sent again at 7 (its news only), merged at 8; 4 asked again at 7,
+        run.step()      # sent again at 8, merged at 9
     assert run.knows("r1", lost)
     assert run.brains["r1"].sync.peer("r0").missing == {}  # type: ignore[union-attr]
     assert run.brains["r0"].sync.resent == 3  # type: ignore[union-attr]
