@@ -2,7 +2,7 @@
 recovery (``agents/mapsync.py``) spends on the radio, on the memory engine.
 
     python benchmarks/map_sync.py [--map office] [--robots 3] [--allocator minpos] [--loss 0.3]
-        [--comm full] [--seeds 8] [--start random] [--json out.json]
+        [--comm full] [--seeds 8] [--start random|map|ROW,COL] [--json out.json]
 
 Per seed: one run of the memory engine (``fe.Fleet``), its ``ticks`` (to the target coverage, or the last
 tick when it was not reached: flagged ``*``), and two measures of map consistency from the robots' belief
@@ -22,6 +22,7 @@ it writes.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import statistics
 import sys
@@ -31,10 +32,12 @@ from pathlib import Path
 import numpy as np
 
 import fleet_emu.agents.protocol as proto
+from fleet_emu.core.errors import FleetError
 from fleet_emu.core.grid import UNKNOWN
 from fleet_emu.core.messages import TxBundle, open_envelope
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
+from fleet_emu.launch.runner import check
 
 RECOVERY = ("mapfill", "resent_cells", "sync_fields")
 
@@ -105,12 +108,26 @@ def main() -> None:
     p.add_argument("--loss", type=float, default=0.3)
     p.add_argument("--comm", default="full")
     p.add_argument("--seeds", type=int, default=8)
-    p.add_argument("--start", default="random")
+    p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--max-ticks", type=int, default=3000)
     p.add_argument("--json", type=Path, help="write the per-seed rows here")
     a = p.parse_args()
-    base = Scenario().override(map=a.map, robots=a.robots, allocator=a.allocator, loss=a.loss, comm=a.comm,
-                               start=a.start, max_ticks=a.max_ticks, belief_every=0)
+    start = None if a.start == "map" else a.start
+    if isinstance(start, str) and "," in start:
+        with contextlib.suppress(ValueError):  # else the scenario's check says what is wrong
+            start = tuple(int(v) for v in start.split(","))
+    try:
+        base = Scenario().override(map=a.map, robots=a.robots, allocator=a.allocator, loss=a.loss, comm=a.comm,
+                                   start=start, max_ticks=a.max_ticks, belief_every=0)
+        check(base)  # the map, the allocator, the start area: before the table's first line
+        run(a, base)
+    except FleetError as exc:  # bad input: one line, exit 2
+        print(f"map_sync: error: {exc}", file=sys.stderr)
+        sys.exit(2)
+
+
+def run(a: argparse.Namespace, base: Scenario) -> None:
+    """The runs and the table."""
     rows = []
     print(f"{a.map}, {a.robots} robots, {a.allocator}, comm {a.comm}, loss {a.loss}", file=sys.stderr)
     print(f"{'seed':>4} {'ticks':>6} {'gap_end':>8} {'gap_mean':>8} {'conflict':>8} {'sent':>7} {'bytes':>9}"
