@@ -18,7 +18,8 @@ is lost):
   even when the sender has learned nothing since (a robot that has finished exploring).
 - A receiver missing deltas from a teammate it heard within the last ``retry_after`` ticks (in contact) asks
   that teammate for the oldest :data:`~fleet_emu.agents.protocol.MAX_SEQS` missing numbers (the rest in the
-  next ticks). The request rides on the pose beacon the receiver broadcasts every tick anyway
+  next ticks), or for its whole map when more than that went missing at once (out of range a long while).
+  The request rides on the pose beacon the receiver broadcasts every tick anyway
   (``PoseBeacon.want``, a list of numbers per teammate asked), delivered to that teammate or lost like any
   radio message: an envelope of its own would cost its header, most of a request's bytes.
 - The sender puts the cells of the deltas asked for (it keeps the cell indices of its last ``history``
@@ -31,9 +32,9 @@ is lost):
   of one). Only the lost news is sent again, plus a few bytes of request.
 - A teammate heard for the first time, or again after ``resync_after`` silent ticks, is no longer sent the
   whole map unasked (the brain's rule without map sync): the receiver sees the gap in the first beacon it
-  hears and asks for the deltas it lacks, which is less than the whole map whenever it had the teammate's
-  earlier deltas (a delta holds every cell its robot newly learned, from its sensor or from a teammate, so
-  the deltas together are the whole map).
+  hears and asks for the deltas it lacks, or for the whole map when they are more than ``MAX_SEQS`` (a
+  delta holds every cell its robot newly learned, from its sensor or from a teammate, so the deltas
+  together are the whole map). A short silence costs the deltas missed, not a whole map.
 
 Choices the papers leave open, as parameters (:class:`SyncConfig`): ``retry_after`` (3 ticks: one round trip
 plus one tick), ``history`` (512 deltas kept per robot). Map sync is on when the radio can lose a message
@@ -53,9 +54,6 @@ import numpy as np
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.protocol import MAX_SEQS, MapFill
 
-#: A gap in a teammate's numbers larger than this is not listed number by number: the whole map is asked.
-MAX_GAP = 4096
-
 
 @dataclasses.dataclass(frozen=True)
 class SyncConfig:
@@ -71,8 +69,10 @@ class SyncConfig:
 class Peer:
     """What a robot knows of one teammate's deltas: ``top``, the highest number it knows exists; ``missing``,
     the numbers up to ``top`` neither received nor filled, each with the tick it was last asked for (None:
-    not yet). A gap of more than :data:`MAX_GAP` (only a corrupt or hostile number makes one) is not listed:
-    the robot asks for the whole map instead (``whole``: the top it must reach, ``whole_asked``: when)."""
+    not yet). A gap of more than :data:`~fleet_emu.agents.protocol.MAX_SEQS` numbers at once (the teammate
+    was out of range a long while, or a corrupt number) is not listed: the robot asks for the whole map
+    instead (``whole``: the number a whole map must reach, ``whole_asked``: when it was asked); the numbers
+    after it are listed as usual."""
 
     top: int = 0
     missing: dict[int, int | None] = dataclasses.field(default_factory=dict)
@@ -83,8 +83,8 @@ class Peer:
         """Delta ``n`` was sent (a delta or a beacon said so): every number above ``top`` up to it is missing."""
         if n <= self.top:
             return
-        if self.whole is not None or n - self.top > MAX_GAP:
-            self.missing.clear()
+        if n - self.top > MAX_SEQS:
+            self.missing.clear()  # a whole map stands for them too
             self.whole = n
         else:
             self.missing.update(dict.fromkeys(range(self.top + 1, n + 1)))
@@ -107,8 +107,8 @@ class Peer:
                 self.top = upto
 
     def request(self, t: int, retry_after: int) -> tuple[int, ...] | None:
-        """The numbers to ask for at ``t`` (empty: the whole map), None for none: the oldest :data:`MAX_SEQS`
-        never asked, or asked ``retry_after`` ticks ago or more (the rest in the next ticks)."""
+        """The numbers to ask for at ``t`` (empty: the whole map, first), None for none: the oldest
+        :data:`MAX_SEQS` never asked, or asked ``retry_after`` ticks ago or more (the rest in the next ticks)."""
         if self.whole is not None:
             if self.whole_asked is not None and t - self.whole_asked < retry_after:
                 return None

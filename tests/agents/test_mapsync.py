@@ -167,19 +167,24 @@ def test_a_gap_seen_from_a_delta_or_a_beacon_is_asked_for_and_retried() -> None:
 def test_many_missing_are_asked_oldest_first_in_chunks() -> None:
     p = Peer()
     p.received(1)
-    p.received(MAX_SEQS + 12)  # 2 .. MAX_SEQS + 11 lost
+    p.exists(40)  # 2 .. 40 lost
+    p.exists(80)  # 41 .. 80 too
     assert p.request(0, 3) == tuple(range(2, MAX_SEQS + 2))
-    assert p.request(1, 3) == tuple(range(MAX_SEQS + 2, MAX_SEQS + 12))
+    assert p.request(1, 3) == tuple(range(MAX_SEQS + 2, 81))
     assert p.request(2, 3) is None
 
 
-def test_an_absurd_gap_asks_for_the_whole_map_without_listing_it() -> None:
+def test_a_long_gap_asks_for_the_whole_map_then_the_numbers_after_it() -> None:
     p = Peer()
-    p.received(10**12)  # a corrupt or hostile number: no list of a trillion entries
+    p.received(1)
+    p.received(MAX_SEQS + 10)  # back in range: more than MAX_SEQS missing at once, not listed
     assert p.missing == {} and p.request(0, 3) == ()
-    assert p.request(1, 3) is None and p.request(3, 3) == ()
-    p.filled((), 10**12)
-    assert p.request(9, 3) is None
+    p.exists(MAX_SEQS + 12)  # 11 lost after it
+    assert p.request(1, 3) is None and p.request(3, 3) == ()  # the whole map first, asked again after 3 ticks
+    p.filled((), MAX_SEQS + 10)  # a whole map up to where the gap was seen
+    assert p.request(4, 3) == (MAX_SEQS + 11, MAX_SEQS + 12)
+    p.received(10**12)  # a corrupt number: no list of a trillion entries
+    assert p.missing == {} and p.request(5, 3) == ()
 
 
 def test_the_sender_resends_the_asked_cells_in_its_next_delta_or_its_whole_map() -> None:
