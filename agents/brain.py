@@ -45,7 +45,7 @@ from fleet_emu.core.scenario import Scenario
 @dataclasses.dataclass(frozen=True)
 class BrainConfig:
     """``cluster_max``: frontier cells one sensing covers (MinPos 4.1); ``resync_after``: ticks of silence
-    after which a teammate heard again gets the whole known map (without map sync); ``map_sync``: recover
+    after which a teammate heard again gets the whole known map; ``map_sync``: recover
     lost map deltas (``agents/mapsync.py``, with ``sync``'s parameters), off by default and on in a run whose
     radio can lose a message (:func:`brain_config`)."""
 
@@ -146,12 +146,14 @@ class Brain:
         outbox: list[RadioMsg] = []
         protocol: list[RadioMsg] = []
         sync = self.sync
+        rejoined: list[str] = []
         for msg in self.open(inbox):
             if msg.src == self.me:
                 continue
             body = msg.body
             if isinstance(body, PoseBeacon):
-                self._heard(msg, body, t, outbox)
+                if self._heard(msg, body, t, outbox):
+                    rejoined.append(msg.src)
                 if sync is not None and body.maps is not None:
                     sync.peer(msg.src).exists(body.maps)
                 if sync is not None and body.want is not None and self.me in body.want:
@@ -171,6 +173,8 @@ class Brain:
                 protocol.append(msg)
         want = None
         if sync is not None:
+            for r in rejoined:  # it sends us its whole map as we send it ours: ask only if that is lost
+                sync.peer(r).hold(t)
             want = sync.requests(t, {r: tm.heard for r, tm in self.teammates.items()})
         expected = {r: tm.expected(obs.cell) for r, tm in sorted(self.teammates.items())}
         poses = {self.me: obs.cell} | expected
@@ -210,17 +214,20 @@ class Brain:
         self.step_cpu_ms += (time.thread_time() - c0) * 1000.0
         return cmd, sealed
 
-    def _heard(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> None:
-        """A teammate's pose; without map sync, one heard for the first time, or again after a silence, gets
-        our whole map (with map sync it asks for the deltas it missed: ``agents/mapsync.py``)."""
+    def _heard(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> bool:
+        """A teammate's pose; one heard for the first time, or again after a silence, gets our whole map
+        (True then; with map sync as a fill that stands for every delta so far)."""
         prev = self.teammates.get(msg.src)
         if prev is not None and msg.tick < prev.heard:
-            return
-        if (prev is None or t - prev.heard > self.config.resync_after) and self.belief is not None \
-                and self.sync is None:
-            cells, values = self.belief.known()
+            return False
+        rejoined = (prev is None or t - prev.heard > self.config.resync_after) and self.belief is not None
+        if rejoined and self.sync is not None:
+            outbox.append(RadioMsg(self.sync.whole(self.belief), dst=msg.src))  # type: ignore[arg-type]
+        elif rejoined:
+            cells, values = self.belief.known()  # type: ignore[union-attr]
             outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=msg.src))
         self.teammates[msg.src] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
+        return rejoined
 
     def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray, occupied: set[Cell]) -> Cell:
         """A robot whose moves keep failing, or that keeps waiting for a teammate to clear its way (two
