@@ -32,13 +32,14 @@ from fleet_emu.core.access import (
     make_credentials,
     read_dictionary,
 )
-from fleet_emu.core.bus import client_config, publisher, router_config, router_locators
+from fleet_emu.core.bus import client_config, publisher, router_config, router_locators, shm_enabled
 from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import RUN_ID, Keys, robot_ids
 from fleet_emu.core.messages import Failed, Ready, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch import budget
 from fleet_emu.launch.forked import fork_server_enabled
 from fleet_emu.launch.result import Result, write_json_atomic
 from fleet_emu.launch.signals import Interrupts
@@ -88,6 +89,15 @@ def check(scenario: Scenario) -> MapData:
     md = load_map(scenario.map, scenario.cell_size, scenario.seed)
     build_world(scenario, md).reset()  # raises StartAreaError when the robots do not fit
     return md
+
+
+def check_machine(scenario: Scenario, map_data: MapData, engine: str, fork_server: bool = False) -> None:
+    """Whether the machine holds the run (``launch/budget.py``): its estimated memory against what is
+    available, and (over Zenoh) the launcher's open-file limit, raised to its hard limit when needed."""
+    budget.check_memory(scenario.robots, int(map_data.grid.size), engine, fork_server, shm_enabled(),
+                        budget.available_mb())
+    if engine != "memory":
+        budget.ensure_fds(scenario.robots)
 
 
 def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] | None:
@@ -158,6 +168,8 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     Bad input (the scenario, the options, an unwritable ``out_dir``) raises ConfigError before any process
     starts and leaves no output directory behind."""
     map_data = check(scenario)
+    check_machine(scenario, map_data, "in-process" if opts.in_process else "processes",
+                  not opts.in_process and fork_server_enabled(opts.fork_server))
     creds = credentials(scenario, opts)
     check_options(opts, creds)
     if opts.connect is not None and creds is None and opts.on_warning is not None:
@@ -304,7 +316,8 @@ def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: 
     An agent process that exits early is announced to the world, which goes on without it. The world or
     netem exiting with an error before the stop fails the run at once; exiting cleanly (code 0) is a normal
     end whose stop message may still be on its way, so it fails the run only if no stop comes within
-    :data:`STOP_GRACE` seconds."""
+    :data:`STOP_GRACE` seconds of the launcher having folded every sample it received (with a hundred robots
+    and more, their last belief snapshots can take the launcher longer than that)."""
     stop_seen: float | None = None
     clean_end: float | None = None
     announced: set[str] = set()
@@ -332,7 +345,8 @@ def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: 
             if nodes_thread is not None and not nodes_thread.is_alive():
                 ended.append("the in-process nodes ended")
             if ended:
-                clean_end = clean_end or time.monotonic()
+                if clean_end is None or consumer.samples.qsize():
+                    clean_end = time.monotonic()  # the stop may be in the backlog still to fold (a large fleet)
                 if time.monotonic() - clean_end > STOP_GRACE:
                     return f"{ended[0]} but no stop reached the launcher within {STOP_GRACE:g} s"
         consumer.changed.wait(0.2)

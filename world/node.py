@@ -14,7 +14,7 @@ import zenoh
 
 from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.codec import Context
-from fleet_emu.core.grid import MapData
+from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import Keys, robot_ids
 from fleet_emu.core.messages import Command, Failed, Hello, Observation, Ready, Stop, WorldState
@@ -26,8 +26,9 @@ from fleet_emu.world.sim import Reading, World, WorldConfig
 HELLO_PERIOD = 0.1
 
 
-def build_world(scenario: Scenario, map_data: MapData) -> World:
-    """The world of a scenario on its map (built once per run by the launcher)."""
+def build_world(scenario: Scenario, map_data: MapData, placement: tuple[Cell, ...] | None = None) -> World:
+    """The world of a scenario on its map (built once per run by the launcher); ``placement``: explicit start
+    cells, one per robot (the memory engine's :class:`~fleet_emu.launch.memory.Fleet` takes them)."""
     config = WorldConfig(
         sensor_range=scenario.sensor_cells,
         target_coverage=scenario.target_coverage,
@@ -35,6 +36,7 @@ def build_world(scenario: Scenario, map_data: MapData) -> World:
         stall_ticks=scenario.stall_ticks,
         coverage_stall_ticks=scenario.coverage_stall_ticks,
         start=scenario.start,
+        placement=placement,
     )
     return World(map_data, robot_ids(scenario.robots), config, generator(scenario.seed, "world"))
 
@@ -162,7 +164,9 @@ class WorldNode(NodeBase):
             dropped=self.dropped).encode())
 
     async def _barrier(self, inbox: Inbox) -> dict[str, tuple[int, int]]:
-        """Wait for every live robot's command for this tick; fail the silent ones."""
+        """Wait for every live robot's command for this tick; fail the silent ones: those still missing when no
+        command came for ``barrier_timeout`` seconds (a deadline from the last command, not from the tick's
+        start, so that a large fleet sharing a few cores is not failed for being many)."""
         t = self.world.tick
         waiting = set(self.world.live)
         moves: dict[str, tuple[int, int]] = {}
@@ -193,6 +197,7 @@ class WorldNode(NodeBase):
             if cmd.tick == t and robot in waiting:  # decode checked that robot sent it
                 moves[robot] = cmd.move
                 waiting.discard(robot)
+                deadline = time.monotonic() + self.scenario.barrier_timeout  # silent since the last command
         return moves
 
 
