@@ -14,7 +14,7 @@ import shutil
 import tempfile
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -225,13 +225,13 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
             endpoint = opts.connect
         else:
             try:
-                router = stack.enter_context(_open_router(run_id, creds))
+                router = stack.enter_context(_closing(_open_router(run_id, creds)))
             except zenoh.ZError as exc:
                 raise RunError(f"cannot open the embedded Zenoh router: {str(exc).splitlines()[0]}") from None
             endpoint = router_locators(router)[0]
         login = creds or {}
-        session = stack.enter_context(zenoh.open(client_config(endpoint, login.get(LAUNCHER))))
-        listener = stack.enter_context(zenoh.open(client_config(endpoint, login.get(RECORDER))))
+        session = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(LAUNCHER)))))
+        listener = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(RECORDER)))))
         samples: queue.Queue[tuple[str, bytes, int] | None] = queue.Queue()
         sub = listener.declare_subscriber(
             keys.all, lambda s: samples.put((str(s.key_expr), s.payload.to_bytes(), time.time_ns())))
@@ -381,6 +381,17 @@ class _Consumer(threading.Thread):
                 self.viz.feed(key, data, msg)
             if msg is not None:
                 self.changed.set()
+
+
+@contextlib.contextmanager
+def _closing(session: zenoh.Session) -> Iterator[zenoh.Session]:
+    """The session, closed on the way out; a close that times out (Zenoh gives up after a while: the router's
+    with 256 robots on a loaded machine did) is let go, since the run's files are still to be written."""
+    try:
+        yield session
+    finally:
+        with contextlib.suppress(zenoh.ZError):
+            session.close()
 
 
 def _open_router(run_id: str, creds: dict[str, Credential] | None) -> zenoh.Session:
