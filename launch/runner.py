@@ -345,7 +345,7 @@ def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: 
             if nodes_thread is not None and not nodes_thread.is_alive():
                 ended.append("the in-process nodes ended")
             if ended:
-                if clean_end is None or consumer.samples.qsize():
+                if clean_end is None or consumer.backlog():
                     clean_end = time.monotonic()  # the stop may be in the backlog still to fold (a large fleet)
                 if time.monotonic() - clean_end > STOP_GRACE:
                     return f"{ended[0]} but no stop reached the launcher within {STOP_GRACE:g} s"
@@ -366,6 +366,10 @@ class _Consumer(threading.Thread):
         self.viz = viz
         self.pub_ready = pub_ready
         self.changed = threading.Event()
+
+    def backlog(self) -> int:
+        """Samples received and not folded yet."""
+        return self.samples.qsize()
 
     def run(self) -> None:
         while (item := self.samples.get()) is not None:
