@@ -34,10 +34,10 @@ One table row per map and robot count (stdout):
   the machine).
 
 A robot count above ``fleet_emu.core.scenario.MAX_ROBOTS`` is a ``cap`` row, not run; a fleet larger than the
-world's start area (the free cells within ``start_radius`` = 4 BFS steps: at most 41) a ``start`` row, not run
-either. Numba compiles the kernels into their cache on a fresh checkout: the first run's start-up then includes
-it. Progress goes to stderr. Exit 0 when every run finished, 1 when one failed (a ``failed`` row), 2 on a bad
-argument (one line).
+free area reachable from the start a ``start`` row, and one the launcher's memory check refuses
+(``launch/budget.py``) a ``memory`` row, not run either. Numba compiles the kernels into their cache on a fresh
+checkout: the first run's start-up then includes it. Progress goes to stderr. Exit 0 when every run finished, 1
+when one failed (a ``failed`` row), 2 on a bad argument (one line).
 """
 
 from __future__ import annotations
@@ -290,9 +290,10 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
 
 
 def child(a: argparse.Namespace) -> None:
-    """``--one``: one run in this process, its row (or ``error``, or ``start_area`` when the fleet does not fit
-    the start area) as one JSON line on stdout."""
+    """``--one``: one run in this process, its row (or ``error``, ``start_area`` when the fleet does not fit
+    the map's free area, ``memory`` when the machine does not hold it) as one JSON line on stdout."""
     from fleet_emu.core.errors import FleetError
+    from fleet_emu.launch.budget import BudgetError
     from fleet_emu.world.sim import StartAreaError
 
     name, cs, robots, row, col = a.one
@@ -300,6 +301,8 @@ def child(a: argparse.Namespace) -> None:
         out = run_one(name, float(cs), int(robots), (int(row), int(col)), a)
     except StartAreaError as exc:
         out = {"start_area": str(exc)}
+    except BudgetError as exc:
+        out = {"memory": str(exc)}
     except (FleetError, RuntimeError) as exc:
         out = {"error": str(exc).splitlines()[0][:300]}
     print(json.dumps(out), flush=True)
@@ -347,16 +350,18 @@ def main(argv: list[str] | None = None) -> None:
             done += 1
             row: dict[str, Any] = {"map": label[:10], "cells": f"{shape[0]}x{shape[1]}", "robots": n}
             if n > MAX_ROBOTS:
-                row["note"] = f"cap: more than {MAX_ROBOTS} robots is refused today (core/scenario.py)"
+                row["note"] = f"cap: more than {MAX_ROBOTS} robots is refused (core/scenario.py)"
                 print(f"[{done}/{total}] {label} {n} robots: over the cap of {MAX_ROBOTS}, not run",
                       file=sys.stderr, flush=True)
             else:
                 t = time.monotonic()
                 got = spawn_one(name, cs, n, start, a)
-                if "start_area" in got:
-                    row["note"] = "start: the start area holds fewer robots (world start_radius 4)"
-                    print(f"[{done}/{total}] {label} {n} robots: not run ({got['start_area']})", file=sys.stderr,
-                          flush=True)
+                if "start_area" in got or "memory" in got:
+                    why = "start" if "start_area" in got else "memory"
+                    row["note"] = ("start: the map's free area holds fewer robots" if why == "start" else
+                                   "memory: the launcher's memory check refused the run")
+                    print(f"[{done}/{total}] {label} {n} robots: not run ({got.get('start_area') or got['memory']})",
+                          file=sys.stderr, flush=True)
                 elif "error" in got:
                     failed += 1
                     row["note"] = "failed"

@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+import os
 from typing import Any
 
 import zenoh
@@ -19,12 +20,25 @@ from fleet_emu.core.access import Credential
 # the barrier timeout. A 1 s lease expired under load here (load average 8 on 2 cores) and failed healthy robots.
 LEASE_MS = 10_000
 
+# Zenoh's shared-memory transport is off unless FLEET_ZENOH_SHM=1. On (Zenoh's default), every session makes a
+# 16 MB pool and sends each message over 3 kB through it, so every receiver maps every sender's pool: netem and
+# the router, which hear every robot, grew by about 8 MB per robot each. benchmarks/scale.py, 80 robots on a
+# 512 x 512 maze (load 27-33 on 2 cores): PSS per agent 33 -> 13 MB, netem 719 -> 88 MB, launcher 759 -> 112 MB,
+# and CPU per robot-tick 31.3 -> 17.5 ms with it off.
+
+
+def shm_enabled() -> bool:
+    """Whether the fleet's sessions use Zenoh's shared-memory transport (``FLEET_ZENOH_SHM=1``)."""
+    return os.environ.get("FLEET_ZENOH_SHM") == "1"
+
 
 def _base(mode: str) -> zenoh.Config:
     conf = zenoh.Config()
     conf.insert_json5("mode", json.dumps(mode))
     conf.insert_json5("scouting/multicast/enabled", "false")
     conf.insert_json5("transport/link/tx/lease", str(LEASE_MS))
+    if not shm_enabled():
+        conf.insert_json5("transport/shared_memory/enabled", "false")
     return conf
 
 

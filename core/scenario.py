@@ -17,7 +17,7 @@ from typing import Any
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.radio import COMM_MODELS, RadioConfig
 
-MAX_ROBOTS = 64
+MAX_ROBOTS = 256
 
 
 @dataclasses.dataclass(frozen=True)

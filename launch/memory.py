@@ -17,7 +17,7 @@ import functools
 import os
 import resource
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -49,7 +49,7 @@ from fleet_emu.netem.channel import Channel
 from fleet_emu.recording.monitor import Monitor
 from fleet_emu.world.maps import BUILTIN_MAPS, load_map
 from fleet_emu.world.node import build_world
-from fleet_emu.world.sim import Reading
+from fleet_emu.world.sim import Reading, StartAreaError
 
 #: Called with (key expression, message, wall-clock ns) for every message the bus would carry (a recorder).
 Tap = Callable[[str, Message, int], None]
@@ -76,11 +76,17 @@ class Fleet:
     team). ``step(actions)`` takes optional moves (``{robot: (drow, dcol)}``) that replace the brains' for
     those robots; every brain still runs and sends its radio messages. ``tap`` sees every message the bus
     would carry (``fleet run --engine memory`` records them).
+
+    ``map_data`` replaces the scenario's map (a map drawn in a test: ``core.grid.from_ascii``), and ``starts``
+    places the robots on given cells (``{robot: cell}`` for every robot, or one cell per robot in robot order)
+    instead of around the start cell; the start cell is then the first robot's. Neither is in the scenario,
+    so ``result.json``'s scenario alone does not reproduce such a fleet.
     """
 
     metadata: dict[str, Any] = {"name": "fleet_emu_memory_v0", "is_parallelizable": True}
 
-    def __init__(self, scenario: Scenario, *, run_id: str = "memory", tap: Tap | None = None) -> None:
+    def __init__(self, scenario: Scenario, *, run_id: str = "memory", tap: Tap | None = None,
+                 map_data: MapData | None = None, starts: Mapping[str, Cell] | Sequence[Cell] | None = None) -> None:
         scenario.validate()
         make_allocator(allocator_config(scenario))  # a ConfigError now, not at the first reset
         self.scenario = scenario
@@ -88,6 +94,8 @@ class Fleet:
         self.keys = Keys(run_id)
         self.tap = tap
         self.possible_agents: list[str] = robot_ids(scenario.robots)
+        self._map_data = map_data
+        self._starts = _placement(starts, self.possible_agents)
         self.agents: list[str] = []
         self.monitor = Monitor(tuple(self.possible_agents))
         self._started: float | None = None
@@ -100,8 +108,8 @@ class Fleet:
         if seed is not None:
             self.scenario = self.scenario.override(seed=seed)
         s = self.scenario
-        self.map = fleet_map(s)
-        self.world = build_world(s, self.map)
+        self.map = self._map_data if self._map_data is not None else fleet_map(s)
+        self.world = build_world(s, self.map, self._starts)
         self.occupied = self.map.grid > 0
         self.channel = Channel(s.radio.applied_loss, generator(s.seed, "netem"), s.radio.latency)
         self.dropped = dict.fromkeys(self.possible_agents, 0)
@@ -253,6 +261,21 @@ class Fleet:
         self.agents = []
 
 
+def _placement(starts: Mapping[str, Cell] | Sequence[Cell] | None, robots: list[str]) -> tuple[Cell, ...] | None:
+    """Explicit start cells in robot order (the world checks that they are free and distinct)."""
+    if starts is None:
+        return None
+    if isinstance(starts, Mapping):
+        if set(starts) != set(robots):
+            raise StartAreaError(f"starts must give a cell for each of the robots {', '.join(robots)} "
+                                 f"(got {', '.join(sorted(starts)) or 'none'})")
+        starts = [starts[r] for r in robots]
+    cells = tuple((int(c[0]), int(c[1])) for c in starts)
+    if len(cells) != len(robots):
+        raise StartAreaError(f"{len(cells)} start cells given for {len(robots)} robots")
+    return cells
+
+
 def seed_test(scenario: Scenario, seed: int = 0, ticks: int = 60) -> None:
     """PettingZoo's ``seed_test`` for :class:`Fleet`: two fleets reset with the same seed give the same
     observations, rewards and ends, tick by tick, and a fleet reset again with that seed replays its run.
@@ -287,9 +310,10 @@ def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool 
     (the CLI's signal state) a signal ends the run after the current tick, as ``run_fleet`` does; without,
     Ctrl-C re-raises KeyboardInterrupt once the files are written."""
     from fleet_emu.launch.result import write_json_atomic
-    from fleet_emu.launch.runner import _make_out, check, new_run_id
+    from fleet_emu.launch.runner import _make_out, check, check_machine, new_run_id
 
     map_data = check(scenario)
+    check_machine(scenario, map_data, "memory")
     run_id = run_id or new_run_id()
     if out_dir is not None:
         _make_out(out_dir)

@@ -14,7 +14,7 @@ import shutil
 import tempfile
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -32,13 +32,14 @@ from fleet_emu.core.access import (
     make_credentials,
     read_dictionary,
 )
-from fleet_emu.core.bus import client_config, publisher, router_config, router_locators
+from fleet_emu.core.bus import client_config, publisher, router_config, router_locators, shm_enabled
 from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import RUN_ID, Keys, robot_ids
 from fleet_emu.core.messages import Failed, Ready, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch import budget
 from fleet_emu.launch.forked import fork_server_enabled
 from fleet_emu.launch.hosts import HOST_TIMEOUT, Hosts, HostsError, check_hosts, host_credentials, spawn_nodes
 from fleet_emu.launch.result import Result, write_json_atomic
@@ -94,6 +95,15 @@ def check(scenario: Scenario) -> MapData:
     md = load_map(scenario.map, scenario.cell_size, scenario.seed)
     build_world(scenario, md).reset()  # raises StartAreaError when the robots do not fit
     return md
+
+
+def check_machine(scenario: Scenario, map_data: MapData, engine: str, fork_server: bool = False) -> None:
+    """Whether the machine holds the run (``launch/budget.py``): its estimated memory against what is
+    available, and (over Zenoh) the launcher's open-file limit, raised to its hard limit when needed."""
+    budget.check_memory(scenario.robots, int(map_data.grid.size), engine, fork_server, shm_enabled(),
+                        budget.available_mb())
+    if engine != "memory":
+        budget.ensure_fds(scenario.robots)
 
 
 def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] | None:
@@ -172,6 +182,8 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     Bad input (the scenario, the options, an unwritable ``out_dir``) raises ConfigError before any process
     starts and leaves no output directory behind."""
     map_data = check(scenario)
+    check_machine(scenario, map_data, "in-process" if opts.in_process else "processes",
+                  not opts.in_process and fork_server_enabled(opts.fork_server))
     creds = credentials(scenario, opts)
     check_options(opts, creds)
     if opts.connect is not None and creds is None and opts.on_warning is not None:
@@ -229,13 +241,13 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
             endpoint = opts.connect
         else:
             try:
-                router = stack.enter_context(_open_router(run_id, creds, opts.listen or "tcp/127.0.0.1:0"))
+                router = stack.enter_context(_closing(_open_router(run_id, creds, opts.listen or "tcp/127.0.0.1:0")))
             except zenoh.ZError as exc:
                 raise RunError(f"cannot open the embedded Zenoh router: {str(exc).splitlines()[0]}") from None
             endpoint = router_locators(router)[0]
         login = creds or {}
-        session = stack.enter_context(zenoh.open(client_config(endpoint, login.get(LAUNCHER))))
-        listener = stack.enter_context(zenoh.open(client_config(endpoint, login.get(RECORDER))))
+        session = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(LAUNCHER)))))
+        listener = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(RECORDER)))))
         samples: queue.Queue[tuple[str, bytes, int] | None] = queue.Queue()
         sub = listener.declare_subscriber(
             keys.all, lambda s: samples.put((str(s.key_expr), s.payload.to_bytes(), time.time_ns())))
@@ -327,7 +339,8 @@ def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: 
     An agent process that exits early is announced to the world, which goes on without it. The world or
     netem exiting with an error before the stop fails the run at once; exiting cleanly (code 0) is a normal
     end whose stop message may still be on its way, so it fails the run only if no stop comes within
-    :data:`STOP_GRACE` seconds."""
+    :data:`STOP_GRACE` seconds of the launcher having folded every sample it received (with a hundred robots
+    and more, their last belief snapshots can take the launcher longer than that)."""
     stop_seen: float | None = None
     clean_end: float | None = None
     announced: set[str] = set()
@@ -355,7 +368,8 @@ def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: 
             if nodes_thread is not None and not nodes_thread.is_alive():
                 ended.append("the in-process nodes ended")
             if ended:
-                clean_end = clean_end or time.monotonic()
+                if clean_end is None or consumer.backlog():
+                    clean_end = time.monotonic()  # the stop may be in the backlog still to fold (a large fleet)
                 if time.monotonic() - clean_end > STOP_GRACE:
                     return f"{ended[0]} but no stop reached the launcher within {STOP_GRACE:g} s"
         consumer.changed.wait(0.2)
@@ -376,6 +390,10 @@ class _Consumer(threading.Thread):
         self.pub_ready = pub_ready
         self.changed = threading.Event()
 
+    def backlog(self) -> int:
+        """Samples received and not folded yet."""
+        return self.samples.qsize()
+
     def run(self) -> None:
         while (item := self.samples.get()) is not None:
             key, data, wall_ns = item
@@ -390,6 +408,17 @@ class _Consumer(threading.Thread):
                 self.viz.feed(key, data, msg)
             if msg is not None:
                 self.changed.set()
+
+
+@contextlib.contextmanager
+def _closing(session: zenoh.Session) -> Iterator[zenoh.Session]:
+    """The session, closed on the way out; a close that times out (Zenoh gives up after a while: the router's
+    with 256 robots on a loaded machine did) is let go, since the run's files are still to be written."""
+    try:
+        yield session
+    finally:
+        with contextlib.suppress(zenoh.ZError):
+            session.close()
 
 
 def _open_router(run_id: str, creds: dict[str, Credential] | None, listen: str) -> zenoh.Session:

@@ -158,8 +158,11 @@ class NetemNode(NodeBase):
         while not needed <= set(self.tx.get(tick, {})):
             if self.abort:
                 return None
+            heard = len(self.tx.get(tick, {}))
             if await self._next(inbox, timeout=max(0.0, deadline - time.monotonic())) is None:
                 break  # silent robots send nothing this tick; the world fails them
+            if len(self.tx.get(tick, {})) > heard:  # as the world's barrier: silent since the last bundle
+                deadline = time.monotonic() + self.scenario.barrier_timeout
             if tick + 1 in self.states:  # the world moved on: only robots it failed may stay silent
                 needed &= set(self.states[tick + 1].live)
         got = self.tx.pop(tick, {})

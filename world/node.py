@@ -21,7 +21,7 @@ import zenoh
 
 from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.codec import Context
-from fleet_emu.core.grid import MapData
+from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import Keys, robot_ids
 from fleet_emu.core.messages import STALE, Command, Failed, Hello, Observation, Ready, Stop, WorldClock, WorldState
@@ -32,10 +32,15 @@ from fleet_emu.world.realtime import CommandLatch, TickClock
 from fleet_emu.world.sim import Reading, World, WorldConfig
 
 HELLO_PERIOD = 0.1
+# How long the world waits for every node's ready: a base, and a second per robot (robots started afresh each
+# import numpy, numba and scipy: 28 s for 32 of them on 2 loaded cores; 256 forked robots took 47 s).
+STARTUP_TIMEOUT = 120.0
+STARTUP_PER_ROBOT = 1.0
 
 
-def build_world(scenario: Scenario, map_data: MapData) -> World:
-    """The world of a scenario on its map (built once per run by the launcher)."""
+def build_world(scenario: Scenario, map_data: MapData, placement: tuple[Cell, ...] | None = None) -> World:
+    """The world of a scenario on its map (built once per run by the launcher); ``placement``: explicit start
+    cells, one per robot (the memory engine's :class:`~fleet_emu.launch.memory.Fleet` takes them)."""
     config = WorldConfig(
         sensor_range=scenario.sensor_cells,
         target_coverage=scenario.target_coverage,
@@ -43,6 +48,7 @@ def build_world(scenario: Scenario, map_data: MapData) -> World:
         stall_ticks=scenario.stall_ticks,
         coverage_stall_ticks=scenario.coverage_stall_ticks,
         start=scenario.start,
+        placement=placement,
     )
     return World(map_data, robot_ids(scenario.robots), config, generator(scenario.seed, "world"))
 
@@ -50,14 +56,15 @@ def build_world(scenario: Scenario, map_data: MapData) -> World:
 class WorldNode(NodeBase):
     role = "world"
 
-    def __init__(self, scenario: Scenario, run: str, map_data: MapData, startup_timeout: float = 120.0,
+    def __init__(self, scenario: Scenario, run: str, map_data: MapData, startup_timeout: float | None = None,
                  realtime_hz: float | None = None) -> None:
         super().__init__(Keys(run), "world")
         warm_up()  # compile (or load) the kernels before the first tick, not inside it
         self.scenario = scenario
         self.world = build_world(scenario, map_data)
         self.robots = robot_ids(scenario.robots)
-        self.startup_timeout = startup_timeout
+        self.startup_timeout = startup_timeout if startup_timeout is not None else \
+            STARTUP_TIMEOUT + STARTUP_PER_ROBOT * scenario.robots
         self.stopped_early = False
         self.interrupted = False
         self.lost_at_start: set[str] = set()
@@ -228,7 +235,9 @@ class WorldNode(NodeBase):
                 self.drop(key, f"command stamped for tick {cmd.tick}, not yet published (now {t})")
 
     async def _barrier(self, inbox: Inbox) -> dict[str, tuple[int, int]]:
-        """Wait for every live robot's command for this tick; fail the silent ones."""
+        """Wait for every live robot's command for this tick; fail the silent ones: those still missing when no
+        command came for ``barrier_timeout`` seconds (a deadline from the last command, not from the tick's
+        start, so that a large fleet sharing a few cores is not failed for being many)."""
         t = self.world.tick
         waiting = set(self.world.live)
         moves: dict[str, tuple[int, int]] = {}
@@ -259,6 +268,7 @@ class WorldNode(NodeBase):
             if cmd.tick == t and robot in waiting:  # decode checked that robot sent it
                 moves[robot] = cmd.move
                 waiting.discard(robot)
+                deadline = time.monotonic() + self.scenario.barrier_timeout  # silent since the last command
         return moves
 
 

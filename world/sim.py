@@ -17,13 +17,24 @@ from fleet_emu.core.kernels import visible_cells, wavefront
 
 
 class StartAreaError(ConfigError):
-    """More robots than the free start area holds (one line for the user)."""
+    """More robots than the free area reachable from the start holds, or bad explicit start cells (one line
+    for the user)."""
+
+
+def diamond_cells(radius: int) -> int:
+    """Cells within ``radius`` 4-connected steps of a cell on an open grid: 2r(r + 1) + 1."""
+    return 2 * radius * (radius + 1) + 1
 
 
 @dataclasses.dataclass(frozen=True)
 class WorldConfig:
-    """``sensor_range`` in cells; ``start_radius``: the start area is the free cells within this BFS
-    distance of the start cell; ``stall_ticks``: ticks without any move or new sensed cell that end the run;
+    """``sensor_range`` in cells; the fleet is placed on the free cells nearest the start cell (BFS distance,
+    then row-major), as many as it has robots: a fleet of any size that the start's free component holds;
+    ``start_radius``: the BFS distance a ``"random"`` start must hold the fleet within (grown, for fleets larger
+    than its open diamond of :func:`diamond_cells` cells, to the least radius whose diamond holds them), so that
+    the fleet starts packed; ``placement``: explicit start cells instead, one per robot in robot order (the
+    start cell is then the first, unless ``start`` is a cell); ``stall_ticks``: ticks without any move or new
+    sensed cell that end the run;
     ``coverage_stall_ticks``: ticks without any growth of the coverage that end the run, whatever the robots do
     (robots that keep moving back and forth stall too);
     ``start``: a cell, ``"random"`` (a cell drawn from the world's generator where the robots fit, in the map's
@@ -36,6 +47,7 @@ class WorldConfig:
     coverage_stall_ticks: int = 500
     start: Cell | str | None = None
     start_radius: int = 4
+    placement: tuple[Cell, ...] | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,27 +83,36 @@ class World:
     def shape(self) -> tuple[int, int]:
         return self.grid.shape  # type: ignore[return-value]
 
-    def start_cells(self) -> list[Cell]:
-        """Free cells around the start, nearest first (BFS distance, then row-major): deterministic."""
+    def start_cells(self, n: int | None = None, radius: int | None = None) -> list[Cell]:
+        """The ``n`` free cells nearest the start (all of them without ``n``; only those within ``radius`` BFS
+        steps with it), nearest first: BFS distance, then row-major, so deterministic. The first ``n`` of
+        this order do not depend on ``n``: a fleet that fits a smaller area is placed the same way."""
         s = self.start
         if not (0 <= s[0] < self.shape[0] and 0 <= s[1] < self.shape[1]) or self.grid[s] != FREE:
             raise StartAreaError(f"start cell {tuple(s)} is not a free cell of the map")
-        dist = wavefront(~self.occupied, np.array([flat(self.shape, s)], np.int64), -1)
-        area = np.flatnonzero((dist.ravel() >= 0) & (dist.ravel() <= self.config.start_radius))
-        area = area[np.lexsort((area, dist.ravel()[area]))]
+        dist = wavefront(~self.occupied, np.array([flat(self.shape, s)], np.int64), -1).ravel()
+        reach = (dist >= 0) & (self.grid.ravel() == FREE)
+        if radius is not None:
+            reach &= dist <= radius
+        area = np.flatnonzero(reach)
+        area = area[np.lexsort((area, dist[area]))][:n]
         return [(int(i) // self.shape[1], int(i) % self.shape[1]) for i in area]
 
     def reset(self, failed: frozenset[str] | set[str] = frozenset()) -> dict[str, Reading]:
-        """Place the robots around the start and sense; the readings of tick 0. Robots in ``failed`` (their
-        process died before the first tick) are placed but neither sense nor act."""
-        if self.config.start == "random":
-            self.start = self._random_start()
-        cells = self.start_cells()
-        if len(self.robots) > len(cells):
-            raise StartAreaError(f"{len(self.robots)} robots do not fit the start area around {tuple(self.start)} "
-                                 f"({len(cells)} free cells within {self.config.start_radius} steps)")
+        """Place the robots around the start (or on ``placement``) and sense; the readings of tick 0. Robots in
+        ``failed`` (their process died before the first tick) are placed but neither sense nor act."""
+        if self.config.placement is not None:
+            cells = self._placement()
+        else:
+            if self.config.start == "random":
+                self.start = self._random_start()
+            cells = self.start_cells(len(self.robots))
+            if len(self.robots) > len(cells):
+                raise StartAreaError(
+                    f"{len(self.robots)} robots do not fit the free area reachable from the start cell "
+                    f"{tuple(self.start)} of map {self.map.name!r}: it has {len(cells)} free cells")
         self.tick = 0
-        self.poses = dict(zip(self.robots, cells, strict=False))
+        self.poses = dict(zip(self.robots, cells, strict=True))
         self.live = [r for r in self.robots if r not in failed]
         self.path_length = {r: 0 for r in self.robots}
         self.done, self.reason = False, None
@@ -105,15 +126,36 @@ class World:
         self._check_end(progress=True)
         return readings
 
+    def _placement(self) -> list[Cell]:
+        """The explicit start cells, checked: one per robot, distinct, each a free cell of the map."""
+        cells = [(int(c[0]), int(c[1])) for c in self.config.placement or ()]
+        if len(cells) != len(self.robots):
+            raise StartAreaError(f"{len(cells)} start cells given for {len(self.robots)} robots")
+        if len(set(cells)) != len(cells):
+            raise StartAreaError("two robots are given the same start cell")
+        for c in cells:
+            if not (0 <= c[0] < self.shape[0] and 0 <= c[1] < self.shape[1]) or self.grid[c] != FREE:
+                raise StartAreaError(f"start cell {c} is not a free cell of the map")
+        if self.config.start == "random":
+            raise StartAreaError("explicit start cells and a random start exclude each other")
+        if not isinstance(self.config.start, tuple):
+            self.start = cells[0]
+        return cells
+
     def _random_start(self) -> Cell:
         """A start cell drawn from the world's generator: a free cell of the map's main component (the one
-        holding its own start) around which every robot fits; the map's start if no draw fits."""
+        holding its own start) with every robot's cell within the start radius (grown for fleets larger than
+        its diamond); the map's start if no draw fits."""
+        n = len(self.robots)
+        radius = self.config.start_radius
+        while diamond_cells(radius) < n:
+            radius += 1
         main = wavefront(~self.occupied, np.array([flat(self.shape, self.map.start)], np.int64), -1) >= 0
         candidates = np.flatnonzero(main.ravel() & (self.grid.ravel() == FREE))
         for k in self.rng.permutation(len(candidates))[:200]:
             cell = (int(candidates[k]) // self.shape[1], int(candidates[k]) % self.shape[1])
             self.start = cell
-            if len(self.start_cells()) >= len(self.robots):
+            if len(self.start_cells(n, radius)) >= n:
                 return cell
         return self.map.start
 

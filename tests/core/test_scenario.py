@@ -25,7 +25,7 @@ def test_default_scenario_matches_design() -> None:
     ({"robots": "four"}, "robots"), ({"robots": True}, "robots"), ({"loss": "high"}, "loss"),
     ({"sensor_range": "4"}, "sensor-range"), ({"seed": 1.5}, "seed"), ({"sensor_range": float("inf")}, "sensor"),
     ({"comm_range": float("nan")}, "comm-range"), ({"cell_size": float("inf")}, "cell-size"),
-    ({"comm": "telepathy"}, "comm"), ({"start": (1, "a")}, "start"), ({"robots": 65}, "robots"),
+    ({"comm": "telepathy"}, "comm"), ({"start": (1, "a")}, "start"), ({"robots": 257}, "robots"),
 ])
 def test_bad_values_fail_with_one_line(flags: dict, match: str) -> None:
     with pytest.raises(ConfigError, match=match) as exc:

@@ -77,22 +77,22 @@ def test_engine_speed_compares_the_engines_on_equal_runs() -> None:
 
 def test_scale_reports_a_row_per_map_and_fleet(small_map: Path) -> None:
     """Issue 11: a row per map and robot count, positive figures; a ``start`` row for a fleet larger than the
-    start area, a ``cap`` row above the robot cap."""
-    proc = _bench("scale.py", "--robots", "2", "45", "65", "--cells", "40", "--ticks", "6", "--maps", "maze",
-                  str(small_map))
+    map's free area (161 and 199 cells here), a ``cap`` row above the robot cap."""
+    proc = _bench("scale.py", "--robots", "2", "250", "300", "--cells", "20", "--ticks", "6", "--sensor-cells", "2",
+                  "--maps", "maze", str(small_map))
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.strip().splitlines()
     assert lines[0].startswith("# benchmarks/scale.py (issue 11): ") and " cores " in lines[0]
     assert lines[3].split()[:6] == ["map", "cells", "robots", "start", "s", "ticks"]
     rows = [ln.split() for ln in lines[4:]]
-    assert [(r[0], r[2]) for r in rows] == [(m, n) for m in ("maze", "two_rooms") for n in ("2", "45", "65")]
+    assert [(r[0], r[2]) for r in rows] == [(m, n) for m in ("maze", "two_rooms") for n in ("2", "250", "300")]
     for r in (rows[0], rows[3]):
         assert len(r) == 21 and int(r[4]) == 6, r
         start, tps, total, cores = float(r[3]), float(r[5]), float(r[12]), float(r[13])
         assert start > 0 and tps > 0 and total > 0 and cores > 0, r
         assert all(float(v) > 0 for v in r[14:19]), r  # PSS of agents, world, netem and the launcher
     assert [r[3] for r in rows if len(r) < 21] == ["start:", "cap:"] * 2
-    assert rows[0][1].startswith(("39x", "40x", "41x"))  # the maze fitted to about 40 cells across
+    assert rows[0][1].startswith(("19x", "20x", "21x"))  # the maze fitted to about 20 cells across
     assert len(proc.stderr.strip().splitlines()) == 8  # two map lines, six progress lines
 
 

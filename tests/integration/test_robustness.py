@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -39,7 +40,7 @@ def _free_port() -> int:
     (["--map", "/no/such/map.png"], "not found"),
     (["--map", "nowhere"], "unknown map"),
     (["--robots", "0"], "robots"),
-    (["--robots", "60"], "start area"),
+    (["--robots", "257"], "--robots must be from 1 to 256 (got 257)"),
     (["--loss", "1.5"], "loss"),
     (["--sensor-range", "-2"], "sensor-range"),
     (["--sensor-range", "inf"], "--sensor-range must be a finite number"),
@@ -76,6 +77,28 @@ def test_bad_input_is_one_line_and_nonzero(args: list[str], match: str, tmp_path
     assert "Traceback" not in proc.stderr
     assert not out.exists() and not Path("/proc/forbidden").exists()  # refused before any file was written
     assert not (ROOT / "runs" / "a").exists() and not (ROOT / "up").exists()
+
+
+@pytest.mark.parametrize("args, env, match", [
+    (["--robots", "250"], {}, "250 robots do not fit the free area reachable from the start cell"),
+    (["--robots", "100", "--no-fork-server"], {"FLEET_MEM_AVAILABLE_MB": "4000"},
+     r"100 robots \(each started afresh\) need about \d+\.\d GB of memory \(agents .*\) but 3\.9 GB is "
+     r"available \(MemAvailable, or FLEET_MEM_AVAILABLE_MB\); run fewer robots, or with the fork server$"),
+    (["--robots", "100", "--engine", "memory"], {"FLEET_MEM_AVAILABLE_MB": "100"},
+     r"100 robots \(on the memory engine\) need about \d+ MB of memory .* but 100 MB is available"),
+    (["--robots", "2"], {"FLEET_MEM_AVAILABLE_MB": "lots"}, "FLEET_MEM_AVAILABLE_MB must be a number of MB"),
+])
+def test_a_fleet_the_map_or_the_machine_cannot_hold_is_refused(args: list[str], env: dict[str, str], match: str,
+                                                              small_map: Path, tmp_path: Path) -> None:
+    """Before anything starts: more robots than the map's free area, or than the memory available (faked with
+    FLEET_MEM_AVAILABLE_MB; the same fleet with the fork server fits)."""
+    out = tmp_path / "x"
+    where = ["--map", str(small_map)] if "250" in args else []
+    proc = fleet("run", *where, *args, "--out", str(out), "--quiet", check=False, timeout=120, env=env)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("fleet: error: ") and re.search(match, lines[0]), proc.stderr
+    assert not out.exists()
 
 
 def test_bad_input_without_quiet_is_still_one_line(tmp_path: Path) -> None:

@@ -28,8 +28,13 @@ class _Sup:
 
 
 class _Consumer:
-    def __init__(self) -> None:
+    def __init__(self, backlog: list[int] | None = None) -> None:
         self.changed = threading.Event()
+        self.pending = backlog or []
+
+    def backlog(self) -> int:
+        """The launcher's samples still to fold: one value per call, then none."""
+        return self.pending.pop(0) if self.pending else 0
 
 
 def _wait(monitor: Monitor, dead: dict[str, int]) -> str | None:
@@ -44,6 +49,19 @@ def test_a_clean_world_exit_waits_for_its_stop(monkeypatch: pytest.MonkeyPatch) 
     t0 = time.monotonic()
     assert _wait(monitor, {"world": 0, "netem": 0}) is None
     assert time.monotonic() - t0 < 2.5
+
+
+def test_the_grace_after_a_clean_world_exit_counts_from_an_empty_backlog(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A large fleet's last messages can take the launcher longer than the grace to fold: the stop may be among
+    them, so the grace starts once nothing is left to fold."""
+    monkeypatch.setattr(runner, "STOP_GRACE", 0.5)
+    t0 = time.monotonic()
+    consumer = _Consumer(backlog=[5] * 6)  # the wait polls every 0.2 s: about 1.2 s of backlog
+    error = runner._wait(Monitor(("r0",)), consumer, _Sup({"world": 0}), None, None,  # type: ignore[arg-type]
+                         threading.Event(), lambda _: None)
+    assert error is not None and "no stop reached the launcher" in error
+    assert not consumer.pending  # every poll saw the backlog, and the grace began after it
+    assert time.monotonic() - t0 >= 0.5 + 5 * 0.2
 
 
 def test_a_clean_world_exit_without_a_stop_is_an_error_after_the_grace(monkeypatch: pytest.MonkeyPatch) -> None:

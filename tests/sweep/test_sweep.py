@@ -80,15 +80,15 @@ def test_a_grown_grid_keeps_the_finished_runs_and_runs_only_the_new_points(study
 
 
 def test_failed_runs_are_rows_and_set_the_exit_code(study_dir: Path) -> None:
-    """Twenty robots do not fit the small map's start area: those runs fail, the others go on."""
-    text = (study_dir / "tiny.toml").read_text().replace("robots = [2, 3]", "robots = [2, 20]")
+    """Sixty robots do not fit the small map (59 free cells): those runs fail, the others go on."""
+    text = (study_dir / "tiny.toml").read_text().replace("robots = [2, 3]", "robots = [2, 60]")
     (study_dir / "fail.toml").write_text(text.replace('name = "tiny"', 'name = "fail"'))
     out = study_dir / "out"
     assert sweep(str(study_dir / "fail.toml"), out, jobs=1, quiet=True) == 200 + 4
     rows = read_rows(out)
     bad = [r for r in rows if r["status"] == "failed"]
-    assert len(rows) == 8 and len(bad) == 4 and all(r["param.robots"] == 20 for r in bad)
-    assert all("do not fit the start area" in r["error"] for r in bad)
+    assert len(rows) == 8 and len(bad) == 4 and all(r["param.robots"] == 60 for r in bad)
+    assert all("60 robots do not fit the free area reachable from the start cell" in r["error"] for r in bad)
     other = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out))  # another study's directory
     assert other.returncode == 2 and other.stderr.count("\n") == 1 and "another study" in other.stderr
 

@@ -30,8 +30,53 @@ def test_start_placement_is_deterministic_and_around_the_start() -> None:
     w.reset()
     assert w.poses == {"r0": (2, 2), "r1": (1, 2), "r2": (2, 1)}  # BFS distance, then row-major
     assert len(set(w.poses.values())) == 3
-    with pytest.raises(StartAreaError, match="start area"):
-        _world(ROOMS, 20, start_radius=2).reset()
+    with pytest.raises(StartAreaError, match="26 robots do not fit the free area reachable from the start cell "
+                                             r"\(2, 2\) of map 'test': it has 25 free cells"):
+        _world(ROOMS, 26).reset()
+
+
+_ROW = "#" + "." * 14 + "#"
+OPEN = "\n".join(["#" * 16, *[_ROW] * 7, "#" + "." * 7 + "0" + "." * 6 + "#", *[_ROW] * 6, "#" * 16])
+"""A 14 x 14 room, the start cell (``0``) in its middle."""
+
+
+def test_the_start_area_grows_with_the_fleet_and_keeps_the_placement_of_smaller_fleets() -> None:
+    """41 robots fill the diamond of 4 steps around the start (the old fixed start area); a fleet of 150 takes
+    the nearest free cells beyond it, and its first 41 robots stand where the 41 did."""
+    small, large = _world(OPEN, 41), _world(OPEN, 150)
+    small.reset()
+    large.reset()
+    start = small.start
+    steps = {r: abs(c[0] - start[0]) + abs(c[1] - start[1]) for r, c in large.poses.items()}
+    assert max(abs(c[0] - start[0]) + abs(c[1] - start[1]) for c in small.poses.values()) == 4
+    assert all(large.poses[r] == small.poses[r] for r in small.poses)
+    assert len(set(large.poses.values())) == 150 and max(steps.values()) > 4
+    placed = set(large.poses.values())
+    free_left = [c for c in zip(*np.nonzero(large.grid == FREE), strict=True) if tuple(map(int, c)) not in placed]
+    nearest_left = min(abs(int(c[0]) - start[0]) + abs(int(c[1]) - start[1]) for c in free_left)
+    assert max(steps.values()) <= nearest_left  # nearest first: no free cell left nearer than a placed one
+    with pytest.raises(StartAreaError, match=r"197 robots do not fit .* it has 196 free cells"):
+        _world(OPEN, 197).reset()
+
+
+def test_a_random_start_holds_a_large_fleet_within_a_grown_radius() -> None:
+    """A random start for 60 robots (more than the 41 cells of a 4-step diamond) is a cell with the whole fleet
+    within 5 steps (61 cells), the least radius whose diamond holds it."""
+    w = _world(OPEN, 60, start="random")
+    w.reset()
+    start = w.start
+    assert max(abs(c[0] - start[0]) + abs(c[1] - start[1]) for c in w.poses.values()) <= 5
+
+
+def test_explicit_start_cells_place_each_robot_and_are_checked() -> None:
+    w = _world(ROOMS, 3, placement=((1, 8), (3, 1), (2, 5)))
+    w.reset()
+    assert w.poses == {"r0": (1, 8), "r1": (3, 1), "r2": (2, 5)} and w.start == (1, 8)
+    for cells, match in [(((1, 8), (3, 1)), "2 start cells given for 3 robots"),
+                         (((1, 8), (1, 8), (2, 5)), "the same start cell"),
+                         (((1, 8), (0, 0), (2, 5)), r"start cell \(0, 0\) is not a free cell")]:
+        with pytest.raises(StartAreaError, match=match):
+            _world(ROOMS, 3, placement=cells).reset()
 
 
 def test_sensing_returns_true_values_and_stops_at_walls() -> None:

@@ -1,0 +1,58 @@
+"""The memory a run needs against what the machine has (issue 11, part 4): a pure estimate and its check."""
+
+from __future__ import annotations
+
+import pytest
+
+from fleet_emu.core.errors import ConfigError
+from fleet_emu.launch.budget import MODEL, BudgetError, available_mb, check_memory, estimate, fds_needed
+
+MAZE = 511 * 511  # benchmarks/scale.py's maze
+
+
+def test_the_estimate_adds_up_and_grows_with_the_fleet_and_the_map() -> None:
+    forked = estimate(80, MAZE, "processes", fork_server=True)
+    assert forked["total"] == pytest.approx(sum(v for k, v in forked.items() if k != "total"))
+    assert set(forked) == {"agents", "world", "netem", "launcher", "fork server", "total"}
+    # measured at 80 robots on this maze (scale.py): agents 13 MB mean, world 80, netem 88, launcher 112
+    assert 80 * 13 + 80 + 88 + 112 <= forked["total"] <= 2 * (80 * 13 + 80 + 88 + 112)
+    fresh = estimate(80, MAZE, "processes", fork_server=False)
+    assert fresh["agents"] - forked["agents"] == pytest.approx(80 * (MODEL.agent_fresh - MODEL.agent_forked))
+    assert estimate(160, MAZE)["total"] > forked["total"]
+    assert estimate(80, 4 * MAZE)["total"] > forked["total"]
+    assert estimate(80, MAZE, shm=True)["shared memory"] == 80 * MODEL.shm_per_robot
+    memory = estimate(80, MAZE, "memory")
+    assert set(memory) == {"process", "agents", "total"} and memory["total"] < forked["total"]
+    assert estimate(80, MAZE, "in-process")["total"] > memory["total"]
+
+
+def test_a_run_that_does_not_fit_is_refused_with_its_numbers() -> None:
+    need = estimate(256, MAZE, "processes", fork_server=False)["total"]
+    assert need > 20 * 1024  # 256 robots started afresh: more than 20 GB
+    with pytest.raises(BudgetError) as exc:
+        check_memory(256, MAZE, "processes", False, False, available_mb=16 * 1024)
+    text = str(exc.value)
+    assert text.startswith(f"256 robots (each started afresh) need about {need / 1024:.1f} GB of memory (agents ")
+    assert "but 16.0 GB is available (MemAvailable, or FLEET_MEM_AVAILABLE_MB)" in text
+    assert text.endswith("run fewer robots, or with the fork server") and "\n" not in text
+    assert isinstance(exc.value, ConfigError)  # bad input: exit 2
+    parts = check_memory(256, MAZE, "processes", True, False, available_mb=16 * 1024)  # forked, it fits
+    assert parts["total"] < 16 * 1024
+    with pytest.raises(BudgetError, match=r"^256 robots \(forked from the fork server\) .*run fewer robots$"):
+        check_memory(256, MAZE, "processes", True, False, available_mb=1024)
+
+
+def test_available_memory_comes_from_meminfo_or_the_environment() -> None:
+    meminfo = "MemTotal:       24684096 kB\nMemFree:         1000 kB\nMemAvailable:   2097152 kB\n"
+    assert available_mb({}, meminfo) == 2048
+    assert available_mb({"FLEET_MEM_AVAILABLE_MB": "512"}, meminfo) == 512
+    assert available_mb({}, "MemTotal: 1 kB\n") == float("inf")  # no MemAvailable: no check
+    for bad in ("lots", "-1", "nan"):
+        with pytest.raises(ConfigError, match="FLEET_MEM_AVAILABLE_MB must be a number of MB"):
+            available_mb({"FLEET_MEM_AVAILABLE_MB": bad}, meminfo)
+
+
+def test_file_descriptors_grow_with_the_fleet() -> None:
+    # measured: 509 open in the launcher at 128 robots with Zenoh's shared memory on (a socket and a mapped
+    # pool per robot's session)
+    assert fds_needed(128) >= 509 and fds_needed(256) > fds_needed(128)
