@@ -20,8 +20,7 @@ from fleet_emu.core.messages import decode_payload as decode_body
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.netem.channel import Channel
-from fleet_emu.world.sim import WorldConfig
-from tests.agents.lockstep import DrawnWorld
+from fleet_emu.world.sim import World, WorldConfig
 
 # Two robots at the ends of a long corridor, every pair linked: each learns cells the other cannot sense for
 # many ticks, and they are always in contact.
@@ -41,9 +40,9 @@ class Run:
 
     def __init__(self, drop: Drop, map_sync: bool = True) -> None:
         grid, marks = from_ascii(CORRIDOR)
-        self.world = DrawnWorld(MapData("drawn", grid, 0.5, marks["r0"]), marks,
-                                WorldConfig(sensor_range=3.0, target_coverage=1.0, max_ticks=200),
-                                generator(0, "world"))
+        self.world = World(MapData("drawn", grid, 0.5, marks["r0"]), list(marks),
+                           WorldConfig(sensor_range=3.0, target_coverage=1.0, max_ticks=200,
+                                       placement=tuple(marks.values())), generator(0, "world"))
         self.channel = Channel(0.0, generator(0, "netem"))
         team = frozenset(marks)
         self.brains = {r: Brain(r, make_allocator({"type": "nearest"}), generator(0, r),
