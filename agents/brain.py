@@ -38,6 +38,12 @@ from fleet_emu.core.grid import FREE, MOVES, STAY, Cell
 from fleet_emu.core.messages import Command, Envelope, Observation, RadioMsg, open_envelope, seal
 from fleet_emu.core.scenario import Scenario
 
+#: The stages of :meth:`Brain.step` whose thread CPU ``Brain.cpu_ms`` sums: the allocator (``decision``), belief
+#: merges (own observation and teammates' map deltas), frontier clusters, the radio payload decode, navigation
+#: (wavefront descent and unsticking), the news sent (map delta, beacon, envelopes); ``step_cpu_ms`` minus their
+#: sum is the rest (teammates' poses, the problem, the command).
+STAGES = ("decision", "merge", "clusters", "decode", "navigation", "news")
+
 
 @dataclasses.dataclass(frozen=True)
 class BrainConfig:
@@ -102,6 +108,7 @@ class Brain:
         self.decision_ms: list[float] = []
         self.decision_cpu_ms = 0.0  # this thread's CPU in the allocator, summed over decisions (issue 11)
         self.step_cpu_ms = 0.0  # and in the whole of step (decision, belief, clusters, radio decode, navigation)
+        self.cpu_ms = dict.fromkeys(STAGES, 0.0)  # thread CPU of step by stage, summed (benchmarks/brain_step.py)
         self.ctx: Context | None = None
 
     def next_seq(self) -> int:
@@ -130,27 +137,40 @@ class Brain:
             self.belief = Belief(obs.shape)
             self.ctx = Context(senders=self.team, shape=obs.shape)
         belief = self.belief
+        cpu = self.cpu_ms
+        c_merge = time.thread_time()
         belief.merge(obs.cells, obs.values)
         outbox: list[RadioMsg] = []
         protocol: list[RadioMsg] = []
-        for msg in self.open(inbox):
+        c_decode = time.thread_time()
+        cpu["merge"] += (c_decode - c_merge) * 1000.0
+        opened = self.open(inbox)
+        c_rest = time.thread_time()
+        cpu["decode"] += (c_rest - c_decode) * 1000.0
+        for msg in opened:
             if msg.src == self.me:
                 continue
             if isinstance(msg.body, PoseBeacon):
                 self._heard(msg, msg.body, t, outbox)
             elif isinstance(msg.body, MapDelta):
+                c_m = time.thread_time()
                 belief.merge(msg.body.cells, msg.body.values)
+                cpu["merge"] += (time.thread_time() - c_m) * 1000.0
             else:
                 protocol.append(msg)
         expected = {r: tm.expected(obs.cell) for r, tm in sorted(self.teammates.items())}
         poses = {self.me: obs.cell} | expected
-        problem = Problem(me=self.me, poses=poses, belief=belief.grid,
-                          clusters=find_clusters(belief.grid, self.config.cluster_max), tick=t,
+        c_cl = time.thread_time()
+        clusters = find_clusters(belief.grid, self.config.cluster_max)
+        cpu["clusters"] += (time.thread_time() - c_cl) * 1000.0
+        problem = Problem(me=self.me, poses=poses, belief=belief.grid, clusters=clusters, tick=t,
                           heard={r: tm.heard for r, tm in self.teammates.items()})
         t0, c1 = self.clock(), time.thread_time()
         alloc = self.allocator.allocate(problem, protocol)
         self.decision_ms.append((self.clock() - t0) * 1000.0)
-        self.decision_cpu_ms += (time.thread_time() - c1) * 1000.0
+        c_nav = time.thread_time()
+        self.decision_cpu_ms += (c_nav - c1) * 1000.0
+        cpu["decision"] += (c_nav - c1) * 1000.0
         move = STAY
         wants = False  # the robot wants to move but a teammate stands on every way down the wavefront
         if alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None:
@@ -160,12 +180,15 @@ class Brain:
             move = next_move(dist, obs.cell, blocked)
             wants = move == STAY and dist[obs.cell] > 0
         move = self._unstick(obs.cell, move, wants, belief.grid, set(expected.values()))
+        c_news = time.thread_time()
+        cpu["navigation"] += (c_news - c_nav) * 1000.0
         outbox.extend(alloc.outbox)
         news = [RadioMsg(PoseBeacon(cell=obs.cell, next=(obs.cell[0] + move[0], obs.cell[1] + move[1])))]
         cells, values = belief.take_news()
         if len(cells):
             news.append(RadioMsg(MapDelta(cells=cells, values=values)))
         sealed = tuple(seal(m, self.me, t, self.next_seq()) for m in news + outbox)
+        cpu["news"] += (time.thread_time() - c_news) * 1000.0
         cmd = Command(src=self.me, tick=t, seq=self.next_seq(), move=move, target=alloc.target,
                       status=alloc.status.name, decision_ms=round(self.decision_ms[-1], 4))
         self.step_cpu_ms += (time.thread_time() - c0) * 1000.0
