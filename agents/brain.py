@@ -29,7 +29,7 @@ import numpy as np
 
 from fleet_emu.agents.allocators import Allocator, AllocStatus, Problem, allocator_class
 from fleet_emu.agents.belief import Belief
-from fleet_emu.agents.frontiers import find_clusters
+from fleet_emu.agents.clusters import FrontierClusters
 from fleet_emu.agents.navigation import next_move
 from fleet_emu.agents.protocol import MapDelta, PoseBeacon
 from fleet_emu.core.codec import Context
@@ -100,6 +100,7 @@ class Brain:
         self.clock = clock
         self.allocator.reset(rng)
         self.belief: Belief | None = None
+        self.frontiers: FrontierClusters | None = None
         self.teammates: dict[str, Teammate] = {}
         self.seq = 0
         self.last_cell: Cell | None = None
@@ -135,6 +136,7 @@ class Brain:
         c0 = time.thread_time()
         if self.belief is None:
             self.belief = Belief(obs.shape)
+            self.frontiers = FrontierClusters(obs.shape, self.config.cluster_max)
             self.ctx = Context(senders=self.team, shape=obs.shape)
         belief = self.belief
         cpu = self.cpu_ms
@@ -161,7 +163,8 @@ class Brain:
         expected = {r: tm.expected(obs.cell) for r, tm in sorted(self.teammates.items())}
         poses = {self.me: obs.cell} | expected
         c_cl = time.thread_time()
-        clusters = find_clusters(belief.grid, self.config.cluster_max)
+        assert self.frontiers is not None
+        clusters = list(self.frontiers.update(belief.grid, belief.take_changed()))
         cpu["clusters"] += (time.thread_time() - c_cl) * 1000.0
         problem = Problem(me=self.me, poses=poses, belief=belief.grid, clusters=clusters, tick=t,
                           heard={r: tm.heard for r, tm in self.teammates.items()})
@@ -176,7 +179,7 @@ class Brain:
         if alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None:
             blocked = {expected[r] for r, tm in self.teammates.items()
                        if tm.heard >= t - 1 and expected[r] == tm.cell}
-            dist = problem.wavefronts[alloc.cluster]
+            dist = problem.wavefront_to(alloc.cluster, obs.cell)
             move = next_move(dist, obs.cell, blocked)
             wants = move == STAY and dist[obs.cell] > 0
         move = self._unstick(obs.cell, move, wants, belief.grid, set(expected.values()))
