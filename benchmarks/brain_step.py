@@ -6,7 +6,8 @@ The memory engine (:class:`fleet_emu.launch.memory.Fleet`: the real World, Chann
 steps each map's fleet for ``--ticks`` ticks with ``benchmarks/scale.py``'s scenario (minpos with parallel
 wavefronts, the wall radio, 10 % loss, sensor 8 cells, comm 20 cells, the map's most open start), and every
 brain sums its own thread CPU (``time.thread_time``, robust to the machine's load) per stage of
-``Brain.step`` (``Brain.cpu_ms``). One row per map, in ms per robot-tick (averaged over every robot-tick):
+``Brain.step`` (``Brain.cpu_ms``). One row per map, in ms per robot-tick (averaged over every robot-tick but
+tick 0's, where numba loads or compiles the kernels):
 
 - ``decide``: the allocator (``allocate``, wavefronts included);
 - ``clusters``: frontier detection and clustering;
@@ -51,6 +52,10 @@ def run(name: str, robots: int, a: argparse.Namespace) -> dict[str, float]:
     fleet.reset()
     for brain in fleet.brains.values():
         brain.open = _own_copy(brain.open)  # type: ignore[method-assign]
+    fleet.step()  # tick 0, not counted: numba loads (or compiles) the kernels on their first call
+    for brain in fleet.brains.values():
+        brain.cpu_ms = dict.fromkeys(brain.cpu_ms, 0.0)
+        brain.step_cpu_ms = 0.0
     rx_cpu = 0.0
     robot_ticks = 0
     while not fleet.done:
