@@ -14,8 +14,9 @@ and on :meth:`update` with the cells whose value changed:
    its smallest flat index, into sorted pieces, with each piece's target, as ``find_clusters`` does;
 4. gives every piece, ordered by its smallest flat index.
 
-The pieces of unchanged groups are the same :class:`Cluster` objects as before. ``tests/agents/test_clusters.py``
-checks the result against ``find_clusters`` on the whole grid over many random sequences of belief updates.
+The pieces of unchanged groups are the same :class:`Cluster` objects as before (their cells read-only).
+``tests/agents/test_clusters.py`` checks the result against ``find_clusters`` on the whole grid over many random
+sequences of belief updates.
 """
 
 from __future__ import annotations
@@ -72,5 +73,7 @@ class FrontierClusters:
         """A group's pieces (``find_clusters``: whole when small, else consecutive runs of its walk)."""
         m, cols = self.cluster_max, self.cols  # a large ``group`` is the walk from its smallest cell
         pieces = [np.sort(group[k:k + m]) for k in range(0, len(group), m)]
+        for p in pieces:
+            p.flags.writeable = False  # kept from tick to tick: no allocator may write into it
         return [(int(p[0]), Cluster(cells=p, target=_target(p, cols))) for p in pieces]
 
