@@ -236,7 +236,9 @@ def _array(value: Any, name: str) -> np.ndarray:
     if not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in shape) or len(shape) > 3:
         raise DecodeError(f"{name}: bad array shape")
     dt = np.dtype(dtype)
-    count = int(np.prod(shape, dtype=np.int64)) if shape else 1
+    count = 1
+    for s in shape:  # Python ints: no overflow for any shape
+        count *= s
     if count * dt.itemsize != len(data) or len(data) > MAX_ARRAY_BYTES:
         raise DecodeError(f"{name}: array data does not match its shape")
     return np.frombuffer(data, dtype=dt).reshape(shape)
