@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from fleet_emu.agents.frontiers import Cluster, _target
-from fleet_emu.core.cluster_kernels import relabel, touched_labels, update_mask
+from fleet_emu.agents.frontiers import Cluster
+from fleet_emu.core.cluster_kernels import relabel, target, touched_labels, update_mask
 
 
 class FrontierClusters:
@@ -75,5 +75,8 @@ class FrontierClusters:
         pieces = [np.sort(group[k:k + m]) for k in range(0, len(group), m)]
         for p in pieces:
             p.flags.writeable = False  # kept from tick to tick: no allocator may write into it
-        return [(int(p[0]), Cluster(cells=p, target=_target(p, cols))) for p in pieces]
+        return [(int(p[0]), Cluster(cells=p, target=_cell(target(p, cols)))) for p in pieces]
 
+
+def _cell(rc: tuple[int, int]) -> tuple[int, int]:
+    return (int(rc[0]), int(rc[1]))

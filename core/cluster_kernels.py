@@ -140,6 +140,34 @@ def relabel(mask: np.ndarray, labels: np.ndarray, rows: int, cols: int, seeds: n
     return out[:end], bounds[:groups + 1]
 
 
+@numba.njit(cache=True)
+def target(cells: np.ndarray, cols: int) -> tuple[int, int]:
+    """A piece's cell nearest its mean, the first on ties: ``agents.frontiers._target`` bit for bit (the sums
+    of integer coordinates are exact in float64 whatever the order, so the mean is the same one rounding of
+    the exact sum divided by the count, and the rest is the same IEEE arithmetic element by element)."""
+    n = len(cells)
+    sr = 0.0
+    sc = 0.0
+    for i in range(n):
+        r = cells[i] // cols
+        sr += float(r)
+        sc += float(cells[i] - r * cols)
+    mr = sr / n
+    mc = sc / n
+    best = 0
+    best_d = np.inf
+    for i in range(n):
+        r = cells[i] // cols
+        dr = float(r) - mr
+        dc = float(cells[i] - r * cols) - mc
+        d = dr * dr + dc * dc
+        if d < best_d:
+            best = i
+            best_d = d
+    r = cells[best] // cols
+    return r, cells[best] - r * cols
+
+
 def warm_up() -> None:
     """Compile (or load from cache) the kernels once."""
     grid = np.array([0, -1, 0, 0], dtype=np.int8)
@@ -148,3 +176,4 @@ def warm_up() -> None:
     flips = update_mask(grid, 2, 2, mask, np.arange(4, dtype=np.int64))
     touched_labels(labels, 2, 2, flips)
     relabel(mask, labels, 2, 2, flips, 1, 1)
+    target(np.arange(3, dtype=np.int64), 2)

@@ -128,3 +128,17 @@ def test_robots_exploring_a_generated_map(name: str, cell_size: float, seed: int
         same(fc, grid, np.concatenate(changed))
         largest = max(largest, max((len(g) for g in fc.groups.values()), default=0))
     assert largest > fc.cluster_max  # large groups were split
+
+
+def test_the_compiled_target_is_the_numpy_one_bit_for_bit() -> None:
+    """``core.cluster_kernels.target`` against ``frontiers._target`` on random sorted pieces, large ones and
+    ties (symmetric pieces) among them."""
+    from fleet_emu.agents.frontiers import _target
+    from fleet_emu.core.cluster_kernels import target
+
+    rng = np.random.default_rng(7)
+    cols = 512
+    pieces = [np.unique(rng.integers(0, cols * cols, int(rng.integers(1, 5000)))) for _ in range(200)]
+    pieces += [np.array([0, 2, 2 * cols, 2 * cols + 2], dtype=np.int64), np.array([5, 7], dtype=np.int64)]
+    for p in pieces:
+        assert tuple(int(v) for v in target(p.astype(np.int64), cols)) == _target(p, cols)
