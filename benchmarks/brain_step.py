@@ -30,7 +30,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -43,6 +43,7 @@ def run(name: str, robots: int, a: argparse.Namespace) -> dict[str, float]:
     """One map's fleet stepped ``a.ticks`` ticks; ms of thread CPU per robot-tick by stage."""
     from fleet_emu.agents.brain import STAGES
     from fleet_emu.core.codec import decode
+    from fleet_emu.core.errors import FleetError
     from fleet_emu.core.messages import RxBundle
     from fleet_emu.launch.memory import Fleet
 
@@ -66,6 +67,8 @@ def run(name: str, robots: int, a: argparse.Namespace) -> dict[str, float]:
             rx_cpu += time.thread_time() - c
         robot_ticks += len(fleet.agents)
         fleet.step()
+    if not robot_ticks:
+        raise FleetError("the run ended at tick 0: nothing to measure")
     brains = list(fleet.brains.values())
     per = {s: sum(b.cpu_ms[s] for b in brains) / robot_ticks for s in STAGES}
     step = sum(b.step_cpu_ms for b in brains) / robot_ticks
@@ -84,9 +87,20 @@ def _own_copy(open_: Any) -> Any:
     return opened
 
 
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:  # one line, exit 2
+        _fail(message)
+
+
+def _fail(message: str) -> NoReturn:
+    print(f"brain_step: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
 def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(prog="brain_step.py", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    from fleet_emu.core.errors import FleetError
+
+    p = _Parser(prog="brain_step.py", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--robots", type=int, default=16)
     p.add_argument("--ticks", type=int, default=60)
     p.add_argument("--cells", type=int, default=512)
@@ -95,9 +109,8 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--comm-cells", type=float, default=20.0)
     p.add_argument("--seed", type=int, default=0)
     a = p.parse_args(argv)
-    if a.robots < 1 or a.ticks < 1 or a.cells < 8:
-        print("brain_step: error: --robots and --ticks must be at least 1, --cells at least 8", file=sys.stderr)
-        raise SystemExit(2)
+    if a.robots < 1 or a.ticks < 2 or a.cells < 8:
+        _fail("--robots must be at least 1, --ticks at least 2, --cells at least 8")
     print(f"# benchmarks/brain_step.py (issue 11, part 3): {scale.machine()}")
     print(f"# memory engine, minpos (parallel wavefronts), wall radio, loss 0.1, {a.robots} robots, {a.ticks} ticks, "
           f"sensor {a.sensor_cells:g} cells, comm {a.comm_cells:g} cells, seed {a.seed}; "
@@ -105,7 +118,10 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{'map':>10} " + " ".join(f"{c:>8}" for c in COLUMNS) + f" {'load1':>6}", flush=True)
     for name in a.maps:
         t = time.monotonic()
-        row = run(name, a.robots, a)
+        try:
+            row = run(name, a.robots, a)
+        except FleetError as exc:
+            _fail(f"map {name}: {str(exc).splitlines()[0]}")
         print(f"{Path(name).stem[:10]:>10} " + " ".join(f"{row[c]:>8.3f}" for c in COLUMNS)
               + f" {scale.os.getloadavg()[0]:>6.2f}", flush=True)
         print(f"{name}: {row['robot_ticks']} robot-ticks in {time.monotonic() - t:.0f} s", file=sys.stderr,
