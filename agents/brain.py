@@ -179,7 +179,7 @@ class Brain:
         if alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None:
             blocked = {expected[r] for r, tm in self.teammates.items()
                        if tm.heard >= t - 1 and expected[r] == tm.cell}
-            dist = problem.wavefront_to(alloc.cluster, obs.cell)
+            dist = problem.wavefront_to(alloc.cluster)
             move = next_move(dist, obs.cell, blocked)
             wants = move == STAY and dist[obs.cell] > 0
         move = self._unstick(obs.cell, move, wants, belief.grid, set(expected.values()))
