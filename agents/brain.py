@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import operator
+import threading
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -71,6 +72,22 @@ class Teammate:
         return self.cell if nxt == mine else nxt
 
 
+@dataclasses.dataclass(frozen=True)
+class Plan:
+    """What a decision leaves for the ticks after it (real-time mode, :mod:`agents.realtime`): the wavefront
+    of the target cluster (``dist``, None when nothing was assigned), the target and status, and the cells
+    navigation kept clear of (teammates standing still, as of the decision)."""
+
+    dist: np.ndarray | None
+    target: Cell | None
+    status: str
+    blocked: frozenset[Cell] = frozenset()
+
+    def step(self, cell: Cell) -> Cell:
+        """The next step along the plan from ``cell`` (stay when at the target, or off the plan's wavefront)."""
+        return STAY if self.dist is None else next_move(self.dist, cell, self.blocked)
+
+
 def brain_config(scenario: Scenario) -> BrainConfig:
     return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)))
 
@@ -105,17 +122,33 @@ class Brain:
         self.seq = 0
         self.last_cell: Cell | None = None
         self.last_move: Cell = STAY
+        self.last_target: Cell | None = None  # the previous decision's target, passed to the allocator
         self.stuck = 0
         self.decision_ms: list[float] = []
         self.decision_cpu_ms = 0.0  # this thread's CPU in the allocator, summed over decisions (issue 11)
         self.step_cpu_ms = 0.0  # and in the whole of step (decision, belief, clusters, radio decode, navigation)
         self.cpu_ms = dict.fromkeys(STAGES, 0.0)  # thread CPU of step by stage, summed (benchmarks/brain_step.py)
         self.ctx: Context | None = None
+        self.plan: Plan | None = None  # what the last step decided, for the ticks until the next decision
+        self._seq_lock = threading.Lock()  # real-time mode draws from the counter in two threads
 
     def next_seq(self) -> int:
         """The robot's one sequence counter: envelopes, commands, bundles and reports all draw from it."""
-        self.seq += 1
-        return self.seq
+        with self._seq_lock:
+            self.seq += 1
+            return self.seq
+
+    def _belief(self, obs: Observation) -> Belief:
+        if self.belief is None:
+            self.belief = Belief(obs.shape)
+            self.frontiers = FrontierClusters(obs.shape, self.config.cluster_max)
+            self.ctx = Context(senders=self.team, shape=obs.shape)
+        return self.belief
+
+    def absorb(self, obs: Observation) -> None:
+        """Merge what the sensor saw at a tick the robot made no decision for (real-time mode: it came while a
+        decision ran); it goes out as map news with the next step's."""
+        self._belief(obs).merge(obs.cells, obs.values)
 
     def open(self, inbox: Sequence[Envelope]) -> list[RadioMsg]:
         """Decode what the radio delivered, checked against the grid and the team; a message that does not
@@ -134,11 +167,7 @@ class Brain:
         """Decide the move for ``obs.tick`` and the radio messages to send."""
         t = obs.tick
         c0 = time.thread_time()
-        if self.belief is None:
-            self.belief = Belief(obs.shape)
-            self.frontiers = FrontierClusters(obs.shape, self.config.cluster_max)
-            self.ctx = Context(senders=self.team, shape=obs.shape)
-        belief = self.belief
+        belief = self._belief(obs)
         cpu = self.cpu_ms
         c_merge = time.thread_time()
         belief.merge(obs.cells, obs.values)
@@ -167,21 +196,25 @@ class Brain:
         clusters = list(self.frontiers.update(belief.grid, belief.take_changed()))
         cpu["clusters"] += (time.thread_time() - c_cl) * 1000.0
         problem = Problem(me=self.me, poses=poses, belief=belief.grid, clusters=clusters, tick=t,
-                          heard={r: tm.heard for r, tm in self.teammates.items()})
+                          heard={r: tm.heard for r, tm in self.teammates.items()},
+                          previous_target=self.last_target)
         t0, c1 = self.clock(), time.thread_time()
         alloc = self.allocator.allocate(problem, protocol)
         self.decision_ms.append((self.clock() - t0) * 1000.0)
         c_nav = time.thread_time()
         self.decision_cpu_ms += (c_nav - c1) * 1000.0
         cpu["decision"] += (c_nav - c1) * 1000.0
+        self.last_target = alloc.target
         move = STAY
         wants = False  # the robot wants to move but a teammate stands on every way down the wavefront
+        dist, blocked = None, set()
         if alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None:
             blocked = {expected[r] for r, tm in self.teammates.items()
                        if tm.heard >= t - 1 and expected[r] == tm.cell}
             dist = problem.wavefront_to(alloc.cluster)
             move = next_move(dist, obs.cell, blocked)
             wants = move == STAY and dist[obs.cell] > 0
+        self.plan = Plan(dist, alloc.target, alloc.status.name, frozenset(blocked))
         move = self._unstick(obs.cell, move, wants, belief.grid, set(expected.values()))
         c_news = time.thread_time()
         cpu["navigation"] += (c_news - c_nav) * 1000.0

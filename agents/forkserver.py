@@ -4,12 +4,15 @@ then forks one process per robot on the launcher's request, so that the robots s
 ``python -m fleet_emu.agents.forkserver [--scenario FILE.json]``, started by the launcher's
 :class:`~fleet_emu.launch.supervisor.Supervisor` in its own process group. It never opens a Zenoh session
 (Zenoh's runtime threads would not survive a fork): each forked robot opens its own, exactly as
-``python -m fleet_emu.agents`` does. The protocol is one JSON object a line:
+``python -m fleet_emu.agents`` does. The protocol is one JSON object a message:
 
-- on standard input, requests: ``{"name": "r0", "argv": [...], "log": "/out/r0.log", "secret": "..."}``
-  (``secret``: the robot's credential line, which it reads as its standard input; never on a command line or in
-  the environment). End of input (the launcher closed it, or died) ends the server: it kills what is left of
-  its robots, reaps them, reports them and exits.
+- on standard input, a ``SOCK_SEQPACKET`` socket, requests: ``{"name": "r0", "argv": [...], "log":
+  "/out/r0.log"}``, one per packet. A robot with a credential gets it as its standard input, never on a command
+  line or in the environment: the launcher writes the credential line into a pipe and passes the pipe's read end
+  with the request (``SCM_RIGHTS``); the server hands that descriptor to the forked robot and closes its own copy,
+  so the credential travels launcher -> kernel pipe -> robot and never enters this process's memory, where a
+  robot forked later (which inherits it) could find it. End of input (the launcher closed its socket, or died)
+  ends the server: it kills what is left of its robots, reaps them, reports them and exits.
 - on standard output, events: ``{"spawned": "r0", "pid": 123}`` (or ``{"failed": "r0", "error": "..."}``) for
   each request, in order, and ``{"exited": 123, "code": 0}`` when a robot ends (``code`` as
   :attr:`subprocess.Popen.returncode`: negative for a signal).
@@ -32,6 +35,7 @@ import logging
 import os
 import select
 import signal
+import socket
 import sys
 import time
 import traceback
@@ -56,6 +60,7 @@ class Server:
 
     def __init__(self, req: int, events: int) -> None:
         self.req = req
+        self.sock = socket.socket(fileno=req)  # the launcher's SOCK_SEQPACKET end: a request and its descriptor
         self.events = events
         self.alive: set[int] = set()
 
@@ -67,39 +72,46 @@ class Server:
 
     def serve(self) -> None:
         """Fork on request and report exits until the end of input; then end the robots left."""
-        buf = b""
         while True:
             ready, _, _ = select.select([self.req], [], [], POLL)
             self.reap()
             if not ready:
                 continue
-            chunk = os.read(self.req, 1 << 16)
-            if not chunk:
+            try:
+                packet, fds, _, _ = socket.recv_fds(self.sock, 1 << 16, 1)
+            except ConnectionError:
                 break
-            buf += chunk
-            while b"\n" in buf:
-                line, buf = buf.split(b"\n", 1)
-                self.handle(line)
+            if not packet:
+                for fd in fds:
+                    os.close(fd)
+                break
+            self.handle(packet, fds[0] if fds else None)
         self.end_all()
 
-    def handle(self, line: bytes) -> None:
+    def handle(self, packet: bytes, secret: int | None) -> None:
+        """One request; ``secret`` is the descriptor of the robot's credential pipe (closed here in any case)."""
         try:
-            req = json.loads(line)
-            name, argv = str(req["name"]), [str(a) for a in req["argv"]]
-            log, secret = req.get("log"), req.get("secret")
-        except (ValueError, KeyError, TypeError) as exc:
-            self.emit(failed="?", error=f"bad request: {exc}")
-            return
-        try:
-            pid = self.fork(name, argv, log, secret)
-        except OSError as exc:
-            self.emit(failed=name, error=str(exc))
-            return
-        self.alive.add(pid)
-        self.emit(spawned=name, pid=pid)
+            try:
+                req = json.loads(packet)
+                name, argv = str(req["name"]), [str(a) for a in req["argv"]]
+                log = req.get("log")
+            except (ValueError, KeyError, TypeError) as exc:
+                self.emit(failed="?", error=f"bad request: {exc}")
+                return
+            try:
+                pid = self.fork(name, argv, log, secret)
+            except OSError as exc:
+                self.emit(failed=name, error=str(exc))
+                return
+            self.alive.add(pid)
+            self.emit(spawned=name, pid=pid)
+        finally:
+            if secret is not None:
+                os.close(secret)
 
-    def fork(self, name: str, argv: list[str], log: str | None, secret: str | None) -> int:
-        """Fork one robot; in the child, never return."""
+    def fork(self, name: str, argv: list[str], log: str | None, secret: int | None) -> int:
+        """Fork one robot (its credential pipe ``secret`` becomes its standard input); in the child, never
+        return."""
         logfd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644) if log else None
         sys.stdout.flush()
         sys.stderr.flush()
@@ -113,7 +125,7 @@ class Server:
         try:
             os.setsid()
             set_name(f"fleet {name}")
-            os.close(self.req)
+            self.sock.close()
             os.close(self.events)
             if logfd is not None:
                 os.dup2(logfd, 1)
@@ -122,7 +134,7 @@ class Server:
             for sig in (signal.SIGTERM, signal.SIGCHLD):
                 signal.signal(sig, signal.SIG_DFL)
             signal.signal(signal.SIGINT, signal.default_int_handler)
-            sys.stdin = io.StringIO(secret + "\n" if secret is not None else "")
+            sys.stdin = io.StringIO(_read_all(secret) if secret is not None else "")  # fd 0 stays /dev/null
             sys.argv = ["fleet_emu.agents", *argv]
             code = run_robot(argv)
         except BaseException:  # the child must never return into the server's loop
@@ -158,6 +170,15 @@ class Server:
             while self.alive and time.monotonic() < deadline:
                 time.sleep(POLL)
                 self.reap()
+
+
+def _read_all(fd: int) -> str:
+    """What the launcher wrote into a credential pipe (it closed its end: this ends), the pipe closed."""
+    chunks = []
+    with open(fd, "rb") as pipe:
+        while chunk := pipe.read(1 << 12):
+            chunks.append(chunk)
+    return b"".join(chunks).decode()
 
 
 def set_name(name: str) -> None:

@@ -1,21 +1,41 @@
 """The agent process shell: one robot. Waits for its observation and rx bundle of each tick, runs the brain,
-publishes its tx bundle and command. Only this module touches Zenoh and the clock."""
+publishes its tx bundle and command. Only this module touches Zenoh and the clock.
+
+In real-time mode (``realtime_hz``) it waits for nothing: decisions run in a worker thread and, while one runs,
+the shell steps along the last plan every tick (:mod:`agents.realtime`); at the end it publishes its
+:class:`AgentTiming` (robot/<robot>/timing) before its report."""
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import resource
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import zenoh
 
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import Brain, allocator_config, brain_config
+from fleet_emu.agents.realtime import Timing, percentiles
 from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.codec import Context
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import Keys, robot_ids
-from fleet_emu.core.messages import AgentReport, BeliefSnapshot, Observation, RxBundle, Stop, TxBundle
+from fleet_emu.core.messages import (
+    AgentReport,
+    AgentTiming,
+    BeliefSnapshot,
+    Command,
+    Envelope,
+    Observation,
+    RxBundle,
+    Stop,
+    TxBundle,
+)
 from fleet_emu.core.node import NodeBase, node_main, undeclare
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
@@ -24,7 +44,7 @@ from fleet_emu.core.scenario import Scenario
 class AgentNode(NodeBase):
     role = "agent"
 
-    def __init__(self, scenario: Scenario, run: str, robot: str) -> None:
+    def __init__(self, scenario: Scenario, run: str, robot: str, realtime_hz: float | None = None) -> None:
         super().__init__(Keys(run), robot)
         warm_up()  # compile (or load) the kernels before the first tick, not inside it
         self.scenario = scenario
@@ -33,6 +53,8 @@ class AgentNode(NodeBase):
         self.brain = Brain(robot, allocator, generator(scenario.seed, robot), brain_config(scenario),
                            team=frozenset(robot_ids(scenario.robots)), on_drop=self.drop)
         self.ctx_world = Context(senders=frozenset({"world"}))
+        self.realtime = bool(realtime_hz)
+        self.timing = Timing()
 
     def next_seq(self) -> int:
         """The robot's one counter, shared with its brain."""
@@ -51,9 +73,16 @@ class AgentNode(NodeBase):
         pub_report = publisher(session, keys.report(self.robot))
         self.pub_belief = publisher(session, keys.belief(self.robot)) if self.scenario.belief_every else None
         handles += [self.pub_cmd, self.pub_tx, pub_report, *([self.pub_belief] if self.pub_belief else [])]
-        handles += self.declare_presence(session, inbox)
+        pub_timing = publisher(session, keys.timing(self.robot)) if self.realtime else None
+        handles += [*([pub_timing] if pub_timing else []), *self.declare_presence(session, inbox)]
         try:
-            tick = await self._lockstep(inbox)
+            tick = await (self._realtime(inbox) if self.realtime else self._lockstep(inbox))
+            if pub_timing is not None:
+                tm = self.timing
+                pub_timing.put(AgentTiming(
+                    src=self.robot, tick=tick, seq=self.next_seq(), decisions=tm.decisions,
+                    plan_steps=tm.plan_steps, waits=tm.waits, decision_ms=percentiles(tm.decision_ms),
+                    allocator_ms=percentiles(self.brain.decision_ms[:tm.decisions])).encode())
             ms = np.array(self.brain.decision_ms or [0.0])
             pub_report.put(AgentReport(
                 src=self.robot, tick=tick, seq=self.next_seq(), decisions=len(self.brain.decision_ms),
@@ -99,7 +128,9 @@ class AgentNode(NodeBase):
 
     def _act(self, obs: Observation, bundle: RxBundle) -> None:
         """One tick: the brain's decision, then the tx bundle, the command and (every few ticks) the belief."""
-        cmd, out = self.brain.step(obs, bundle.msgs)
+        self._send(obs, *self.brain.step(obs, bundle.msgs))
+
+    def _send(self, obs: Observation, cmd: Command, out: tuple[Envelope, ...]) -> None:
         self.pub_tx.put(TxBundle(src=self.robot, tick=obs.tick, seq=self.next_seq(), msgs=out).encode())
         self.pub_cmd.put(cmd.encode())
         if self.pub_belief is not None and obs.tick % self.scenario.belief_every == 0 \
@@ -108,7 +139,99 @@ class AgentNode(NodeBase):
                                                grid=self.brain.belief.grid).encode())
 
 
+    async def _realtime(self, inbox: Inbox) -> int:
+        """Act on the newest observation as it comes (module docstring of :mod:`agents.realtime`), until the
+        stop; the last tick seen plus one."""
+        latest = -1
+        absorbed: list[Observation] = []  # came while a decision ran: merged at the start of the next
+        received: list[Envelope] = []  # radio messages for the next decision
+        worker: asyncio.Future | None = None
+        getter = asyncio.ensure_future(inbox.get())
+        try:
+            while True:
+                await asyncio.wait({getter, *([worker] if worker else [])}, return_when=asyncio.FIRST_COMPLETED)
+                if worker is not None and worker.done():
+                    obs, cmd, out, wall_ms = worker.result()  # an allocator's exception ends the robot
+                    worker = None
+                    self.timing.decided(wall_ms)
+                    self._send(obs, cmd, out)
+                if not getter.done():
+                    continue
+                item, getter = getter.result(), asyncio.ensure_future(inbox.get())
+                if item is None:
+                    continue
+                key, data, _ = item
+                parsed = self.keys.parse(key)
+                channel = parsed.channel if parsed is not None else None
+                if channel == "stop":
+                    if self.decode(key, data, Stop) is not None:
+                        if worker is not None:  # let a decision under way finish, briefly
+                            with contextlib.suppress(TimeoutError):
+                                await asyncio.wait_for(asyncio.shield(worker), 1.0)
+                        return latest + 1
+                elif channel == "hello":
+                    self.answer_hello(key, data)
+                elif channel == "obs":
+                    o = self.decode(key, data, Observation, self.ctx_world)
+                    if o is None or o.robot != self.robot or o.tick <= latest:
+                        if o is not None:
+                            self.drop(key, "observation for another robot or a past tick")
+                        continue
+                    latest = o.tick
+                    if worker is not None or self.brain.plan is not None:  # the last plan, until a decision
+                        self.pub_cmd.put(self.timing.stale_command(
+                            self.robot, o.tick, self.next_seq(), o.cell, self.brain.plan).encode())
+                    if worker is None:
+                        worker = self._decide(o, absorbed, received)
+                        absorbed, received = [], []
+                    else:
+                        absorbed.append(o)
+                elif channel == "rx":
+                    b = self.decode(key, data, RxBundle)
+                    if b is not None and b.dst == self.robot:
+                        received.extend(b.msgs)
+                    elif b is not None:
+                        self.drop(key, "rx bundle for another robot")
+        finally:
+            getter.cancel()
+
+    def _decide(self, obs: Observation, absorbed: list[Observation], received: list[Envelope]) -> asyncio.Future:
+        """One decision in a worker thread: merge ``absorbed``, step on ``obs`` with ``received``. The future
+        gives ``(obs, command, tx messages, wall ms)``."""
+
+        def work() -> tuple[Observation, Command, tuple[Envelope, ...], float]:
+            t0 = time.perf_counter()
+            for o in absorbed:
+                self.brain.absorb(o)
+            cmd, out = self.brain.step(obs, received)
+            return obs, cmd, out, (time.perf_counter() - t0) * 1000.0
+
+        return _in_thread(work, f"decide-{self.robot}")
+
+
+def _in_thread(work: Callable[[], Any], name: str) -> asyncio.Future:
+    """Run ``work`` in a daemon thread (one that never holds the process at exit); its result as a future of
+    the running loop."""
+    loop = asyncio.get_running_loop()
+    future = loop.create_future()
+
+    def settle(value: Any, error: BaseException | None) -> None:
+        if not future.done():
+            future.set_exception(error) if error is not None else future.set_result(value)
+
+    def run() -> None:
+        try:
+            value, error = work(), None
+        except BaseException as exc:  # handed to the loop: the shell re-raises it
+            value, error = None, exc
+        with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
+            loop.call_soon_threadsafe(settle, value, error)
+
+    threading.Thread(target=run, daemon=True, name=name).start()
+    return future
+
+
 def main(argv: list[str] | None = None) -> None:
     """``python -m fleet_emu.agents --robot r0 --run RUN --connect ENDPOINT --scenario FILE.json``."""
-    node_main("agents", lambda a: AgentNode(a.scenario, a.run, a.robot), argv,
+    node_main("agents", lambda a: AgentNode(a.scenario, a.run, a.robot, realtime_hz=a.realtime), argv,
               lambda p: p.add_argument("--robot", required=True))

@@ -6,7 +6,9 @@
 
 The paper's experiment: 2 robots, sensing 3 m, communication 6 m, stop at 95 % coverage; here on the wall radio
 (eq. 4) with 0.5 m cells and a random start per seed. A config is ``minpos`` or
-``conn:ALPHA:BETA[:POSITION[:PREDICT]]`` (the connectivity allocator's parameters, see its module docstring).
+``conn:ALPHA:BETA[:POSITION[:PREDICT]]`` (the connectivity allocator's parameters, see its module docstring),
+either followed by ``:NAME=VALUE`` items for any other parameter: ``conn:0.6:0.4:replan=observed``,
+``minpos:replan=observed`` (``conn:...`` alone is the allocator's default, ``replan="observed"``).
 Each run is stepped in this process on the memory engine (``fleet_emu.Fleet``: the same World, Channel and Brain
 as ``fleet run``, without Zenoh); ``--check`` first compares one run against a real ``fleet run`` of it.
 Per cell: mean connected fraction, mean ticks (a run that did not reach the target counts at its last tick), and
@@ -52,17 +54,29 @@ SETTINGS = {"robots": 2, "sensor_range": 3.0, "comm_range": 6.0, "target_coverag
             "comm": "wall", "start": "random"}
 
 
+def _value(text: str) -> bool | int | float | str:
+    """A ``NAME=VALUE`` item's value: true/false, a number, else the string."""
+    if text in ("true", "false"):
+        return text == "true"
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
 def allocator(config: str) -> dict:
-    """``minpos`` or ``conn:ALPHA:BETA[:POSITION[:PREDICT]]`` as an allocator table."""
-    if not config.startswith("conn:"):
-        return {"type": config}
-    parts = config.split(":")[1:]
+    """``minpos`` or ``conn:ALPHA:BETA[:POSITION[:PREDICT]]``, then any ``:NAME=VALUE``, as an allocator table
+    (strings; the allocator checks and converts them: a bad value is a one-line ConfigError)."""
+    name, *parts = config.split(":")
+    named = {k: _value(v) for k, v in (p.split("=", 1) for p in parts if "=" in p)}
+    parts = [p for p in parts if "=" not in p]
+    if name != "conn":
+        return {"type": name, **named}
     out: dict = {"type": "connectivity", "alpha": float(parts[0]), "beta": float(parts[1])}
-    if len(parts) > 2:
-        out["position"] = parts[2]
-    if len(parts) > 3:
-        out["predict"] = parts[3]
-    return out
+    out.update(zip(("position", "predict"), parts[2:], strict=False))
+    return out | named
 
 
 def scenario(map_name: str, config: str, seed: int, loss: float, max_ticks: int) -> Scenario:

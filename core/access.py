@@ -11,12 +11,20 @@
 The keys each node writes (README "Key expressions"):
 
 =========  ===================================================================================
-world      ``world/**`` (state, obs), ``ctl/hello``, ``ctl/stop``, ``ctl/ready/world``
+world      ``world/**`` (state, obs, clock), ``ctl/hello``, ``ctl/stop``, ``ctl/ready/world``
 netem      ``radio/rx/*``, ``netem/links``, ``ctl/ready/netem``
-robot rK   ``robot/rK/**`` (cmd, belief), ``radio/tx/rK``, ``ctl/report/rK``, ``ctl/ready/rK``
+robot rK   ``robot/rK/**`` (cmd, belief, timing), ``radio/tx/rK``, ``ctl/report/rK``, ``ctl/ready/rK``
 launcher   ``ctl/stop``, ``ctl/failed/*``, ``ctl/ready/launcher``
 recorder   nothing (it subscribes to ``fleet/<run>/**``)
+host K     nothing in the run (it reads the run's keys, e.g. the launcher's liveliness token)
 =========  ===================================================================================
+
+The hosts' lobby (``fleet-host/<host>/...``, ``launch/hosts.py``, outside every run's keys) has rules of its
+own (:func:`lobby_rules`): host K may declare its token ``fleet-host/K/alive``, put on ``fleet-host/K/status``
+and subscribe to ``fleet-host/K/spawn``; the launcher may put on ``fleet-host/*/spawn`` and subscribe to the
+hosts' tokens and statuses. A spawn request carries the host's robots' credentials: no other user may
+subscribe to it nor receive it (default deny, on both the ingress and the egress side), and the recorder,
+which subscribes to ``fleet/<run>/**``, never sees it.
 """
 
 from __future__ import annotations
@@ -27,10 +35,11 @@ import secrets
 from collections.abc import Iterable
 from typing import Any
 
-from fleet_emu.core.keys import ROOT, ParsedKey
+from fleet_emu.core.keys import HOST_ID, HOST_ROOT, ROOT, ParsedKey
 
 WORLD, NETEM, LAUNCHER, RECORDER = "world", "netem", "launcher", "recorder"
 SERVICES = (WORLD, NETEM, LAUNCHER, RECORDER)
+HOST = "host"
 
 #: Every message kind the router filters; receivers get all of them on the run's keys.
 _ALL_MESSAGES = ["put", "delete", "declare_subscriber", "query", "declare_queryable", "reply",
@@ -39,8 +48,8 @@ _SUBSCRIBE = ["declare_subscriber", "declare_liveliness_subscriber", "liveliness
 
 
 def role_of(node: str) -> str:
-    """The liveliness role of a node id (``r3`` is an ``agent``)."""
-    return node if node in SERVICES else "agent"
+    """The liveliness role of a node id (``r3`` is an ``agent``, ``host0`` a ``host``)."""
+    return node if node in SERVICES else HOST if HOST_ID.fullmatch(node) else "agent"
 
 
 def writes(node: str) -> list[str]:
@@ -51,7 +60,7 @@ def writes(node: str) -> list[str]:
         return ["radio/rx/*", "netem/links", "ctl/ready/netem"]
     if node == LAUNCHER:
         return ["ctl/stop", "ctl/failed/*", "ctl/ready/launcher"]
-    if node == RECORDER:
+    if node == RECORDER or role_of(node) == HOST:
         return []
     return [f"robot/{node}/**", f"radio/tx/{node}", f"ctl/report/{node}", f"ctl/ready/{node}"]
 
@@ -59,7 +68,7 @@ def writes(node: str) -> list[str]:
 def allowed_src(parsed: ParsedKey) -> frozenset[str] | None:
     """The senders whose messages a key may carry (None: not a message key, e.g. a liveliness token)."""
     match parsed.channel:
-        case "obs" | "state" | "hello":
+        case "obs" | "state" | "clock" | "hello":
             return frozenset({WORLD})
         case "stop":
             return frozenset({WORLD, LAUNCHER})
@@ -67,7 +76,7 @@ def allowed_src(parsed: ParsedKey) -> frozenset[str] | None:
             return frozenset({NETEM})
         case "failed":
             return frozenset({LAUNCHER})
-        case "cmd" | "belief" | "tx" | "report" | "ready":
+        case "cmd" | "belief" | "timing" | "tx" | "report" | "ready":
             return frozenset({parsed.node}) if parsed.node else frozenset()
     return None
 
@@ -86,6 +95,10 @@ def acl_config(run: str, nodes: Iterable[str]) -> dict[str, Any]:
     subjects: list[dict[str, Any]] = [{"id": "fleet", "usernames": nodes}]
     policies: list[dict[str, Any]] = [{"rules": ["receive", "subscribe"], "subjects": ["fleet"]}]
     for node in nodes:
+        if role_of(node) == HOST:  # its liveliness token and its puts are in the lobby
+            policies.append({"rules": [], "subjects": [f"user {node}"]})
+            subjects.append({"id": f"user {node}", "usernames": [node]})
+            continue
         own = [f"{prefix}/{k}" for k in writes(node)]
         subjects.append({"id": f"user {node}", "usernames": [node]})
         names = [f"token {node}"]
@@ -96,8 +109,48 @@ def acl_config(run: str, nodes: Iterable[str]) -> dict[str, Any]:
                           "key_exprs": own})
             names.append(f"put {node}")
         policies.append({"rules": names, "subjects": [f"user {node}"]})
+    lobby = lobby_rules(nodes)
+    rules += [r for rs in lobby.values() for r in rs]
+    for node, rs in lobby.items():
+        policy = next(p for p in policies if p["subjects"] == [f"user {node}"])
+        policy["rules"] += [r["id"] for r in rs]
+    policies = [p for p in policies if p["rules"]]
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
             "policies": policies}
+
+
+def lobby_rules(nodes: Iterable[str]) -> dict[str, list[dict[str, Any]]]:
+    """The hosts' lobby rules (``fleet-host/...``), per user: each host's own keys, and the launcher's."""
+    out: dict[str, list[dict[str, Any]]] = {}
+    hosts = [n for n in nodes if role_of(n) == HOST]
+    for h in hosts:
+        base = f"{HOST_ROOT}/{h}"
+        out[h] = [
+            {"id": f"lobby put {h}", "permission": "allow", "flows": ["ingress"], "messages": ["put"],
+             "key_exprs": [f"{base}/status"]},
+            {"id": f"lobby token {h}", "permission": "allow", "flows": ["ingress"], "messages": ["liveliness_token"],
+             "key_exprs": [f"{base}/alive"]},
+            {"id": f"lobby subscribe {h}", "permission": "allow", "flows": ["ingress"],
+             "messages": ["declare_subscriber"], "key_exprs": [f"{base}/spawn"]},
+            {"id": f"lobby receive {h}", "permission": "allow", "flows": ["egress"], "messages": ["put"],
+             "key_exprs": [f"{base}/spawn"]},
+            # a publisher sends only where it has heard of a subscriber: the launcher's must reach the host
+            {"id": f"lobby matching {h}", "permission": "allow", "flows": ["egress"],
+             "messages": ["declare_subscriber"], "key_exprs": [f"{base}/status"]},
+        ]
+    if LAUNCHER in nodes:
+        watch = [f"{HOST_ROOT}/*/alive", f"{HOST_ROOT}/*/status"]
+        out[LAUNCHER] = [
+            {"id": "lobby put launcher", "permission": "allow", "flows": ["ingress"], "messages": ["put"],
+             "key_exprs": [f"{HOST_ROOT}/*/spawn"]},
+            {"id": "lobby watch launcher", "permission": "allow", "flows": ["ingress"], "messages": _SUBSCRIBE,
+             "key_exprs": watch},
+            {"id": "lobby receive launcher", "permission": "allow", "flows": ["egress"],
+             "messages": ["put", "liveliness_token"], "key_exprs": watch},
+            {"id": "lobby matching launcher", "permission": "allow", "flows": ["egress"],
+             "messages": ["declare_subscriber"], "key_exprs": [f"{HOST_ROOT}/*/spawn"]},
+        ]
+    return out
 
 
 @dataclasses.dataclass(frozen=True)

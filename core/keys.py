@@ -6,12 +6,14 @@ import dataclasses
 import re
 
 ROOT = "fleet"
+HOST_ROOT = "fleet-host"  # the hosts' lobby: outside ``fleet/<run>/**``, so never recorded nor readable by a run
 
 
 @dataclasses.dataclass(frozen=True)
 class ParsedKey:
     """What a key of a run names: its ``channel`` (``obs``, ``state``, ``cmd``, ``belief``, ``tx``, ``rx``,
-    ``links``, ``hello``, ``ready``, ``stop``, ``failed``, ``report``, ``alive``), the robot or node id in it,
+    ``links``, ``hello``, ``ready``, ``stop``, ``failed``, ``report``, ``alive``, and in real-time runs
+    ``clock`` and ``timing``), the robot or node id in it,
     and for liveliness tokens the role."""
 
     channel: str
@@ -37,6 +39,7 @@ class Keys:
         self.run = run
         self.all = key(run, "**")
         self.state = key(run, "world", "state")
+        self.clock = key(run, "world", "clock")
         self.links = key(run, "netem", "links")
         self.hello = key(run, "ctl", "hello")
         self.ready_all = key(run, "ctl", "ready", "*")
@@ -50,6 +53,9 @@ class Keys:
 
     def belief(self, robot: str) -> str:
         return key(self.run, "robot", robot, "belief")
+
+    def timing(self, robot: str) -> str:
+        return key(self.run, "robot", robot, "timing")
 
     def tx(self, robot: str) -> str:
         return key(self.run, "radio", "tx", robot)
@@ -88,9 +94,9 @@ def parse_key(key_expr: object) -> tuple[str, ParsedKey] | None:
     match parts[2:]:
         case ["world", "obs", robot]:
             parsed = ParsedKey("obs", robot)
-        case ["world", "state"] | ["netem", "links"] | ["ctl", "hello"] | ["ctl", "stop"]:
+        case ["world", ("state" | "clock")] | ["netem", "links"] | ["ctl", "hello"] | ["ctl", "stop"]:
             parsed = ParsedKey(parts[-1])
-        case ["robot", robot, ("cmd" | "belief") as channel]:
+        case ["robot", robot, ("cmd" | "belief" | "timing") as channel]:
             parsed = ParsedKey(channel, robot)
         case ["radio", ("tx" | "rx") as channel, robot]:
             parsed = ParsedKey(channel, robot)
@@ -101,6 +107,39 @@ def parse_key(key_expr: object) -> tuple[str, ParsedKey] | None:
         case _:
             return None
     return parts[1], parsed
+
+
+#: A host's id (and its bus user): ``host0``, ``host1``, ...
+HOST_ID = re.compile(r"host[0-9]{1,3}")
+ROBOT_ID = re.compile(r"r[0-9]{1,3}")
+
+
+class HostKeys:
+    """The lobby keys of one host (``fleet-host/<host>/...``, the same for every run): its liveliness token
+    ``alive``, the launcher's requests ``spawn`` (the robots' credentials: only this host may receive them) and
+    the host's reports ``status``. The launcher watches every host's token through :data:`ALL_ALIVE`."""
+
+    ALL_ALIVE = f"{HOST_ROOT}/*/alive"
+
+    def __init__(self, host: str) -> None:
+        if not HOST_ID.fullmatch(host):
+            raise ValueError(f"bad host id {host!r}")
+        self.host = host
+        self.alive = f"{HOST_ROOT}/{host}/alive"
+        self.spawn = f"{HOST_ROOT}/{host}/spawn"
+        self.status = f"{HOST_ROOT}/{host}/status"
+
+    @staticmethod
+    def host_of(key_expr: object) -> str | None:
+        """The host a lobby key names, or None."""
+        parts = str(key_expr).split("/")
+        ok = len(parts) == 3 and parts[0] == HOST_ROOT and HOST_ID.fullmatch(parts[1])
+        return parts[1] if ok else None
+
+
+def host_ids(n: int) -> list[str]:
+    """``host0 .. host<n-1>``."""
+    return [f"host{i}" for i in range(n)]
 
 
 def robot_ids(n: int) -> list[str]:

@@ -13,15 +13,17 @@ import dataclasses
 
 import numpy as np
 
+from fleet_emu.core.access import Credential
 from fleet_emu.core.codec import Context, DecodeError, Message, Payload, decode, decode_payload, peek_tick
 from fleet_emu.core.grid import MOVES, STAY, Cell
+from fleet_emu.core.keys import HOST_ID, ROBOT_ID, RUN_ID
 
 __all__ = [
     "Context", "DecodeError", "Message", "Payload", "decode", "decode_payload", "peek_tick",
     "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope",
     "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Failed",
     "Stop",
-    "AgentReport", "BeliefSnapshot",
+    "AgentReport", "BeliefSnapshot", "HostAssign", "HostStatus", "WorldClock", "AgentTiming", "STALE",
 ]
 
 VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
@@ -94,6 +96,11 @@ class WorldState(Message):
 
 
 # --- agent -> world -----------------------------------------------------------------------------------
+
+#: The status of a command a robot sends in real-time mode without a decision: a step along its last plan, or a
+#: stay while it has none (``agents/realtime.py``); never sent in lockstep.
+STALE = "STALE"
+
 
 @dataclasses.dataclass(frozen=True)
 class Command(Message):
@@ -290,3 +297,97 @@ class BeliefSnapshot(Message):
             raise DecodeError("belief: expected a 2-D int8 grid")
         if ctx is not None and ctx.shape is not None and self.grid.shape != ctx.shape:
             raise DecodeError("belief: grid shape differs from the map's")
+
+
+# --- the hosts' lobby (fleet-host/<host>/..., launch/hosts.py) --------------------------------------------
+
+HOST_EVENTS = frozenset({"accepted", "busy", "spawned", "exited", "ended"})
+
+
+@dataclasses.dataclass(frozen=True)
+class HostAssign(Message):
+    """The launcher's request to host ``host`` (fleet-host/<host>/spawn): start ``robots`` of run ``run``, whose
+    scenario (as ``scenario.json``) is ``scenario``; ``secrets`` maps each robot to its bus credential (JSON,
+    user and password: the host adds its own TLS CA), empty on an unauthenticated bus. ``end`` set: tear the
+    run's robots down instead."""
+
+    KIND = "host_assign"
+    host: str
+    run: str
+    robots: tuple[str, ...] = ()
+    scenario: str = ""
+    secrets: dict[str, str] = dataclasses.field(default_factory=dict)
+    fork_server: bool = True
+    end: bool = False
+
+    def validate(self, ctx: Context | None) -> None:
+        super().validate(ctx)
+        if not HOST_ID.fullmatch(self.host) or not RUN_ID.fullmatch(self.run):
+            raise DecodeError("host_assign: bad host or run id")
+        if not all(ROBOT_ID.fullmatch(r) for r in self.robots) or len(set(self.robots)) != len(self.robots):
+            raise DecodeError("host_assign: bad robot ids")
+        if not set(self.secrets) <= set(self.robots):
+            raise DecodeError("host_assign: a secret for a robot not assigned")
+        for robot, secret in self.secrets.items():
+            try:
+                cred = Credential.from_json(secret)
+            except ValueError:
+                raise DecodeError(f"host_assign: {robot}'s credential is not a user and password") from None
+            if cred.user != robot:
+                raise DecodeError(f"host_assign: {robot}'s credential is {cred.user!r}'s")
+
+
+@dataclasses.dataclass(frozen=True)
+class HostStatus(Message):
+    """A host's report (fleet-host/<host>/status) about run ``run``: ``accepted`` (or ``busy`` with another run),
+    ``spawned`` (``robot`` with its ``pid``), ``exited`` (``robot`` with its exit ``code``), ``ended`` (every
+    robot of the run is gone)."""
+
+    KIND = "host_status"
+    run: str
+    event: str
+    robot: str = ""
+    pid: int = 0
+    code: int = 0
+    error: str = ""
+
+    def validate(self, ctx: Context | None) -> None:
+        super().validate(ctx)
+        if self.event not in HOST_EVENTS:
+            raise DecodeError(f"host_status: unknown event {self.event!r}")
+
+
+# --- real-time mode only (``fleet run --realtime HZ``) ---------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class WorldClock(Message):
+    """The world's wall clock at ``tick`` (world/clock), published with every state of a real-time run and never
+    in lockstep. Counters are cumulative: ``late`` per robot the decisions whose command arrived after the tick
+    it was stamped for had ended (each applied at the next tick), ``late_steps`` the same for the steps along
+    the last plan (status ``STALE``), ``missed`` per robot the ticks in which no command at
+    all came from it (it stood still), ``overruns`` the ticks the world itself started after their scheduled
+    time, ``elapsed`` the seconds since tick 0 was scheduled."""
+
+    KIND = "clock"
+    hz: float
+    elapsed: float
+    overruns: int
+    late: dict[str, int]
+    late_steps: dict[str, int]
+    missed: dict[str, int]
+
+
+@dataclasses.dataclass(frozen=True)
+class AgentTiming(Message):
+    """A robot's real-time summary when it stops (robot/<robot>/timing), sent just before its report and never
+    in lockstep: ``decisions`` made, ``plan_steps`` (ticks it stepped along its last plan while a decision
+    ran), ``waits`` (ticks a decision ran and it had no plan yet: it stood still), and percentiles of the wall
+    time of a whole decision (``decision_ms``: the brain's step in its worker thread) and of the allocator
+    alone (``allocator_ms``), each with keys p50, p90, p99, max and mean."""
+
+    KIND = "timing"
+    decisions: int
+    plan_steps: int
+    waits: int
+    decision_ms: dict[str, float]
+    allocator_ms: dict[str, float]

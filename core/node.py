@@ -124,12 +124,15 @@ def parse_child(parser: argparse.ArgumentParser, argv: list[str] | None, map_fil
     """The command line every child process takes: ``--run``, ``--connect``, ``--scenario FILE.json``
     (written by ``fleet run``), for the world and netem ``--map-file MAP.npz`` (the launcher's one build of
     the true map), and ``--auth-stdin`` (the credential comes on standard input, never on the command line or
-    in the environment, where other users could read it). A bad file is one line on stderr and exit code 2."""
+    in the environment, where other users could read it), and ``--realtime HZ`` in a real-time run. A bad
+    file is one line on stderr and exit code 2."""
     parser.add_argument("--run", required=True, help="run id (the <run> of the key expressions)")
     parser.add_argument("--connect", required=True, help="router endpoint, e.g. tcp/127.0.0.1:7447")
     parser.add_argument("--scenario", required=True, type=Path, help="scenario as JSON (written by fleet run)")
     if map_file:
         parser.add_argument("--map-file", required=True, type=Path, help="the true map (written by fleet run)")
+    parser.add_argument("--realtime", type=float, default=None, metavar="HZ",
+                        help="real-time mode: the world ticks at HZ on the wall clock (default: lockstep)")
     parser.add_argument("--auth-stdin", action="store_true",
                         help="read this process's bus credential (one JSON line) from standard input")
     args = parser.parse_args(argv)

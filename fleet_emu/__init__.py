@@ -81,7 +81,7 @@ def __dir__() -> list[str]:
 
 def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | None = None,
         in_process: bool = False, connect: str | None = None, run_id: str = "",
-        grid_every: int | None = None, engine: str = "processes") -> Result:
+        grid_every: int | None = None, engine: str = "processes", realtime_hz: float | None = None) -> Result:
     """Run one scenario as a real fleet (world, netem and one process per robot over Zenoh; with
     ``in_process`` every node in this process, a session each) and return its :class:`Result`.
 
@@ -91,7 +91,8 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
     any process starts, and :class:`RunError` when a process of the fleet failed the run (the world, netem).
     A robot that failed does not raise: the run goes on without it and ``result["failed"]`` names it.
     ``engine="memory"`` steps the same objects in this process with no Zenoh (:class:`Fleet`): the same
-    result for a seed, several times faster.
+    result for a seed, several times faster. ``realtime_hz`` runs the processes engine in real time: the
+    world ticks that many times a second on the wall clock (not deterministic; the memory engine refuses it).
     """
     from fleet_emu.launch.runner import RunOptions, run_fleet
 
@@ -105,11 +106,15 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
 
         raise ConfigError(f"engine must be 'processes' or 'memory' (the latter without in_process or connect), "
                           f"got {engine!r}")
+    if engine == "memory" and realtime_hz is not None:
+        from fleet_emu.core.errors import ConfigError
+
+        raise ConfigError("realtime_hz needs the processes engine: the memory engine is lockstep only")
     if engine == "memory":
         from fleet_emu.launch.memory import run_memory
 
         return run_memory(scenario, out_dir, record=out_dir is not None and record is not False, run_id=run_id,
                           grid_every=grid_every)
     opts = RunOptions(out_dir=out_dir, in_process=in_process, record=out_dir is not None and record is not False,
-                      connect=connect, run_id=run_id, grid_every=grid_every)
+                      connect=connect, run_id=run_id, grid_every=grid_every, realtime_hz=realtime_hz)
     return run_fleet(scenario, opts)

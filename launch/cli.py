@@ -43,6 +43,16 @@ def _start(text: str) -> tuple[int, int] | str:
     return (row, col)
 
 
+def _hz(text: str) -> float:
+    try:
+        hz = float(text)
+    except ValueError:
+        hz = float("nan")
+    if not 0 < hz <= 1000:  # NaN fails too
+        raise argparse.ArgumentTypeError(f"expected ticks per second, a number > 0 and <= 1000, got {text!r}")
+    return hz
+
+
 def build_parser() -> argparse.ArgumentParser:
     from fleet_emu.core.radio import COMM_MODELS
 
@@ -68,6 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="processes: one OS process per node over Zenoh; memory: the same objects stepped in this "
                         "process, no Zenoh (same result for a seed)")
     r.add_argument("--in-process", action="store_true", help="all nodes in this process (one session each)")
+    r.add_argument("--realtime", type=_hz, metavar="HZ",
+                   help="real time: the world ticks HZ times a second on the wall clock, whether or not every robot "
+                        "has answered (not deterministic; default: lockstep)")
     r.add_argument("--fork-server", action=argparse.BooleanOptionalAction, default=None,
                    help="fork the robot processes from one fork server that loaded the agent code once (default: "
                         "on, unless FLEET_FORK_SERVER=0); --no-fork-server starts each robot afresh")
@@ -77,6 +90,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --connect: the users file written by `fleet router-config`")
     r.add_argument("--tls-ca", type=Path, metavar="CA.pem", help="with a tls/ --connect: the CA that signed the router")
     r.add_argument("--run-id", help="the <run> of the key expressions (default: a timestamp)")
+    r.add_argument("--hosts", type=int, default=0, metavar="N",
+                   help="deal the robots round-robin between this machine and N `fleet host`s, waiting for them")
+    r.add_argument("--listen", metavar="ENDPOINT",
+                   help="the embedded router's endpoint, one the hosts reach (e.g. tcp/192.0.2.1:7447)")
+    r.add_argument("--host-timeout", type=float, default=None, metavar="S",
+                   help="seconds to wait for the --hosts (default 60)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--grid-every", type=int, metavar="K",
                    help="Foxglove map/coverage/belief grids in run.mcap every K ticks (default: belief_every)")
@@ -88,8 +107,21 @@ def build_parser() -> argparse.ArgumentParser:
     rc.add_argument("--listen", default=None, help="endpoint (default tcp/0.0.0.0:7447, or tls/0.0.0.0:7447 "
                                                    "with --tls-cert)")
     rc.add_argument("--run-id", default="*", help="the one run this router serves (default: any)")
+    rc.add_argument("--hosts", type=int, default=0, help="hosts host0..host<N-1> that may join (`fleet host`)")
     rc.add_argument("--tls-cert", type=Path, help="the router's TLS certificate (PEM)")
     rc.add_argument("--tls-key", type=Path, help="its private key (PEM)")
+    h = sub.add_parser("host", help="start the robots a `fleet run --hosts N` on another machine assigns here")
+    h.add_argument("--connect", required=True, help="the run's Zenoh router, e.g. tcp/192.0.2.1:7447")
+    h.add_argument("--credentials", type=Path, metavar="FILE",
+                   help="this host's login: a hostK:password line (of `fleet router-config --hosts N`'s users file)")
+    h.add_argument("--connect-timeout", type=float, default=5.0, metavar="S",
+                   help="seconds to keep trying the router (started before `fleet run`: give it time; default 5)")
+    h.add_argument("--name", help="the host's user in --credentials when it holds several (default: its one host)")
+    h.add_argument("--tls-ca", type=Path, metavar="CA.pem", help="with a tls/ --connect: the CA that signed the router")
+    h.add_argument("--out", type=Path, help="where the robots' logs go (default runs/<run id>/<host>)")
+    h.add_argument("--once", action="store_true", help="exit after one run (default: serve runs until Ctrl-C)")
+    h.add_argument("--fork-server", action=argparse.BooleanOptionalAction, default=None,
+                   help="fork the robots from a fork server (default: as the launcher asks)")
     sub.add_parser("maps", help="list the built-in maps")
     sub.add_parser("allocators", help="list the allocators (built-in and installed plugins) and their parameters")
     rep = sub.add_parser("report", help="metrics.json, plots and a table from a recording (RUN_DIR or RUN.mcap)")
@@ -125,10 +157,14 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     out = args.out or Path("runs") / run_id
     if args.grid_every is not None and args.grid_every < 1:
         raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
-    if args.engine == "memory" and (args.in_process or args.connect):
-        raise ConfigError(f"--engine memory runs without Zenoh: it takes no "
-                          f"{'--in-process' if args.in_process else '--connect'}")
-    if args.connect is None and (args.credentials or args.tls_ca):
+    if args.engine == "memory" and args.realtime is not None:
+        raise ConfigError("--realtime needs the processes engine: --engine memory is lockstep only")
+    memory_flags = (("--in-process", args.in_process), ("--connect", args.connect), ("--hosts", args.hosts),
+                    ("--listen", args.listen), ("--[no-]fork-server", args.fork_server is not None))
+    if args.engine == "memory" and any(v for _, v in memory_flags):
+        flag = next(f for f, v in memory_flags if v)
+        raise ConfigError(f"--engine memory runs without Zenoh nor processes: it takes no {flag}")
+    if args.connect is None and (args.tls_ca or (args.credentials and not args.hosts)):  # --hosts: the hosts' logins
         raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
         if args.engine == "memory":
@@ -141,7 +177,9 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
             opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
                               connect=args.connect, run_id=run_id, grid_every=args.grid_every,
                               on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
-                              interrupts=interrupts, on_warning=_warn, fork_server=args.fork_server)
+                              interrupts=interrupts, on_warning=_warn, fork_server=args.fork_server,
+                              hosts=args.hosts, listen=args.listen, realtime_hz=args.realtime,
+                              **({"host_timeout": args.host_timeout} if args.host_timeout is not None else {}))
             result = run_fleet(scenario, opts)
     if interrupts.signum is not None:
         when = "" if result["reason"] == "interrupted" else f" after the run ended ({result['reason']})"
@@ -162,7 +200,8 @@ def _warn(message: str) -> None:
 def cmd_router_config(args: argparse.Namespace) -> int:
     from fleet_emu.launch.router_config import router_config_text
 
-    print(router_config_text(args.robots, args.users, args.listen, args.run_id, args.tls_cert, args.tls_key))
+    print(router_config_text(args.robots, args.users, args.listen, args.run_id, args.tls_cert, args.tls_key,
+                             args.hosts))
     return 0
 
 
@@ -227,6 +266,10 @@ def main(argv: list[str] | None = None) -> None:
             args = build_parser().parse_args(["run", *(argv or [])])
         if command == "run":
             code = _run_with_signals(args, interrupts)
+        elif command == "host":
+            from fleet_emu.launch.host import cmd_host
+
+            code = cmd_host(args, interrupts)
         else:
             interrupts.restore()  # a listing or a report: Ctrl-C simply stops it
             if interrupts.requested.is_set():

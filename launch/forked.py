@@ -14,6 +14,7 @@ import contextlib
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -61,9 +62,15 @@ class ForkServer:
         stderr: IO[bytes] | None = open(log, "wb") if log is not None else None  # noqa: SIM115 (closed in close)
         self._log = stderr
         preload = ["--scenario", str(scenario)] if scenario is not None else []
-        self.proc = subprocess.Popen([sys.executable, "-m", "fleet_emu.agents.forkserver", *preload],
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr,
-                                     start_new_session=True)
+        # requests go on a SOCK_SEQPACKET socket (its standard input), so that a robot's credential pipe can
+        # travel with its request; closing our end (or dying) is the server's end of input
+        self._sock, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        try:
+            self.proc = subprocess.Popen([sys.executable, "-m", "fleet_emu.agents.forkserver", *preload],
+                                         stdin=theirs, stdout=subprocess.PIPE, stderr=stderr,
+                                         start_new_session=True)
+        finally:
+            theirs.close()
         self.pid = self.proc.pid
         self.changed = threading.Condition()
         self._by_pid: dict[int, ForkedProcess] = {}
@@ -76,22 +83,34 @@ class ForkServer:
         """Ask for one robot (``python -m fleet_emu.agents ARGV``) and wait for its pid. A robot the server
         could not fork (it is gone, it failed, it did not answer in :data:`FORK_TIMEOUT`) comes back exited."""
         handle = ForkedProcess(name, self)
-        request = {"name": name, "argv": argv, "log": str(log) if log is not None else None, "secret": secret}
+        request = {"name": name, "argv": argv, "log": str(log) if log is not None else None}
         with self.changed:
             if self._gone:  # its output ended: it will answer nothing more
                 self._fail(handle)
                 return handle
             self._pending.append(handle)
-        try:
-            assert self.proc.stdin is not None
-            self.proc.stdin.write((json.dumps(request) + "\n").encode())
-            self.proc.stdin.flush()
-        except (OSError, ValueError):  # the server is gone (or closed): the reader fails what is pending
-            pass
+        with contextlib.suppress(OSError, ValueError):  # the server is gone (or closed): the reader fails it
+            self._send(json.dumps(request).encode(), secret)
         with self.changed:
             if not self.changed.wait_for(lambda: handle.pid != 0 or handle.returncode is not None, FORK_TIMEOUT):
                 self._fail(handle)
         return handle
+
+    def _send(self, request: bytes, secret: str | None) -> None:
+        """One request; a credential goes into a pipe whose read end travels with it (the robot's stdin)."""
+        if secret is None:
+            self._sock.send(request)
+            return
+        r, w = os.pipe()
+        try:
+            os.write(w, (secret + "\n").encode())  # one line, far below the pipe's buffer
+            os.close(w)
+            w = -1
+            socket.send_fds(self._sock, [request], [r])
+        finally:
+            os.close(r)
+            if w >= 0:
+                os.close(w)
 
     def _fail(self, handle: ForkedProcess) -> None:
         """Called with ``changed`` held: a request that will never be answered."""
@@ -143,8 +162,7 @@ class ForkServer:
         """End the server (it ends the robots it has left, reaps and reports them), SIGKILL its process group
         after ``grace`` seconds, and wait for the last reports."""
         with contextlib.suppress(OSError, ValueError):
-            if self.proc.stdin is not None:
-                self.proc.stdin.close()
+            self._sock.close()
         deadline = time.monotonic() + grace + 2.5  # the server's own SIGTERM grace to its robots, and more
         try:
             self.proc.wait(max(0.0, deadline - time.monotonic()))

@@ -81,9 +81,19 @@ def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
         ("recording", f"{result['recording']['messages']} messages" if result["recording"]["path"] else "off"),
         ("output", out_dir),
     ]
+    if result.get("realtime"):
+        rows.insert(-3, ("real time", _realtime(result)))
     for k, v in rows:
         t.add_row(k, v)
     return t
+
+
+def _realtime(result: Mapping[str, Any]) -> str:
+    """A real-time run: the rate asked and achieved, the world's overruns, late commands per robot."""
+    rt = result["realtime"]
+    late = ", ".join(f"{r} {row['late_commands']}" for r, row in rt["robots"].items())
+    return (f"{result['realtime_hz']:g} Hz asked, {rt['ticks_per_second']} ticks/s, {rt['world_overruns']} "
+            f"overruns; late commands {rt['late_commands']} ({late})")
 
 
 def _idle(result: Mapping[str, Any]) -> str:

@@ -2,8 +2,9 @@
 
 For ``fleet run --connect`` to a router of your own (one that robots on other machines also reach). The users
 file holds one ``user:password`` line per process of a fleet of up to ``--robots`` robots; zenohd reads it as
-its ``usrpwd`` dictionary, and ``fleet run --credentials`` gives each process its own line. The access control
-is the embedded router's (``core/access.py``): default deny, each user may put only on its own keys.
+its ``usrpwd`` dictionary, and ``fleet run --credentials`` gives each process its own line; with ``--hosts N``
+it also holds ``host0`` .. ``host<N-1>``, the logins of ``fleet host`` (give each host only its own line).
+The access control is the embedded router's (``core/access.py``): default deny, each user may put only on its own keys.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from pathlib import Path
 
 from fleet_emu.core.access import acl_config, dictionary_text, fleet_nodes, make_credentials, read_dictionary
 from fleet_emu.core.errors import ConfigError
-from fleet_emu.core.keys import RUN_ID, robot_ids
+from fleet_emu.core.keys import RUN_ID, host_ids, robot_ids
 from fleet_emu.core.scenario import MAX_ROBOTS
 
 
@@ -40,7 +41,7 @@ def write_users(path: Path, nodes: list[str]) -> dict[str, str]:
 
 
 def router_config_text(robots: int, users: Path, listen: str | None = None, run_id: str = "*",
-                       tls_cert: Path | None = None, tls_key: Path | None = None) -> str:
+                       tls_cert: Path | None = None, tls_key: Path | None = None, hosts: int = 0) -> str:
     """The JSON5 (plain JSON) configuration to start zenohd with (``zenohd -c FILE``)."""
     if not 1 <= robots <= MAX_ROBOTS:
         raise ConfigError(f"--robots must be in 1..{MAX_ROBOTS} (got {robots})")
@@ -54,7 +55,9 @@ def router_config_text(robots: int, users: Path, listen: str | None = None, run_
     listen = listen or ("tls/0.0.0.0:7447" if tls_cert else "tcp/0.0.0.0:7447")
     if tls_cert is not None and not listen.startswith("tls/"):
         raise ConfigError(f"--listen {listen}: with a TLS certificate the endpoint must be tls/...")
-    nodes = fleet_nodes(robot_ids(robots))
+    if not 0 <= hosts <= 64:
+        raise ConfigError(f"--hosts must be in 0..64 (got {hosts})")
+    nodes = fleet_nodes(robot_ids(robots)) + host_ids(hosts)
     write_users(users, nodes)
     transport: dict = {"auth": {"usrpwd": {"dictionary_file": str(users.absolute())}}}
     if tls_cert is not None and tls_key is not None:

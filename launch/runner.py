@@ -40,6 +40,7 @@ from fleet_emu.core.messages import Failed, Ready, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.forked import fork_server_enabled
+from fleet_emu.launch.hosts import HOST_TIMEOUT, Hosts, HostsError, check_hosts, host_credentials, spawn_nodes
 from fleet_emu.launch.result import Result, write_json_atomic
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import Supervisor
@@ -52,6 +53,7 @@ from fleet_emu.world.node import build_world
 
 STOP_GRACE = 5.0
 CONNECT_TIMEOUT = 5.0  # seconds ``--connect`` keeps trying an external router before giving up
+MAX_HZ = 1000.0  # the fastest real-time rate accepted
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,6 +76,10 @@ class RunOptions:
     on_warning: Callable[[str], None] | None = None  # told once the input is checked (an unauthenticated bus)
     on_spawn: Callable[[dict[str, Any]], None] | None = None  # told result.json's ``pids`` once the nodes start
     fork_server: bool | None = None  # robots forked from one fork server (None: unless FLEET_FORK_SERVER=0)
+    hosts: int = 0  # robots dealt between this machine and this many `fleet host`s (``launch/hosts.py``)
+    listen: str | None = None  # the embedded router's endpoint (default: loopback, a port the OS picks)
+    host_timeout: float = HOST_TIMEOUT  # seconds to wait for the hosts
+    realtime_hz: float | None = None  # real time: the world ticks at this rate on the wall clock (None: lockstep)
 
 
 def new_run_id() -> str:
@@ -96,7 +102,8 @@ def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] |
     nodes = fleet_nodes(robot_ids(scenario.robots))
     ca = str(opts.tls_ca.absolute()) if opts.tls_ca is not None else None
     if opts.connect is None:
-        return {n: Credential(n, p) for n, p in make_credentials(nodes).items()}
+        hosts = host_credentials(opts.credentials) if opts.hosts else {}
+        return {n: Credential(n, p) for n, p in make_credentials(nodes).items()} | hosts
     if opts.credentials is None:
         return None
     try:
@@ -111,12 +118,19 @@ def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] |
 
 
 def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None) -> None:
-    """The run's options that can be wrong before anything starts: the run id, the TLS CA file, and
+    """The run's options that can be wrong before anything starts: the run id, the real-time rate, the TLS CA
+    file, and
     ``connect`` (its syntax, and a router answering there within :data:`CONNECT_TIMEOUT` and accepting the
     launcher's credential)."""
     if opts.run_id and not RUN_ID.fullmatch(opts.run_id):
         raise ConfigError(f"--run-id must be letters, digits, '_', '-' or '.' (not first), at most 100 "
                           f"(got {opts.run_id!r})")
+    check_hosts(opts.hosts, opts.in_process, opts.connect, opts.listen)
+    if opts.hosts and opts.realtime_hz is not None:
+        raise ConfigError("--realtime runs every robot on this machine today: it takes no --hosts")
+    hz = opts.realtime_hz
+    if hz is not None and (isinstance(hz, bool) or not isinstance(hz, int | float) or not 0 < hz <= MAX_HZ):
+        raise ConfigError(f"--realtime must be a number of ticks per second > 0 and <= {MAX_HZ:g} (got {hz!r})")
     if opts.tls_ca is not None and not opts.tls_ca.is_file():
         raise ConfigError(f"--tls-ca {opts.tls_ca}: no such file")
     if opts.connect is None:
@@ -195,6 +209,8 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     monitor = Monitor(robots)
     engine = "in-process" if opts.in_process else "processes"
     meta = {"run_id": run_id, "scenario": scenario.to_dict(), "engine": engine}
+    if opts.realtime_hz:
+        meta["realtime_hz"] = opts.realtime_hz
     recorder = Recorder(recording, meta) if recording is not None else None
     viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id), keys) \
         if recorder else None
@@ -213,7 +229,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
             endpoint = opts.connect
         else:
             try:
-                router = stack.enter_context(_open_router(run_id, creds))
+                router = stack.enter_context(_open_router(run_id, creds, opts.listen or "tcp/127.0.0.1:0"))
             except zenoh.ZError as exc:
                 raise RunError(f"cannot open the embedded Zenoh router: {str(exc).splitlines()[0]}") from None
             endpoint = router_locators(router)[0]
@@ -227,6 +243,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         pub_stop = publisher(session, keys.stop)
         handles: list[Declared] = [pub_ready, pub_stop,
                                    session.liveliness().declare_token(keys.alive("launcher", "launcher"))]
+        remote = stack.enter_context(Hosts(session, opts.hosts, opts.host_timeout)) if opts.hosts else None
         consumer = _Consumer(keys, samples, monitor, recorder, pub_ready, viz)
         consumer.start()
         nodes_thread: threading.Thread | None = None
@@ -234,13 +251,15 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
             if requested.is_set():
                 pass  # interrupted while starting: nothing more is started
             elif opts.in_process:
-                nodes_thread = _start_in_process(scenario, map_data, run_id, endpoint, creds)
+                nodes_thread = _start_in_process(scenario, map_data, run_id, endpoint, creds, opts.realtime_hz)
                 pids = {"world": os.getpid(), "netem": os.getpid(), "agents": [os.getpid()] * len(robots)}
             else:
-                _spawn_nodes(sup, scenario, run_id, endpoint, work, creds)
+                plan = spawn_nodes(sup, scenario, run_id, endpoint, work, creds, remote, requested,
+                                   opts.realtime_hz)
                 p = sup.pids()
                 pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
-                pids |= {"fork_server": p["fork_server"]} if "fork_server" in p else {}
+                pids |= ({"fork_server": p["fork_server"]} if "fork_server" in p else {}) | \
+                    ({"hosts": plan} if plan else {})
             if pids and opts.on_spawn is not None:
                 opts.on_spawn(pids)  # e.g. benchmarks/scale.py samples their /proc while the run goes
             error = _wait(monitor, consumer, sup, nodes_thread, opts.on_progress, requested,
@@ -249,6 +268,8 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
                               congestion_control=zenoh.CongestionControl.BLOCK))
         except KeyboardInterrupt:
             requested.set()
+        except HostsError as exc:  # too few hosts came: the run ends as an error, its files written
+            error = str(exc)
         finally:
             interrupted = requested.is_set() and monitor.stop is None  # a signal after the stop is teardown's
             if monitor.stop is None or interrupted:
@@ -269,6 +290,8 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         viz.finish()
     messages = recorder.close() if recorder else 0
     data = monitor.result(scenario.to_dict(), run_id, scenario.target_coverage)
+    if opts.realtime_hz:
+        data.setdefault("realtime_hz", opts.realtime_hz)  # also when stopped before tick 0
     if interrupted:
         data["reason"] = "interrupted"
         data.pop("error", None)
@@ -369,44 +392,29 @@ class _Consumer(threading.Thread):
                 self.changed.set()
 
 
-def _open_router(run_id: str, creds: dict[str, Credential] | None) -> zenoh.Session:
+def _open_router(run_id: str, creds: dict[str, Credential] | None, listen: str) -> zenoh.Session:
     """The embedded router: user/password authentication and access control for this run's users. The
     users file lives in a private temporary directory only while the router opens (Zenoh reads it then)."""
     if creds is None:
-        return zenoh.open(router_config())
+        return zenoh.open(router_config(listen))
     with tempfile.TemporaryDirectory(prefix="fleet-auth-") as private:  # mode 0700
         users = Path(private) / "users.txt"
         fd = os.open(users, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
         with os.fdopen(fd, "w") as f:
             f.write(dictionary_text({n: c.password for n, c in creds.items()}))
-        return zenoh.open(router_config(dictionary_file=str(users), acl=acl_config(run_id, creds)))
-
-
-def _spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str, work: Path,
-                 creds: dict[str, Credential] | None) -> None:
-    """world, netem and one process per robot; each gets its own credential on standard input."""
-    common = ["--run", run_id, "--connect", endpoint, "--scenario", str(work / "scenario.json")]
-    auth = ["--auth-stdin"] if creds else []
-    truth = ["--map-file", str(work / "map.npz")]
-
-    def secret(node: str) -> str | None:
-        return creds[node].to_json() if creds else None
-
-    sup.spawn("world", "fleet_emu.world", [*common, *truth, *auth], secret("world"))
-    sup.spawn("netem", "fleet_emu.netem", [*common, *truth, *auth], secret("netem"))
-    for r in robot_ids(scenario.robots):
-        sup.spawn(r, "fleet_emu.agents", ["--robot", r, *common, *auth], secret(r))
+        return zenoh.open(router_config(listen, dictionary_file=str(users), acl=acl_config(run_id, creds)))
 
 
 def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoint: str,
-                      creds: dict[str, Credential] | None) -> threading.Thread:
+                      creds: dict[str, Credential] | None, realtime_hz: float | None = None) -> threading.Thread:
     """Every node in this process, each with its own Zenoh session (and its own login) to the same router."""
     from fleet_emu.agents.node import AgentNode
     from fleet_emu.netem.node import NetemNode
     from fleet_emu.world.node import WorldNode
 
-    nodes = [WorldNode(scenario, run_id, map_data), NetemNode(scenario, run_id, map_data)]
-    nodes += [AgentNode(scenario, run_id, r) for r in robot_ids(scenario.robots)]
+    nodes = [WorldNode(scenario, run_id, map_data, realtime_hz=realtime_hz),
+             NetemNode(scenario, run_id, map_data, realtime_hz=realtime_hz)]
+    nodes += [AgentNode(scenario, run_id, r, realtime_hz=realtime_hz) for r in robot_ids(scenario.robots)]
 
     async def main() -> None:
         with contextlib.ExitStack() as stack:

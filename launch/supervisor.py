@@ -13,11 +13,17 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fleet_emu.launch.forked import ForkedProcess, ForkServer
 
 AGENTS = "fleet_emu.agents"
-Child = subprocess.Popen[bytes] | ForkedProcess
+if TYPE_CHECKING:
+    from fleet_emu.launch.hosts import RemoteRobot
+
+    Child = subprocess.Popen[bytes] | ForkedProcess | RemoteRobot
+else:
+    Child = subprocess.Popen[bytes] | ForkedProcess
 
 
 class Supervisor:
@@ -57,6 +63,11 @@ class Supervisor:
             with contextlib.suppress(OSError):
                 proc.stdin.close()
         return proc
+
+    def adopt(self, name: str, child: Child) -> None:
+        """A child started elsewhere (a robot on a host, ``launch/hosts.py``), supervised like the others:
+        signalling its group asks its host to tear it down."""
+        self.children[name] = child
 
     def pids(self) -> dict[str, int]:
         """Every child's pid, and the fork server's (``fork_server``) when there is one."""
@@ -101,6 +112,10 @@ class Supervisor:
 
 
 def _signal_group(p: Child, sig: signal.Signals) -> None:
+    remote = getattr(p, "signal_group", None)
+    if remote is not None:  # never a local kill of another machine's pid
+        remote(sig)
+        return
     if p.pid <= 0:  # a robot the fork server never forked: never this process's own group
         return
     with contextlib.suppress(ProcessLookupError, PermissionError):

@@ -2,6 +2,11 @@
 
 Each tick t: on the world's state for t, compute the link graph from the true poses, publish it and every live
 robot's rx bundle for t; then wait for every live robot's tx bundle for t and schedule its deliveries.
+
+Real time (``realtime_hz``): netem follows the world's states as they come, on the wall clock, and waits for
+no robot. What arrived from the robots between the states of t and t + 1 (whatever tick a bundle is stamped
+with: a late decision's bundle too) is sent at t, over the links of t, so it is delivered at t + latency as in
+lockstep; a robot that sent nothing in that time sent nothing at t.
 The channel itself is :class:`netem.channel.Channel`; the signal model is :mod:`fleet_emu.core.radio`.
 """
 
@@ -30,7 +35,7 @@ STATE_GRACE = 2.0  # seconds to wait, after a stop, for the states it announced
 class NetemNode(NodeBase):
     role = "netem"
 
-    def __init__(self, scenario: Scenario, run: str, map_data: MapData) -> None:
+    def __init__(self, scenario: Scenario, run: str, map_data: MapData, realtime_hz: float | None = None) -> None:
         super().__init__(Keys(run), "netem")
         warm_up()  # compile (or load) the kernels before the first tick, not inside it
         self.scenario = scenario
@@ -44,6 +49,7 @@ class NetemNode(NodeBase):
         self.stopped = False
         self.stop_tick = -1
         self.abort = False
+        self.realtime = bool(realtime_hz)
 
     async def run(self, session: zenoh.Session) -> None:
         keys = self.keys
@@ -57,7 +63,7 @@ class NetemNode(NodeBase):
         self.pub_links = publisher(session, keys.links)
         handles += [*self.pub_rx.values(), self.pub_links, *self.declare_presence(session, inbox)]
         try:
-            await self._lockstep(inbox)
+            await (self._realtime(inbox) if self.realtime else self._lockstep(inbox))
         finally:
             undeclare(handles)
 
@@ -76,6 +82,34 @@ class NetemNode(NodeBase):
                 break
             self.channel.transmit(tick, live, link, bundles)
             tick += 1
+        await self._until_stop(inbox)
+
+    async def _realtime(self, inbox: Inbox) -> None:
+        tick = 0
+        sent: tuple[int, tuple[str, ...], np.ndarray] | None = None  # the last tick: its live robots and links
+        while True:
+            state = await self._await_state(inbox, tick)
+            if state is None:
+                break
+            if sent is not None:
+                self._send_arrived(*sent)
+            live = tuple(r for r in self.robots if r in state.live)
+            sent = (state.tick, live, self._publish_tick(state, live))
+            if state.done:
+                break
+            tick = state.tick + 1
+        await self._until_stop(inbox)
+
+    def _send_arrived(self, tick: int, live: tuple[str, ...], link: np.ndarray) -> None:
+        """Every bundle that arrived since the state of ``tick``, sent at ``tick`` (oldest stamp first)."""
+        bundles: dict[str, tuple] = {}
+        for stamp in sorted(self.tx):
+            for r, b in self.tx[stamp].items():
+                bundles[r] = bundles.get(r, ()) + b.msgs
+        self.tx.clear()
+        self.channel.transmit(tick, live, link, bundles)
+
+    async def _until_stop(self, inbox: Inbox) -> None:
         while not self.stopped:  # wait for the world's stop so the final links are recorded first
             if await self._next(inbox, timeout=5.0) is None:
                 break
@@ -152,4 +186,5 @@ class NetemNode(NodeBase):
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m fleet_emu.netem --run RUN --connect ENDPOINT --scenario FILE.json --map-file MAP.npz``."""
-    node_main("netem", lambda a: NetemNode(a.scenario, a.run, a.map_file), argv, map_file=True)
+    node_main("netem", lambda a: NetemNode(a.scenario, a.run, a.map_file, realtime_hz=a.realtime), argv,
+              map_file=True)

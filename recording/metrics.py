@@ -32,7 +32,18 @@ import numpy as np
 
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import parse_key, robot_ids
-from fleet_emu.core.messages import Command, Envelope, Links, Observation, Ready, RxBundle, Stop, TxBundle, WorldState
+from fleet_emu.core.messages import (
+    STALE,
+    Command,
+    Envelope,
+    Links,
+    Observation,
+    Ready,
+    RxBundle,
+    Stop,
+    TxBundle,
+    WorldState,
+)
 from fleet_emu.recording.first_seen import FirstSeen
 from fleet_emu.recording.monitor import Monitor
 
@@ -144,7 +155,8 @@ class RunMetrics:
         elif isinstance(msg, RxBundle) and msg.dst in self.rx_msgs:
             self.rx_msgs[msg.dst] += len(msg.msgs)
             self.series.rx_msgs[msg.tick] = self.series.rx_msgs.get(msg.tick, 0) + len(msg.msgs)
-        elif isinstance(msg, Command) and msg.src in self.decisions:
+        elif isinstance(msg, Command) and msg.src in self.decisions and msg.status != STALE:  # real time: a step
+            # along the last plan, not a decision
             self.decisions[msg.src].append(msg.decision_ms)
         elif isinstance(msg, Ready):
             self.pids[msg.src] = msg.pid

@@ -16,12 +16,22 @@ from fleet_emu.core.access import allowed_src
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.grid import Cell
 from fleet_emu.core.keys import parse_key
-from fleet_emu.core.messages import AgentReport, Command, Links, Message, Stop, WorldState
+from fleet_emu.core.messages import (
+    STALE,
+    AgentReport,
+    AgentTiming,
+    Command,
+    Links,
+    Message,
+    Stop,
+    WorldClock,
+    WorldState,
+)
 from fleet_emu.core.radio import RadioConfig
 from fleet_emu.core.version import SCHEMA_VERSION
 
 #: The channels the monitor folds (``ParsedKey.channel``); the rest is not even decoded.
-_FOLDED = frozenset({"state", "links", "stop", "report", "cmd"})
+_FOLDED = frozenset({"state", "links", "stop", "report", "cmd", "clock", "timing"})
 
 
 @dataclasses.dataclass
@@ -44,6 +54,8 @@ class Monitor:
     last_state_ns: int | None = None
     cells: dict[int, dict[str, Cell]] = dataclasses.field(default_factory=dict)  # tick -> live robots' cells
     status: dict[tuple[int, str], str] = dataclasses.field(default_factory=dict)  # (tick, robot) -> cmd status
+    clock: WorldClock | None = None  # real-time runs only: the world's last clock
+    timing: dict[str, AgentTiming] = dataclasses.field(default_factory=dict)  # and each robot's summary
 
     def feed(self, key: str, data: bytes, wall_ns: int | None = None) -> Message | None:
         """Decode and fold one sample; returns the message (None if it is not one the monitor uses)."""
@@ -81,12 +93,18 @@ class Monitor:
             if self.links is None or msg.tick >= self.links.tick:
                 self.links = msg
         elif isinstance(msg, Command):
-            self.decision_ms.append(msg.decision_ms)
+            if msg.status != STALE:  # a step along the last plan decided nothing
+                self.decision_ms.append(msg.decision_ms)
             self.status[(msg.tick, msg.src)] = msg.status
         elif isinstance(msg, AgentReport):
             self.reports[msg.src] = msg
         elif isinstance(msg, Stop) and msg.src == "world":
             self.stop = msg
+        elif isinstance(msg, WorldClock) and msg.src == "world":
+            if self.clock is None or msg.tick >= self.clock.tick:
+                self.clock = msg
+        elif isinstance(msg, AgentTiming):
+            self.timing[msg.src] = msg
 
     def idle(self) -> dict[str, int]:
         """Idle robot-ticks by the status of the robot's command: a robot that had something to do (its
@@ -149,7 +167,28 @@ class Monitor:
             "ticks_per_second": self.ticks_per_second(),
             "schema_version": SCHEMA_VERSION,
             "fleet_emu": __version__,
-        }
+        } | (self.realtime() if self.clock is not None else {})
+
+    def realtime(self) -> dict[str, Any]:
+        """A real-time run's keys (none in lockstep, which publishes no clock): ``realtime_hz``, and under
+        ``realtime`` the world's ``overruns``, its achieved rate, and per robot its ``late_commands``
+        (decisions applied a tick late), ``late_steps`` (steps along the last plan that came late),
+        ``missed_ticks`` (no command at all: it stood), ``decisions``, ``plan_steps``, ``waits`` and its
+        decision-time percentiles (``decision_ms``: the whole step in its worker thread; ``allocator_ms``)."""
+        ck = self.clock
+        assert ck is not None
+        robots = {}
+        for r in self.robots:
+            tm = self.timing.get(r)
+            robots[r] = {"late_commands": ck.late.get(r, 0), "late_steps": ck.late_steps.get(r, 0),
+                         "missed_ticks": ck.missed.get(r, 0)} | (
+                {"decisions": tm.decisions, "plan_steps": tm.plan_steps, "waits": tm.waits,
+                 "decision_ms": tm.decision_ms, "allocator_ms": tm.allocator_ms} if tm is not None else
+                {"decisions": None, "plan_steps": None, "waits": None, "decision_ms": None, "allocator_ms": None})
+        return {"realtime_hz": ck.hz, "realtime": {
+            "world_overruns": ck.overruns, "elapsed_s": round(ck.elapsed, 3),
+            "ticks_per_second": round(ck.tick / ck.elapsed, 3) if ck.elapsed > 0 else None,
+            "late_commands": sum(ck.late.values()), "robots": robots}}
 
     def dropped_by(self) -> dict[str, int]:
         """Messages each process dropped as malformed or spoofed: the launcher's own count, the world's and

@@ -160,13 +160,21 @@ def _claim(out: Path, study: Any) -> None:
             from fleet_emu.sweep.study import Study
 
             other = Study.from_dict(tomllib.loads(kept.read_text()), kept)
-            if other.name != study.name or other.grid != study.grid or other.fleet != study.fleet:
+            if other.name != study.name or other.fleet != study.fleet or not _grown(other.grid, study.grid):
                 raise ConfigError(f"--out {out} holds the results of another study ({other.name}); "
                                   f"choose another directory")
+            if other.grid != study.grid and study.path is not None:
+                shutil.copyfile(study.path, kept)  # the grid grew: its finished runs stay, the new points run
         elif study.path is not None:
             shutil.copyfile(study.path, kept)
     except OSError as exc:
         raise ConfigError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+
+
+def _grown(old: dict[str, list[Any]], new: dict[str, list[Any]]) -> bool:
+    """The same grid keys, each old value still in the new list (a study extended by an allocator, a robot
+    count, a loss...): every finished run is still a point of the new grid, under the same stable id."""
+    return old.keys() == new.keys() and all(all(v in new[k] for v in vals) for k, vals in old.items())
 
 
 class _bar:

@@ -3,6 +3,13 @@
 Each tick t (DESIGN.md "Time"): publish every live robot's observation and the state, wait for every live
 robot's command for t (a robot silent past the barrier timeout, or whose liveliness token goes, is failed),
 apply the moves, advance. All the simulation is :class:`world.sim.World`; this module only does I/O.
+
+Real time (``realtime_hz``, ``fleet run --realtime HZ``): the world does not wait for the robots. It publishes
+tick k, collects commands until tick k + 1 is due on its wall clock (:class:`world.realtime.TickClock`), applies
+each live robot's last command received (:class:`world.realtime.CommandLatch`: a command stamped for an earlier
+tick is late, applied now and counted) and advances, whether or not every robot answered. With every state it
+publishes a :class:`WorldClock` (world/clock: late and missed commands per robot, its own overruns). A robot
+nothing came from for ``barrier_timeout`` seconds is failed, as in lockstep.
 """
 
 from __future__ import annotations
@@ -17,10 +24,11 @@ from fleet_emu.core.codec import Context
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import Keys, robot_ids
-from fleet_emu.core.messages import Command, Failed, Hello, Observation, Ready, Stop, WorldState
+from fleet_emu.core.messages import STALE, Command, Failed, Hello, Observation, Ready, Stop, WorldClock, WorldState
 from fleet_emu.core.node import NodeBase, node_main, undeclare
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.world.realtime import CommandLatch, TickClock
 from fleet_emu.world.sim import Reading, World, WorldConfig
 
 HELLO_PERIOD = 0.1
@@ -42,7 +50,8 @@ def build_world(scenario: Scenario, map_data: MapData) -> World:
 class WorldNode(NodeBase):
     role = "world"
 
-    def __init__(self, scenario: Scenario, run: str, map_data: MapData, startup_timeout: float = 120.0) -> None:
+    def __init__(self, scenario: Scenario, run: str, map_data: MapData, startup_timeout: float = 120.0,
+                 realtime_hz: float | None = None) -> None:
         super().__init__(Keys(run), "world")
         warm_up()  # compile (or load) the kernels before the first tick, not inside it
         self.scenario = scenario
@@ -52,6 +61,7 @@ class WorldNode(NodeBase):
         self.stopped_early = False
         self.interrupted = False
         self.lost_at_start: set[str] = set()
+        self.realtime_hz = realtime_hz
 
     async def run(self, session: zenoh.Session) -> str:
         """Run the whole episode; returns the reason it ended."""
@@ -68,7 +78,9 @@ class WorldNode(NodeBase):
         self.pub_state = publisher(session, keys.state)
         pub_hello = publisher(session, keys.hello)
         pub_stop = publisher(session, keys.stop)
+        self.pub_clock = publisher(session, keys.clock) if self.realtime_hz else None
         handles += [*self.pub_obs.values(), self.pub_state, pub_hello, pub_stop,
+                    *([self.pub_clock] if self.pub_clock else []),
                     session.liveliness().declare_token(keys.alive("world", "world"))]
         self.ctx = Context(senders=frozenset(self.robots), shape=self.world.shape)
         self.ctx_launcher = Context(senders=frozenset({"launcher"}))
@@ -84,14 +96,10 @@ class WorldNode(NodeBase):
         if self.stopped_early:
             return "interrupted"
         readings = self.world.reset(failed=self.lost_at_start)  # agents whose process died before tick 0
-        while True:
-            self._publish(readings)
-            if self.world.done:
-                break
-            moves = await self._barrier(inbox)
-            if self.interrupted:
-                break
-            readings = self.world.step(moves)
+        if self.realtime_hz:
+            await self._realtime(inbox, readings, self.realtime_hz)
+        else:
+            await self._lockstep(inbox, readings)
         reason = "interrupted" if self.interrupted else (self.world.reason or "done")
         pub_stop.put(Stop(src="world", tick=self.world.tick, seq=self.next_seq(), reason=reason).encode())
         await asyncio.sleep(0.05)
@@ -161,6 +169,64 @@ class WorldNode(NodeBase):
             coverage=float(w.coverage), path_length=dict(w.path_length), done=w.done, reason=w.reason,
             dropped=self.dropped).encode())
 
+    async def _lockstep(self, inbox: Inbox, readings: dict[str, Reading]) -> None:
+        """Tick when every live robot has answered, until the run is done (or the launcher stops it)."""
+        while True:
+            self._publish(readings)
+            if self.world.done:
+                return
+            moves = await self._barrier(inbox)
+            if self.interrupted:
+                return
+            readings = self.world.step(moves)
+
+    async def _realtime(self, inbox: Inbox, readings: dict[str, Reading], hz: float) -> None:
+        """Tick on the wall clock until the run is done (or the launcher stops it)."""
+        w = self.world
+        start = time.monotonic()
+        clock = TickClock(hz, start)  # its t0 moves on an overrun; ``start`` stays
+        latch = CommandLatch(self.robots, start)
+        while True:
+            self._publish(readings)
+            now = time.monotonic()
+            assert self.pub_clock is not None
+            self.pub_clock.put(WorldClock(
+                src="world", tick=w.tick, seq=self.next_seq(), hz=hz, elapsed=round(now - start, 6),
+                overruns=clock.overruns, late=dict(latch.late), late_steps=dict(latch.late_steps),
+                missed=dict(latch.missed)).encode())
+            if w.done:
+                return
+            deadline = clock.deadline(w.tick, now)
+            await self._collect(inbox, latch, deadline)
+            if self.interrupted:
+                return
+            for r in latch.silent(list(w.live), time.monotonic(), self.scenario.barrier_timeout):
+                w.fail(r)
+            readings = w.step(latch.take(list(w.live)))
+
+    async def _collect(self, inbox: Inbox, latch: CommandLatch, deadline: float) -> None:
+        """Take commands (and failures, and the launcher's stop) until ``deadline``."""
+        t = self.world.tick
+        while (wait := deadline - time.monotonic()) > 0:
+            item = await inbox.get(timeout=wait)
+            if item is None:
+                return
+            key, data, is_put = item
+            if self._interrupted(key, data):
+                self.interrupted = True
+                return
+            lost = self._lost(key, data, is_put)
+            if lost is not None:
+                self.world.fail(lost)
+                continue
+            parsed = self.keys.parse(key)
+            if parsed is None or parsed.channel != "cmd":
+                continue
+            cmd = self.decode(key, data, Command, self.ctx)
+            if cmd is not None and parsed.node in self.world.live \
+                    and not latch.receive(parsed.node, cmd.tick, cmd.move, t, time.monotonic(), cmd.status != STALE):
+                self.drop(key, f"command stamped for tick {cmd.tick}, not yet published (now {t})")
+
     async def _barrier(self, inbox: Inbox) -> dict[str, tuple[int, int]]:
         """Wait for every live robot's command for this tick; fail the silent ones."""
         t = self.world.tick
@@ -198,4 +264,5 @@ class WorldNode(NodeBase):
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m fleet_emu.world --run RUN --connect ENDPOINT --scenario FILE.json --map-file MAP.npz``."""
-    node_main("world", lambda a: WorldNode(a.scenario, a.run, a.map_file), argv, map_file=True)
+    node_main("world", lambda a: WorldNode(a.scenario, a.run, a.map_file, realtime_hz=a.realtime), argv,
+              map_file=True)

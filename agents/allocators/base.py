@@ -57,8 +57,11 @@ class Allocation:
 @dataclasses.dataclass
 class Problem:
     """One robot's view at one tick. ``poses`` holds the robot's own cell and its teammates' last known
-    cells (sorted by robot id). Wavefronts and the cost matrix are computed lazily, so that an allocator
-    that needs less (MinPos with stopping) pays less, and the decision time measures what it used."""
+    cells (sorted by robot id). ``previous_target`` is the target of the robot's previous decision (its last
+    command's), None at the first or after one that assigned nothing: the Brain passes it, so that an allocator
+    that keeps its target (``replan="observed"``) stays a pure function of the problem. Wavefronts and the cost
+    matrix are computed lazily, so that an allocator that needs less (MinPos with stopping) pays less, and the
+    decision time measures what it used."""
 
     me: str
     poses: dict[str, Cell]
@@ -66,6 +69,7 @@ class Problem:
     clusters: list[Cluster]
     tick: int = 0
     heard: dict[str, int] = dataclasses.field(default_factory=dict)
+    previous_target: Cell | None = None
 
     def __post_init__(self) -> None:
         self.poses = dict(sorted(self.poses.items(), key=lambda kv: robot_order(kv[0])))

@@ -95,8 +95,10 @@ def api_test(config: dict[str, Any], rounds: int = 6) -> None:
     walled = _problem(WALLED, "r0")
     _check(walled, alloc.allocate(walled, ()), name)
     rng = np.random.default_rng(1)
-    for _ in range(10):
+    for k in range(10):
         p = random_problem(rng)
+        if k % 2 and p.clusters:  # a previous target (Problem.previous_target), reachable or not
+            p.previous_target = p.clusters[int(rng.integers(len(p.clusters)))].target
         _check(p, alloc.allocate(p, ()), name)
 
 

@@ -14,10 +14,36 @@ min P_ij" (then the lowest cluster index). Frontiers the robot cannot reach are 
   each robot it meets, and the first to reach the deciding robot wins
   (:func:`core.kernels.minpos_parallel`, which orders wavefronts by (robots met, distance, cluster index)
   and therefore breaks ties exactly as Algorithm 3 does). The cost matrix is never built.
+
+``replan`` selects when the assignment is recomputed. Section 2: "optimization has to be reevaluated at each
+time step or at least every time the robot observes the targeted frontier".
+
+- ``"tick"`` (default): Algorithm 3 at every decision, the first option.
+- ``"observed"``: the second option; the robot keeps its target until it has observed it. On this grid the
+  targeted frontier is the target cell of the robot's previous decision (``Problem.previous_target``, which
+  the Brain passes). It is *observed* once that cell is no longer a frontier cell of the robot's belief (known
+  free with an unknown 4-neighbour): its unknown neighbours have been sensed, by the robot or by a teammate
+  whose map delta arrived, so that no cluster holds it any more. Until then the robot is assigned the cluster
+  that holds the cell now (:func:`kept_cluster`; clusters are formed afresh every tick, so that cluster's
+  target may be another of its cells, and it is the one kept next), unless the robot cannot reach it: then, as
+  when it was observed, or when there was no previous target (the first decision, or one that found nothing),
+  the robot decides afresh.
+
+  *Reachable* with ``"observed"`` means the robot can take a step toward the cluster now: it stands on it, or
+  one of its 4-neighbours one step nearer on the cluster's wavefront (over known-free cells) is not a
+  teammate's cell (:func:`open_clusters`; teammates at their cells in ``Problem.poses``, if heard at most a tick
+  ago: section 4's configuration space, which enlarges "obstacles (including other robots)", for the path's
+  first step). A kept target that the robot can no longer step toward is given up, and the fresh decision
+  ranks only the clusters it can step toward (Algorithm 3 on its own costs, ``inf`` elsewhere; all of them
+  when it can step toward none). Costs and positions are still wavefront distances on the belief.
+  Reachability on the belief alone was tried first and is not kept: two robots committed to targets behind
+  each other (as eq. 9 of ``connectivity`` with a heavy beta sends them) then met head-on in a passage and
+  waited there until the run stalled, each stepping down its wavefront onto the other.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
@@ -25,11 +51,65 @@ import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.params import Param
-from fleet_emu.core.grid import flat
+from fleet_emu.core.grid import MOVES, Cell, flat
 from fleet_emu.core.kernels import minpos_parallel, wavefront
 from fleet_emu.core.messages import RadioMsg
 
 WAVEFRONTS = ("full", "stop", "parallel")
+REPLANS = ("tick", "observed")
+
+
+def open_clusters(problem: Problem) -> np.ndarray:
+    """Per cluster, whether the robot can step toward it now (module docstring): it reaches it on its belief
+    and stands on it or has a 4-neighbour one step nearer that no teammate holds (a teammate absent from
+    ``Problem.heard`` counts as heard now; one not heard for more than a tick does not block)."""
+    me = problem.poses[problem.me]
+    held = {cell for robot, cell in problem.poses.items()
+            if robot != problem.me and problem.heard.get(robot, problem.tick) >= problem.tick - 1}
+    rows, cols = problem.belief.shape
+    steps = [(me[0] + dr, me[1] + dc) for dr, dc in MOVES if (dr, dc) != (0, 0)]
+    steps = [c for c in steps if 0 <= c[0] < rows and 0 <= c[1] < cols and c not in held]
+    out = np.zeros(len(problem.clusters), dtype=bool)
+    for j, dist in enumerate(problem.wavefronts):
+        d = dist[me]
+        out[j] = d == 0 or (d > 0 and any(dist[c] == d - 1 for c in steps))
+    return out
+
+
+def kept_cluster(problem: Problem, reach: np.ndarray) -> int | None:
+    """With ``replan="observed"``: the cluster that holds the previous target cell while that cell is still a
+    frontier cell and the cluster is in ``reach``; None when there was no previous target, or it has been
+    observed (no cluster holds it), or the robot cannot reach it (module docstring)."""
+    target: Cell | None = problem.previous_target
+    shape = problem.belief.shape
+    if target is None or not (0 <= target[0] < shape[0] and 0 <= target[1] < shape[1]):
+        return None
+    cell = flat(shape, target)
+    for j, cluster in enumerate(problem.clusters):
+        k = int(np.searchsorted(cluster.cells, cell))
+        if k < cluster.size and cluster.cells[k] == cell:  # a frontier cell still: not yet observed
+            return j if reach[j] else None
+    return None
+
+
+def restricted(problem: Problem, reach: np.ndarray) -> Problem:
+    """The problem with the deciding robot's costs ``inf`` outside ``reach`` (unchanged when ``reach`` holds
+    every cluster the belief lets it reach, or none)."""
+    own = np.isfinite(problem.costs[problem.index])
+    if not (own & reach).any() or not (own & ~reach).any():
+        return problem
+    costs = problem.costs.copy()
+    costs[problem.index, ~reach] = np.inf
+    q = dataclasses.replace(problem)
+    q.costs = costs  # type: ignore[misc]  # the cached property, preset
+    return q
+
+
+def observed_choice(problem: Problem) -> tuple[int | None, Problem]:
+    """``replan="observed"``: the kept cluster if any (first item), else the problem to decide afresh on."""
+    reach = open_clusters(problem)
+    kept = kept_cluster(problem, reach)
+    return (kept, problem) if kept is not None else (None, restricted(problem, reach))
 
 
 def positions(costs: np.ndarray, i: int) -> np.ndarray:
@@ -80,10 +160,12 @@ def parallel_choice(problem: Problem) -> int | None:
 
 
 class MinPos(Allocator, plugin_name="minpos"):
-    """``wavefront``: ``"full"`` (Algorithm 3 on the full cost matrix), ``"stop"`` or ``"parallel"``."""
+    """``wavefront``: ``"full"`` (Algorithm 3 on the full cost matrix), ``"stop"`` or ``"parallel"``;
+    ``replan``: ``"tick"`` or ``"observed"`` (module docstring)."""
 
-    parameters = {"wavefront": Param("full", choices=WAVEFRONTS)}
+    parameters = {"wavefront": Param("full", choices=WAVEFRONTS), "replan": Param("tick", choices=REPLANS)}
     wavefront: str
+    replan: str
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -94,6 +176,13 @@ class MinPos(Allocator, plugin_name="minpos"):
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         if not problem.clusters:
             return Allocation.none()
+        if self.replan == "observed":
+            kept, decide = observed_choice(problem)
+            if kept is not None:
+                return Allocation.assigned(problem, kept)
+            if decide is not problem:  # a teammate cuts some clusters off: Algorithm 3 on the masked costs
+                j = minpos_choice(decide.costs, problem.index)
+                return Allocation.none() if j is None else Allocation.assigned(problem, j)
         if self.wavefront == "parallel":
             j = parallel_choice(problem)
         elif self.wavefront == "stop":

@@ -26,10 +26,12 @@ class Spy(Allocator):
     def __init__(self) -> None:
         super().__init__()
         self.seen: list[dict[str, Cell]] = []
+        self.previous: list[Cell | None] = []
         self.nearest = make_allocator({"type": "nearest"})
 
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         self.seen.append(dict(problem.poses))
+        self.previous.append(problem.previous_target)
         return self.nearest.allocate(problem, inbox)
 
 
@@ -120,3 +122,16 @@ def test_the_beacon_decodes_with_and_without_its_next_cell() -> None:
     for bad in ((1, 4), (2, 3), (5, 3)):  # two steps away, diagonal, outside the grid
         with pytest.raises(DecodeError, match="pose"):
             decode_body("pose", PoseBeacon(cell=(1, 2), next=bad).encode(), ctx)
+
+
+def test_the_allocator_gets_the_previous_decisions_target() -> None:
+    """``Problem.previous_target`` (for ``replan="observed"``): the last command's target, None at the first
+    decision and after one that found no frontier."""
+    brain, spy = _brain()
+    cmd0, _ = brain.step(_obs(CORRIDOR, "r0", 0), ())
+    assert cmd0.target == (1, 1)
+    brain.step(_obs(CORRIDOR, "r0", 1), ())
+    closed = CORRIDOR.replace("?", "#")
+    brain.step(_obs(closed, "r0", 2), ())
+    brain.step(_obs(closed, "r0", 3), ())
+    assert spy.previous == [None, (1, 1), (1, 1), None]

@@ -31,7 +31,7 @@ def test_conformance() -> None:
     assert make_allocator({"type": "connectivity"}).to_dict() == {
         "type": "connectivity", "alpha": 0.6, "beta": 0.4, "lam": 0.5, "comm_range": 10.0, "cell_size": 0.5,
         "path_loss": 2.0, "waf": 3.1, "max_walls": 4, "unknown_walls": False, "position": "without_self",
-        "predict": "pose"}
+        "predict": "pose", "replan": "observed"}
     for position in ("literal", "cost"):
         api_test({"type": "connectivity", "position": position, "predict": "target"})
         seed_test({"type": "connectivity", "position": position, "predict": "target"})
@@ -231,3 +231,148 @@ def test_heavy_beta_abreast_robots_cross_and_flip_every_tick() -> None:
             assert make_allocator({**conn, "position": "cost"}).allocate(p).target == near
             assert make_allocator(conn).allocate(p).target == far  # toward the teammate's side
     # each robot's step toward its target turns ABREAST into MIRRORED and back: the allocation flips each tick
+
+
+def _with_previous(art: str, me: str, previous: tuple[int, int] | None) -> Problem:
+    p = problem(art, me)
+    p.previous_target = previous
+    return p
+
+
+def test_observed_replanning_keeps_the_abreast_robots_on_their_targets() -> None:
+    """The period-2 swap above, with MinPos's second option (section 2: reevaluate "at least every time the
+    robot observes the targeted frontier"): each robot keeps the frontier it took until it has observed it, so
+    the pair stops flipping and walks on to L and R. Stepped here down each cluster's wavefront; eq. 9 unchanged."""
+    from fleet_emu.agents.navigation import next_move
+
+    conn = {"type": "connectivity", "comm_range": 6.0, "alpha": 0.4, "beta": 0.6}
+    grid, poses = from_ascii(ABREAST)
+
+    def walk(replan: str) -> list[dict[str, tuple[int, int]]]:
+        cells, previous, out = dict(poses), {"r0": None, "r1": None}, []
+        for _ in range(4):
+            chosen, moved = {}, {}
+            for me in ("r0", "r1"):
+                p = Problem(me=me, poses=cells, belief=grid, clusters=find_clusters(grid, 4),
+                            previous_target=previous[me])
+                a = make_allocator({**conn, "replan": replan}).allocate(p)
+                chosen[me] = a.target
+                step = next_move(p.wavefronts[a.cluster], cells[me])
+                moved[me] = (cells[me][0] + step[0], cells[me][1] + step[1])
+            cells, previous = moved, chosen
+            out.append(chosen)
+        return out
+
+    left, right = (1, 1), (1, 8)
+    flips = walk("tick")
+    assert [t["r0"] for t in flips] == [left, right, left, right]  # the swap, every tick
+    kept = walk("observed")
+    assert kept == [{"r0": left, "r1": right}] * 4  # the first choice (toward the teammate's side), kept
+
+
+# r0 alone between two frontiers: L at (0, 1) four steps away, R at (0, 7) two steps away.
+LINE = """
+?....0..?
+"""
+SEEN = """
+.....0..?
+"""
+WALL = """
+?..#.0..?
+"""
+
+
+@pytest.mark.parametrize("config", [{"type": "minpos", "replan": "observed"},
+                                    {"type": "connectivity", "replan": "observed"},
+                                    {"type": "connectivity", "alpha": 0.4, "beta": 0.6, "replan": "observed"}],
+                         ids=["minpos", "conn", "conn-heavy-beta"])
+def test_observed_replanning_keeps_until_seen_or_unreachable(config: dict) -> None:
+    alloc = make_allocator(config)
+    assert alloc.allocate(_with_previous(LINE, "r0", None)).target == (0, 7)  # no previous target: decide
+    assert alloc.allocate(_with_previous(LINE, "r0", (0, 1))).target == (0, 1)  # L unobserved: kept
+    # L observed ((0, 0) now known: (0, 1) is no longer a frontier cell): decide afresh
+    assert alloc.allocate(_with_previous(SEEN, "r0", (0, 1))).target == (0, 7)
+    # L still a frontier cell, but a wall found across the way: unreachable, decide afresh
+    p = _with_previous(WALL, "r0", (0, 1))
+    assert (0, 1) in [c.target for c in p.clusters]
+    assert alloc.allocate(p).target == (0, 7)
+    # a previous target that is no frontier at all (a wall, off the grid): decide afresh
+    for cell in ((0, 3), (5, 5), (-1, 0)):
+        assert alloc.allocate(_with_previous(WALL, "r0", cell)).target == (0, 7)
+    # "tick" never keeps
+    tick = make_allocator({**config, "replan": "tick"})
+    assert tick.allocate(_with_previous(LINE, "r0", (0, 1))).target == (0, 7)
+
+
+# A frontier of five cells, one cluster; r0 last targeted (1, 1), and its cluster's target now is (2, 1).
+RECLUSTERED = """
+#######
+?.....#
+?....0#
+?.....#
+#######
+"""
+
+
+def test_observed_replanning_follows_the_cluster_that_holds_the_previous_target() -> None:
+    """Clusters are formed afresh every tick: the robot is assigned the cluster holding its previous target cell,
+    whose own target (returned, and kept next) may be another of its cells."""
+    p = _with_previous(RECLUSTERED, "r0", (1, 1))
+    (cluster,) = p.clusters
+    assert cluster.target == (2, 1)
+    a = make_allocator({"type": "connectivity", "replan": "observed"}).allocate(p)
+    assert (a.cluster, a.target) == (0, (2, 1))
+
+
+def test_replan_conformance() -> None:
+    for config in ({"type": "connectivity", "replan": "observed"},
+                   {"type": "connectivity", "alpha": 0.4, "beta": 0.6, "position": "cost", "replan": "observed"},
+                   {"type": "minpos", "replan": "observed", "wavefront": "parallel"}):
+        api_test(config)
+        seed_test(config)
+        assert make_allocator(config).to_dict()["replan"] == "observed"
+    with pytest.raises(ConfigError, match="replan"):
+        make_allocator({"type": "connectivity", "replan": "sometimes"})
+
+
+# r0 last targeted R = (2, 5), behind r1: its only step nearer R, (2, 3), is r1's cell (the way round, through
+# row 1 or 3, starts with a step that is not nearer). L = (2, 1) is on r0's own side.
+HEAD_ON = """
+#######
+#.....#
+?.01..?
+#.....#
+#######
+"""
+APART = """
+#######
+#.....#
+?.0..1?
+#.....#
+#######
+"""
+
+
+@pytest.mark.parametrize("config", [{"type": "minpos", "replan": "observed"},
+                                    {"type": "connectivity", "alpha": 0.4, "beta": 0.6, "replan": "observed"}],
+                         ids=["minpos", "conn-heavy-beta"])
+def test_observed_replanning_gives_up_a_target_a_teammate_stands_in_front_of(config: dict) -> None:
+    """Head-on in a passage, a committed robot whose every step nearer its target is onto a teammate (heard last
+    tick) decides afresh among the clusters it can step toward: it turns to L instead of waiting for ever."""
+    alloc = make_allocator(config)
+    right, left = (2, 5), (2, 1)
+    for art in (HEAD_ON, APART):
+        assert {c.target for c in problem(art).clusters} == {left, right}
+    p = _with_previous(APART, "r0", right)
+    assert alloc.allocate(p).target == right  # not in the way: kept
+    p = _with_previous(HEAD_ON, "r0", right)
+    p.tick, p.heard = 7, {"r1": 6}
+    assert alloc.allocate(p).target == left  # r1 in the way: given up
+    p = _with_previous(HEAD_ON, "r0", right)
+    p.tick, p.heard = 7, {"r1": 5}  # r1 not heard for two ticks: not known to be there
+    assert alloc.allocate(p).target == right
+    # r1 in the way of both (r0 boxed in): ranked as if nobody blocked
+    boxed = HEAD_ON.replace("?.01", "?#01")
+    q = _with_previous(boxed, "r0", right)
+    assert [c.target for c in q.clusters] == [right]
+    assert alloc.allocate(q).target == right

@@ -89,7 +89,8 @@ def test_a_class_without_plugin_name_takes_the_entry_point_name(install: Install
 def test_a_plugin_subclassing_a_builtin_is_registered_under_its_own_name(install: Install) -> None:
     source = "from fleet_emu.agents.allocators.minpos import MinPos\n\nclass Mine(MinPos):\n    pass\n"
     install({"plug_sub": source}, {"mine": "plug_sub:Mine"})
-    assert make_allocator({"type": "mine", "wavefront": "stop"}).to_dict() == {"type": "mine", "wavefront": "stop"}
+    assert make_allocator({"type": "mine", "wavefront": "stop"}).to_dict() == {"type": "mine", "wavefront": "stop",
+                                                                                   "replan": "tick"}
     assert make_allocator({"type": "minpos"}).to_dict()["type"] == "minpos"
 
 
@@ -165,7 +166,8 @@ def test_builtin_scenario_fields_are_the_radio_and_the_sensor() -> None:
     alloc = make_allocator(allocator_config(s))
     assert alloc.to_dict() == {"type": "connectivity", "alpha": 0.6, "beta": 0.4, "lam": 0.5, "comm_range": 6.0,
                                "cell_size": 0.25, "path_loss": 3.0, "waf": 1.0, "max_walls": 2,
-                               "unknown_walls": False, "position": "without_self", "predict": "pose"}
+                               "unknown_walls": False, "position": "without_self", "predict": "pose",
+                               "replan": "observed"}
     s = Scenario(cell_size=0.25, sensor_range=2.0, allocator={"type": "utility"})
     assert allocator_config(s) == {"type": "utility", "sensor_range": 8.0}
     assert allocator_config(Scenario(allocator={"type": "minpos"})) == {"type": "minpos"}

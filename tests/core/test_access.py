@@ -38,7 +38,8 @@ def _may_write(node: str, key_expr: str) -> bool:
 
 
 EVERY_KEY = [K.obs("r0"), K.state, K.cmd("r1"), K.belief("r1"), K.tx("r1"), K.rx("r1"), K.links, K.hello,
-             K.ready("r1"), K.ready("world"), K.stop, K.failed("r1"), K.report("r1"), K.cmd("r2"), K.tx("r2")]
+             K.ready("r1"), K.ready("world"), K.stop, K.failed("r1"), K.report("r1"), K.cmd("r2"), K.tx("r2"),
+             K.clock, K.timing("r1"), K.timing("r2")]  # the real-time mode's keys too
 
 
 @pytest.mark.parametrize("node", ["world", "netem", "launcher", "recorder", "r1"])
@@ -52,8 +53,9 @@ def test_the_router_table_and_the_receivers_table_agree(node: str) -> None:
 
 def test_a_robot_writes_only_its_own_keys() -> None:
     assert _may_write("r1", K.cmd("r1")) and _may_write("r1", K.tx("r1")) and _may_write("r1", K.report("r1"))
+    assert _may_write("r1", K.timing("r1")) and _may_write("world", K.clock)
     for expr in (K.cmd("r2"), K.tx("r2"), K.belief("r11"), K.state, K.obs("r1"), K.rx("r1"), K.stop,
-                 K.failed("r1"), K.ready("r2"), K.hello, K.links):
+                 K.failed("r1"), K.ready("r2"), K.hello, K.links, K.clock, K.timing("r2")):
         assert not _may_write("r1", expr), expr
     assert writes("recorder") == []
 

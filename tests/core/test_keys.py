@@ -20,6 +20,7 @@ def test_every_key_parses_back_to_what_built_it() -> None:
         k.ready("netem"): ParsedKey("ready", "netem"), k.stop: ParsedKey("stop"),
         k.failed("r1"): ParsedKey("failed", "r1"), k.report("r2"): ParsedKey("report", "r2"),
         k.alive("agent", "r4"): ParsedKey("alive", "r4", "agent"),
+        k.clock: ParsedKey("clock"), k.timing("r5"): ParsedKey("timing", "r5"),  # real-time runs only
     }
     for expr, parsed in built.items():
         assert k.parse(expr) == parsed, expr

@@ -131,3 +131,27 @@ def test_brain_step_bad_input_is_one_line() -> None:
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "map /no/such/map.png" in proc.stderr
     proc = _bench("brain_step.py", "--ticks", "x")
     assert proc.returncode == 2 and proc.stderr.startswith("brain_step: error: ") and proc.stderr.count("\n") == 1
+
+
+def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_map: Path) -> None:
+    """Issue 11, part 5: greedy and minpos in real time, a row each with the real-time columns; a ``start`` row
+    for a fleet larger than the start area."""
+    proc = _bench("realtime_study.py", "--robots", "2", "45", "--cells", "24", "--max-ticks", "20", "--hz", "20",
+                  "--maps", str(small_map))
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.strip().splitlines()
+    assert lines[0].startswith("# benchmarks/realtime_study.py (issue 11, part 5): ")
+    assert lines[3].split()[:5] == ["map", "cells", "robots", "allocator", "t99"]
+    rows = [ln.split() for ln in lines[4:]]
+    assert [(r[2], r[3]) for r in rows] == [("2", "greedy"), ("2", "minpos-par"), ("45", "greedy"),
+                                           ("45", "minpos-par")]
+    for r in rows[:2]:
+        assert len(r) == 21 and int(r[6]) <= 20 and float(r[9]) > 0, r  # ticks, achieved ticks/s
+        assert float(r[15]) > 0, r  # decisions per robot
+    assert [r[4] for r in rows[2:]] == ["start:", "start:"]
+
+
+def test_realtime_study_bad_argument_is_one_line() -> None:
+    proc = _bench("realtime_study.py", "--hz", "0")
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == ["realtime_study: error: --hz must be > 0 and <= 1000 (got 0.0)"]

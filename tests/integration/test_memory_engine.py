@@ -40,5 +40,7 @@ def test_fleet_run_engine_memory_writes_what_a_run_writes(tmp_path: Path, small_
     assert {p.name for p in (tmp_path / "m").iterdir()} >= {"result.json", "scenario.json", "map.npz", "run.mcap"}
     report = fleet("report", str(tmp_path / "m"), "--no-plots")
     assert "matches result.json" in report.stdout + report.stderr
-    bad = fleet(*common, "--engine", "memory", "--in-process", "--out", str(tmp_path / "x"), check=False)
-    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and not (tmp_path / "x").exists()
+    for flag in ("--in-process", "--fork-server", "--no-fork-server"):
+        bad = fleet(*common, "--engine", "memory", flag, "--out", str(tmp_path / "x"), check=False)
+        assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and not (tmp_path / "x").exists()
+        assert f"takes no {flag if 'fork' not in flag else '--[no-]fork-server'}" in bad.stderr

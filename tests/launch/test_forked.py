@@ -38,6 +38,39 @@ def test_a_robot_that_fails_at_once_is_reported_with_its_code_and_log(tmp_path: 
     assert _gone(server.pid) and _gone(robot.pid)
 
 
+def _memory(pid: int) -> bytes:
+    """Every readable private mapping of a process (its heap, anonymous memory, its stacks)."""
+    chunks = []
+    with open(f"/proc/{pid}/maps") as maps, open(f"/proc/{pid}/mem", "rb", buffering=0) as mem:
+        for line in maps:
+            fields = line.split()
+            if "r" not in fields[1] or (len(fields) > 5 and fields[5].startswith("/")):
+                continue  # files mapped from disk (the interpreter, libraries) hold nothing of the run
+            start, end = (int(x, 16) for x in fields[0].split("-"))
+            try:
+                mem.seek(start)
+                chunks.append(mem.read(end - start))
+            except OSError:
+                continue  # [vvar] and the like
+    return b"".join(chunks)
+
+
+def test_a_robots_credential_never_enters_the_fork_servers_memory(tmp_path: Path) -> None:
+    """Attack: a robot forked later inherits the server's memory, so a credential that passed through it could
+    be read there. It travels in a pipe handed to the robot; the request itself (its log path) is in there."""
+    secret = '{"user": "r0", "password": "' + os.urandom(16).hex() + '"}'
+    log = tmp_path / f"r0-{os.urandom(6).hex()}.log"
+    server = ForkServer(tmp_path / "forkserver.log")
+    try:
+        robot = server.spawn("r0", ["--robot", "r0", "--auth-stdin"], log, secret)  # no --run: usage error
+        assert robot.pid > 0 and robot.wait(60) == 2
+        image = _memory(server.pid)
+        assert str(log).encode() in image  # the scan sees what the server received
+        assert secret.encode() not in image and secret.split('"')[-2].encode() not in image
+    finally:
+        server.close()
+
+
 def test_a_killed_server_fails_what_it_had_not_forked(tmp_path: Path) -> None:
     server = ForkServer(tmp_path / "forkserver.log")
     os.killpg(server.pid, signal.SIGKILL)

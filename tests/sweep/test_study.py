@@ -61,7 +61,7 @@ def test_the_shipped_studies_load() -> None:
     names = shipped()
     assert set(names) >= {"bautin-fig5", "benavides", "yan-loss"}
     fig5 = Study.load("bautin-fig5")
-    assert fig5.grid == {"allocator": ["nearest", "utility", "minpos"], "robots": list(range(1, 11))}
+    assert fig5.grid == {"allocator": ["nearest", "greedy", "utility", "minpos"], "robots": list(range(1, 11))}
     assert len(fig5.seeds) == 60 and fig5.fleet["comm"] == "ideal" and fig5.fleet["target_coverage"] == 1.0
     ben = Study.load("benavides")
     assert (ben.fleet["robots"], ben.fleet["sensor_range"], ben.fleet["comm_range"], ben.fleet["comm"]) == \

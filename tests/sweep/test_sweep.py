@@ -60,6 +60,25 @@ def test_seeds_runs_the_first_seeds_and_a_later_call_completes(study_dir: Path) 
     assert sorted(r["param.seed"] for r in read_rows(out)) == [0] * 4 + [1] * 4
 
 
+def test_a_grown_grid_keeps_the_finished_runs_and_runs_only_the_new_points(study_dir: Path) -> None:
+    out = study_dir / "out"
+    assert sweep(str(study_dir / "tiny.toml"), out, jobs=1, quiet=True) == 0
+    before = {r["id"]: r["ticks"] for r in read_rows(out)}
+    text = (study_dir / "tiny.toml").read_text()
+    (study_dir / "tiny.toml").write_text(text.replace('["nearest", "minpos"]', '["nearest", "greedy", "minpos"]'))
+    grown = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out), "--jobs", "1")
+    assert grown.returncode == 0, grown.stderr
+    assert "8 done, 4 to run" in grown.stderr
+    rows = read_rows(out)
+    assert len(rows) == 12 and {r["id"]: r["ticks"] for r in rows if r["id"] in before} == before
+    assert sorted(r["param.allocator"] for r in rows if r["id"] not in before) == ["greedy"] * 4
+    assert "greedy" in (out / "study.toml").read_text()
+    # a grid that lost a value is another study
+    (study_dir / "tiny.toml").write_text(text.replace('["nearest", "minpos"]', '["nearest"]'))
+    shrunk = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out))
+    assert shrunk.returncode == 2 and "another study" in shrunk.stderr
+
+
 def test_failed_runs_are_rows_and_set_the_exit_code(study_dir: Path) -> None:
     """Twenty robots do not fit the small map's start area: those runs fail, the others go on."""
     text = (study_dir / "tiny.toml").read_text().replace("robots = [2, 3]", "robots = [2, 20]")

@@ -1,0 +1,246 @@
+"""Robots on other machines (``fleet run --hosts N`` and ``fleet host``), with real routers and real processes: on
+this machine over loopback, and across two network namespaces joined by a veth pair."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from fleet_emu.core.access import Credential, read_dictionary
+from fleet_emu.core.bus import client_config, publisher, router_locators
+from fleet_emu.core.keys import HostKeys
+from fleet_emu.core.messages import HostAssign
+from fleet_emu.launch.result import deterministic
+from fleet_emu.launch.router_config import router_config_text
+from tests.integration.conftest import ROOT, children_of, fleet, pid_alive, result, wait_for
+
+FLEET = [sys.executable, "-m", "fleet_emu.launch"]
+WAIT = ["--connect-timeout", "120"]  # a host may start before the launcher's router
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.fixture
+def users(tmp_path: Path) -> tuple[Path, Path]:
+    """A users file with two hosts (``router-config --hosts 2``) and host0's own one-line file."""
+    users = tmp_path / "users.txt"
+    router_config_text(4, users, listen="tcp/127.0.0.1:0", hosts=2)
+    own = tmp_path / "host0.txt"
+    own.write_text(next(ln for ln in users.read_text().splitlines() if ln.startswith("host0:")) + "\n")
+    return users, own
+
+
+def _start(args: list[str], prefix: list[str] | None = None) -> subprocess.Popen[str]:
+    return subprocess.Popen([*(prefix or []), *FLEET, *args], cwd=ROOT, text=True, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, start_new_session=True)
+
+
+def _finish(proc: subprocess.Popen[str], timeout: float = 240) -> tuple[int, str]:
+    try:
+        _, err = proc.communicate(timeout=timeout)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    return proc.returncode, err
+
+
+def _one_machine(small_map: Path, out: Path) -> dict:
+    fleet("run", "--map", str(small_map), "--robots", "4", "--max-ticks", "50", "--seed", "5", "--quiet",
+          "--out", str(out))
+    return result(out)
+
+
+RUN = ["run", "--robots", "4", "--max-ticks", "50", "--seed", "5", "--quiet", "--hosts", "1"]
+
+
+def test_a_host_on_localhost_runs_its_robots_and_the_result_is_the_one_machine_run(
+        users: tuple[Path, Path], small_map: Path, tmp_path: Path) -> None:
+    all_users, own = users
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    launcher = _start([*RUN, "--map", str(small_map), "--listen", endpoint, "--credentials", str(all_users),
+                       "--out", str(tmp_path / "split")])
+    host = _start(["host", "--connect", endpoint, "--credentials", str(own), "--once", "--out", str(tmp_path / "h"),
+                   *WAIT])
+    code, err = _finish(launcher)
+    host_code, host_err = _finish(host, 30)
+    assert code in (0, 3), err
+    assert host_code == 0, host_err
+    split = result(tmp_path / "split")
+    assert split["pids"]["hosts"] == {"host0": ["r1", "r3"]}  # round-robin: here, host0, here, host0
+    assert split["failed"] == [] and split["authenticated"] is True
+    logs = tmp_path / "h" / split["run_id"] / "host0"
+    assert sorted(p.name for p in logs.glob("r*.log")) == ["r1.log", "r3.log"]
+    assert deterministic(split) == deterministic(_one_machine(small_map, tmp_path / "one"))
+    for pid in split["pids"]["agents"]:
+        assert not pid_alive(pid)
+
+
+def test_a_host_with_wrong_credentials_is_refused_and_spawn_requests_reach_only_their_host(
+        users: tuple[Path, Path], tmp_path: Path) -> None:
+    all_users, _ = users
+    text = router_config_text(4, all_users, listen="tcp/127.0.0.1:0", hosts=2)
+    conf = zenoh.Config.from_json5(text)
+    conf.insert_json5("adminspace/enabled", "true")
+    with zenoh.open(conf) as router:
+        endpoint = router_locators(router)[0]
+        bad = tmp_path / "bad.txt"
+        bad.write_text("host0:guessed\n")
+        proc = subprocess.run([*FLEET, "host", "--connect", endpoint, "--credentials", str(bad), "--once"],
+                              cwd=ROOT, capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 2
+        assert proc.stderr.strip().splitlines()[-1] == \
+            f"fleet: error: --connect {endpoint}: no Zenoh router answered or it refused host0's credentials " \
+            f"(gave up after 5 s)"
+        assert "Traceback" not in proc.stderr
+        pw = read_dictionary(all_users.read_text())
+        sessions = {u: zenoh.open(client_config(endpoint, Credential(u, pw[u])))
+                    for u in ("launcher", "host0", "host1", "r0", "recorder")}
+        try:
+            got: dict[str, list[bytes]] = {u: [] for u in sessions}
+            subs = [s.declare_subscriber(k, lambda x, u=u: got[u].append(x.payload.to_bytes()))
+                    for u, s in sessions.items() if u != "launcher"
+                    for k in ("**", "fleet-host/**", "fleet-host/host0/spawn")]
+            subs.append(sessions["launcher"].declare_subscriber(
+                HostKeys("host0").status, lambda x: got["launcher"].append(x.payload.to_bytes())))
+            time.sleep(1.0)
+            request = HostAssign(src="launcher", tick=0, seq=0, host="host0", run="acl", robots=("r1",),
+                                 secrets={"r1": '{"user": "r1", "password": "secret"}'}).encode()
+            publisher(sessions["launcher"], HostKeys("host0").spawn).put(request)
+            sessions["r0"].put(HostKeys("host0").spawn, b"forged")  # not the launcher's key to write
+            sessions["host1"].put(HostKeys("host0").status, b"spoofed")
+            wait_for(lambda: len(got["host0"]) >= 1, 10)
+            time.sleep(0.5)
+            assert set(got["host0"]) == {request}  # its own request (on two of its subscriptions), nothing forged
+            assert got["recorder"] == [] and got["launcher"] == []  # host1 may not speak for host0
+            assert set(got["r0"]) == {b"forged"} and set(got["host1"]) == {b"spoofed"}  # their own, in-session
+            for s in subs:
+                s.undeclare()
+        finally:
+            for s in sessions.values():
+                s.close()
+
+
+def test_too_few_hosts_is_one_line_and_a_result(users: tuple[Path, Path], small_map: Path, tmp_path: Path) -> None:
+    all_users, _ = users
+    out = tmp_path / "out"
+    proc = fleet(*RUN, "--map", str(small_map), "--listen", f"tcp/127.0.0.1:{_free_port()}", "--credentials",
+                 str(all_users), "--host-timeout", "2", "--out", str(out), check=False, timeout=120)
+    assert proc.returncode == 1
+    assert proc.stderr.strip().splitlines()[-1] == "fleet: error: --hosts 1: waited 2 s for 1 host(s) " \
+                                                   "(`fleet host --connect ...`), 0 came (none)"
+    assert result(out)["reason"] == "error"
+    bad = fleet(*RUN, "--map", str(small_map), "--out", str(tmp_path / "x"), check=False)
+    assert bad.returncode == 2 and "--hosts with the embedded router needs --credentials USERS" in bad.stderr
+    bad = fleet(*RUN, "--map", str(small_map), "--credentials", str(all_users), "--out", str(tmp_path / "x"),
+                check=False)
+    assert bad.returncode == 2 and "--hosts needs a router the hosts can reach" in bad.stderr
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_a_host_killed_mid_run_fails_its_robots_and_the_run_ends_with_a_result(
+        sig: signal.Signals, users: tuple[Path, Path], tmp_path: Path) -> None:
+    all_users, own = users
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    out = tmp_path / "out"
+    launcher = _start(["run", "--robots", "4", "--max-ticks", "400", "--seed", "2", "--quiet", "--hosts", "1",
+                       "--listen", endpoint, "--credentials", str(all_users), "--out", str(out)])
+    host = _start(["host", "--connect", endpoint, "--credentials", str(own), "--out", str(tmp_path / "h"), *WAIT])
+    try:
+        wait_for(lambda: len(list((tmp_path / "h").glob("*/host0/r3.log"))) == 1, 120)
+        time.sleep(3.0)  # the run is going
+        robots = [p for c in children_of(host.pid) for p in [c, *children_of(c)]]
+        if sig == signal.SIGKILL:
+            os.killpg(host.pid, sig)  # the host and its fork server; its robots are in their own groups
+        else:
+            host.send_signal(sig)  # the host alone: it tears its robots down and exits 143
+        host.communicate(timeout=60)
+        assert host.returncode == (-9 if sig == signal.SIGKILL else 143)
+        code, err = _finish(launcher)
+    finally:
+        for p in (launcher, host):
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGKILL)
+    res = result(out)
+    assert code == 1, err
+    assert res["failed"] == ["r1", "r3"] and res["reason"] not in ("error", "interrupted", "no_robots", "startup")
+    assert res["ticks"] > 0
+    wait_for(lambda: not any(pid_alive(p) for p in robots), 10)  # the host's robots did not outlive it
+
+
+# --- two machines: network namespaces joined by a veth pair ----------------------------------------------------
+
+def _netns(pid: int) -> int:
+    return os.stat(f"/proc/{pid}/ns/net").st_ino
+
+
+def _ip(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(["ip", *args], capture_output=True, text=True, timeout=30)
+
+
+@pytest.fixture
+def namespaces():  # type: ignore[no-untyped-def]
+    """Two namespaces, ``A`` (10.231.<k>.1, the launcher's) and ``B`` (10.231.<k>.2, the host's), joined by a veth
+    pair; removed on every path."""
+    if shutil.which("ip") is None:
+        pytest.skip("no `ip` command (iproute2) here")
+    tag = f"{os.getpid() % 100000}"
+    a, b = f"fleetA{tag}", f"fleetB{tag}"
+    made = _ip("netns", "add", a)
+    if made.returncode != 0:
+        pytest.skip(f"cannot create a network namespace: {made.stderr.strip() or made.returncode}")
+    k = os.getpid() % 250 + 1
+    try:
+        for cmd in (["netns", "add", b], ["link", "add", f"va{tag}", "netns", a, "type", "veth", "peer", "name",
+                                         f"vb{tag}", "netns", b],
+                    ["-n", a, "addr", "add", f"10.231.{k}.1/24", "dev", f"va{tag}"],
+                    ["-n", b, "addr", "add", f"10.231.{k}.2/24", "dev", f"vb{tag}"],
+                    ["-n", a, "link", "set", f"va{tag}", "up"], ["-n", b, "link", "set", f"vb{tag}", "up"],
+                    ["-n", a, "link", "set", "lo", "up"], ["-n", b, "link", "set", "lo", "up"]):
+            done = _ip(*cmd)
+            if done.returncode != 0:
+                pytest.skip(f"cannot set up the namespaces (ip {' '.join(cmd)}): {done.stderr.strip()}")
+        yield (a, f"10.231.{k}.1"), (b, f"10.231.{k}.2")
+    finally:
+        for ns in (a, b):
+            _ip("netns", "del", ns)  # also removes the veth pair
+        assert all(ns not in _ip("netns", "list").stdout for ns in (a, b))
+
+
+def test_robots_split_across_two_network_namespaces_give_the_one_machine_result(
+        namespaces, users: tuple[Path, Path], small_map: Path, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    (ns_a, addr_a), (ns_b, _) = namespaces
+    all_users, own = users
+    endpoint = f"tcp/{addr_a}:7447"
+    launcher = _start([*RUN, "--map", str(small_map), "--listen", endpoint, "--credentials", str(all_users),
+                       "--out", str(tmp_path / "split")], prefix=["ip", "netns", "exec", ns_a])
+    host = _start(["host", "--connect", endpoint, "--credentials", str(own), "--once", "--out", str(tmp_path / "h"),
+                   *WAIT],
+                  prefix=["ip", "netns", "exec", ns_b])
+    # `ip netns exec` execs the command: each pid is the fleet process, in its namespace (the host reaches the
+    # launcher's router only across the veth pair, and its robots, its children, are in its namespace too)
+    time.sleep(1.0)
+    assert _netns(launcher.pid) == os.stat(f"/run/netns/{ns_a}").st_ino
+    assert _netns(host.pid) == os.stat(f"/run/netns/{ns_b}").st_ino
+    code, err = _finish(launcher)
+    host_code, host_err = _finish(host, 30)
+    assert code in (0, 3), err
+    assert host_code == 0, host_err
+    split = result(tmp_path / "split")
+    assert split["pids"]["hosts"] == {"host0": ["r1", "r3"]} and split["failed"] == []
+    assert (tmp_path / "h" / split["run_id"] / "host0" / "r3.log").exists()
+    assert deterministic(split) == deterministic(_one_machine(small_map, tmp_path / "one"))

@@ -1,0 +1,132 @@
+"""The pure parts of ``fleet run --hosts`` / ``fleet host``: placement, the lobby's keys, messages and access
+control, and the one-line errors of bad host options (no router here)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from fleet_emu.core.access import acl_config, fleet_nodes, role_of, writes
+from fleet_emu.core.codec import DecodeError, decode
+from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.keys import HostKeys, host_ids, robot_ids
+from fleet_emu.core.messages import HostAssign, HostStatus
+from fleet_emu.launch.host import host_login
+from fleet_emu.launch.hosts import agent_argv, check_hosts, host_credentials, placement
+
+
+def test_robots_are_dealt_round_robin_over_this_machine_and_the_hosts() -> None:
+    robots = robot_ids(7)
+    assert placement(robots, []) == {r: None for r in robots}
+    assert placement(robots, ["host0", "host1"]) == {
+        "r0": None, "r1": "host0", "r2": "host1", "r3": None, "r4": "host0", "r5": "host1", "r6": None}
+
+
+def test_the_agent_command_line_is_the_one_the_launcher_uses_here() -> None:
+    assert agent_argv("r3", "run1", "tcp/10.0.0.1:7447", Path("/w/scenario.json"), True) == [
+        "--robot", "r3", "--run", "run1", "--connect", "tcp/10.0.0.1:7447", "--scenario", "/w/scenario.json",
+        "--auth-stdin"]
+    assert "--auth-stdin" not in agent_argv("r0", "run1", "tcp/x:1", Path("s.json"), False)
+
+
+def test_lobby_keys_name_their_host_and_nothing_else() -> None:
+    k = HostKeys("host2")
+    assert (k.alive, k.spawn, k.status) == ("fleet-host/host2/alive", "fleet-host/host2/spawn",
+                                            "fleet-host/host2/status")
+    assert HostKeys.host_of(k.status) == "host2"
+    for bad in ("fleet/host2/status", "fleet-host/r1/status", "fleet-host/host2/x/status"):
+        assert HostKeys.host_of(bad) is None
+    with pytest.raises(ValueError):
+        HostKeys("r1")
+
+
+def test_a_host_puts_nothing_in_a_run_and_only_its_own_lobby_keys() -> None:
+    nodes = fleet_nodes(robot_ids(2)) + host_ids(2)
+    assert role_of("host1") == "host" and role_of("r1") == "agent" and writes("host0") == []
+    acl = acl_config("run1", nodes)
+    rules = {r["id"]: r for r in acl["rules"]}
+    policy = {p["subjects"][0]: p["rules"] for p in acl["policies"]}
+    host0 = [rules[r] for r in policy["user host0"]]
+    puts = [k for r in host0 if r["flows"] == ["ingress"] and "put" in r["messages"] for k in r["key_exprs"]]
+    assert puts == ["fleet-host/host0/status"]
+    receives = [k for r in host0 if "egress" in r["flows"] and "put" in r["messages"] for k in r["key_exprs"]]
+    assert receives == ["fleet-host/host0/spawn"]  # the requests with its robots' credentials: its own only
+    tokens = [k for r in host0 if "liveliness_token" in r["messages"] for k in r["key_exprs"]]
+    assert tokens == ["fleet-host/host0/alive"]
+    for node in ("world", "netem", "recorder", "r0", "r1", "host1"):  # nobody else receives host0's requests
+        for rid in policy.get(f"user {node}", []) + policy["fleet"]:
+            r = rules[rid]
+            assert not ("egress" in r["flows"] and "put" in r["messages"]
+                        and any(k in ("fleet-host/host0/spawn", "fleet-host/*/spawn", "fleet-host/**", "**")
+                                for k in r["key_exprs"])), (node, rid)
+    launcher_puts = [k for r in (rules[i] for i in policy["user launcher"]) if r["flows"] == ["ingress"]
+                     and "put" in r["messages"] for k in r["key_exprs"]]
+    assert "fleet-host/*/spawn" in launcher_puts and "fleet-host/*/status" not in launcher_puts
+
+
+def test_host_messages_round_trip_and_bad_ones_are_dropped() -> None:
+    msg = HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("r1", "r3"), scenario="{}",
+                     secrets={"r1": '{"user": "r1", "password": "p"}'})
+    assert decode(msg.encode(), expected=HostAssign) == msg
+    status = HostStatus(src="host0", tick=0, seq=3, run="run1", event="exited", robot="r1", code=-9)
+    assert decode(status.encode(), expected=HostStatus) == status
+    for bad in (HostAssign(src="launcher", tick=0, seq=0, host="hostX", run="run1"),
+                HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run/1"),
+                HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("r1", "r1")),
+                HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("world",)),
+                HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("r1",),
+                           secrets={"r2": '{"user": "r2", "password": "p"}'}),
+                HostStatus(src="host0", tick=0, seq=0, run="run1", event="rebooted")):
+        with pytest.raises(DecodeError):
+            decode(bad.encode())
+
+
+def test_bad_host_options_are_one_line(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="takes no --in-process"):
+        check_hosts(1, True, None, "tcp/127.0.0.1:7447")
+    with pytest.raises(ConfigError, match="needs a router the hosts can reach"):
+        check_hosts(1, False, None, None)
+    with pytest.raises(ConfigError, match="takes no --connect"):
+        check_hosts(0, False, "tcp/127.0.0.1:7447", "tcp/127.0.0.1:7448")
+    check_hosts(2, False, "tcp/127.0.0.1:7447", None)
+    users = tmp_path / "users.txt"
+    users.write_text("world:a\nhost0:b\nhost1:c\n")
+    assert set(host_credentials(users)) == {"host0", "host1"}
+    with pytest.raises(ConfigError, match="needs --credentials"):
+        host_credentials(None)
+    none = tmp_path / "none.txt"
+    none.write_text("world:a\n")
+    with pytest.raises(ConfigError, match="has no host user"):
+        host_credentials(none)
+    with pytest.raises(ConfigError, match="holds 2 host users"):
+        host_login(users, None, None)
+    assert host_login(users, "host1", None)[1].password == "c"  # type: ignore[union-attr]
+    with pytest.raises(ConfigError, match="--name must be"):
+        host_login(users, "world", None)
+    one = tmp_path / "host0.txt"
+    one.write_text("host0:b\n")
+    name, cred = host_login(one, None, None)
+    assert name == "host0" and cred is not None and cred.user == "host0"
+    assert host_login(None, None, None) == ("host0", None)
+
+
+def test_a_spawn_request_whose_credential_is_not_its_robots_is_dropped() -> None:
+    good = HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("r1",),
+                      secrets={"r1": '{"user": "r1", "password": "p"}'})
+    assert decode(good.encode()) == good
+    for secret in ('{"user": "r2", "password": "p"}', "not json", '{"user": "r1"}'):
+        bad = HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("r1",),
+                         secrets={"r1": secret})
+        with pytest.raises(DecodeError):
+            decode(bad.encode())
+
+
+def test_realtime_with_hosts_is_refused_and_local_robots_get_the_rate() -> None:
+    from fleet_emu.launch.runner import RunOptions, check_options
+
+    with pytest.raises(ConfigError, match="--realtime runs every robot on this machine today: it takes no --hosts"):
+        check_options(RunOptions(hosts=1, listen="tcp/127.0.0.1:7447", realtime_hz=10.0))
+    argv = agent_argv("r0", "run1", "tcp/127.0.0.1:7447", Path("s.json"), True, 10.0)
+    assert argv[argv.index("--realtime") + 1] == "10.0" and "--realtime" not in agent_argv(
+        "r0", "run1", "tcp/127.0.0.1:7447", Path("s.json"), True)
