@@ -4,7 +4,9 @@ Per tick (MinPos section 4: identify and cluster frontiers, compute distances, a
 merge the observation and delivered map deltas into the belief, update teammates' last known poses,
 cluster frontiers, run the allocator, and step down the wavefront of the assigned cluster. It then
 broadcasts a pose beacon and a map delta of what it newly learned; a teammate heard again after a silence
-also gets the whole known map. No Zenoh, no files: the node shell does the I/O and passes a clock in.
+also gets the whole known map. With map sync on (``agents/mapsync.py``: any radio that can lose a message),
+deltas are numbered, a receiver asks a teammate in contact for the ones it missed, and the teammate sends
+their cells again. No Zenoh, no files: the node shell does the I/O and passes a clock in.
 
 Teammates' positions. MinPos (section 4.3) ranks robots by their costs at the moment of the decision, but a
 beacon arrives a tick after it was sent, and in that tick its sender has moved. So a beacon carries both the
@@ -31,8 +33,9 @@ import numpy as np
 from fleet_emu.agents.allocators import Allocator, AllocStatus, Problem, allocator_class
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.clusters import FrontierClusters
+from fleet_emu.agents.mapsync import MapSync, SyncConfig
 from fleet_emu.agents.navigation import next_move
-from fleet_emu.agents.protocol import MapDelta, PoseBeacon
+from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
 from fleet_emu.core.codec import Context
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import FREE, MOVES, STAY, Cell
@@ -49,11 +52,15 @@ STAGES = ("decision", "merge", "clusters", "decode", "navigation", "news")
 @dataclasses.dataclass(frozen=True)
 class BrainConfig:
     """``cluster_max``: frontier cells one sensing covers (MinPos 4.1); ``resync_after``: ticks of silence
-    after which a teammate heard again gets the whole known map."""
+    after which a teammate heard again gets the whole known map; ``map_sync``: recover
+    lost map deltas (``agents/mapsync.py``, with ``sync``'s parameters), off by default and on in a run whose
+    radio can lose a message (:func:`brain_config`)."""
 
     cluster_max: int = 16
     resync_after: int = 10
     unstick_after: int = 2
+    map_sync: bool = False
+    sync: SyncConfig = dataclasses.field(default_factory=SyncConfig)
 
 
 @dataclasses.dataclass
@@ -89,7 +96,11 @@ class Plan:
 
 
 def brain_config(scenario: Scenario) -> BrainConfig:
-    return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)))
+    """The scenario's brain: map sync on unless the radio delivers every message (``ideal``, or ``full``
+    without loss), where it would only add bytes (and runs stay bit-identical to runs before it existed)."""
+    r = scenario.radio
+    lossless = r.comm == "ideal" or (r.comm == "full" and r.loss == 0)
+    return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_sync=not lossless)
 
 
 def allocator_config(scenario: Scenario) -> dict[str, Any]:
@@ -131,6 +142,7 @@ class Brain:
         self.ctx: Context | None = None
         self.plan: Plan | None = None  # what the last step decided, for the ticks until the next decision
         self._seq_lock = threading.Lock()  # real-time mode draws from the counter in two threads
+        self.sync: MapSync | None = MapSync(config.sync) if config.map_sync else None
 
     def next_seq(self) -> int:
         """The robot's one sequence counter: envelopes, commands, bundles and reports all draw from it."""
@@ -178,17 +190,41 @@ class Brain:
         opened = self.open(inbox)
         c_rest = time.thread_time()
         cpu["decode"] += (c_rest - c_decode) * 1000.0
+        sync = self.sync
+        rejoined: list[str] = []
         for msg in opened:
             if msg.src == self.me:
                 continue
-            if isinstance(msg.body, PoseBeacon):
-                self._heard(msg, msg.body, t, outbox)
-            elif isinstance(msg.body, MapDelta):
+            body = msg.body
+            if isinstance(body, PoseBeacon):
+                if self._heard(msg, body, t, outbox):
+                    rejoined.append(msg.src)
+                if sync is not None and body.maps is not None:
+                    sync.peer(msg.src).exists(body.maps)
+                if sync is not None and body.want is not None and self.me in body.want:
+                    fill = sync.answer(body.want[self.me], belief)
+                    if fill is not None:
+                        outbox.append(RadioMsg(fill, dst=msg.src))
+            elif isinstance(body, MapDelta):
                 c_m = time.thread_time()
-                belief.merge(msg.body.cells, msg.body.values)
+                belief.merge(body.cells, body.values)
                 cpu["merge"] += (time.thread_time() - c_m) * 1000.0
+                if sync is not None and body.n is not None:
+                    sync.peer(msg.src).received(body.n)
+                    sync.peer(msg.src).filled(body.covers or (), 0)
+            elif isinstance(body, MapFill):
+                c_m = time.thread_time()
+                belief.merge(body.cells, body.values)
+                cpu["merge"] += (time.thread_time() - c_m) * 1000.0
+                if sync is not None:
+                    sync.peer(msg.src).filled(body.seqs, body.upto)
             else:
                 protocol.append(msg)
+        want = None
+        if sync is not None:
+            for r in rejoined:  # it sends us its whole map as we send it ours: ask only if that is lost
+                sync.peer(r).hold(t)
+            want = sync.requests(t, {r: tm.heard for r, tm in self.teammates.items()})
         expected = {r: tm.expected(obs.cell) for r, tm in sorted(self.teammates.items())}
         poses = {self.me: obs.cell} | expected
         c_cl = time.thread_time()
@@ -219,10 +255,19 @@ class Brain:
         c_news = time.thread_time()
         cpu["navigation"] += (c_news - c_nav) * 1000.0
         outbox.extend(alloc.outbox)
-        news = [RadioMsg(PoseBeacon(cell=obs.cell, next=(obs.cell[0] + move[0], obs.cell[1] + move[1])))]
         cells, values = belief.take_news()
+        n = covers = None
+        if sync is not None:
+            fresh = cells
+            cells, covers = sync.news(cells)  # with the cells of deltas asked for again
+            if covers is not None:
+                values = belief.grid.reshape(-1)[cells].copy()
+            n = sync.number(fresh) if len(cells) else None  # a later request for it gets its news only
+        delta = MapDelta(cells=cells, values=values, n=n, covers=covers)
+        news = [RadioMsg(PoseBeacon(cell=obs.cell, next=(obs.cell[0] + move[0], obs.cell[1] + move[1]),
+                                    maps=sync.sent if sync is not None else None, want=want))]
         if len(cells):
-            news.append(RadioMsg(MapDelta(cells=cells, values=values)))
+            news.append(RadioMsg(delta))
         sealed = tuple(seal(m, self.me, t, self.next_seq()) for m in news + outbox)
         cpu["news"] += (time.thread_time() - c_news) * 1000.0
         cmd = Command(src=self.me, tick=t, seq=self.next_seq(), move=move, target=alloc.target,
@@ -230,15 +275,20 @@ class Brain:
         self.step_cpu_ms += (time.thread_time() - c0) * 1000.0
         return cmd, sealed
 
-    def _heard(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> None:
-        """A teammate's pose; one heard for the first time, or again after a silence, gets our whole map."""
+    def _heard(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> bool:
+        """A teammate's pose; one heard for the first time, or again after a silence, gets our whole map
+        (True then; with map sync as a fill that stands for every delta so far)."""
         prev = self.teammates.get(msg.src)
         if prev is not None and msg.tick < prev.heard:
-            return
-        if (prev is None or t - prev.heard > self.config.resync_after) and self.belief is not None:
-            cells, values = self.belief.known()
+            return False
+        rejoined = (prev is None or t - prev.heard > self.config.resync_after) and self.belief is not None
+        if rejoined and self.sync is not None:
+            outbox.append(RadioMsg(self.sync.whole(self.belief), dst=msg.src))  # type: ignore[arg-type]
+        elif rejoined:
+            cells, values = self.belief.known()  # type: ignore[union-attr]
             outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=msg.src))
         self.teammates[msg.src] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
+        return rejoined
 
     def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray, occupied: set[Cell]) -> Cell:
         """A robot whose moves keep failing, or that keeps waiting for a teammate to clear its way (two

@@ -155,8 +155,9 @@ def report(results: Path, baseline: str | None = None, plots: bool = True, seeds
     lines = summary(ok, baseline)
     console.print(_summary_table(lines, baseline))
     paper = study.get("paper", {})
-    if paper:
-        console.print(_paper_table(paper, ok, lines, baseline))
+    if paper:  # the paper's rows compare with the study's own baseline (the paper's), whatever --baseline says
+        base = head.get("baseline") or baseline
+        console.print(_paper_table(paper, ok, lines if base == baseline else summary(ok, base), base))
     if plots and ok:
         from fleet_emu.sweep.plots import draw
 
@@ -193,7 +194,7 @@ def _paper_table(paper: dict[str, Any], rows: list[dict[str, Any]], lines: list[
     (the % change, from loss 0, of the mean times summed over the robot counts)."""
     from rich.table import Table
 
-    t = Table(title=f"the paper beside ours — {paper.get('source', '')}")
+    t = Table(title=f"the paper beside ours — {paper.get('source', '')} (baseline {baseline})")
     for col in ("what", "paper", "ours"):
         t.add_column(col, justify="left" if col == "what" else "right")
     for claim in paper.get("claims", []):

@@ -155,3 +155,19 @@ def test_realtime_study_bad_argument_is_one_line() -> None:
     proc = _bench("realtime_study.py", "--hz", "0")
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == ["realtime_study: error: --hz must be > 0 and <= 1000 (got 0.0)"]
+
+
+def test_map_sync_reports_the_gaps_and_the_recovery(small_map: Path) -> None:
+    proc = _bench("map_sync.py", "--map", str(small_map), "--robots", "2", "--seeds", "1", "--start", "map",
+                  "--loss", "0.3")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    header, row = proc.stdout.splitlines()[:2]
+    cells = dict(zip(header.split(), row.split(), strict=True))
+    assert int(cells["asks"]) > 0 and int(cells["resent"]) > 0 and int(cells["rec.bytes"]) > 0  # loss recovered
+    assert int(cells["conflict"]) == 0
+
+
+def test_map_sync_bad_map_is_one_line() -> None:
+    proc = _bench("map_sync.py", "--map", "/no/such/map.png", "--seeds", "1")
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert proc.stderr.startswith("map_sync: error: ")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -45,6 +46,32 @@ def test_paper_rows_pick_their_runs() -> None:
     assert paper_value({"allocator": "nearest", "metric": "connected_pct"}, ROWS, lines, "nearest") == 50.0
     assert paper_value({"allocator": "nearest", "metric": "mean_std_ticks"}, ROWS, lines, "nearest") == \
         pytest.approx(20.0 / 2)
+
+
+def test_the_paper_rows_keep_the_studys_baseline_under_another_baseline(tmp_path: Path,
+                                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """``report --baseline minpos`` compares the table with minpos; the paper's "vs nearest" rows stay vs nearest."""
+    from fleet_emu.sweep.execute import write_tables
+    from fleet_emu.sweep.report import report
+
+    write_tables([r | {"id": str(i)} for i, r in enumerate(ROWS)], tmp_path)
+    (tmp_path / "study.toml").write_text('''[study]
+name = "t"
+baseline = "nearest"
+[grid]
+allocator = ["nearest", "minpos"]
+[paper]
+source = "a paper"
+[[paper.rows]]
+what = "minpos vs nearest"
+allocator = "minpos"
+metric = "vs_baseline_pct"
+value = -13
+''')
+    report(tmp_path, baseline="minpos", plots=False)
+    out = capsys.readouterr().out
+    assert "vs minpos" in out and "(baseline nearest)" in out
+    assert "│ minpos vs nearest │   -13 │ -22.5 │" in out
 
 
 def test_ci95_is_students_t_half_width() -> None:
