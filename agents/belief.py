@@ -8,11 +8,14 @@ from fleet_emu.core.grid import UNKNOWN
 
 
 class Belief:
-    """An int8 occupancy grid that starts unknown; ``take_news`` returns cells learned since the last call."""
+    """An int8 occupancy grid that starts unknown; ``take_news`` returns cells learned since the last call,
+    ``take_changed`` the cells changed since its last call (for the incremental frontier clusters). Both are
+    kept as the merges' changed cells, so that neither takes a pass over the whole grid."""
 
     def __init__(self, shape: tuple[int, int]) -> None:
         self.grid = np.full(shape, UNKNOWN, dtype=np.int8)
-        self._news = np.zeros(shape[0] * shape[1], dtype=np.bool_)
+        self._news: list[np.ndarray] = []
+        self._changed: list[np.ndarray] = []
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -22,21 +25,37 @@ class Belief:
         """Write known values into the grid (later observations win); returns how many cells were unknown."""
         flat = self.grid.reshape(-1)
         known = values != UNKNOWN
-        cells, values = cells[known], values[known]
-        new = flat[cells] == UNKNOWN
-        changed = flat[cells] != values
+        if not known.all():
+            cells, values = cells[known], values[known]
+        old = flat[cells]
+        changed = cells[old != values]
         flat[cells] = values
-        self._news[cells[changed]] = True
-        return int(new.sum())
+        if len(changed):
+            self._news.append(changed)
+            self._changed.append(changed)
+        return int(np.count_nonzero(old == UNKNOWN))
 
     def take_news(self) -> tuple[np.ndarray, np.ndarray]:
-        """Flat indices and values of every cell learned or changed since the last call."""
-        idx = np.flatnonzero(self._news)
-        self._news[idx] = False
-        return idx.astype(np.int32), self.grid.reshape(-1)[idx].copy()
+        """Flat indices (ascending) and values of every cell learned or changed since the last call."""
+        idx = _union(self._news)
+        self._news = []
+        return idx.astype(np.int32), self.grid.reshape(-1)[idx]
+
+    def take_changed(self) -> np.ndarray:
+        """Flat indices of the cells changed since the last call (repeats possible)."""
+        out = np.concatenate(self._changed) if self._changed else np.zeros(0, dtype=np.int64)
+        self._changed = []
+        return out
 
     def known(self) -> tuple[np.ndarray, np.ndarray]:
         """Every known cell (for a full-map sync to a teammate heard again after a silence)."""
         flat = self.grid.reshape(-1)
         idx = np.flatnonzero(flat != UNKNOWN)
         return idx.astype(np.int32), flat[idx].copy()
+
+
+def _union(parts: list[np.ndarray]) -> np.ndarray:
+    """The distinct indices of ``parts``, ascending."""
+    if not parts:
+        return np.zeros(0, dtype=np.int64)
+    return np.unique(np.concatenate(parts)) if len(parts) > 1 else np.unique(parts[0])

@@ -32,7 +32,7 @@ import numpy as np
 
 from fleet_emu.agents.allocators import Allocator, AllocStatus, Problem, allocator_class
 from fleet_emu.agents.belief import Belief
-from fleet_emu.agents.frontiers import find_clusters
+from fleet_emu.agents.clusters import FrontierClusters
 from fleet_emu.agents.mapsync import MapSync, SyncConfig
 from fleet_emu.agents.navigation import next_move
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
@@ -41,6 +41,12 @@ from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import FREE, MOVES, STAY, Cell
 from fleet_emu.core.messages import Command, Envelope, Observation, RadioMsg, open_envelope, seal
 from fleet_emu.core.scenario import Scenario
+
+#: The stages of :meth:`Brain.step` whose thread CPU ``Brain.cpu_ms`` sums: the allocator (``decision``), belief
+#: merges (own observation and teammates' map deltas), frontier clusters, the radio payload decode, navigation
+#: (wavefront descent and unsticking), the news sent (map delta, beacon, envelopes); ``step_cpu_ms`` minus their
+#: sum is the rest (teammates' poses, the problem, the command).
+STAGES = ("decision", "merge", "clusters", "decode", "navigation", "news")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,6 +128,7 @@ class Brain:
         self.clock = clock
         self.allocator.reset(rng)
         self.belief: Belief | None = None
+        self.frontiers: FrontierClusters | None = None
         self.teammates: dict[str, Teammate] = {}
         self.seq = 0
         self.last_cell: Cell | None = None
@@ -131,6 +138,7 @@ class Brain:
         self.decision_ms: list[float] = []
         self.decision_cpu_ms = 0.0  # this thread's CPU in the allocator, summed over decisions (issue 11)
         self.step_cpu_ms = 0.0  # and in the whole of step (decision, belief, clusters, radio decode, navigation)
+        self.cpu_ms = dict.fromkeys(STAGES, 0.0)  # thread CPU of step by stage, summed (benchmarks/brain_step.py)
         self.ctx: Context | None = None
         self.plan: Plan | None = None  # what the last step decided, for the ticks until the next decision
         self._seq_lock = threading.Lock()  # real-time mode draws from the counter in two threads
@@ -145,6 +153,7 @@ class Brain:
     def _belief(self, obs: Observation) -> Belief:
         if self.belief is None:
             self.belief = Belief(obs.shape)
+            self.frontiers = FrontierClusters(obs.shape, self.config.cluster_max)
             self.ctx = Context(senders=self.team, shape=obs.shape)
         return self.belief
 
@@ -171,12 +180,19 @@ class Brain:
         t = obs.tick
         c0 = time.thread_time()
         belief = self._belief(obs)
+        cpu = self.cpu_ms
+        c_merge = time.thread_time()
         belief.merge(obs.cells, obs.values)
         outbox: list[RadioMsg] = []
         protocol: list[RadioMsg] = []
+        c_decode = time.thread_time()
+        cpu["merge"] += (c_decode - c_merge) * 1000.0
+        opened = self.open(inbox)
+        c_rest = time.thread_time()
+        cpu["decode"] += (c_rest - c_decode) * 1000.0
         sync = self.sync
         rejoined: list[str] = []
-        for msg in self.open(inbox):
+        for msg in opened:
             if msg.src == self.me:
                 continue
             body = msg.body
@@ -190,12 +206,16 @@ class Brain:
                     if fill is not None:
                         outbox.append(RadioMsg(fill, dst=msg.src))
             elif isinstance(body, MapDelta):
+                c_m = time.thread_time()
                 belief.merge(body.cells, body.values)
+                cpu["merge"] += (time.thread_time() - c_m) * 1000.0
                 if sync is not None and body.n is not None:
                     sync.peer(msg.src).received(body.n)
                     sync.peer(msg.src).filled(body.covers or (), 0)
             elif isinstance(body, MapFill):
+                c_m = time.thread_time()
                 belief.merge(body.cells, body.values)
+                cpu["merge"] += (time.thread_time() - c_m) * 1000.0
                 if sync is not None:
                     sync.peer(msg.src).filled(body.seqs, body.upto)
             else:
@@ -207,14 +227,19 @@ class Brain:
             want = sync.requests(t, {r: tm.heard for r, tm in self.teammates.items()})
         expected = {r: tm.expected(obs.cell) for r, tm in sorted(self.teammates.items())}
         poses = {self.me: obs.cell} | expected
-        problem = Problem(me=self.me, poses=poses, belief=belief.grid,
-                          clusters=find_clusters(belief.grid, self.config.cluster_max), tick=t,
+        c_cl = time.thread_time()
+        assert self.frontiers is not None
+        clusters = list(self.frontiers.update(belief.grid, belief.take_changed()))
+        cpu["clusters"] += (time.thread_time() - c_cl) * 1000.0
+        problem = Problem(me=self.me, poses=poses, belief=belief.grid, clusters=clusters, tick=t,
                           heard={r: tm.heard for r, tm in self.teammates.items()},
                           previous_target=self.last_target)
         t0, c1 = self.clock(), time.thread_time()
         alloc = self.allocator.allocate(problem, protocol)
         self.decision_ms.append((self.clock() - t0) * 1000.0)
-        self.decision_cpu_ms += (time.thread_time() - c1) * 1000.0
+        c_nav = time.thread_time()
+        self.decision_cpu_ms += (c_nav - c1) * 1000.0
+        cpu["decision"] += (c_nav - c1) * 1000.0
         self.last_target = alloc.target
         move = STAY
         wants = False  # the robot wants to move but a teammate stands on every way down the wavefront
@@ -222,11 +247,13 @@ class Brain:
         if alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None:
             blocked = {expected[r] for r, tm in self.teammates.items()
                        if tm.heard >= t - 1 and expected[r] == tm.cell}
-            dist = problem.wavefronts[alloc.cluster]
+            dist = problem.wavefront_to(alloc.cluster)
             move = next_move(dist, obs.cell, blocked)
             wants = move == STAY and dist[obs.cell] > 0
         self.plan = Plan(dist, alloc.target, alloc.status.name, frozenset(blocked))
         move = self._unstick(obs.cell, move, wants, belief.grid, set(expected.values()))
+        c_news = time.thread_time()
+        cpu["navigation"] += (c_news - c_nav) * 1000.0
         outbox.extend(alloc.outbox)
         cells, values = belief.take_news()
         n = covers = None
@@ -242,6 +269,7 @@ class Brain:
         if len(cells):
             news.append(RadioMsg(delta))
         sealed = tuple(seal(m, self.me, t, self.next_seq()) for m in news + outbox)
+        cpu["news"] += (time.thread_time() - c_news) * 1000.0
         cmd = Command(src=self.me, tick=t, seq=self.next_seq(), move=move, target=alloc.target,
                       status=alloc.status.name, decision_ms=round(self.decision_ms[-1], 4))
         self.step_cpu_ms += (time.thread_time() - c0) * 1000.0

@@ -5,6 +5,9 @@ A frontier cell is a known-free cell 4-adjacent to an unknown one. Contiguous fr
 cells) is split into consecutive pieces along a breadth-first walk of the group, so that each piece is
 contiguous. Each cluster's ``target`` is its cell nearest the cluster's mean. Cluster order is by smallest
 flat index, so every robot holding the same belief finds the same clusters in the same order.
+
+:func:`find_clusters` is the definition, over the whole grid; a robot's brain keeps the same clusters up to
+date around what changed each tick (:class:`agents.clusters.FrontierClusters`, tested equal to it).
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ by kind. Field types drive encoding and validation: ``int``, ``float``, ``str``,
 from __future__ import annotations
 
 import dataclasses
+import functools
 import types
 import typing
 from collections.abc import Callable
@@ -54,7 +55,7 @@ class Record:
 
     def fields_obj(self) -> dict[str, Any]:
         """The msgpack-ready map of this record's fields (nested records become maps)."""
-        return {f.name: _to_obj(getattr(self, f.name)) for f in dataclasses.fields(self)}  # type: ignore[arg-type]
+        return {name: _to_obj(getattr(self, name)) for name in _names(type(self))}
 
     def to_obj(self) -> dict[str, Any]:
         """:meth:`fields_obj` with the record's ``kind``."""
@@ -105,6 +106,12 @@ class Context:
     shape: tuple[int, int] | None = None
 
 
+@functools.cache
+def _names(cls: type[Record]) -> tuple[str, ...]:
+    """A record class's field names, in order."""
+    return tuple(f.name for f in dataclasses.fields(cls))  # type: ignore[arg-type]
+
+
 def _to_obj(value: Any) -> Any:
     if isinstance(value, Record):
         return value.to_obj()
@@ -120,64 +127,104 @@ def _to_obj(value: Any) -> Any:
     return value
 
 
-_HINTS: dict[type, dict[str, Any]] = {}
-
-
-def _hints(cls: type) -> dict[str, Any]:
-    if cls not in _HINTS:
-        _HINTS[cls] = typing.get_type_hints(cls)
-    return _HINTS[cls]
+Convert = Callable[[Any, str, "Context | None"], Any]
 
 
 def _from_obj(hint: Any, value: Any, name: str, ctx: Context | None) -> Any:
+    """``value`` (as msgpack decoded it) checked against the field type ``hint``; DecodeError otherwise."""
+    return _converter(hint)(value, name, ctx)
+
+
+@functools.cache
+def _converter(hint: Any) -> Convert:
+    """The checking converter of one field type, built once per type (decoding a message then costs a call per
+    field, not a walk of its type hints)."""
     origin = typing.get_origin(hint)
     if origin in (types.UnionType, typing.Union):
         args = typing.get_args(hint)
-        if value is None and type(None) in args:
-            return None
-        inner = [a for a in args if a is not type(None)]
-        return _from_obj(inner[0], value, name, ctx)
-    if hint is bool:
-        if not isinstance(value, bool):
-            raise DecodeError(f"{name}: expected bool")
-        return value
-    if hint is int:
-        if not isinstance(value, int) or isinstance(value, bool):
-            raise DecodeError(f"{name}: expected int")
-        return value
-    if hint is float:
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            raise DecodeError(f"{name}: expected number")
-        return float(value)
-    if hint is str:
-        if not isinstance(value, str):
-            raise DecodeError(f"{name}: expected str")
-        return value
+        optional = type(None) in args
+        inner = _converter(next(a for a in args if a is not type(None)))
+
+        def union(value: Any, name: str, ctx: Context | None) -> Any:
+            if value is None and optional:
+                return None
+            return inner(value, name, ctx)
+        return union
+    if hint in _SCALARS:
+        return _SCALARS[hint]
     if hint is np.ndarray:
-        return _array(value, name)
-    if hint is bytes:
-        if not isinstance(value, bytes) or len(value) > MAX_ARRAY_BYTES:
-            raise DecodeError(f"{name}: expected bytes")
-        return value
+        return lambda value, name, ctx: _array(value, name)
     if isinstance(hint, type) and issubclass(hint, Message):
-        return _decode_obj(value, ctx, expected=hint)
+        return lambda value, name, ctx: _decode_obj(value, ctx, expected=hint)
     if origin is tuple:
-        args = typing.get_args(hint)
+        return _tuple_converter(typing.get_args(hint))
+    if origin is dict:
+        key_c, val_c = (_converter(a) for a in typing.get_args(hint))
+
+        def mapping(value: Any, name: str, ctx: Context | None) -> Any:
+            if not isinstance(value, dict):
+                raise DecodeError(f"{name}: expected a map")
+            return {key_c(k, name, ctx): val_c(v, name, ctx) for k, v in value.items()}
+        return mapping
+    if hint is Any:
+        return lambda value, name, ctx: value
+
+    def unsupported(value: Any, name: str, ctx: Context | None) -> Any:
+        raise DecodeError(f"{name}: unsupported field type {hint!r}")
+    return unsupported
+
+
+def _tuple_converter(args: tuple[Any, ...]) -> Convert:
+    if len(args) == 2 and args[1] is Ellipsis:
+        item = _converter(args[0])
+
+        def homogeneous(value: Any, name: str, ctx: Context | None) -> Any:
+            if not isinstance(value, (list, tuple)):
+                raise DecodeError(f"{name}: expected a list")
+            return tuple(item(v, name, ctx) for v in value)
+        return homogeneous
+    items = [_converter(a) for a in args]
+
+    def fixed(value: Any, name: str, ctx: Context | None) -> Any:
         if not isinstance(value, (list, tuple)):
             raise DecodeError(f"{name}: expected a list")
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_from_obj(args[0], v, name, ctx) for v in value)
-        if len(value) != len(args):
-            raise DecodeError(f"{name}: expected {len(args)} items")
-        return tuple(_from_obj(a, v, name, ctx) for a, v in zip(args, value, strict=True))
-    if origin is dict:
-        key_t, val_t = typing.get_args(hint)
-        if not isinstance(value, dict):
-            raise DecodeError(f"{name}: expected a map")
-        return {_from_obj(key_t, k, name, ctx): _from_obj(val_t, v, name, ctx) for k, v in value.items()}
-    if hint is Any:
-        return value
-    raise DecodeError(f"{name}: unsupported field type {hint!r}")
+        if len(value) != len(items):
+            raise DecodeError(f"{name}: expected {len(items)} items")
+        return tuple(c(v, name, ctx) for c, v in zip(items, value, strict=True))
+    return fixed
+
+
+def _bool(value: Any, name: str, ctx: Context | None) -> bool:
+    if not isinstance(value, bool):
+        raise DecodeError(f"{name}: expected bool")
+    return value
+
+
+def _int(value: Any, name: str, ctx: Context | None) -> int:
+    if not isinstance(value, int) or isinstance(value, bool):
+        raise DecodeError(f"{name}: expected int")
+    return value
+
+
+def _float(value: Any, name: str, ctx: Context | None) -> float:
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        raise DecodeError(f"{name}: expected number")
+    return float(value)
+
+
+def _str(value: Any, name: str, ctx: Context | None) -> str:
+    if not isinstance(value, str):
+        raise DecodeError(f"{name}: expected str")
+    return value
+
+
+def _bytes(value: Any, name: str, ctx: Context | None) -> bytes:
+    if not isinstance(value, bytes) or len(value) > MAX_ARRAY_BYTES:
+        raise DecodeError(f"{name}: expected bytes")
+    return value
+
+
+_SCALARS: dict[Any, Convert] = {bool: _bool, int: _int, float: _float, str: _str, bytes: _bytes}
 
 
 def _array(value: Any, name: str) -> np.ndarray:
@@ -189,7 +236,9 @@ def _array(value: Any, name: str) -> np.ndarray:
     if not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in shape) or len(shape) > 3:
         raise DecodeError(f"{name}: bad array shape")
     dt = np.dtype(dtype)
-    count = int(np.prod(shape, dtype=np.int64)) if shape else 1
+    count = 1
+    for s in shape:  # Python ints: no overflow for any shape
+        count *= s
     if count * dt.itemsize != len(data) or len(data) > MAX_ARRAY_BYTES:
         raise DecodeError(f"{name}: array data does not match its shape")
     return np.frombuffer(data, dtype=dt).reshape(shape)
@@ -210,20 +259,37 @@ def _decode_obj(obj: Any, ctx: Context | None, expected: type[Message] | None = 
     return _build(cls, {k: v for k, v in obj.items() if k not in ("kind", "v")}, ctx)  # type: ignore[return-value]
 
 
+@dataclasses.dataclass(frozen=True)
+class _Field:
+    name: str
+    label: str  # ``kind.name``, for the error messages
+    optional: bool  # it has a default
+    convert: Convert
+
+
+@functools.cache
+def _fields(cls: type[Record]) -> tuple[tuple[_Field, ...], frozenset[str]]:
+    """The decoding plan of a record class: each field's converter, and the set of field names."""
+    hints = typing.get_type_hints(cls)
+    plan = tuple(_Field(f.name, f"{cls.KIND}.{f.name}", f.default is not dataclasses.MISSING
+                        or f.default_factory is not dataclasses.MISSING, _converter(hints[f.name]))
+                 for f in dataclasses.fields(cls))  # type: ignore[arg-type]
+    return plan, frozenset(f.name for f in plan)
+
+
 def _build(cls: type[Record], fields: dict[Any, Any], ctx: Context | None) -> Record:
     """A record of ``cls`` from its decoded field map, every field checked against its type, then validated."""
-    hints = _hints(cls)
-    names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
-    extra = set(fields) - names
-    if extra:
+    plan, names = _fields(cls)
+    if not names.issuperset(fields):
+        extra = set(fields) - names
         raise DecodeError(f"{cls.KIND}: unexpected fields {sorted(map(str, extra))}")
     values = {}
-    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+    for f in plan:
         if f.name not in fields:
-            if f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING:
+            if f.optional:
                 continue
             raise DecodeError(f"{cls.KIND}: missing field {f.name!r}")
-        values[f.name] = _from_obj(hints[f.name], fields[f.name], f"{cls.KIND}.{f.name}", ctx)
+        values[f.name] = f.convert(fields[f.name], f.label, ctx)
     record = cls(**values)
     record.validate(ctx)
     return record

@@ -9,6 +9,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from fleet_emu.core import cluster_kernels
+
 
 @numba.njit(cache=True, inline="always")
 def _neighbour(cur: int, k: int, rows: int, cols: int) -> int:
@@ -168,6 +170,7 @@ def warm_up() -> None:
     wavefront(~occ, np.array([0], dtype=np.int64), -1)
     visible_cells(occ, 1, 1, 1.5)
     count_walls(occ, 0, 0, 2, 2)
+    cluster_kernels.warm_up()
 
 
 _NO_KEY = np.int64(1) << np.int64(62)

@@ -27,6 +27,8 @@ __all__ = [
 ]
 
 VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
+_VALID_BYTE = np.zeros(256, dtype=np.bool_)  # indexed by an int8 value's byte: True for -1, 0 and 100
+_VALID_BYTE[VALID_CELL_VALUES.view(np.uint8)] = True
 VALID_MOVES = frozenset(MOVES) | {STAY}
 
 
@@ -38,7 +40,7 @@ def check_cells(cells: np.ndarray, values: np.ndarray, shape: tuple[int, int] | 
         raise DecodeError(f"{what}: wrong dtypes")
     if len(cells) and (cells.min() < 0 or (shape is not None and cells.max() >= shape[0] * shape[1])):
         raise DecodeError(f"{what}: cell index out of range")
-    if len(values) and not np.isin(values, VALID_CELL_VALUES).all():
+    if len(values) and not _VALID_BYTE[values.view(np.uint8)].all():
         raise DecodeError(f"{what}: cell value not in (-1, 0, 100)")
 
 

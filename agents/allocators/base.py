@@ -94,6 +94,15 @@ class Problem:
         """BFS distance from each cluster's cells over known-free cells (MinPos section 4.2); -1 unreached."""
         return [wavefront(self.passable, c.cells.astype(np.int64), -1) for c in self.clusters]
 
+    def wavefront_to(self, j: int, stop: Cell | None = None) -> np.ndarray:
+        """Cluster ``j``'s wavefront: :attr:`wavefronts`'s when they were computed, else this one alone, ended
+        once ``stop`` has its distance (section 4.3's stopping). Then every cell nearer the cluster than
+        ``stop`` has its distance too, which is all that descending the gradient from ``stop`` reads."""
+        if "wavefronts" in self.__dict__:
+            return self.wavefronts[j]
+        at = -1 if stop is None else stop[0] * self.belief.shape[1] + stop[1]
+        return wavefront(self.passable, self.clusters[j].cells.astype(np.int64), at)
+
     @functools.cached_property
     def costs(self) -> np.ndarray:
         """The cost matrix C (robots x clusters): wavefront distance, ``inf`` where unreachable."""

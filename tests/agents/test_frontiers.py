@@ -90,3 +90,28 @@ def test_navigation_sidesteps_a_teammate_and_waits_when_boxed() -> None:
     assert free_move == (-1, 0)  # up, first in MOVES order among equal descents
     assert next_move(dist, me, {(1, 3)}) == (0, -1)  # the teammate above: go left instead
     assert next_move(dist, me, {(1, 3), (2, 2)}) == STAY
+
+
+def test_the_one_wavefront_navigation_uses_steps_as_the_full_one() -> None:
+    """``Problem.wavefront_to`` (the assigned cluster's wavefront, stopped at the robot) gives the same move as
+    the full wavefront, from every free cell, toward every cluster, with and without a teammate in the way."""
+    from fleet_emu.agents.allocators import Problem
+
+    grid, _ = from_ascii("""
+    ##########?
+    #....#....?
+    #.##.#.##.#
+    #.#..?..#.#
+    #.#.####..?
+    #...#.....#
+    ####?######
+    """)
+    clusters = find_clusters(grid, 3)
+    assert len(clusters) >= 3
+    full = Problem(me="r0", poses={"r0": (1, 1)}, belief=grid, clusters=clusters).wavefronts
+    for cell in map(tuple, np.argwhere(grid == FREE).tolist()):
+        for j in range(len(clusters)):
+            one = Problem(me="r0", poses={"r0": cell}, belief=grid, clusters=clusters).wavefront_to(j, cell)
+            assert one[cell] == full[j][cell]
+            for blocked in (set(), {(cell[0] - 1, cell[1])}, {(cell[0], cell[1] + 1)}):
+                assert next_move(one, cell, blocked) == next_move(full[j], cell, blocked)

@@ -120,3 +120,15 @@ def test_count_walls_off_the_grid_is_open_space() -> None:
     occ[1, 1] = True
     assert count_walls(occ, -5, -5, 7, 7) == 1  # only the wall inside the grid, no read outside it
     assert count_walls(occ, -3, 0, -3, 50) == 0
+
+
+def test_warm_up_loads_the_frontier_cluster_kernels() -> None:
+    """The fork server's ``warm_up`` loads every kernel a robot uses per tick, the incremental clusters' too."""
+    import subprocess
+    import sys
+
+    code = ("from fleet_emu.core import cluster_kernels as k; from fleet_emu.core.kernels import warm_up; "
+            "assert not k.update_mask.signatures; warm_up(); "
+            "print(all(f.signatures for f in (k.update_mask, k.touched_labels, k.relabel, k.target)))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "True"

@@ -93,7 +93,9 @@ def test_rejects_bad_arrays_and_cells() -> None:
     out_of_range = dict(obs, cells={"dtype": "int32", "shape": [3],
                                     "data": np.array([0, 1, 20], np.int32).tobytes()})
     bad_value = dict(obs, values={"dtype": "int8", "shape": [3], "data": np.array([0, 5, 0], np.int8).tobytes()})
-    for obj in (bad_shape, bad_dtype, out_of_range, bad_value):
+    negative = dict(obs, values={"dtype": "int8", "shape": [3], "data": np.array([0, -100, 0], np.int8).tobytes()})
+    wrapping = dict(obs, cells={"dtype": "int32", "shape": [2**32, 2**32], "data": b""})  # 2**64 cells, 0 in int64
+    for obj in (bad_shape, bad_dtype, out_of_range, bad_value, negative, wrapping):
         with pytest.raises(DecodeError):
             decode(msgpack.packb(obj), CTX)
 

@@ -110,6 +110,29 @@ def test_agent_memory_reports_each_run() -> None:
     assert row[:2] == ["2", "5"] and all(float(x) > 0 for x in row[2:])  # the fork server's share too
 
 
+def test_brain_step_reports_a_row_per_map(small_map: Path) -> None:
+    """Issue 11, part 3: a row per map of thread CPU per robot-tick by stage; the stages add up to the step."""
+    proc = _bench("brain_step.py", "--robots", "2", "--ticks", "5", "--cells", "40", "--maps", "maze", str(small_map))
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.strip().splitlines()
+    assert lines[0].startswith("# benchmarks/brain_step.py (issue 11, part 3): ") and " cores " in lines[0]
+    assert lines[2].split()[:3] == ["map", "decide", "clusters"]
+    rows = [ln.split() for ln in lines[3:]]
+    assert [r[0] for r in rows] == ["maze", "two_rooms"]
+    for r in rows:
+        decide, *stages, outside, step, rx = map(float, r[1:11])
+        assert step > 0 and rx > 0 and all(v >= 0 for v in stages), r
+        assert abs(decide + sum(stages) - step) < 0.01 and abs(step - decide - outside) < 0.01, r
+    assert len(proc.stderr.strip().splitlines()) == 2  # a progress line per map
+
+
+def test_brain_step_bad_input_is_one_line() -> None:
+    proc = _bench("brain_step.py", "--maps", "/no/such/map.png")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "map /no/such/map.png" in proc.stderr
+    proc = _bench("brain_step.py", "--ticks", "x")
+    assert proc.returncode == 2 and proc.stderr.startswith("brain_step: error: ") and proc.stderr.count("\n") == 1
+
+
 def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_map: Path) -> None:
     """Issue 11, part 5: greedy and minpos in real time, a row each with the real-time columns; a ``start`` row
     for a fleet larger than the start area."""

@@ -1,0 +1,132 @@
+"""Thread CPU of one robot-tick of the brain on a 512 x 512 map, split by stage (issue 11, part 3).
+
+    python benchmarks/brain_step.py [--robots 16] [--ticks 60] [--cells 512] [--maps maze PATH ...]
+
+The memory engine (:class:`fleet_emu.launch.memory.Fleet`: the real World, Channel and Brain objects, no Zenoh)
+steps each map's fleet for ``--ticks`` ticks with ``benchmarks/scale.py``'s scenario (minpos with parallel
+wavefronts, the wall radio, 10 % loss, sensor 8 cells, comm 20 cells, the map's most open start), and every
+brain sums its own thread CPU (``time.thread_time``, robust to the machine's load) per stage of
+``Brain.step`` (``Brain.cpu_ms``). One row per map, in ms per robot-tick (averaged over every robot-tick but
+tick 0's, where numba loads or compiles the kernels):
+
+- ``decide``: the allocator (``allocate``, wavefronts included);
+- ``clusters``: frontier detection and clustering;
+- ``merge``: writing the observation and teammates' map deltas into the belief;
+- ``decode``: the radio payloads' decode and validation (each robot decodes its own copy, as over Zenoh: the
+  memory engine's sharing of a decoded broadcast is turned off here);
+- ``nav``: the wavefront descent and unsticking;
+- ``news``: the robot's own map delta, beacon and envelopes;
+- ``other``: the rest of ``Brain.step``; ``outside``: everything but ``decide`` (the issue's target is
+  at most 2 ms); ``step``: the whole of ``Brain.step``;
+- ``rx codec``: what an agent process also does per tick before its brain runs (not in ``step``): decoding its
+  rx bundle from bytes (``core.codec.decode``), timed on the bundle netem would send it.
+
+The last column is the 1-minute load average at the end of the row. Progress goes to stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any, NoReturn
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import scale  # benchmarks/scale.py: the maps, the start and the scenario
+
+COLUMNS = ["decide", "clusters", "merge", "decode", "nav", "news", "other", "outside", "step", "rx codec"]
+
+
+def run(name: str, robots: int, a: argparse.Namespace) -> dict[str, float]:
+    """One map's fleet stepped ``a.ticks`` ticks; ms of thread CPU per robot-tick by stage."""
+    from fleet_emu.agents.brain import STAGES
+    from fleet_emu.core.codec import decode
+    from fleet_emu.core.errors import FleetError
+    from fleet_emu.core.messages import RxBundle
+    from fleet_emu.launch.memory import Fleet
+
+    cs, _shape = scale.fit_cell_size(name, a.cells, a.seed)
+    start = scale.open_start(name, cs, a.seed)
+    fleet = Fleet(scale.scenario_for(name, cs, robots, start, a))
+    fleet.reset()
+    for brain in fleet.brains.values():
+        brain.open = _own_copy(brain.open)  # type: ignore[method-assign]
+    fleet.step()  # tick 0, not counted: numba loads (or compiles) the kernels on their first call
+    for brain in fleet.brains.values():
+        brain.cpu_ms = dict.fromkeys(brain.cpu_ms, 0.0)
+        brain.step_cpu_ms = 0.0
+    rx_cpu = 0.0
+    robot_ticks = 0
+    while not fleet.done:
+        for r in fleet.agents:  # the agent process's decode of its rx bundle, which the brain does not count
+            data = RxBundle(src="netem", tick=0, seq=1, dst=r, msgs=fleet.rx.get(r, ())).encode()
+            c = time.thread_time()
+            decode(data, None, RxBundle)
+            rx_cpu += time.thread_time() - c
+        robot_ticks += len(fleet.agents)
+        fleet.step()
+    if not robot_ticks:
+        raise FleetError("the run ended at tick 0: nothing to measure")
+    brains = list(fleet.brains.values())
+    per = {s: sum(b.cpu_ms[s] for b in brains) / robot_ticks for s in STAGES}
+    step = sum(b.step_cpu_ms for b in brains) / robot_ticks
+    return {"decide": per["decision"], "clusters": per["clusters"], "merge": per["merge"], "decode": per["decode"],
+            "nav": per["navigation"], "news": per["news"], "other": step - sum(per.values()),
+            "outside": step - per["decision"], "step": step, "rx codec": rx_cpu * 1000.0 / robot_ticks,
+            "robot_ticks": robot_ticks}
+
+
+def _own_copy(open_: Any) -> Any:
+    """``Brain.open`` that decodes every envelope afresh (over Zenoh every receiver decodes its own copy)."""
+    def opened(inbox: Any) -> Any:
+        for env in inbox:
+            env.__dict__.pop("_opened", None)
+        return open_(inbox)
+    return opened
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:  # one line, exit 2
+        _fail(message)
+
+
+def _fail(message: str) -> NoReturn:
+    print(f"brain_step: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+def main(argv: list[str] | None = None) -> None:
+    from fleet_emu.core.errors import FleetError
+
+    p = _Parser(prog="brain_step.py", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--robots", type=int, default=16)
+    p.add_argument("--ticks", type=int, default=60)
+    p.add_argument("--cells", type=int, default=512)
+    p.add_argument("--maps", nargs="+", default=["maze", str(scale.REAL_MAP)])
+    p.add_argument("--sensor-cells", type=float, default=8.0)
+    p.add_argument("--comm-cells", type=float, default=20.0)
+    p.add_argument("--seed", type=int, default=0)
+    a = p.parse_args(argv)
+    if a.robots < 1 or a.ticks < 2 or a.cells < 8:
+        _fail("--robots must be at least 1, --ticks at least 2, --cells at least 8")
+    print(f"# benchmarks/brain_step.py (issue 11, part 3): {scale.machine()}")
+    print(f"# memory engine, minpos (parallel wavefronts), wall radio, loss 0.1, {a.robots} robots, {a.ticks} ticks, "
+          f"sensor {a.sensor_cells:g} cells, comm {a.comm_cells:g} cells, seed {a.seed}; "
+          "thread CPU in ms per robot-tick")
+    print(f"{'map':>10} " + " ".join(f"{c:>8}" for c in COLUMNS) + f" {'load1':>6}", flush=True)
+    for name in a.maps:
+        t = time.monotonic()
+        try:
+            row = run(name, a.robots, a)
+        except FleetError as exc:
+            _fail(f"map {name}: {str(exc).splitlines()[0]}")
+        print(f"{Path(name).stem[:10]:>10} " + " ".join(f"{row[c]:>8.3f}" for c in COLUMNS)
+              + f" {scale.os.getloadavg()[0]:>6.2f}", flush=True)
+        print(f"{name}: {row['robot_ticks']} robot-ticks in {time.monotonic() - t:.0f} s", file=sys.stderr,
+              flush=True)
+
+
+if __name__ == "__main__":
+    main()
