@@ -36,7 +36,7 @@ from fleet_emu.core.bus import client_config, publisher, router_config, router_l
 from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import RUN_ID, Keys, robot_ids
-from fleet_emu.core.messages import Failed, Ready, Stop
+from fleet_emu.core.messages import Failed, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch import budget
@@ -45,6 +45,7 @@ from fleet_emu.launch.hosts import HOST_TIMEOUT, Hosts, HostsError, check_hosts,
 from fleet_emu.launch.result import Result, write_json_atomic
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import Supervisor
+from fleet_emu.launch.watch import STOP_GRACE, Consumer, wait_for_end
 from fleet_emu.recording.foxglove import FoxgloveFold
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.monitor import Monitor
@@ -52,7 +53,6 @@ from fleet_emu.recording.recorder import Recorder
 from fleet_emu.world.maps import load_map
 from fleet_emu.world.node import build_world
 
-STOP_GRACE = 5.0
 CONNECT_TIMEOUT = 5.0  # seconds ``--connect`` keeps trying an external router before giving up
 MAX_HZ = 1000.0  # the fastest real-time rate accepted
 
@@ -256,7 +256,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         handles: list[Declared] = [pub_ready, pub_stop,
                                    session.liveliness().declare_token(keys.alive("launcher", "launcher"))]
         remote = stack.enter_context(Hosts(session, opts.hosts, opts.host_timeout)) if opts.hosts else None
-        consumer = _Consumer(keys, samples, monitor, recorder, pub_ready, viz)
+        consumer = Consumer(keys, samples, monitor, recorder, pub_ready, viz)
         consumer.start()
         nodes_thread: threading.Thread | None = None
         try:
@@ -274,7 +274,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
                     ({"hosts": plan} if plan else {})
             if pids and opts.on_spawn is not None:
                 opts.on_spawn(pids)  # e.g. benchmarks/scale.py samples their /proc while the run goes
-            error = _wait(monitor, consumer, sup, nodes_thread, opts.on_progress, requested,
+            error = wait_for_end(monitor, consumer, sup, nodes_thread, opts.on_progress, requested,
                           lambda r: session.put(keys.failed(r), Failed(
                               src="launcher", tick=monitor.tick, seq=0, robot=r, reason="process exited").encode(),
                               congestion_control=zenoh.CongestionControl.BLOCK))
@@ -330,84 +330,6 @@ def _last_log_line(work: Path, error: str) -> str:
             lines = (work / f"{name}.log").read_text(errors="replace").strip().splitlines()
             return lines[-1] if lines else "it wrote nothing"
     return "no log"
-
-
-def _wait(monitor: Monitor, consumer: _Consumer, sup: Supervisor, nodes_thread: threading.Thread | None,
-          on_progress: Callable[[Monitor], None] | None, requested: threading.Event,
-          notify_failed: Callable[[str], None]) -> str | None:
-    """Until the world's stop and every live agent's report; returns an error line, or None.
-    An agent process that exits early is announced to the world, which goes on without it. The world or
-    netem exiting with an error before the stop fails the run at once; exiting cleanly (code 0) is a normal
-    end whose stop message may still be on its way, so it fails the run only if no stop comes within
-    :data:`STOP_GRACE` seconds of the launcher having folded every sample it received (with a hundred robots
-    and more, their last belief snapshots can take the launcher longer than that)."""
-    stop_seen: float | None = None
-    clean_end: float | None = None
-    announced: set[str] = set()
-    while True:
-        if on_progress is not None:
-            on_progress(monitor)
-        if requested.is_set():
-            return None
-        if monitor.stop is not None:
-            stop_seen = stop_seen or time.monotonic()
-            live = set(monitor.state.live) if monitor.state else set()
-            if live <= set(monitor.reports) or time.monotonic() - stop_seen > STOP_GRACE:
-                return None if monitor.stop.reason != "startup" else "startup timed out: see the logs in --out"
-        dead = sup.dead()
-        new = set(dead) - announced - {"world", "netem"}
-        announced |= new
-        if monitor.stop is None:  # repeated until the first tick: the world may not be listening yet
-            for name in sorted(announced if monitor.state is None else new):
-                notify_failed(name)
-        if monitor.stop is None:
-            for name in ("world", "netem"):
-                if dead.get(name, 0) != 0:
-                    return f"the {name} process exited with code {dead[name]} (see {name}.log)"
-            ended = [f"the {n} process exited with code 0" for n in ("world", "netem") if n in dead]
-            if nodes_thread is not None and not nodes_thread.is_alive():
-                ended.append("the in-process nodes ended")
-            if ended:
-                if clean_end is None or consumer.backlog():
-                    clean_end = time.monotonic()  # the stop may be in the backlog still to fold (a large fleet)
-                if time.monotonic() - clean_end > STOP_GRACE:
-                    return f"{ended[0]} but no stop reached the launcher within {STOP_GRACE:g} s"
-        consumer.changed.wait(0.2)
-        consumer.changed.clear()
-
-
-class _Consumer(threading.Thread):
-    """Takes samples off the subscriber's queue: records them, folds them, and answers the world's hello."""
-
-    def __init__(self, keys: Keys, samples: queue.Queue, monitor: Monitor, recorder: Recorder | None,
-                 pub_ready: zenoh.Publisher, viz: FoxgloveWriter | None = None) -> None:
-        super().__init__(daemon=True, name="recorder")
-        self.keys = keys
-        self.samples = samples
-        self.monitor = monitor
-        self.recorder = recorder
-        self.viz = viz
-        self.pub_ready = pub_ready
-        self.changed = threading.Event()
-
-    def backlog(self) -> int:
-        """Samples received and not folded yet."""
-        return self.samples.qsize()
-
-    def run(self) -> None:
-        while (item := self.samples.get()) is not None:
-            key, data, wall_ns = item
-            if self.recorder is not None:
-                self.recorder.record(key, data, wall_ns)
-            parsed = self.keys.parse(key)
-            if parsed is not None and parsed.channel == "hello":
-                self.pub_ready.put(Ready(src="launcher", tick=0, seq=0, role="launcher", pid=os.getpid()).encode())
-                continue
-            msg = self.monitor.feed(key, data, wall_ns)
-            if self.viz is not None:
-                self.viz.feed(key, data, msg)
-            if msg is not None:
-                self.changed.set()
 
 
 @contextlib.contextmanager

@@ -11,7 +11,7 @@ import pytest
 from rich.table import Table
 
 from fleet_emu.core.messages import Stop
-from fleet_emu.launch import runner
+from fleet_emu.launch import watch
 from fleet_emu.launch.cli import exit_code
 from fleet_emu.launch.progress import radio_label, summary_table
 from fleet_emu.recording.monitor import Monitor
@@ -38,11 +38,11 @@ class _Consumer:
 
 
 def _wait(monitor: Monitor, dead: dict[str, int]) -> str | None:
-    return runner._wait(monitor, _Consumer(), _Sup(dead), None, None, threading.Event(), lambda _: None)  # type: ignore[arg-type]
+    return watch.wait_for_end(monitor, _Consumer(), _Sup(dead), None, None, threading.Event(), lambda _: None)  # type: ignore[arg-type]
 
 
 def test_a_clean_world_exit_waits_for_its_stop(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(runner, "STOP_GRACE", 3.0)
+    monkeypatch.setattr(watch, "STOP_GRACE", 3.0)
     monitor = Monitor(("r0",))
     stop = Stop(src="world", tick=30, seq=1, reason="max_ticks")
     threading.Timer(0.5, lambda: setattr(monitor, "stop", stop)).start()  # the stop lands after the exit
@@ -54,10 +54,10 @@ def test_a_clean_world_exit_waits_for_its_stop(monkeypatch: pytest.MonkeyPatch) 
 def test_the_grace_after_a_clean_world_exit_counts_from_an_empty_backlog(monkeypatch: pytest.MonkeyPatch) -> None:
     """A large fleet's last messages can take the launcher longer than the grace to fold: the stop may be among
     them, so the grace starts once nothing is left to fold."""
-    monkeypatch.setattr(runner, "STOP_GRACE", 0.5)
+    monkeypatch.setattr(watch, "STOP_GRACE", 0.5)
     t0 = time.monotonic()
     consumer = _Consumer(backlog=[5] * 6)  # the wait polls every 0.2 s: about 1.2 s of backlog
-    error = runner._wait(Monitor(("r0",)), consumer, _Sup({"world": 0}), None, None,  # type: ignore[arg-type]
+    error = watch.wait_for_end(Monitor(("r0",)), consumer, _Sup({"world": 0}), None, None,  # type: ignore[arg-type]
                          threading.Event(), lambda _: None)
     assert error is not None and "no stop reached the launcher" in error
     assert not consumer.pending  # every poll saw the backlog, and the grace began after it
@@ -65,7 +65,7 @@ def test_the_grace_after_a_clean_world_exit_counts_from_an_empty_backlog(monkeyp
 
 
 def test_a_clean_world_exit_without_a_stop_is_an_error_after_the_grace(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(runner, "STOP_GRACE", 0.5)
+    monkeypatch.setattr(watch, "STOP_GRACE", 0.5)
     t0 = time.monotonic()
     error = _wait(Monitor(("r0",)), {"world": 0})
     assert error == "the world process exited with code 0 but no stop reached the launcher within 0.5 s"
@@ -73,7 +73,7 @@ def test_a_clean_world_exit_without_a_stop_is_an_error_after_the_grace(monkeypat
 
 
 def test_a_crashed_world_is_an_error_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(runner, "STOP_GRACE", 30.0)
+    monkeypatch.setattr(watch, "STOP_GRACE", 30.0)
     t0 = time.monotonic()
     assert _wait(Monitor(("r0",)), {"world": 0, "netem": -9}) == "the netem process exited with code -9 (see netem.log)"
     assert time.monotonic() - t0 < 5.0

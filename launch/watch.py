@@ -1,0 +1,100 @@
+"""The launcher's watch over a run: a thread that records and folds what the bus brings, and the loop that
+waits for the world's stop and the agents' reports, announcing robots whose processes exited and failing the
+run when the world or netem dies."""
+
+from __future__ import annotations
+
+import os
+import queue
+import threading
+import time
+from collections.abc import Callable
+
+import zenoh
+
+from fleet_emu.core.keys import Keys
+from fleet_emu.core.messages import Ready
+from fleet_emu.launch.supervisor import Supervisor
+from fleet_emu.recording.foxglove_writer import FoxgloveWriter
+from fleet_emu.recording.monitor import Monitor
+from fleet_emu.recording.recorder import Recorder
+
+STOP_GRACE = 5.0
+
+
+def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_thread: threading.Thread | None,
+          on_progress: Callable[[Monitor], None] | None, requested: threading.Event,
+          notify_failed: Callable[[str], None]) -> str | None:
+    """Until the world's stop and every live agent's report; returns an error line, or None.
+    An agent process that exits early is announced to the world, which goes on without it. The world or
+    netem exiting with an error before the stop fails the run at once; exiting cleanly (code 0) is a normal
+    end whose stop message may still be on its way, so it fails the run only if no stop comes within
+    :data:`STOP_GRACE` seconds of the launcher having folded every sample it received (with a hundred robots
+    and more, their last belief snapshots can take the launcher longer than that)."""
+    stop_seen: float | None = None
+    clean_end: float | None = None
+    announced: set[str] = set()
+    while True:
+        if on_progress is not None:
+            on_progress(monitor)
+        if requested.is_set():
+            return None
+        if monitor.stop is not None:
+            stop_seen = stop_seen or time.monotonic()
+            live = set(monitor.state.live) if monitor.state else set()
+            if live <= set(monitor.reports) or time.monotonic() - stop_seen > STOP_GRACE:
+                return None if monitor.stop.reason != "startup" else "startup timed out: see the logs in --out"
+        dead = sup.dead()
+        new = set(dead) - announced - {"world", "netem"}
+        announced |= new
+        if monitor.stop is None:  # repeated until the first tick: the world may not be listening yet
+            for name in sorted(announced if monitor.state is None else new):
+                notify_failed(name)
+        if monitor.stop is None:
+            for name in ("world", "netem"):
+                if dead.get(name, 0) != 0:
+                    return f"the {name} process exited with code {dead[name]} (see {name}.log)"
+            ended = [f"the {n} process exited with code 0" for n in ("world", "netem") if n in dead]
+            if nodes_thread is not None and not nodes_thread.is_alive():
+                ended.append("the in-process nodes ended")
+            if ended:
+                if clean_end is None or consumer.backlog():
+                    clean_end = time.monotonic()  # the stop may be in the backlog still to fold (a large fleet)
+                if time.monotonic() - clean_end > STOP_GRACE:
+                    return f"{ended[0]} but no stop reached the launcher within {STOP_GRACE:g} s"
+        consumer.changed.wait(0.2)
+        consumer.changed.clear()
+
+
+class Consumer(threading.Thread):
+    """Takes samples off the subscriber's queue: records them, folds them, and answers the world's hello."""
+
+    def __init__(self, keys: Keys, samples: queue.Queue, monitor: Monitor, recorder: Recorder | None,
+                 pub_ready: zenoh.Publisher, viz: FoxgloveWriter | None = None) -> None:
+        super().__init__(daemon=True, name="recorder")
+        self.keys = keys
+        self.samples = samples
+        self.monitor = monitor
+        self.recorder = recorder
+        self.viz = viz
+        self.pub_ready = pub_ready
+        self.changed = threading.Event()
+
+    def backlog(self) -> int:
+        """Samples received and not folded yet."""
+        return self.samples.qsize()
+
+    def run(self) -> None:
+        while (item := self.samples.get()) is not None:
+            key, data, wall_ns = item
+            if self.recorder is not None:
+                self.recorder.record(key, data, wall_ns)
+            parsed = self.keys.parse(key)
+            if parsed is not None and parsed.channel == "hello":
+                self.pub_ready.put(Ready(src="launcher", tick=0, seq=0, role="launcher", pid=os.getpid()).encode())
+                continue
+            msg = self.monitor.feed(key, data, wall_ns)
+            if self.viz is not None:
+                self.viz.feed(key, data, msg)
+            if msg is not None:
+                self.changed.set()
