@@ -177,7 +177,7 @@ def main(argv: list[str] | None = None) -> None:
                     print(f"{label} {n} {alloc}: {row['ticks']} ticks ({row['reason']}), "
                           f"{time.monotonic() - t:.0f} s", file=sys.stderr, flush=True)
                 except StartAreaError as exc:
-                    row["note"] = "start: the start area holds fewer robots (world start_radius 4)"
+                    row["note"] = "start: the map's free area holds fewer robots"
                     print(f"{label} {n} {alloc}: not run ({exc})", file=sys.stderr, flush=True)
                 except (FleetError, RuntimeError) as exc:
                     failed += 1

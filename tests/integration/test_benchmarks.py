@@ -103,11 +103,11 @@ def test_scale_bad_argument_is_one_line() -> None:
 
 
 def test_agent_memory_reports_each_run() -> None:
-    proc = _bench("agent_memory.py", "--robots", "2", "--ticks", "5", "--period", "0.2")
+    proc = _bench("agent_memory.py", "--robots", "2", "--ticks", "40", "--period", "0.2")
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert proc.stderr.strip().splitlines()[0] == "[1/1] 2 robots: 5 ticks"
+    assert proc.stderr.strip().splitlines()[0] == "[1/1] 2 robots: 40 ticks"
     row = proc.stdout.strip().splitlines()[-1].split()
-    assert row[:2] == ["2", "5"] and all(float(x) > 0 for x in row[2:])  # the fork server's share too
+    assert row[:2] == ["2", "40"] and all(float(x) > 0 for x in row[2:])  # the fork server's share too
 
 
 def test_brain_step_reports_a_row_per_map(small_map: Path) -> None:
@@ -135,16 +135,16 @@ def test_brain_step_bad_input_is_one_line() -> None:
 
 def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_map: Path) -> None:
     """Issue 11, part 5: greedy and minpos in real time, a row each with the real-time columns; a ``start`` row
-    for a fleet larger than the start area."""
-    proc = _bench("realtime_study.py", "--robots", "2", "45", "--cells", "24", "--max-ticks", "20", "--hz", "20",
+    for a fleet larger than the map's free area (199 cells here)."""
+    proc = _bench("realtime_study.py", "--robots", "2", "250", "--cells", "24", "--max-ticks", "20", "--hz", "20",
                   "--maps", str(small_map))
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.strip().splitlines()
     assert lines[0].startswith("# benchmarks/realtime_study.py (issue 11, part 5): ")
     assert lines[3].split()[:5] == ["map", "cells", "robots", "allocator", "t99"]
     rows = [ln.split() for ln in lines[4:]]
-    assert [(r[2], r[3]) for r in rows] == [("2", "greedy"), ("2", "minpos-par"), ("45", "greedy"),
-                                           ("45", "minpos-par")]
+    assert [(r[2], r[3]) for r in rows] == [("2", "greedy"), ("2", "minpos-par"), ("250", "greedy"),
+                                           ("250", "minpos-par")]
     for r in rows[:2]:
         assert len(r) == 21 and int(r[6]) <= 20 and float(r[9]) > 0, r  # ticks, achieved ticks/s
         assert float(r[15]) > 0, r  # decisions per robot
