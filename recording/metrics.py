@@ -103,7 +103,7 @@ class RunMetrics:
         self.run_id = run_id
         self.engine = engine
         self.robots = tuple(robot_ids(int(scenario["robots"])))
-        self.monitor = Monitor(self.robots)
+        self.monitor = Monitor(self.robots, base=scenario.get("base", False) is not False)
         self.messages = 0
         self.undecodable = 0
         self.team: FirstSeen | None = None  # every robot's observations (its values: the true map, where sensed)
