@@ -4,7 +4,8 @@ The base is a fixed radio endpoint: netem computes its links from its cell like 
 on ``radio/rx/base``, what robots broadcast. It is driven only by those rx bundles: it takes no part in the
 world's lockstep barrier (it has no command to send, and sends nothing on the radio yet), so it can never hold
 a tick up, and a run's robots do the same with or without it (netem draws the base's receptions from a
-generator of its own). Each bundle is stepped in tick order through :class:`~fleet_emu.agents.base.BaseStation`.
+generator of its own). Each bundle is stepped, in the order netem sent them, through
+:class:`~fleet_emu.agents.base.BaseStation`.
 
 At the world's stop of tick T it waits (at most :data:`FINAL_GRACE` seconds) for the bundles up to T - 1, the
 last netem sends, so that its map is the same in every engine; then it publishes its
@@ -22,7 +23,6 @@ import zenoh
 
 from fleet_emu.agents.base import BaseStation
 from fleet_emu.core.bus import Inbox, publisher
-from fleet_emu.core.codec import Context
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import BaseReport, RxBundle, Stop
@@ -42,8 +42,6 @@ class BaseNode(NodeBase):
         assert cell is not None, "a base process for a scenario without a base"
         self.station = BaseStation(cell, map_data.grid.shape, frozenset(robot_ids(scenario.robots)),
                                    on_drop=self.drop)
-        self.ctx_netem = Context(senders=frozenset({"netem"}))
-        self.rx: dict[int, RxBundle] = {}
         self.next_tick = 0
 
     def next_seq(self) -> int:
@@ -79,8 +77,6 @@ class BaseNode(NodeBase):
         deadline = time.monotonic() + FINAL_GRACE
         while self.next_tick < last and time.monotonic() < deadline:
             await self._next(inbox, timeout=max(0.0, deadline - time.monotonic()))
-        for t in sorted(self.rx):  # a gap never filled: what came after it still counts
-            self.station.step(t, self.rx.pop(t).msgs)
 
     async def _next(self, inbox: Inbox, timeout: float | None = None) -> Stop | None:
         """Handle one incoming item; the stop when it is one."""
@@ -95,14 +91,12 @@ class BaseNode(NodeBase):
         elif channel == "stop":
             return self.decode(key, data, Stop)
         elif channel == "rx":
-            b = self.decode(key, data, RxBundle, self.ctx_netem)
-            if b is not None and b.dst == BASE and b.tick >= self.next_tick:
-                self.rx[b.tick] = b
+            b = self.decode(key, data, RxBundle)  # loosely: the station checks each envelope against the team
+            if b is not None and b.dst == BASE and b.tick >= self.next_tick:  # one key, one publisher: in order
+                self.station.step(b.tick, b.msgs)
+                self.next_tick = b.tick + 1
             elif b is not None:
                 self.drop(key, "rx bundle for another node or a past tick")
-            while self.next_tick in self.rx:  # in tick order, whatever order they came in
-                self.station.step(self.next_tick, self.rx.pop(self.next_tick).msgs)
-                self.next_tick += 1
         return None
 
 
