@@ -36,6 +36,17 @@ from fleet_emu.core.version import SCHEMA_VERSION
 _FOLDED = frozenset({"state", "links", "stop", "report", "cmd", "clock", "timing"})
 
 
+def base_graph(lk: Links) -> tuple[tuple[str, ...], np.ndarray]:
+    """The link graph of a tick with the base station: its nodes (the live robots, then ``base``) and their
+    link matrix, from a :class:`Links` that has ``base_link``."""
+    assert lk.base_link is not None
+    n = len(lk.robots)
+    full = np.zeros((n + 1, n + 1), dtype=bool)
+    full[:n, :n] = lk.link
+    full[:n, n] = full[n, :n] = lk.base_link
+    return (*lk.robots, BASE), full
+
+
 @dataclasses.dataclass
 class Monitor:
     """Folds the run's messages; ``result()`` gives the DESIGN.md result keys."""
@@ -118,12 +129,7 @@ class Monitor:
 
     def _fold_base(self, lk: Links) -> None:
         """One tick of base connectivity (``core/reach.py``): the robots' links and theirs to the base."""
-        assert lk.base_link is not None
-        n = len(lk.robots)
-        full = np.zeros((n + 1, n + 1), dtype=bool)
-        full[:n, :n] = lk.link
-        full[:n, n] = full[n, :n] = lk.base_link
-        self.base_curve.append((lk.tick, self.base_reach.add((*lk.robots, BASE), full)))
+        self.base_curve.append((lk.tick, self.base_reach.add(*base_graph(lk))))
 
     def base_result(self) -> dict[str, Any]:
         """A base-station run's keys: ``base_connected_fraction {overall, all_ticks, per_robot}`` (over the
