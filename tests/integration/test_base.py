@@ -74,7 +74,8 @@ def test_fleet_run_base_flags_and_the_report(small_map: Path, tmp_path: Path) ->
 def test_a_killed_base_fails_the_run_and_leaves_nothing_behind(small_map: Path, tmp_path: Path) -> None:
     out = tmp_path / "k"
     args = ["run", "--map", str(small_map), "--robots", "2", "--seed", "2", "--max-ticks", "100000",
-            "--target-coverage", "1.0", "--sensor-range", "0.5", "--base", "--quiet", "--out", str(out)]
+            "--target-coverage", "1.0", "--sensor-range", "0.5", "--base", "--quiet", "--out", str(out),
+            "--realtime", "5"]  # real time, 5 ticks a second: the run is still going when the base is killed
     proc = subprocess.Popen([sys.executable, "-m", "fleet_emu.launch", *args], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
@@ -88,7 +89,7 @@ def test_a_killed_base_fails_the_run_and_leaves_nothing_behind(small_map: Path, 
             return None
 
         wait_for(lambda: base_pid() is not None, 120)
-        time.sleep(3.0)  # into the run
+        time.sleep(4.0)  # into the run
         os.kill(base_pid(), signal.SIGKILL)  # type: ignore[arg-type]
         _, err = proc.communicate(timeout=120)
     finally:
