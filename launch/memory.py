@@ -380,7 +380,8 @@ def _recording_tap(stack: contextlib.ExitStack, scenario: Scenario, map_data: Ma
     from fleet_emu.recording.recorder import Recorder
 
     recorder = Recorder(recording, {"run_id": run_id, "scenario": scenario.to_dict(), "engine": "memory"})
-    viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, grid_every, run_id), Keys(run_id))
+    fold = FoxgloveFold(scenario.to_dict(), map_data.grid, grid_every, run_id, base_cell(scenario, map_data))
+    viz = FoxgloveWriter(recorder, fold, Keys(run_id))
     closed: list[int] = []
 
     def tap(key: str, msg: Message, wall_ns: int) -> None:

@@ -226,8 +226,8 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     if opts.realtime_hz:
         meta["realtime_hz"] = opts.realtime_hz
     recorder = Recorder(recording, meta) if recording is not None else None
-    viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id), keys) \
-        if recorder else None
+    viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id,
+                                                base_cell(scenario, map_data)), keys) if recorder else None
     sup = Supervisor(log_dir=work)
     pids: dict[str, Any] = {}
     t_start = time.monotonic()
