@@ -11,10 +11,12 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 import zenoh
 
 import fleet_emu as fe
+from benchmarks.faults import RunSpec, kill_trial, sigint_trial
 from fleet_emu.core.access import Credential, read_dictionary
 from fleet_emu.core.bus import client_config, router_locators
 from fleet_emu.launch.memory import Fleet
@@ -101,6 +103,29 @@ def test_a_killed_base_fails_the_run_and_leaves_nothing_behind(small_map: Path, 
     assert res["base"]["known_cells"] is None  # it never reported
     time.sleep(0.5)
     assert not [p for p in all_pids(res) if pid_alive(p)]
+
+
+@pytest.mark.parametrize("i", range(2))
+def test_sigint_at_a_random_moment_with_a_base_leaves_no_process(tmp_path: Path, i: int) -> None:
+    """The fault trials' invariants (``benchmarks/faults.py``: no orphan among every descendant of the
+    launcher, the base's process included; no death; result.json and run.mcap whole) with a base."""
+    long_run = RunSpec("office", robots=2, max_ticks=100000, target_coverage=1.0, seed=7, extra=("--base",))
+    t = sigint_trial(long_run, tmp_path, np.random.default_rng([7, 10, i]), f"bsig{i}", window=5.0)
+    assert t.failures == [], f"{t.label}: {t.failures} {t.notes}"
+    assert t.exit_code == 130 and t.result["reason"] == "interrupted"
+    assert "base" in t.result["pids"] or not t.result["pids"]  # nothing spawned when the signal came first
+
+
+def test_a_robot_killed_with_a_base_leaves_the_run_and_the_base_reports(small_map: Path, tmp_path: Path) -> None:
+    spec = RunSpec(str(small_map), robots=3, max_ticks=50, target_coverage=1.0, seed=12,
+                   extra=("--sensor-range", "1.0", "--base"))
+    t = kill_trial(spec, tmp_path, np.random.default_rng([12, 11]), "bkill", window=30)
+    assert t.failures == [], f"{t.label}: {t.failures} {t.notes}"
+    res = t.result
+    assert t.exit_code == 1 and len(res["failed"]) == 1
+    assert res["base"]["ticks"] == res["ticks"] and res["base"]["known_cells"] > 0  # the base went on to the end
+    frac = res["base_connected_fraction"]["per_robot"]
+    assert set(frac) == {"r0", "r1", "r2"}  # the failed robot counted over the ticks it was live
 
 
 @pytest.fixture
