@@ -5,7 +5,9 @@ run, stepped directly in lockstep, with no Zenoh, no threads and no clock (DESIG
 tick): each tick it does what the three node shells do, in their order (``world/node.py``, ``netem/node.py``,
 ``agents/node.py``): the world's observations and state of tick t, netem's links (counters before tick t's
 sends) and rx bundles of t, every live robot's brain (tx bundle, command, belief snapshot: the same draws
-from each robot's one sequence counter), netem's sends of t, the world's moves. The launcher's own fold
+from each robot's one sequence counter), netem's sends of t, the world's moves; a base station (a scenario
+with ``base``) is a :class:`~fleet_emu.agents.base.BaseStation` stepped with its rx bundle of t, as
+``agents/base_node.py`` does, and reports after the stop. The launcher's own fold
 (:class:`~fleet_emu.recording.monitor.Monitor`) gets the same messages the bus would carry, so
 ``result.json`` has the same deterministic keys as a run over Zenoh for the same seed.
 """
