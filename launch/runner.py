@@ -103,7 +103,7 @@ def check_machine(scenario: Scenario, map_data: MapData, engine: str, fork_serve
     """Whether the machine holds the run (``launch/budget.py``): its estimated memory against what is
     available, and (over Zenoh) the launcher's open-file limit, raised to its hard limit when needed."""
     budget.check_memory(scenario.robots, int(map_data.grid.size), engine, fork_server, shm_enabled(),
-                        budget.available_mb())
+                        budget.available_mb(), base=scenario.has_base)
     if engine != "memory":
         budget.ensure_fds(scenario.robots)
 
