@@ -14,6 +14,7 @@ The keys each node writes (README "Key expressions"):
 world      ``world/**`` (state, obs, clock), ``ctl/hello``, ``ctl/stop``, ``ctl/ready/world``
 netem      ``radio/rx/*``, ``netem/links``, ``ctl/ready/netem``
 robot rK   ``robot/rK/**`` (cmd, belief, timing), ``radio/tx/rK``, ``ctl/report/rK``, ``ctl/ready/rK``
+base       ``ctl/report/base``, ``ctl/ready/base`` (the base station: it only listens today)
 launcher   ``ctl/stop``, ``ctl/failed/*``, ``ctl/ready/launcher``
 recorder   nothing (it subscribes to ``fleet/<run>/**``)
 host K     nothing in the run (it reads the run's keys, e.g. the launcher's liveliness token)
@@ -35,7 +36,7 @@ import secrets
 from collections.abc import Iterable
 from typing import Any
 
-from fleet_emu.core.keys import HOST_ID, HOST_ROOT, ROOT, ParsedKey
+from fleet_emu.core.keys import BASE, HOST_ID, HOST_ROOT, ROOT, ParsedKey
 
 WORLD, NETEM, LAUNCHER, RECORDER = "world", "netem", "launcher", "recorder"
 SERVICES = (WORLD, NETEM, LAUNCHER, RECORDER)
@@ -48,8 +49,8 @@ _SUBSCRIBE = ["declare_subscriber", "declare_liveliness_subscriber", "liveliness
 
 
 def role_of(node: str) -> str:
-    """The liveliness role of a node id (``r3`` is an ``agent``, ``host0`` a ``host``)."""
-    return node if node in SERVICES else HOST if HOST_ID.fullmatch(node) else "agent"
+    """The liveliness role of a node id (``r3`` is an ``agent``, ``host0`` a ``host``, ``base`` a ``base``)."""
+    return node if node in (*SERVICES, BASE) else HOST if HOST_ID.fullmatch(node) else "agent"
 
 
 def writes(node: str) -> list[str]:
@@ -62,6 +63,8 @@ def writes(node: str) -> list[str]:
         return ["ctl/stop", "ctl/failed/*", "ctl/ready/launcher"]
     if node == RECORDER or role_of(node) == HOST:
         return []
+    if node == BASE:  # a radio endpoint that only listens (issue 10 part 1); radio/tx/base comes with relaying
+        return [f"ctl/report/{BASE}", f"ctl/ready/{BASE}"]
     return [f"robot/{node}/**", f"radio/tx/{node}", f"ctl/report/{node}", f"ctl/ready/{node}"]
 
 
@@ -174,9 +177,9 @@ class Credential:
         return cls(obj["user"], obj["password"], ca if isinstance(ca, str) else None)
 
 
-def fleet_nodes(robots: Iterable[str]) -> list[str]:
-    """Every user of a run: the services and the robots."""
-    return [*SERVICES, *robots]
+def fleet_nodes(robots: Iterable[str], base: bool = False) -> list[str]:
+    """Every user of a run: the services, the base station when the run has one, and the robots."""
+    return [*SERVICES, *([BASE] if base else []), *robots]
 
 
 def make_credentials(nodes: Iterable[str]) -> dict[str, str]:

@@ -6,6 +6,7 @@ import dataclasses
 import re
 
 ROOT = "fleet"
+BASE = "base"  # the base station's node id (DESIGN.md: robots are r0 .. r<N-1>, a base station is ``base``)
 HOST_ROOT = "fleet-host"  # the hosts' lobby: outside ``fleet/<run>/**``, so never recorded nor readable by a run
 
 

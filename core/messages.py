@@ -232,6 +232,18 @@ class Links(Message):
     dropped_signal: int
     bytes_sent: int
     dropped: int = 0
+    # runs with a base station: per robot of ``robots``, its signal to the base (dB) and whether they are linked
+    base_strength: np.ndarray | None = None
+    base_link: np.ndarray | None = None
+
+    def validate(self, ctx: Context | None) -> None:
+        super().validate(ctx)
+        n = len(self.robots)
+        if self.link.shape != (n, n) or self.strength.shape != (n, n):
+            raise DecodeError(f"links: matrices of shape {self.link.shape} for {n} robots")
+        for name, arr in (("base_strength", self.base_strength), ("base_link", self.base_link)):
+            if arr is not None and arr.shape != (n,):
+                raise DecodeError(f"links: {name} of shape {arr.shape} for {n} robots")
 
 
 # --- control ---------------------------------------------------------------------------------------------
@@ -282,6 +294,21 @@ class AgentReport(Message):
     peak_rss_kb: int
     decision_cpu_ms: float = 0.0  # thread CPU in the allocator, summed over the decisions (issue 11)
     step_cpu_ms: float = 0.0  # thread CPU in the brain's whole step, summed (decision included)
+
+
+@dataclasses.dataclass(frozen=True)
+class BaseReport(Message):
+    """The base station's summary when it stops (ctl/report/base): what its team map holds
+    (``agents/base.py``): known cells of ``cells``, the map deltas and fills merged, the ticks heard."""
+
+    KIND = "base_report"
+    cell: Cell
+    known_cells: int
+    cells: int
+    merged: int
+    ticks: int
+    dropped: int
+    peak_rss_kb: int
 
 
 @dataclasses.dataclass(frozen=True)

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-BASE = "base"
+from fleet_emu.core.keys import BASE
 
 
 def reachable(link: np.ndarray, source: int) -> np.ndarray:

@@ -40,6 +40,7 @@ class Scenario:
     coverage_stall_ticks: int = 500  # ticks without coverage growth that end the run as a stall
     barrier_timeout: float = 10.0
     belief_every: int = 10
+    base: bool | tuple[int, int] = False  # a base station: False (none), True (at the start cell) or a cell
 
     # --- reading and writing ------------------------------------------------------------------------------
 
@@ -70,7 +71,7 @@ class Scenario:
                     flat["map"] = str(rel) if is_path else name
                 _move(m, flat, ("cell_size",), "map")
             elif k == "fleet":
-                _move(dict(v), flat, ("robots", "sensor_range", "start"), "fleet")
+                _move(dict(v), flat, ("robots", "sensor_range", "start", "base"), "fleet")
             elif k in ("radio", "allocator"):
                 flat[k] = dict(v)
             elif k in _TOP:
@@ -106,8 +107,9 @@ class Scenario:
         bad = set(radio) - {f.name for f in dataclasses.fields(RadioConfig)}
         if bad:
             raise ConfigError(f"{where}: unknown key(s) in [radio]: {', '.join(sorted(bad))}")
-        if isinstance(d.get("start"), list):
-            d["start"] = tuple(d["start"])
+        for cell_key in ("start", "base"):
+            if isinstance(d.get(cell_key), list):
+                d[cell_key] = tuple(d[cell_key])
         if "allocator" in d and not isinstance(d["allocator"], dict):
             raise ConfigError(f"{where}: allocator must be a table with a 'type' name")
         return cls(radio=RadioConfig(**radio), **d).validate()
@@ -115,6 +117,10 @@ class Scenario:
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
         d["start"] = list(self.start) if isinstance(self.start, tuple) else self.start
+        if self.base is False:  # absent when there is no base: runs without one keep their scenario.json
+            del d["base"]
+        else:
+            d["base"] = list(self.base) if isinstance(self.base, tuple) else self.base
         return d
 
     def override(self, **flags: Any) -> Scenario:
@@ -131,12 +137,17 @@ class Scenario:
             elif k == "allocator":
                 top["allocator"] = {"type": v} if v != self.allocator.get("type") else self.allocator
             elif k in names:
-                top[k] = tuple(v) if k == "start" and isinstance(v, list) else v
+                top[k] = tuple(v) if k in ("start", "base") and isinstance(v, list) else v
             else:
                 raise ConfigError(f"unknown scenario field {k!r}")
         if radio:
             top["radio"] = dataclasses.replace(self.radio, **radio)
         return dataclasses.replace(self, **top).validate()
+
+    @property
+    def has_base(self) -> bool:
+        """Whether the run has a base station (the ``base`` process, README "Base station")."""
+        return self.base is not False
 
     @property
     def sensor_cells(self) -> float:
@@ -176,13 +187,18 @@ class Scenario:
             and all(isinstance(v, int) and not isinstance(v, bool) for v in self.start))
         if not start_ok:
             raise ConfigError(f"--start must be ROW,COL or 'random' (got {self.start!r})")
+        base_ok = isinstance(self.base, bool) or (
+            isinstance(self.base, tuple) and len(self.base) == 2
+            and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in self.base))
+        if not base_ok:
+            raise ConfigError(f"base must be true, false or a cell [ROW, COL] (--base-cell ROW,COL; got {self.base!r})")
         if not isinstance(self.allocator, dict) or not isinstance(self.allocator.get("type"), str):
             raise ConfigError("allocator needs a 'type' name")
         return self
 
 
-_TOP = {"name", "seed", "max_ticks", "target_coverage", "stall_ticks", "coverage_stall_ticks", "barrier_timeout",
-        "belief_every"}
+_TOP = {"name", "base", "seed", "max_ticks", "target_coverage", "stall_ticks", "coverage_stall_ticks",
+        "barrier_timeout", "belief_every"}
 _SECTIONS = ("map", "fleet", "radio", "allocator")
 
 

@@ -38,6 +38,7 @@ class MemoryModel:
     fork_server: float = 60.0  # the server's own share of the pages it holds for its robots
     world: float = 90.0  # 79-86 MB on the 512 x 512 maze, whatever the fleet
     world_per_mcell: float = 16.0
+    base: float = 90.0  # the base station's process (a run with one): 82 MB on the maze, 4 robots, like the world's
     netem: float = 80.0  # 76 MB at 32 robots, 88 MB at 80 with Zenoh's shared memory off
     netem_per_robot: float = 0.5
     launcher: float = 100.0  # the launcher and its embedded router: 101 MB at 32 robots, 112 MB at 80
@@ -52,9 +53,10 @@ MODEL = MemoryModel()
 
 
 def estimate(robots: int, cells: int, engine: str = "processes", fork_server: bool = True,
-             shm: bool = False, model: MemoryModel = MODEL) -> dict[str, float]:
+             shm: bool = False, model: MemoryModel = MODEL, base: bool = False) -> dict[str, float]:
     """The MB each part of a run needs (its keys name the parts; ``total`` their sum). ``engine``:
-    ``processes``, ``in-process`` (every node in the launcher, each its own Zenoh session) or ``memory``."""
+    ``processes``, ``in-process`` (every node in the launcher, each its own Zenoh session) or ``memory``;
+    ``base``: the run has a base station (its own process on the processes engine)."""
     mcells = cells / 1e6
     brain_map = model.agent_per_mcell * mcells
     if engine == "processes":
@@ -67,6 +69,8 @@ def estimate(robots: int, cells: int, engine: str = "processes", fork_server: bo
         }
         if fork_server:
             parts["fork server"] = model.fork_server
+        if base:
+            parts["base"] = model.base + model.world_per_mcell * mcells
         if shm:
             parts["shared memory"] = model.shm_per_robot * robots
     else:
@@ -79,10 +83,10 @@ def estimate(robots: int, cells: int, engine: str = "processes", fork_server: bo
 
 
 def check_memory(robots: int, cells: int, engine: str, fork_server: bool, shm: bool, available_mb: float,
-                 model: MemoryModel = MODEL) -> dict[str, float]:
+                 model: MemoryModel = MODEL, base: bool = False) -> dict[str, float]:
     """:func:`estimate`'s parts when they fit ``available_mb``; a :class:`BudgetError` naming the numbers when
     they do not."""
-    parts = estimate(robots, cells, engine, fork_server, shm, model)
+    parts = estimate(robots, cells, engine, fork_server, shm, model, base)
     need = parts["total"]
     if need <= available_mb:
         return parts

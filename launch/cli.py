@@ -43,6 +43,14 @@ def _start(text: str) -> tuple[int, int] | str:
     return (row, col)
 
 
+def _cell(text: str) -> tuple[int, int]:
+    try:
+        row, col = (int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected ROW,COL, got {text!r}") from None
+    return (row, col)
+
+
 def _hz(text: str) -> float:
     try:
         hz = float(text)
@@ -69,6 +77,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--cell-size", type=float, help="metres per cell")
     r.add_argument("--seed", type=int)
     r.add_argument("--start", type=_start, help="start cell ROW,COL, or 'random' (drawn from the seed)")
+    r.add_argument("--base", action="store_const", const=True, default=None,
+                   help="a base station (its own process) at the start cell; see --base-cell")
+    r.add_argument("--base-cell", type=_cell, metavar="ROW,COL", help="a base station at this cell")
     r.add_argument("--max-ticks", type=int)
     r.add_argument("--target-coverage", type=float)
     r.add_argument("--comm", choices=COMM_MODELS,
@@ -142,7 +153,8 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
     return base.override(
         map=args.map, robots=args.robots, allocator=args.allocator, loss=args.loss,
         comm_range=args.comm_range, sensor_range=args.sensor_range, cell_size=args.cell_size, seed=args.seed,
-        start=args.start, max_ticks=args.max_ticks, target_coverage=args.target_coverage, comm=args.comm)
+        start=args.start, max_ticks=args.max_ticks, target_coverage=args.target_coverage, comm=args.comm,
+        base=args.base_cell if args.base_cell is not None else args.base)
 
 
 def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:

@@ -5,7 +5,9 @@ run, stepped directly in lockstep, with no Zenoh, no threads and no clock (DESIG
 tick): each tick it does what the three node shells do, in their order (``world/node.py``, ``netem/node.py``,
 ``agents/node.py``): the world's observations and state of tick t, netem's links (counters before tick t's
 sends) and rx bundles of t, every live robot's brain (tx bundle, command, belief snapshot: the same draws
-from each robot's one sequence counter), netem's sends of t, the world's moves. The launcher's own fold
+from each robot's one sequence counter), netem's sends of t, the world's moves; a base station (a scenario
+with ``base``) is a :class:`~fleet_emu.agents.base.BaseStation` stepped with its rx bundle of t, as
+``agents/base_node.py`` does, and reports after the stop. The launcher's own fold
 (:class:`~fleet_emu.recording.monitor.Monitor`) gets the same messages the bus would carry, so
 ``result.json`` has the same deterministic keys as a run over Zenoh for the same seed.
 """
@@ -24,15 +26,16 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.agents.allocators import make_allocator
+from fleet_emu.agents.base import BaseStation
 from fleet_emu.agents.brain import Brain, allocator_config, brain_config
 from fleet_emu.core.errors import RunError
 from fleet_emu.core.grid import Cell, MapData
-from fleet_emu.core.keys import Keys, robot_ids
+from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import (
     AgentReport,
+    BaseReport,
     BeliefSnapshot,
     Envelope,
-    Links,
     Message,
     Observation,
     RxBundle,
@@ -40,15 +43,14 @@ from fleet_emu.core.messages import (
     TxBundle,
     WorldState,
 )
-from fleet_emu.core.radio import connected, link_matrix
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.result import Result
 from fleet_emu.launch.signals import Interrupts
-from fleet_emu.netem.channel import Channel
+from fleet_emu.netem.channel import Channel, endpoint_links, links_message
 from fleet_emu.recording.monitor import Monitor
 from fleet_emu.world.maps import BUILTIN_MAPS, load_map
-from fleet_emu.world.node import build_world
+from fleet_emu.world.node import base_cell, build_world
 from fleet_emu.world.sim import Reading, StartAreaError
 
 #: Called with (key expression, message, wall-clock ns) for every message the bus would carry (a recorder).
@@ -97,7 +99,7 @@ class Fleet:
         self._map_data = map_data
         self._starts = _placement(starts, self.possible_agents)
         self.agents: list[str] = []
-        self.monitor = Monitor(tuple(self.possible_agents))
+        self.monitor = Monitor(tuple(self.possible_agents), base=scenario.has_base)
         self._started: float | None = None
 
     # --- the ParallelEnv API ------------------------------------------------------------------------------
@@ -111,17 +113,25 @@ class Fleet:
         self.map = self._map_data if self._map_data is not None else fleet_map(s)
         self.world = build_world(s, self.map, self._starts)
         self.occupied = self.map.grid > 0
-        self.channel = Channel(s.radio.applied_loss, generator(s.seed, "netem"), s.radio.latency)
+        self.channel = Channel(s.radio.applied_loss, generator(s.seed, "netem"), s.radio.latency,
+                               generator(s.seed, "netem", BASE))
         self.dropped = dict.fromkeys(self.possible_agents, 0)
+        self.base: BaseStation | None = None
+        self._base_dropped = 0
         self.brains = {r: Brain(r, make_allocator(allocator_config(s)), generator(s.seed, r), brain_config(s),
                                 team=frozenset(self.possible_agents), on_drop=self._on_drop(r))
                        for r in self.possible_agents}
-        self.monitor = Monitor(tuple(self.possible_agents))
+        self.monitor = Monitor(tuple(self.possible_agents), base=s.has_base)
         self._world_seq = self._netem_seq = 0
         self._started = time.perf_counter()
         self.done = False
         self.reason: str | None = None
-        self._publish(self.world.reset())
+        readings = self.world.reset()
+        cell = base_cell(s, self.map, self.world)  # after the reset: a random start is drawn there
+        if cell is not None:
+            self.base = BaseStation(cell, self.map.grid.shape, frozenset(self.possible_agents),
+                                    on_drop=self._on_base_drop)
+        self._publish(readings)
         return dict(self.obs), {r: {} for r in self.agents}
 
     def step(self, actions: Mapping[str, Cell] | None = None
@@ -150,7 +160,7 @@ class Fleet:
             moves[r] = cmd.move
         if actions:
             moves |= {r: tuple(m) for r, m in actions.items() if r in moves}  # type: ignore[misc]
-        self.channel.transmit(t, live, self.link, bundles)
+        self.channel.transmit(t, self.nodes, self.link, bundles)
         self._publish(w.step(moves))
         gain = w.coverage - before
         rewards = dict.fromkeys(live, gain)
@@ -181,7 +191,7 @@ class Fleet:
         pid = os.getpid()
         data |= {
             "engine": "memory",
-            "pids": {"world": pid, "netem": pid, "agents": [pid] * s.robots},
+            "pids": {"world": pid, "netem": pid, "agents": [pid] * s.robots} | ({BASE: pid} if s.has_base else {}),
             "recording": {"path": None, "messages": 0},
             "wall_seconds": round(elapsed, 3),
             "signal": None,
@@ -229,27 +239,38 @@ class Fleet:
             src="world", tick=t, seq=self._wseq(), poses=dict(w.poses), live=tuple(w.live),
             coverage=float(w.coverage), path_length=dict(w.path_length), done=w.done, reason=w.reason))
         live = tuple(r for r in self.possible_agents if r in w.live)
-        strength, self.link = link_matrix(self.occupied, [w.poses[r] for r in live], s.cell_size, s.radio)
-        c = self.channel.counters
-        self._emit(self.keys.links, Links(
-            src="netem", tick=t, seq=self._nseq(), robots=live, strength=strength.astype(np.float32),
-            link=self.link, connected=bool(connected(self.link)), sent=c.sent, delivered=c.delivered,
-            dropped_loss=c.dropped_loss, dropped_signal=c.dropped_signal, bytes_sent=c.bytes_sent))
+        base = self.base.cell if self.base is not None else None
+        self.nodes, strength, self.link = endpoint_links(self.occupied, live, [w.poses[r] for r in live], base,
+                                                         s.cell_size, s.radio)
+        self._emit(self.keys.links, links_message(t, self._nseq(), self.nodes, strength, self.link,
+                                                  self.channel.counters))
         self.agents = list(live)
         if w.done:
             self._finish()
             return
         arriving = self.channel.deliver(t)
-        self.rx = {r: tuple(arriving.get(r, ())) for r in live}
-        for r in live:
+        self.rx = {r: tuple(arriving.get(r, ())) for r in self.nodes}
+        for r in self.nodes:
             self._emit(self.keys.rx(r), RxBundle(src="netem", tick=t, seq=self._nseq(), dst=r, msgs=self.rx[r]))
+        if self.base is not None:  # the base process, driven by its rx bundle (agents/base_node.py)
+            self.base.step(t, self.rx[BASE])
+
+    def _on_base_drop(self, _key: str, _why: str) -> None:
+        self._base_dropped += 1
 
     def _finish(self) -> None:
-        """The world's stop and every live robot's report (``AgentNode.run`` after its lockstep)."""
+        """The world's stop, every live robot's report (``AgentNode.run`` after its lockstep) and the base's
+        (``BaseNode.run``)."""
         w = self.world
         self.done, self.reason = True, w.reason or "done"
         self._emit(self.keys.stop, Stop(src="world", tick=w.tick, seq=self._wseq(), reason=self.reason))
         rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        if self.base is not None:
+            st = self.base
+            self._emit(self.keys.report(BASE), BaseReport(
+                src=BASE, tick=w.tick, seq=st.next_seq(), cell=st.cell, known_cells=st.known_cells,
+                cells=int(st.belief.grid.size), merged=st.merged, ticks=st.ticks, dropped=self._base_dropped,
+                peak_rss_kb=rss))
         for r in w.live:
             brain = self.brains[r]
             ms = np.array(brain.decision_ms or [0.0])
@@ -361,7 +382,8 @@ def _recording_tap(stack: contextlib.ExitStack, scenario: Scenario, map_data: Ma
     from fleet_emu.recording.recorder import Recorder
 
     recorder = Recorder(recording, {"run_id": run_id, "scenario": scenario.to_dict(), "engine": "memory"})
-    viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, grid_every, run_id), Keys(run_id))
+    fold = FoxgloveFold(scenario.to_dict(), map_data.grid, grid_every, run_id, base_cell(scenario, map_data))
+    viz = FoxgloveWriter(recorder, fold, Keys(run_id))
     closed: list[int] = []
 
     def tap(key: str, msg: Message, wall_ns: int) -> None:

@@ -83,6 +83,8 @@ def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
     ]
     if result.get("realtime"):
         rows.insert(-3, ("real time", _realtime(result)))
+    if result.get("base_connected_fraction"):
+        rows.insert(11, ("base connected", _base(result)))
     for k, v in rows:
         t.add_row(k, v)
     return t
@@ -94,6 +96,18 @@ def _realtime(result: Mapping[str, Any]) -> str:
     late = ", ".join(f"{r} {row['late_commands']}" for r, row in rt["robots"].items())
     return (f"{result['realtime_hz']:g} Hz asked, {rt['ticks_per_second']} ticks/s, {rt['world_overruns']} "
             f"overruns; late commands {rt['late_commands']} ({late})")
+
+
+def _base(result: Mapping[str, Any]) -> str:
+    """A run with a base station: the fractions connected to it, and what its map holds."""
+    f, b = result["base_connected_fraction"], result.get("base") or {}
+
+    def pct(v: float | None) -> str:
+        return "-" if v is None else f"{v:.1%}"
+
+    per = ", ".join(f"{r} {pct(v)}" for r, v in f["per_robot"].items())
+    return (f"{pct(f['overall'])} of robot-ticks, all {pct(f['all_ticks'])} of ticks ({per}); "
+            f"base at {b.get('cell')} knows {pct(b.get('known_fraction'))} of the map")
 
 
 def _idle(result: Mapping[str, Any]) -> str:

@@ -57,7 +57,7 @@ def router_config_text(robots: int, users: Path, listen: str | None = None, run_
         raise ConfigError(f"--listen {listen}: with a TLS certificate the endpoint must be tls/...")
     if not 0 <= hosts <= 64:
         raise ConfigError(f"--hosts must be in 0..64 (got {hosts})")
-    nodes = fleet_nodes(robot_ids(robots)) + host_ids(hosts)
+    nodes = fleet_nodes(robot_ids(robots), base=True) + host_ids(hosts)  # a base user for runs with one
     write_users(users, nodes)
     transport: dict = {"auth": {"usrpwd": {"dictionary_file": str(users.absolute())}}}
     if tls_cert is not None and tls_key is not None:

@@ -35,7 +35,7 @@ from fleet_emu.core.access import (
 from fleet_emu.core.bus import client_config, publisher, router_config, router_locators, shm_enabled
 from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.grid import MapData
-from fleet_emu.core.keys import RUN_ID, Keys, robot_ids
+from fleet_emu.core.keys import BASE, RUN_ID, Keys, robot_ids
 from fleet_emu.core.messages import Failed, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
@@ -51,7 +51,7 @@ from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.monitor import Monitor
 from fleet_emu.recording.recorder import Recorder
 from fleet_emu.world.maps import load_map
-from fleet_emu.world.node import build_world
+from fleet_emu.world.node import base_cell, build_world
 
 CONNECT_TIMEOUT = 5.0  # seconds ``--connect`` keeps trying an external router before giving up
 MAX_HZ = 1000.0  # the fastest real-time rate accepted
@@ -93,7 +93,9 @@ def check(scenario: Scenario) -> MapData:
     scenario.validate()
     make_allocator(allocator_config(scenario))  # exactly what every agent will build; ConfigError if bad
     md = load_map(scenario.map, scenario.cell_size, scenario.seed)
-    build_world(scenario, md).reset()  # raises StartAreaError when the robots do not fit
+    world = build_world(scenario, md)
+    world.reset()  # raises StartAreaError when the robots do not fit
+    base_cell(scenario, md, world)  # a ConfigError for a base cell off the map or on a wall
     return md
 
 
@@ -101,7 +103,7 @@ def check_machine(scenario: Scenario, map_data: MapData, engine: str, fork_serve
     """Whether the machine holds the run (``launch/budget.py``): its estimated memory against what is
     available, and (over Zenoh) the launcher's open-file limit, raised to its hard limit when needed."""
     budget.check_memory(scenario.robots, int(map_data.grid.size), engine, fork_server, shm_enabled(),
-                        budget.available_mb())
+                        budget.available_mb(), base=scenario.has_base)
     if engine != "memory":
         budget.ensure_fds(scenario.robots)
 
@@ -109,7 +111,7 @@ def check_machine(scenario: Scenario, map_data: MapData, engine: str, fork_serve
 def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] | None:
     """Every process's login: fresh per-run passwords for the embedded router; with ``connect``, the users
     file of ``fleet router-config`` (None without one: the external router is then not authenticated)."""
-    nodes = fleet_nodes(robot_ids(scenario.robots))
+    nodes = fleet_nodes(robot_ids(scenario.robots), scenario.has_base)
     ca = str(opts.tls_ca.absolute()) if opts.tls_ca is not None else None
     if opts.connect is None:
         hosts = host_credentials(opts.credentials) if opts.hosts else {}
@@ -218,14 +220,14 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     A signal (``opts.interrupts``) is only ever a request: the teardown and the files are never cut short."""
     keys = Keys(run_id)
     robots = tuple(robot_ids(scenario.robots))
-    monitor = Monitor(robots)
+    monitor = Monitor(robots, base=scenario.has_base)
     engine = "in-process" if opts.in_process else "processes"
     meta = {"run_id": run_id, "scenario": scenario.to_dict(), "engine": engine}
     if opts.realtime_hz:
         meta["realtime_hz"] = opts.realtime_hz
     recorder = Recorder(recording, meta) if recording is not None else None
-    viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id), keys) \
-        if recorder else None
+    viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id,
+                                                base_cell(scenario, map_data)), keys) if recorder else None
     sup = Supervisor(log_dir=work)
     pids: dict[str, Any] = {}
     t_start = time.monotonic()
@@ -265,11 +267,13 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
             elif opts.in_process:
                 nodes_thread = _start_in_process(scenario, map_data, run_id, endpoint, creds, opts.realtime_hz)
                 pids = {"world": os.getpid(), "netem": os.getpid(), "agents": [os.getpid()] * len(robots)}
+                pids |= {BASE: os.getpid()} if scenario.has_base else {}
             else:
                 plan = spawn_nodes(sup, scenario, run_id, endpoint, work, creds, remote, requested,
                                    opts.realtime_hz)
                 p = sup.pids()
                 pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
+                pids |= {BASE: p[BASE]} if BASE in p else {}
                 pids |= ({"fork_server": p["fork_server"]} if "fork_server" in p else {}) | \
                     ({"hosts": plan} if plan else {})
             if pids and opts.on_spawn is not None:
@@ -366,6 +370,10 @@ def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoi
     nodes = [WorldNode(scenario, run_id, map_data, realtime_hz=realtime_hz),
              NetemNode(scenario, run_id, map_data, realtime_hz=realtime_hz)]
     nodes += [AgentNode(scenario, run_id, r, realtime_hz=realtime_hz) for r in robot_ids(scenario.robots)]
+    if scenario.has_base:
+        from fleet_emu.agents.base_node import BaseNode
+
+        nodes.append(BaseNode(scenario, run_id, map_data))
 
     async def main() -> None:
         with contextlib.ExitStack() as stack:

@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import zenoh
 
-from fleet_emu.core.keys import Keys
+from fleet_emu.core.keys import BASE, Keys
 from fleet_emu.core.messages import Ready
 from fleet_emu.launch.supervisor import Supervisor
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
@@ -27,10 +27,10 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
           notify_failed: Callable[[str], None]) -> str | None:
     """Until the world's stop and every live agent's report; returns an error line, or None.
     An agent process that exits early is announced to the world, which goes on without it. The world or
-    netem exiting with an error before the stop fails the run at once; exiting cleanly (code 0) is a normal
-    end whose stop message may still be on its way, so it fails the run only if no stop comes within
-    :data:`STOP_GRACE` seconds of the launcher having folded every sample it received (with a hundred robots
-    and more, their last belief snapshots can take the launcher longer than that)."""
+    netem (or the base station) exiting with an error before the stop fails the run at once; exiting cleanly
+    (code 0) is a normal end whose stop message may still be on its way, so it fails the run only if no stop
+    comes within :data:`STOP_GRACE` seconds of the launcher having folded every sample it received (with a
+    hundred robots and more, their last belief snapshots can take the launcher longer than that)."""
     stop_seen: float | None = None
     clean_end: float | None = None
     announced: set[str] = set()
@@ -42,19 +42,21 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
         if monitor.stop is not None:
             stop_seen = stop_seen or time.monotonic()
             live = set(monitor.state.live) if monitor.state else set()
-            if live <= set(monitor.reports) or time.monotonic() - stop_seen > STOP_GRACE:
+            reported = live <= set(monitor.reports) and (not monitor.base or monitor.base_report is not None
+                                                          or BASE in sup.dead())
+            if reported or time.monotonic() - stop_seen > STOP_GRACE:
                 return None if monitor.stop.reason != "startup" else "startup timed out: see the logs in --out"
         dead = sup.dead()
-        new = set(dead) - announced - {"world", "netem"}
+        new = set(dead) - announced - {"world", "netem", BASE}
         announced |= new
         if monitor.stop is None:  # repeated until the first tick: the world may not be listening yet
             for name in sorted(announced if monitor.state is None else new):
                 notify_failed(name)
         if monitor.stop is None:
-            for name in ("world", "netem"):
+            for name in ("world", "netem", BASE):  # the base station is infrastructure: its death fails the run
                 if dead.get(name, 0) != 0:
                     return f"the {name} process exited with code {dead[name]} (see {name}.log)"
-            ended = [f"the {n} process exited with code 0" for n in ("world", "netem") if n in dead]
+            ended = [f"the {n} process exited with code 0" for n in ("world", "netem", BASE) if n in dead]
             if nodes_thread is not None and not nodes_thread.is_alive():
                 ended.append("the in-process nodes ended")
             if ended:

@@ -2,7 +2,8 @@
 
 Counting convention: every (message, intended receiver) pair is one transmission, so
 ``sent == delivered + dropped_loss + dropped_signal``; ``bytes_sent`` counts each message's encoded size once
-(one radio emission reaches every receiver). Messages are :class:`~fleet_emu.core.messages.Envelope` s, routed
+(one radio emission reaches every receiver); the base station, in a run with one, is a receiver like a robot.
+Messages are :class:`~fleet_emu.core.messages.Envelope` s, routed
 by their header; their payloads are never decoded here.
 """
 
@@ -13,7 +14,9 @@ from collections import defaultdict
 
 import numpy as np
 
-from fleet_emu.core.messages import Envelope
+from fleet_emu.core.keys import BASE
+from fleet_emu.core.messages import Envelope, Links
+from fleet_emu.core.radio import RadioConfig, connected, link_matrix
 
 
 @dataclasses.dataclass
@@ -25,12 +28,40 @@ class Counters:
     bytes_sent: int = 0
 
 
+def endpoint_links(occupied: np.ndarray, robots: tuple[str, ...], cells: list[tuple[int, int]],
+                   base: tuple[int, int] | None, cell_size: float, radio: RadioConfig
+                   ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+    """The radio endpoints of a tick (the live ``robots`` at ``cells``, then the base station at its fixed
+    cell ``base`` when the run has one) and their signal (dB) and link matrices, in that order."""
+    nodes = robots + ((BASE,) if base is not None else ())
+    strength, link = link_matrix(occupied, [*cells, *([base] if base is not None else [])], cell_size, radio)
+    return nodes, strength, link
+
+
+def links_message(tick: int, seq: int, nodes: tuple[str, ...], strength: np.ndarray, link: np.ndarray,
+                  counters: Counters, dropped: int = 0) -> Links:
+    """netem's :class:`Links` of a tick: the robots' graph (the base left out of ``connected`` and of the
+    matrices, so that a run without a base publishes what it always did) and, with a base, each robot's
+    signal and link to it."""
+    has_base = bool(nodes) and nodes[-1] == BASE
+    n = len(nodes) - has_base
+    c = counters
+    return Links(
+        src="netem", tick=tick, seq=seq, robots=nodes[:n], strength=strength[:n, :n].astype(np.float32),
+        link=link[:n, :n], connected=bool(connected(link[:n, :n])), sent=c.sent, delivered=c.delivered,
+        dropped_loss=c.dropped_loss, dropped_signal=c.dropped_signal, bytes_sent=c.bytes_sent, dropped=dropped,
+        base_strength=strength[:n, n].astype(np.float32) if has_base else None,
+        base_link=link[:n, n].copy() if has_base else None)
+
+
 class Channel:
     """Decides, per receiver, whether each radio message arrives, and when (``latency`` ticks later)."""
 
-    def __init__(self, loss: float, rng: np.random.Generator, latency: int = 1) -> None:
+    def __init__(self, loss: float, rng: np.random.Generator, latency: int = 1,
+                 base_rng: np.random.Generator | None = None) -> None:
         self.loss = loss
         self.rng = rng
+        self.base_rng = base_rng if base_rng is not None else rng
         self.latency = latency
         self.counters = Counters()
         self._pending: dict[int, dict[str, list[Envelope]]] = defaultdict(lambda: defaultdict(list))
@@ -41,7 +72,8 @@ class Channel:
 
         Draw order is fixed (senders by id order, messages in bundle order, receivers in id order), and a loss
         draw is made for every pair whether or not a link exists, so the generator's stream does not depend
-        on the link graph.
+        on the link graph. A pair with the base station (:data:`~fleet_emu.core.keys.BASE` among ``robots``)
+        draws from ``base_rng``, so that the robots' own deliveries are the same with or without a base.
         """
         index = {r: i for i, r in enumerate(robots)}
         due = self._pending[tick + self.latency]
@@ -51,7 +83,8 @@ class Channel:
                 c.bytes_sent += len(msg.encode())
                 receivers = [r for r in robots if r != src and (msg.dst == "*" or msg.dst == r)]
                 for dst in receivers:
-                    lost = self.rng.random() < self.loss
+                    rng = self.base_rng if BASE in (src, dst) else self.rng
+                    lost = rng.random() < self.loss
                     c.sent += 1
                     if not link[index[src], index[dst]]:
                         c.dropped_signal += 1

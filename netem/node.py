@@ -21,13 +21,13 @@ from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.codec import Context
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.kernels import warm_up
-from fleet_emu.core.keys import Keys, robot_ids
-from fleet_emu.core.messages import Links, RxBundle, Stop, TxBundle, WorldState
+from fleet_emu.core.keys import BASE, Keys, robot_ids
+from fleet_emu.core.messages import RxBundle, Stop, TxBundle, WorldState
 from fleet_emu.core.node import NodeBase, node_main, undeclare
-from fleet_emu.core.radio import connected, link_matrix
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.netem.channel import Channel
+from fleet_emu.netem.channel import Channel, endpoint_links, links_message
+from fleet_emu.world.node import base_cell
 
 STATE_GRACE = 2.0  # seconds to wait, after a stop, for the states it announced
 
@@ -41,7 +41,9 @@ class NetemNode(NodeBase):
         self.scenario = scenario
         self.robots = robot_ids(scenario.robots)
         self.occupied = map_data.grid > 0
-        self.channel = Channel(scenario.radio.applied_loss, generator(scenario.seed, "netem"), scenario.radio.latency)
+        self.base = base_cell(scenario, map_data)  # a fixed radio endpoint, in a run with a base station
+        self.channel = Channel(scenario.radio.applied_loss, generator(scenario.seed, "netem"), scenario.radio.latency,
+                               generator(scenario.seed, "netem", BASE))
         self.ctx_tx = Context(senders=frozenset(self.robots), shape=map_data.grid.shape)
         self.ctx_world = Context(senders=frozenset({"world"}))
         self.states: dict[int, WorldState] = {}
@@ -59,7 +61,8 @@ class NetemNode(NodeBase):
             inbox.subscribe(session, keys.wildcard("radio", "tx", "*")),
             inbox.subscribe(session, keys.stop),
         ]
-        self.pub_rx = {r: publisher(session, keys.rx(r)) for r in self.robots}
+        receivers = [*self.robots, *([BASE] if self.base is not None else [])]
+        self.pub_rx = {r: publisher(session, keys.rx(r)) for r in receivers}
         self.pub_links = publisher(session, keys.links)
         handles += [*self.pub_rx.values(), self.pub_links, *self.declare_presence(session, inbox)]
         try:
@@ -74,13 +77,13 @@ class NetemNode(NodeBase):
             if state is None:
                 break
             live = tuple(r for r in self.robots if r in state.live)
-            link = self._publish_tick(state, live)
+            nodes, link = self._publish_tick(state, live)
             if state.done:
                 break
             bundles = await self._await_tx(inbox, tick, live)
             if bundles is None:
                 break
-            self.channel.transmit(tick, live, link, bundles)
+            self.channel.transmit(tick, nodes, link, bundles)
             tick += 1
         await self._until_stop(inbox)
 
@@ -94,7 +97,7 @@ class NetemNode(NodeBase):
             if sent is not None:
                 self._send_arrived(*sent)
             live = tuple(r for r in self.robots if r in state.live)
-            sent = (state.tick, live, self._publish_tick(state, live))
+            sent = (state.tick, *self._publish_tick(state, live))
             if state.done:
                 break
             tick = state.tick + 1
@@ -168,23 +171,21 @@ class NetemNode(NodeBase):
         got = self.tx.pop(tick, {})
         return {r: got[r].msgs for r in live if r in got}
 
-    def _publish_tick(self, state: WorldState, live: tuple[str, ...]) -> np.ndarray:
-        cells = [state.poses[r] for r in live]
-        strength, link = link_matrix(self.occupied, cells, self.scenario.cell_size, self.scenario.radio)
-        c = self.channel.counters
+    def _publish_tick(self, state: WorldState, live: tuple[str, ...]) -> tuple[tuple[str, ...], np.ndarray]:
+        """The links and rx bundles of the state's tick; the tick's radio endpoints and their link matrix."""
+        s = self.scenario
+        nodes, strength, link = endpoint_links(self.occupied, live, [state.poses[r] for r in live], self.base,
+                                               s.cell_size, s.radio)
         t = state.tick
-        self.pub_links.put(Links(
-            src="netem", tick=t, seq=self.next_seq(), robots=live, strength=strength.astype(np.float32),
-            link=link, connected=bool(connected(link)), sent=c.sent, delivered=c.delivered,
-            dropped_loss=c.dropped_loss, dropped_signal=c.dropped_signal, bytes_sent=c.bytes_sent,
-            dropped=self.dropped).encode())
+        self.pub_links.put(links_message(t, self.next_seq(), nodes, strength, link, self.channel.counters,
+                                         self.dropped).encode())
         if state.done:
-            return link
+            return nodes, link
         arriving = self.channel.deliver(t)
-        for r in live:
+        for r in nodes:
             self.pub_rx[r].put(RxBundle(src="netem", tick=t, seq=self.next_seq(), dst=r,
                                         msgs=tuple(arriving.get(r, ()))).encode())
-        return link
+        return nodes, link
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -7,7 +7,8 @@
 - ``/viz/map/truth``, ``/viz/map/coverage`` and ``/viz/belief/<robot>``: ``foxglove.Grid``, every ``grid_every``
   ticks (beliefs as their snapshots come, at most once per ``grid_every`` ticks);
 - ``/viz/scene``: ``foxglove.SceneUpdate`` every tick — robots at their true poses, their targets with a line
-  from robot to target, and the radio links coloured by signal strength;
+  from robot to target, and the radio links coloured by signal strength; in a run with a base station, the base
+  (a white cylinder at its cell, entity ``base``) and its links to the robots;
 - ``/viz/log``: ``foxglove.Log`` for notable events — the start, a robot failing, coverage milestones, the team's
   radio graph splitting or joining, the end of the run.
 
@@ -170,8 +171,9 @@ class FoxgloveFold:
     """Bus messages in, Foxglove messages out (see the module doc). Pure: no I/O, no clock."""
 
     def __init__(self, scenario: dict[str, Any], truth: np.ndarray | None = None, grid_every: int | None = None,
-                 run_id: str = "") -> None:
+                 run_id: str = "", base_cell: tuple[int, int] | None = None) -> None:
         self.scenario = scenario
+        self.base_cell = base_cell  # the base station's cell (``world.node.base_cell``), in a run with one
         self.run_id = run_id
         self.robots = tuple(robot_ids(scenario["robots"]))
         self.cell_size = float(scenario["cell_size"])
@@ -364,11 +366,38 @@ class FoxgloveFold:
             meta.append({"key": "connected", "value": str(bool(lk.connected))})
         entities.append(_entity("links", t, lines=lines, metadata=meta))
         shown.add("links")
+        if self.base_cell is not None:
+            entities.append(self._base(t, st, lk))
+            shown.add("base")
         gone = sorted(self.emitted - shown)
         self.emitted = shown
         msg = {"deletions": [{"timestamp": stamp(t), "type": DELETE_MATCHING_ID, "id": g} for g in gone],
                "entities": entities}
         return [_derived(TOPIC_SCENE, "foxglove.SceneUpdate", msg, t)]
+
+    def _base(self, t: int, st: WorldState, lk: Links | None) -> dict[str, Any]:
+        """The base station: a white cylinder at its cell, and a line to each robot linked to it (coloured by
+        signal strength as the robots' links)."""
+        assert self.base_cell is not None
+        cs = self.cell_size
+        bx, by = self._xy(self.base_cell)
+        lines, meta = [], [{"key": "cell", "value": str(tuple(self.base_cell))}]
+        if lk is not None and lk.base_link is not None and lk.base_strength is not None:
+            for r, linked, p in zip(lk.robots, lk.base_link, lk.base_strength, strict=True):
+                if not linked or r not in st.poses:
+                    continue
+                p = float(p) if np.isfinite(p) else self.threshold
+                s = float(np.clip((p - self.threshold) / 20.0, 0.0, 1.0))
+                x, y = self._xy(st.poses[r])
+                lines.append(_line([_vec(bx, by, 0.5 * cs), _vec(x, y, 0.5 * cs)], (1.0 - s, s, 0.2), 0.9, 3.0,
+                                   LINE_LIST))
+                meta.append({"key": f"base-{r}", "value": f"{p:.1f} dB"})
+        return _entity(
+            "base", t, metadata=meta, lines=lines,
+            cylinders=[{"pose": _pose(bx, by, 0.6 * cs), "size": _vec(0.9 * cs, 0.9 * cs, 1.2 * cs),
+                        "bottom_scale": 1.0, "top_scale": 0.6, "color": _color((1.0, 1.0, 1.0))}],
+            texts=[{"pose": _pose(bx, by, 1.6 * cs), "billboard": True, "font_size": 14.0, "scale_invariant": True,
+                    "color": _color((1.0, 1.0, 0.6)), "text": "base"}])
 
     def _grid(self, topic: str, values: np.ndarray, lut: np.ndarray, tick: int, z: float) -> Derived:
         return _derived(topic, "foxglove.Grid", grid_message(values, lut, self.cell_size, tick, z), tick)

@@ -44,8 +44,9 @@ from fleet_emu.core.messages import (
     TxBundle,
     WorldState,
 )
+from fleet_emu.core.reach import base_connected
 from fleet_emu.recording.first_seen import FirstSeen
-from fleet_emu.recording.monitor import Monitor
+from fleet_emu.recording.monitor import Monitor, base_graph
 
 #: result.json keys that a recording cannot give back (they describe the launcher process, not the run)
 NOT_RECORDED = ("wall_seconds", "signal", "authenticated")
@@ -88,6 +89,7 @@ class TickSeries:
     tx_msgs: dict[int, int] = dataclasses.field(default_factory=dict)
     tx_bytes: dict[int, int] = dataclasses.field(default_factory=dict)
     rx_msgs: dict[int, int] = dataclasses.field(default_factory=dict)
+    base: dict[int, dict[str, bool]] = dataclasses.field(default_factory=dict)  # per live robot: a path to the base
 
     def arrays(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         d: dict[int, Any] = getattr(self, name)
@@ -103,7 +105,7 @@ class RunMetrics:
         self.run_id = run_id
         self.engine = engine
         self.robots = tuple(robot_ids(int(scenario["robots"])))
-        self.monitor = Monitor(self.robots)
+        self.monitor = Monitor(self.robots, base=scenario.get("base", False) is not False)
         self.messages = 0
         self.undecodable = 0
         self.team: FirstSeen | None = None  # every robot's observations (its values: the true map, where sensed)
@@ -182,6 +184,8 @@ class RunMetrics:
         iu = np.triu_indices(n, 1)
         und = link | link.T
         self.series.connected[t] = bool(lk.connected)
+        if lk.base_link is not None:
+            self.series.base[t] = base_connected(*base_graph(lk))
         self.series.links[t] = int(und[iu].sum())
         if n > 1:
             sym = np.maximum(strength, strength.T)[iu]
@@ -329,4 +333,6 @@ class RunMetrics:
                 "per_robot_mean_ms": {r: _r(np.mean(v), 4) if v else None for r, v in self.decisions.items()},
             },
             "undecodable": self.undecodable,
-        }
+        } | ({"base_connectivity": {
+            "definition": "per tick, the share of live robots with a path of links to the base station",
+            "fraction_by_tick": [[t, _r(f)] for t, f in self.monitor.base_curve]}} if self.monitor.base else {})

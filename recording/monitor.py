@@ -15,11 +15,12 @@ from fleet_emu import __version__
 from fleet_emu.core.access import allowed_src
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.grid import Cell
-from fleet_emu.core.keys import parse_key
+from fleet_emu.core.keys import BASE, parse_key
 from fleet_emu.core.messages import (
     STALE,
     AgentReport,
     AgentTiming,
+    BaseReport,
     Command,
     Links,
     Message,
@@ -28,10 +29,22 @@ from fleet_emu.core.messages import (
     WorldState,
 )
 from fleet_emu.core.radio import RadioConfig
+from fleet_emu.core.reach import BaseConnectivity
 from fleet_emu.core.version import SCHEMA_VERSION
 
 #: The channels the monitor folds (``ParsedKey.channel``); the rest is not even decoded.
 _FOLDED = frozenset({"state", "links", "stop", "report", "cmd", "clock", "timing"})
+
+
+def base_graph(lk: Links) -> tuple[tuple[str, ...], np.ndarray]:
+    """The link graph of a tick with the base station: its nodes (the live robots, then ``base``) and their
+    link matrix, from a :class:`Links` that has ``base_link``."""
+    assert lk.base_link is not None
+    n = len(lk.robots)
+    full = np.zeros((n + 1, n + 1), dtype=bool)
+    full[:n, :n] = lk.link
+    full[:n, n] = full[n, :n] = lk.base_link
+    return (*lk.robots, BASE), full
 
 
 @dataclasses.dataclass
@@ -56,6 +69,10 @@ class Monitor:
     status: dict[tuple[int, str], str] = dataclasses.field(default_factory=dict)  # (tick, robot) -> cmd status
     clock: WorldClock | None = None  # real-time runs only: the world's last clock
     timing: dict[str, AgentTiming] = dataclasses.field(default_factory=dict)  # and each robot's summary
+    base: bool = False  # the run has a base station: fold base connectivity and the base's report
+    base_reach: BaseConnectivity = dataclasses.field(default_factory=BaseConnectivity)
+    base_curve: list[tuple[int, float]] = dataclasses.field(default_factory=list)  # (tick, fraction connected)
+    base_report: BaseReport | None = None
 
     def feed(self, key: str, data: bytes, wall_ns: int | None = None) -> Message | None:
         """Decode and fold one sample; returns the message (None if it is not one the monitor uses)."""
@@ -92,12 +109,16 @@ class Monitor:
             self.connected_ticks += int(msg.connected)
             if self.links is None or msg.tick >= self.links.tick:
                 self.links = msg
+            if msg.base_link is not None:
+                self._fold_base(msg)
         elif isinstance(msg, Command):
             if msg.status != STALE:  # a step along the last plan decided nothing
                 self.decision_ms.append(msg.decision_ms)
             self.status[(msg.tick, msg.src)] = msg.status
         elif isinstance(msg, AgentReport):
             self.reports[msg.src] = msg
+        elif isinstance(msg, BaseReport) and msg.src == BASE:
+            self.base_report = msg
         elif isinstance(msg, Stop) and msg.src == "world":
             self.stop = msg
         elif isinstance(msg, WorldClock) and msg.src == "world":
@@ -105,6 +126,24 @@ class Monitor:
                 self.clock = msg
         elif isinstance(msg, AgentTiming):
             self.timing[msg.src] = msg
+
+    def _fold_base(self, lk: Links) -> None:
+        """One tick of base connectivity (``core/reach.py``): the robots' links and theirs to the base."""
+        self.base_curve.append((lk.tick, self.base_reach.add(*base_graph(lk))))
+
+    def base_result(self) -> dict[str, Any]:
+        """A base-station run's keys: ``base_connected_fraction {overall, all_ticks, per_robot}`` (over the
+        ticks netem published links for) and ``base {cell, known_cells, known_fraction, merged, ticks}``
+        (the base's report; null values when it sent none: interrupted, or its process died)."""
+        frac = self.base_reach.summary()
+        rounded = {k: (round(v, 6) if isinstance(v, float) else v) for k, v in frac.items() if k != "per_robot"}
+        rounded["per_robot"] = {r: round(v, 6) for r, v in frac["per_robot"].items()}  # type: ignore[union-attr]
+        rep = self.base_report
+        base: dict[str, Any] = {
+            "cell": list(rep.cell) if rep else None, "known_cells": rep.known_cells if rep else None,
+            "known_fraction": round(rep.known_cells / rep.cells, 6) if rep else None,
+            "merged": rep.merged if rep else None, "ticks": rep.ticks if rep else None}
+        return {"base_connected_fraction": rounded, "base": base}
 
     def idle(self) -> dict[str, int]:
         """Idle robot-ticks by the status of the robot's command: a robot that had something to do (its
@@ -167,7 +206,7 @@ class Monitor:
             "ticks_per_second": self.ticks_per_second(),
             "schema_version": SCHEMA_VERSION,
             "fleet_emu": __version__,
-        } | (self.realtime() if self.clock is not None else {})
+        } | (self.realtime() if self.clock is not None else {}) | (self.base_result() if self.base else {})
 
     def realtime(self) -> dict[str, Any]:
         """A real-time run's keys (none in lockstep, which publishes no clock): ``realtime_hz``, and under
@@ -195,6 +234,7 @@ class Monitor:
         netem's from their last state and links, each robot's from its report."""
         return {"launcher": self.malformed, "world": self.state.dropped if self.state else 0,
                 "netem": self.links.dropped if self.links else 0,
+                **({BASE: self.base_report.dropped} if self.base_report is not None else {}),
                 **{r: rep.dropped for r, rep in sorted(self.reports.items())}}
 
     def ticks_per_second(self) -> float | None:

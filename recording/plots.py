@@ -109,6 +109,31 @@ def messages_plot(run: Run, path: Path) -> None:
     fig.savefig(path)
 
 
+def base_plot(run: Run, path: Path) -> None:
+    """A run with a base station (issue 10 part 3): the share of live robots with a path of links to the base,
+    per tick, and each robot's connected ticks."""
+    f = run.fold
+    frac = run.metrics.get("base_connected_fraction") or {}
+    fig, (a1, a2) = _figure(2, 2.0)
+    curve = f.monitor.base_curve
+    t = np.array([c[0] for c in curve], dtype=int)
+    a1.step(t, np.array([c[1] for c in curve], dtype=float), where="post", color="tab:green", lw=1.2)
+    if frac.get("overall") is not None:
+        a1.axhline(frac["overall"], color="grey", ls="--", lw=1, label=f"mean {fmt(frac['overall'], True)}")
+        a1.legend(fontsize=8, loc="lower left")
+    a1.set(ylabel="connected to base", ylim=(-0.05, 1.05),
+           title=f"base connectivity: {run.label}, all connected {fmt(frac.get('all_ticks'), True)} of ticks")
+    per_robot = frac.get("per_robot") or {}
+    for i, r in enumerate(f.robots):
+        ticks = [tick for tick, flags in f.series.base.items() if flags.get(r)]
+        a2.broken_barh([(tick, 1) for tick in ticks], (i - 0.3, 0.6), color=robot_rgb(r, f.robots))
+    a2.set(yticks=range(len(f.robots)), xlabel="tick",
+           yticklabels=[f"{r} {fmt(per_robot.get(r), True)}" for r in f.robots], ylim=(-0.7, len(f.robots) - 0.3))
+    for a in (a1, a2):
+        a.grid(alpha=0.3)
+    fig.savefig(path)
+
+
 def compare_plot(runs: list[Run], path: Path) -> None:
     fig, ax = _figure(height=4.2)
     for run in runs:

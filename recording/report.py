@@ -18,7 +18,7 @@ from rich.console import Console
 
 from fleet_emu.core.errors import ReportError
 from fleet_emu.recording.metrics import NOT_RECORDED
-from fleet_emu.recording.plots import PLOTS, compare_plot
+from fleet_emu.recording.plots import PLOTS, base_plot, compare_plot
 from fleet_emu.recording.read import Run, load_recording
 from fleet_emu.recording.tables import compare_table, summary_table
 
@@ -38,6 +38,9 @@ def write_report(run: Run, plots: bool = True) -> dict[str, Path]:
     if plots:
         for name, plot in PLOTS.items():
             plot(run, paths[name])
+        if run.fold.monitor.base:  # a run with a base station: its connectivity over time
+            paths["base"] = paths["metrics"].with_name(paths["metrics"].name.replace("metrics.json", "base.png"))
+            base_plot(run, paths["base"])
     else:
         for name in PLOTS:
             paths.pop(name)

@@ -50,6 +50,7 @@ def summary_table(run: Run) -> Table:
         ("evenness", f"Jain {fmt(sh['jain'])}, Gini {fmt(sh['gini'])}"),
         ("connected", fmt(m["connected_fraction"], True)),
         ("link time per pair", pairs or "-"),
+        *([("base connected", _base(m))] if m.get("base_connected_fraction") else []),
         ("radio msgs", f"sent {rd['sent']}, delivered {rd['delivered']}, lost {rd['dropped']['loss']}, "
                        f"out of range {rd['dropped']['signal']}"),
         ("tx bytes/robot/tick", f"{fmt(rd['bytes_per_robot_per_tick'])} "
@@ -61,6 +62,14 @@ def summary_table(run: Run) -> Table:
     for k, v in rows:
         t.add_row(k, v)
     return t
+
+
+def _base(m: dict[str, Any]) -> str:
+    """The base-station rows: the base-connected fractions and what its team map holds."""
+    f, b = m["base_connected_fraction"], m.get("base") or {}
+    return (f"{fmt(f['overall'], True)} of robot-ticks, all {fmt(f['all_ticks'], True)} of ticks "
+            f"({_each(f['per_robot'], pct=True)}); base at {b.get('cell')} knows {fmt(b.get('known_fraction'), True)}"
+            f" of the map")
 
 
 COMPARE_ROWS = (

@@ -21,9 +21,10 @@ import zenoh
 
 from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.codec import Context
+from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.kernels import warm_up
-from fleet_emu.core.keys import Keys, robot_ids
+from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import STALE, Command, Failed, Hello, Observation, Ready, Stop, WorldClock, WorldState
 from fleet_emu.core.node import NodeBase, node_main, undeclare
 from fleet_emu.core.rng import generator
@@ -51,6 +52,27 @@ def build_world(scenario: Scenario, map_data: MapData, placement: tuple[Cell, ..
         placement=placement,
     )
     return World(map_data, robot_ids(scenario.robots), config, generator(scenario.seed, "world"))
+
+
+def base_cell(scenario: Scenario, map_data: MapData, world: World | None = None) -> Cell | None:
+    """The base station's cell (None without one): the scenario's ``base`` cell, or with ``base = true`` the
+    start cell the world places the fleet around (``world``: one already reset, whose start it takes; else a
+    world is built and reset here, so that a ``random`` start is drawn as the world draws it). A cell off the
+    map or not free is a one-line ConfigError. The base has no body: robots may drive over its cell."""
+    if not scenario.has_base:
+        return None
+    if isinstance(scenario.base, tuple):
+        cell = (int(scenario.base[0]), int(scenario.base[1]))
+        rows, cols = map_data.grid.shape
+        if not (0 <= cell[0] < rows and 0 <= cell[1] < cols):
+            raise ConfigError(f"base cell {cell} is off the map ({rows} x {cols} cells)")
+        if map_data.grid[cell] != 0:
+            raise ConfigError(f"base cell {cell} is not a free cell of the map")
+        return cell
+    if world is None:
+        world = build_world(scenario, map_data)
+        world.reset()
+    return (int(world.start[0]), int(world.start[1]))
 
 
 class WorldNode(NodeBase):
@@ -115,7 +137,7 @@ class WorldNode(NodeBase):
     async def _handshake(self, inbox: Inbox, pub_hello: zenoh.Publisher) -> bool:
         """Repeat the hello until the launcher (its recorder), netem and every agent answered: their
         subscriptions are then in place, so nothing of tick 0 is published into the void."""
-        waiting = {"launcher", "netem", *self.robots}
+        waiting = {"launcher", "netem", *([BASE] if self.scenario.has_base else []), *self.robots}
         deadline = time.monotonic() + self.startup_timeout
         next_hello = 0.0
         while waiting:

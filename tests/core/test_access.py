@@ -39,10 +39,11 @@ def _may_write(node: str, key_expr: str) -> bool:
 
 EVERY_KEY = [K.obs("r0"), K.state, K.cmd("r1"), K.belief("r1"), K.tx("r1"), K.rx("r1"), K.links, K.hello,
              K.ready("r1"), K.ready("world"), K.stop, K.failed("r1"), K.report("r1"), K.cmd("r2"), K.tx("r2"),
-             K.clock, K.timing("r1"), K.timing("r2")]  # the real-time mode's keys too
+             K.clock, K.timing("r1"), K.timing("r2"),  # the real-time mode's keys too
+             K.report("base"), K.ready("base"), K.rx("base")]  # a base station's
 
 
-@pytest.mark.parametrize("node", ["world", "netem", "launcher", "recorder", "r1"])
+@pytest.mark.parametrize("node", ["world", "netem", "launcher", "recorder", "r1", "base"])
 def test_the_router_table_and_the_receivers_table_agree(node: str) -> None:
     """A node may put on a key exactly when receivers accept that node as the key's sender."""
     for expr in EVERY_KEY:
@@ -120,3 +121,20 @@ def test_the_monitor_never_folds_a_spoofed_state_and_counts_it() -> None:
     assert res["malformed_dropped_by"] == {"launcher": 2, "world": 2, "netem": 0}
     assert res["malformed_dropped"] == 4
     assert np.isfinite(res["coverage"])
+
+
+def test_the_base_writes_only_its_own_keys_and_no_robot_writes_the_bases() -> None:
+    assert writes("base") == ["ctl/report/base", "ctl/ready/base"]
+    for expr in (K.cmd("r0"), K.tx("r0"), K.report("r0"), K.ready("r0"), K.belief("r0"), K.rx("base"), K.state,
+                 K.links, K.stop, K.failed("r0"), K.hello):
+        assert not _may_write("base", expr), expr
+    for robot in ("r0", "r1"):
+        for expr in (K.report("base"), K.ready("base"), K.rx("base")):
+            assert not _may_write(robot, expr), (robot, expr)
+    acl = acl_config("run1", fleet_nodes(robot_ids(2), base=True))
+    policy = next(p for p in acl["policies"] if p["subjects"] == ["user base"])
+    rules = {r["id"]: r for r in acl["rules"]}
+    assert rules["put base"]["key_exprs"] == ["fleet/run1/ctl/report/base", "fleet/run1/ctl/ready/base"]
+    assert rules["token base"]["key_exprs"] == ["fleet/run1/alive/base/base"]
+    assert sorted(policy["rules"]) == ["put base", "token base"]
+    assert "base" not in fleet_nodes(robot_ids(2))  # a run without a base has no base user

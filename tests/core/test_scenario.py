@@ -68,3 +68,42 @@ def test_scenario_json_round_trips_and_rejects_what_it_does_not_know(tmp_path: P
         bad = tmp_path / "top.toml"
         bad.write_text('map = "office"\n')
         Scenario.load(bad)
+
+
+def test_a_base_station_from_toml_flags_and_json_and_absent_by_default(tmp_path: Path) -> None:
+    assert "base" not in Scenario().to_dict() and not Scenario().has_base  # runs without one are unchanged
+    toml = tmp_path / "b.toml"
+    toml.write_text("[fleet]\nrobots = 2\nbase = [3, 4]\n")
+    s = Scenario.load(toml)
+    assert s.base == (3, 4) and s.has_base and s.to_dict()["base"] == [3, 4]
+    assert Scenario.from_dict(json.loads(json.dumps(s.to_dict()))) == s
+    toml.write_text("base = true\n")
+    assert Scenario.load(toml).base is True
+    assert Scenario().override(base=True).to_dict()["base"] is True
+    assert Scenario().override(base=[1, 2]).base == (1, 2)
+
+
+@pytest.mark.parametrize("base", ["yes", (1,), (1, 2, 3), (-1, 2), (1.5, 2), 1])
+def test_a_bad_base_is_one_line(base: object) -> None:
+    with pytest.raises(ConfigError, match="base must be true, false or a cell") as exc:
+        Scenario().override(base=base)
+    assert "\n" not in str(exc.value)
+
+
+def test_a_base_cell_off_the_map_or_on_a_wall_is_one_line() -> None:
+    from fleet_emu.core.grid import MapData, from_ascii
+    from fleet_emu.world.node import base_cell
+
+    grid, _ = from_ascii("""
+        #####
+        #...#
+        #####
+    """)
+    md = MapData(grid=grid, name="t", cell_size=0.5, start=(1, 1))
+    with pytest.raises(ConfigError, match=r"base cell \(0, 0\) is not a free cell"):
+        base_cell(Scenario().override(robots=1, base=(0, 0)), md)
+    with pytest.raises(ConfigError, match=r"base cell \(3, 1\) is off the map \(3 x 5 cells\)"):
+        base_cell(Scenario().override(robots=1, base=(3, 1)), md)
+    assert base_cell(Scenario().override(robots=1, base=(1, 3)), md) == (1, 3)
+    assert base_cell(Scenario().override(robots=1, base=True), md) == (1, 1)  # the start cell
+    assert base_cell(Scenario().override(robots=1), md) is None

@@ -78,9 +78,10 @@ def pid_alive(pid: int) -> bool:
 
 
 def all_pids(res: dict) -> list[int]:
-    """Every process of the run: world, netem, the agents and the fork server (when there was one)."""
+    """Every process of the run: world, netem, the agents, the fork server and the base (when there were)."""
     server = [res["pids"]["fork_server"]] if "fork_server" in res["pids"] else []
-    return sorted({res["pids"]["world"], res["pids"]["netem"], *res["pids"]["agents"], *server})
+    base = [res["pids"]["base"]] if "base" in res["pids"] else []  # the base station, in a run with one
+    return sorted({res["pids"]["world"], res["pids"]["netem"], *res["pids"]["agents"], *server, *base})
 
 
 def children_of(pid: int) -> list[int]:

@@ -171,3 +171,13 @@ def test_map_sync_bad_map_is_one_line() -> None:
     proc = _bench("map_sync.py", "--map", "/no/such/map.png", "--seeds", "1")
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     assert proc.stderr.startswith("map_sync: error: ")
+
+
+def test_base_connectivity_prints_a_row_per_allocator(small_map: Path) -> None:
+    proc = _bench("base_connectivity.py", "--map", str(small_map), "--robots", "2", "--seeds", "2",
+                  "--comm", "disk", "--comm-range", "2", "--max-ticks", "40", "--allocators", "nearest", "minpos")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    rows = [ln for ln in proc.stdout.splitlines() if ln.startswith("| nearest") or ln.startswith("| minpos")]
+    assert len(rows) == 2
+    overall = float(rows[0].split("|")[2].split("±")[0])
+    assert 0.0 <= overall < 1.0  # a 2 m disk radio leaves the base behind on this map

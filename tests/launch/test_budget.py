@@ -56,3 +56,11 @@ def test_file_descriptors_grow_with_the_fleet() -> None:
     # measured: 509 open in the launcher at 128 robots with Zenoh's shared memory on (a socket and a mapped
     # pool per robot's session)
     assert fds_needed(128) >= 509 and fds_needed(256) > fds_needed(128)
+
+
+def test_a_base_station_is_one_process_more_on_the_processes_engine() -> None:
+    without = estimate(8, MAZE, "processes")
+    with_base = estimate(8, MAZE, "processes", base=True)
+    assert "base" not in without and with_base["base"] > 80
+    assert with_base["total"] == pytest.approx(without["total"] + with_base["base"])
+    assert estimate(8, MAZE, "memory", base=True) == estimate(8, MAZE, "memory")  # one process anyway

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
@@ -146,3 +147,25 @@ def test_explicit_start_cells_and_a_drawn_map() -> None:
         Fleet(s, map_data=drawn, starts={"r0": (1, 1)})
     with pytest.raises(StartAreaError, match=r"start cell \(0, 0\) is not a free cell"):
         Fleet(s, map_data=drawn, starts=[(1, 1), (0, 0), (3, 9)]).reset()
+
+
+def test_a_base_station_in_memory_and_the_summary_row() -> None:
+    """The memory engine with a base (``base = true``: at the start cell), its result keys, and the closing
+    table's row; the same run without a base has neither and the robots do the same."""
+    from rich.console import Console
+
+    from fleet_emu.launch.progress import summary_table
+
+    s = fe.Scenario().override(map="office", robots=2, comm="disk", comm_range=3.0, seed=2, max_ticks=40, base=True)
+    res = Fleet(s).run().data
+    frac = res["base_connected_fraction"]
+    assert set(frac["per_robot"]) == {"r0", "r1"} and 0 <= frac["all_ticks"] <= frac["overall"] <= 1
+    assert res["base"]["ticks"] == res["ticks"] == 40 and res["base"]["known_cells"] > 0
+    assert res["pids"]["base"] == res["pids"]["world"]
+    console = Console(width=200, record=True, file=io.StringIO())
+    console.print(summary_table(res, "x"))
+    text = console.export_text()
+    assert "base connected" in text and f"base at {res['base']['cell']}" in text
+    plain = Fleet(s.override(base=False)).run().data
+    assert "base" not in plain and "base_connected_fraction" not in plain and "base" not in plain["pids"]
+    assert (plain["path_length"], plain["coverage"]) == (res["path_length"], res["coverage"])

@@ -74,3 +74,31 @@ def test_netem_imports_no_robot_protocol() -> None:
             "print(sorted(m for m in sys.modules if m.startswith('fleet_emu.agents')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_the_base_station_hears_broadcasts_and_leaves_the_robots_deliveries_as_they_were() -> None:
+    """The base is a receiver like a robot (linked: it hears a broadcast; a unicast to a robot is not for it),
+    and its draws come from a generator of its own: the robots get the same messages with or without it."""
+    robots_link = np.array([[0, 1, 1], [1, 0, 1], [1, 1, 0]], dtype=bool)
+    with_base = np.zeros((4, 4), dtype=bool)
+    with_base[:3, :3] = robots_link
+    with_base[0, 3] = with_base[3, 0] = True  # only r0 reaches the base
+    nodes = (*ROBOTS, "base")
+
+    def bundles(t: int) -> dict[str, tuple[Envelope, ...]]:
+        return {"r0": (_beacon("r0", tick=t),), "r1": (_beacon("r1", tick=t), _beacon("r1", "r2", t)),
+                "r2": (_beacon("r2", tick=t),)}
+
+    plain = Channel(loss=0.3, rng=np.random.default_rng(5))
+    based = Channel(loss=0.3, rng=np.random.default_rng(5), base_rng=np.random.default_rng(6))
+    heard = 0
+    for t in range(40):
+        plain.transmit(t, ROBOTS, robots_link, bundles(t))
+        based.transmit(t, nodes, with_base, bundles(t))
+        a, b = plain.deliver(t + 1), based.deliver(t + 1)
+        assert {r: [(m.src, m.seq, m.dst) for m in a.get(r, [])] for r in ROBOTS} == \
+            {r: [(m.src, m.seq, m.dst) for m in b.get(r, [])] for r in ROBOTS}
+        assert all(m.src == "r0" and m.dst == "*" for m in b.get("base", []))
+        heard += len(b.get("base", []))
+    assert 15 < heard < 40  # r0's 40 broadcasts, about 30 % lost
+    assert based.counters.sent == plain.counters.sent + 3 * 40  # the base is an intended receiver of 3 broadcasts

@@ -210,3 +210,25 @@ def test_grid_every_is_honoured(every: int) -> None:
         out += fold.feed(state(t, {"r0": (1, 1), "r1": (1, 2)}, ("r0", "r1"), 0.1))
     out += fold.finish()
     assert [d.tick for d in out if d.topic == TOPIC_TRUTH] == ([0, 1, 2, 3, 4, 5, 6] if every == 1 else [0, 3, 6])
+
+
+def test_the_base_station_is_drawn_at_its_cell_with_its_links() -> None:
+    truth, _ = from_ascii(ART)
+    fold = FoxgloveFold(scenario(), truth, grid_every=2, run_id="t", base_cell=(3, 1))
+    poses = {"r0": (1, 1), "r1": (3, 5)}
+    lk = links(0, ("r0", "r1"), False)
+    lk = Links(**{**lk.__dict__, "base_link": np.array([True, False]),
+                  "base_strength": np.array([8.0, -3.0], np.float32)})
+    out = fold.feed(state(0, poses, ("r0", "r1"), 0.3)) + fold.feed(lk)
+    out += fold.feed(state(1, poses, ("r0", "r1"), 0.3)) + fold.finish()
+    for d in out:
+        validate(d.schema, d.obj())
+    scene = next(d for d in out if d.topic == TOPIC_SCENE and d.tick == 0).obj()
+    base = next(e for e in scene["entities"] if e["id"] == "base")
+    pos = base["cylinders"][0]["pose"]["position"]
+    assert (pos["x"], pos["y"]) == (0.75, 0.75)  # col 1, row 3 of 5 rows
+    assert base["texts"][0]["text"] == "base" and len(base["lines"]) == 1  # linked to r0 only
+    assert base["lines"][0]["points"][1]["y"] == 1.75
+    plain = FoxgloveFold(scenario(), truth, grid_every=2)
+    out = plain.feed(state(0, poses, ("r0", "r1"), 0.3)) + plain.finish()
+    assert all(e["id"] != "base" for d in out if d.topic == TOPIC_SCENE for e in d.obj()["entities"])

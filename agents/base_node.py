@@ -1,0 +1,110 @@
+"""The base station's process shell (issue 10, part 1): ``python -m fleet_emu.agents.base_node``.
+
+The base is a fixed radio endpoint: netem computes its links from its cell like a robot's and delivers to it,
+on ``radio/rx/base``, what robots broadcast. It is driven only by those rx bundles: it takes no part in the
+world's lockstep barrier (it has no command to send, and sends nothing on the radio yet), so it can never hold
+a tick up, and a run's robots do the same with or without it (netem draws the base's receptions from a
+generator of its own). Each bundle is stepped, in the order netem sent them, through
+:class:`~fleet_emu.agents.base.BaseStation`.
+
+At the world's stop of tick T it waits (at most :data:`FINAL_GRACE` seconds) for the bundles up to T - 1, the
+last netem sends, so that its map is the same in every engine; then it publishes its
+:class:`~fleet_emu.core.messages.BaseReport` on ``ctl/report/base`` and exits. The launcher's stop (Ctrl-C)
+ends it at once. A base process that dies fails the run like the world or netem (exit code 1).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import resource
+import time
+
+import zenoh
+
+from fleet_emu.agents.base import BaseStation
+from fleet_emu.core.bus import Inbox, publisher
+from fleet_emu.core.grid import MapData
+from fleet_emu.core.keys import BASE, Keys, robot_ids
+from fleet_emu.core.messages import BaseReport, RxBundle, Stop
+from fleet_emu.core.node import NodeBase, node_main, undeclare
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.world.node import base_cell
+
+FINAL_GRACE = 2.0  # seconds to wait, after the world's stop, for the last rx bundles
+
+
+class BaseNode(NodeBase):
+    role = BASE
+
+    def __init__(self, scenario: Scenario, run: str, map_data: MapData) -> None:
+        super().__init__(Keys(run), BASE)
+        cell = base_cell(scenario, map_data)
+        assert cell is not None, "a base process for a scenario without a base"
+        self.station = BaseStation(cell, map_data.grid.shape, frozenset(robot_ids(scenario.robots)),
+                                   on_drop=self.drop)
+        self.next_tick = 0
+
+    def next_seq(self) -> int:
+        return self.station.next_seq()
+
+    async def run(self, session: zenoh.Session) -> None:
+        keys = self.keys
+        inbox = Inbox()
+        handles = [inbox.subscribe(session, keys.rx(BASE)), inbox.subscribe(session, keys.stop)]
+        pub_report = publisher(session, keys.report(BASE))
+        handles += [pub_report, *self.declare_presence(session, inbox)]
+        try:
+            stop = await self._until_stop(inbox)
+            if stop.src == "world":
+                await self._final(inbox, stop.tick)
+            st = self.station
+            pub_report.put(BaseReport(
+                src=BASE, tick=stop.tick, seq=self.next_seq(), cell=st.cell, known_cells=st.known_cells,
+                cells=int(st.belief.grid.size), merged=st.merged, ticks=st.ticks, dropped=self.dropped,
+                peak_rss_kb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss).encode())
+            await asyncio.sleep(0.05)
+        finally:
+            undeclare(handles)
+
+    async def _until_stop(self, inbox: Inbox) -> Stop:
+        while True:
+            stop = await self._next(inbox)
+            if stop is not None:
+                return stop
+
+    async def _final(self, inbox: Inbox, last: int) -> None:
+        """Step the bundles still to come, up to tick ``last - 1``, for at most FINAL_GRACE seconds."""
+        deadline = time.monotonic() + FINAL_GRACE
+        while self.next_tick < last and time.monotonic() < deadline:
+            await self._next(inbox, timeout=max(0.0, deadline - time.monotonic()))
+
+    async def _next(self, inbox: Inbox, timeout: float | None = None) -> Stop | None:
+        """Handle one incoming item; the stop when it is one."""
+        item = await inbox.get(timeout)
+        if item is None:
+            return None
+        key, data, _ = item
+        parsed = self.keys.parse(key)
+        channel = parsed.channel if parsed is not None else None
+        if channel == "hello":
+            self.answer_hello(key, data)
+        elif channel == "stop":
+            return self.decode(key, data, Stop)
+        elif channel == "rx":
+            b = self.decode(key, data, RxBundle)  # loosely: the station checks each envelope against the team
+            if b is not None and b.dst == BASE and b.tick >= self.next_tick:  # one key, one publisher: in order
+                self.station.step(b.tick, b.msgs)
+                self.next_tick = b.tick + 1
+            elif b is not None:
+                self.drop(key, "rx bundle for another node or a past tick")
+        return None
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m fleet_emu.agents.base_node --run RUN --connect ENDPOINT --scenario FILE.json
+    --map-file MAP.npz``."""
+    node_main("base", lambda a: BaseNode(a.scenario, a.run, a.map_file), argv, map_file=True)
+
+
+if __name__ == "__main__":
+    main()
