@@ -124,16 +124,17 @@ def execute(points: list[Point], jobs: int, on_row: Callable[[dict[str, Any]], N
             except BaseException:
                 for fut in futures:
                     fut.cancel()
-                _interrupt_workers(pool)
+                _interrupt_workers()
                 raise
 
 
-def _interrupt_workers(pool: cf.ProcessPoolExecutor) -> None:
+def _interrupt_workers() -> None:
     """SIGINT to every worker (what a terminal's Ctrl-C does to the whole group): a worker's fleet tears its
-    processes down and writes its files before the pool shuts down, also when only this process got SIGTERM."""
-    for proc in list(getattr(pool, "_processes", {}).values()):
+    processes down and writes its files before the pool shuts down, also when only this process got SIGTERM.
+    The workers are this process's live ``multiprocessing`` children (the pool's are its only ones)."""
+    for proc in multiprocessing.active_children():
         with contextlib.suppress(OSError, ValueError):
-            if proc.is_alive() and proc.pid is not None:
+            if proc.pid is not None:
                 os.kill(proc.pid, signal.SIGINT)
 
 
