@@ -119,6 +119,10 @@ def main() -> None:
             print(f"{n:>6} {'failed':>5}")
             continue
         print(f"[{i}/{len(a.robots)}] {n} robots: {r['ticks']} ticks", file=sys.stderr, flush=True)
+        if not all(x[0] for x in r["agents"]):  # a robot never sampled: the run ended between two samples
+            failed = True
+            print(f"{n:>6} {r['ticks']:>5} not sampled: the run ended too soon (more --ticks, or a shorter --period)")
+            continue
         pss = [x[0] / 1024 for x in r["agents"]]
         rss = [x[1] / 1024 for x in r["agents"]]
         print(f"{n:>6} {r['ticks']:>5} {sum(pss) / len(pss):>17.1f} {max(pss):>7.1f} {sum(rss) / len(rss):>17.1f} "
