@@ -61,9 +61,17 @@ def connected_pct(row: dict[str, Any]) -> float:
     return 100.0 * v if v is not None else math.nan
 
 
+def base_connected_pct(row: dict[str, Any]) -> float:
+    """Runs with a base station: the mean share of live robots with a path to the base (``result.json``'s
+    ``base_connected_fraction.overall``); NaN for runs without one."""
+    v = row.get("base_connected_fraction.overall")
+    return 100.0 * v if v is not None else math.nan
+
+
 METRICS: dict[str, Callable[[dict[str, Any]], float]] = {
     "ticks": time_to_target, "moves": moves, "connected_pct": connected_pct,
     "coverage_pct": lambda r: 100.0 * r["coverage"] if r.get("coverage") is not None else math.nan,
+    "base_connected_pct": base_connected_pct,
 }
 
 
@@ -173,16 +181,18 @@ def _fmt(mean_std: tuple[float, float, int], digits: int = 1) -> str:
 def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
     from rich.table import Table
 
+    base = any(ln["base_connected_pct"][2] for ln in lines)  # a column only for studies with a base station
     t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it)")
     for col in ("map", "radio", "robots", "allocator", "runs", "reached", "time", f"vs {baseline}",
-                "paired Δ ± s.e.", "moves", "connected %"):
+                "paired Δ ± s.e.", "moves", "connected %", *(["base connected %"] if base else [])):
         t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left")
     for ln in lines:
         t.add_row(Path(str(ln["map"])).stem, f"{ln['comm']}, loss {ln['loss_applied']:g}", str(ln["robots"]),
                   ln["allocator"], str(ln["runs"]), str(ln["ticks"][2]), _fmt(ln["ticks"]),
                   "-" if math.isnan(ln["vs_baseline_pct"]) else f"{ln['vs_baseline_pct']:+.1f} %",
                   "-" if math.isnan(ln["paired"][0]) else f"{ln['paired'][0]:+.1f} ± {ln['paired'][1]:.1f}",
-                  _fmt(ln["moves"]), _fmt(ln["connected_pct"]))
+                  _fmt(ln["moves"]), _fmt(ln["connected_pct"]),
+                  *([_fmt(ln["base_connected_pct"])] if base else []))
     return t
 
 

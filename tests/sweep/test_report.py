@@ -93,3 +93,21 @@ def test_the_paired_difference_matches_seeds_and_leaves_out_runs_that_did_not_fi
     lines = {ln["allocator"]: ln for ln in summary(base + runs, "utility")}
     assert lines["minpos"]["paired"] == pytest.approx((mean, se, n))
     assert math.isnan(lines["utility"]["paired"][0])
+
+
+def test_a_base_connected_column_only_for_studies_with_a_base_station(tmp_path: Path,
+                                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    from fleet_emu.sweep.execute import write_tables
+    from fleet_emu.sweep.report import report, stats
+
+    with_base = [r | {"id": str(i), "base_connected_fraction.overall": f}
+                 for i, (r, f) in enumerate(zip(ROWS[:6], (0.5, 0.25, 0.75, 1.0, 0.5, 0.0), strict=True))]
+    assert stats(with_base[:3], "base_connected_pct") == (50.0, 25.0, 3)
+    for rows, shown in ((with_base, True), ([r | {"id": str(i)} for i, r in enumerate(ROWS)], False)):
+        out = tmp_path / str(shown)
+        out.mkdir()
+        write_tables(rows, out)
+        report(out, baseline="nearest", plots=False)
+        text = capsys.readouterr().out
+        assert ("base connected %" in text) is shown
+        assert ("50.0 ± 25.0" in text) is shown  # nearest, 1 robot: 0.5, 0.25, 0.75
