@@ -25,6 +25,7 @@ import numpy as np
 
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
+from fleet_emu.agents.relay import SeenCache
 from fleet_emu.core.codec import Context
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import UNKNOWN, Cell
@@ -55,6 +56,7 @@ class BaseStation:
         self.planner = planner
         self.on_drop = on_drop
         self.heard: dict[str, Heard] = {}
+        self.seen = SeenCache()  # message ids handled: relayed copies are merged once
         self.merged = 0  # map deltas and fills merged
         self.ticks = 0  # rx bundles stepped
         self.tick = -1
@@ -70,10 +72,12 @@ class BaseStation:
         self.tick = tick
         self.ticks += 1
         for env in inbox:
-            if env.src == BASE:
-                continue
+            if env.src == BASE or env.dst not in ("*", BASE):
+                continue  # with relaying: overheard on its way to a robot
             try:
                 env.validate(self.ctx)
+                if not self.seen.add((env.origin, env.seq)):
+                    continue  # with relaying: a copy already handled (the base does not relay, agents/relay.py)
                 msg = open_envelope(env, self.ctx)
             except DecodeError as exc:
                 if self.on_drop is not None:
@@ -84,9 +88,9 @@ class BaseStation:
                 self.belief.merge(body.cells, body.values)
                 self.merged += 1
             elif isinstance(body, PoseBeacon):
-                prev = self.heard.get(msg.src)
+                prev = self.heard.get(msg.origin)
                 if prev is None or msg.tick >= prev.tick:
-                    self.heard[msg.src] = Heard(cell=body.cell, tick=msg.tick)
+                    self.heard[msg.origin] = Heard(cell=body.cell, tick=msg.tick)
             # other robots' protocol messages (an allocator's) are not for the base: ignored
         self.belief.take_news()  # the base shares nothing yet: do not let the news pile up
         self.belief.take_changed()

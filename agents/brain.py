@@ -36,6 +36,7 @@ from fleet_emu.agents.clusters import FrontierClusters
 from fleet_emu.agents.mapsync import MapSync, SyncConfig
 from fleet_emu.agents.navigation import next_move
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
+from fleet_emu.agents.relay import Relay
 from fleet_emu.core.codec import Context
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import FREE, MOVES, STAY, Cell
@@ -54,13 +55,16 @@ class BrainConfig:
     """``cluster_max``: frontier cells one sensing covers (MinPos 4.1); ``resync_after``: ticks of silence
     after which a teammate heard again gets the whole known map; ``map_sync``: recover
     lost map deltas (``agents/mapsync.py``, with ``sync``'s parameters), off by default and on in a run whose
-    radio can lose a message (:func:`brain_config`)."""
+    radio can lose a message (:func:`brain_config`); ``relay``: the relaying policy (``none``, or one of
+    ``agents/relay.py``), and ``relay_ttl`` the hops left after the first on the messages the robot makes."""
 
     cluster_max: int = 16
     resync_after: int = 10
     unstick_after: int = 2
     map_sync: bool = False
     sync: SyncConfig = dataclasses.field(default_factory=SyncConfig)
+    relay: str = "none"
+    relay_ttl: int = 0
 
 
 @dataclasses.dataclass
@@ -100,7 +104,8 @@ def brain_config(scenario: Scenario) -> BrainConfig:
     without loss), where it would only add bytes (and runs stay bit-identical to runs before it existed)."""
     r = scenario.radio
     lossless = r.comm == "ideal" or (r.comm == "full" and r.loss == 0)
-    return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_sync=not lossless)
+    return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_sync=not lossless,
+                       relay=scenario.relay, relay_ttl=scenario.relay_ttl)
 
 
 def allocator_config(scenario: Scenario) -> dict[str, Any]:
@@ -143,6 +148,9 @@ class Brain:
         self.plan: Plan | None = None  # what the last step decided, for the ticks until the next decision
         self._seq_lock = threading.Lock()  # real-time mode draws from the counter in two threads
         self.sync: MapSync | None = MapSync(config.sync) if config.map_sync else None
+        # relaying (agents/relay.py); under ``tree`` its routes come from ``relay.set_routes`` (the hook a
+        # base-station allocator fills; with none, ``tree`` forwards nothing)
+        self.relay: Relay | None = Relay(me, config.relay) if config.relay != "none" else None
 
     def next_seq(self) -> int:
         """The robot's one sequence counter: envelopes, commands, bundles and reports all draw from it."""
@@ -175,8 +183,30 @@ class Brain:
                     self.on_drop(f"radio/{env.payload_kind}", str(exc))
         return out
 
+    def relay_inbox(self, inbox: Sequence[Envelope]) -> tuple[list[Envelope], list[Envelope]]:
+        """With relaying on: the envelopes of ``inbox`` to deliver (first copies for this robot or everyone)
+        and the copies to forward (:meth:`Relay.handle`); a header that does not validate is dropped and
+        counted, never forwarded. Without relaying, the inbox as it is and nothing to forward."""
+        if self.relay is None:
+            return list(inbox), []
+        deliver, forward = [], []
+        for env in inbox:
+            try:
+                env.validate(self.ctx)
+            except DecodeError as exc:
+                if self.on_drop is not None:
+                    self.on_drop(f"radio/{env.payload_kind}", str(exc))
+                continue
+            d = self.relay.handle(env)
+            if d.deliver:
+                deliver.append(env)
+            if d.forward is not None:
+                forward.append(d.forward)
+        return deliver, forward
+
     def step(self, obs: Observation, inbox: Sequence[Envelope]) -> tuple[Command, tuple[Envelope, ...]]:
-        """Decide the move for ``obs.tick`` and the radio messages to send."""
+        """Decide the move for ``obs.tick`` and the radio messages to send (with relaying on, the copies it
+        forwards go out after its own)."""
         t = obs.tick
         c0 = time.thread_time()
         belief = self._belief(obs)
@@ -187,37 +217,38 @@ class Brain:
         protocol: list[RadioMsg] = []
         c_decode = time.thread_time()
         cpu["merge"] += (c_decode - c_merge) * 1000.0
-        opened = self.open(inbox)
+        delivered, forwards = self.relay_inbox(inbox)
+        opened = self.open(delivered)
         c_rest = time.thread_time()
         cpu["decode"] += (c_rest - c_decode) * 1000.0
         sync = self.sync
         rejoined: list[str] = []
         for msg in opened:
-            if msg.src == self.me:
+            if msg.origin == self.me:
                 continue
             body = msg.body
             if isinstance(body, PoseBeacon):
                 if self._heard(msg, body, t, outbox):
-                    rejoined.append(msg.src)
+                    rejoined.append(msg.origin)
                 if sync is not None and body.maps is not None:
-                    sync.peer(msg.src).exists(body.maps)
+                    sync.peer(msg.origin).exists(body.maps)
                 if sync is not None and body.want is not None and self.me in body.want:
                     fill = sync.answer(body.want[self.me], belief)
                     if fill is not None:
-                        outbox.append(RadioMsg(fill, dst=msg.src))
+                        outbox.append(RadioMsg(fill, dst=msg.origin))
             elif isinstance(body, MapDelta):
                 c_m = time.thread_time()
                 belief.merge(body.cells, body.values)
                 cpu["merge"] += (time.thread_time() - c_m) * 1000.0
                 if sync is not None and body.n is not None:
-                    sync.peer(msg.src).received(body.n)
-                    sync.peer(msg.src).filled(body.covers or (), 0)
+                    sync.peer(msg.origin).received(body.n)
+                    sync.peer(msg.origin).filled(body.covers or (), 0)
             elif isinstance(body, MapFill):
                 c_m = time.thread_time()
                 belief.merge(body.cells, body.values)
                 cpu["merge"] += (time.thread_time() - c_m) * 1000.0
                 if sync is not None:
-                    sync.peer(msg.src).filled(body.seqs, body.upto)
+                    sync.peer(msg.origin).filled(body.seqs, body.upto)
             else:
                 protocol.append(msg)
         want = None
@@ -269,6 +300,12 @@ class Brain:
         if len(cells):
             news.append(RadioMsg(delta))
         sealed = tuple(seal(m, self.me, t, self.next_seq()) for m in news + outbox)
+        if self.relay is not None:
+            ttl = self.config.relay_ttl
+            sealed = tuple(e if e.ttl >= ttl else dataclasses.replace(e, ttl=ttl) for e in sealed)
+            for e in sealed:
+                self.relay.sent(e)
+            sealed += tuple(forwards)
         cpu["news"] += (time.thread_time() - c_news) * 1000.0
         cmd = Command(src=self.me, tick=t, seq=self.next_seq(), move=move, target=alloc.target,
                       status=alloc.status.name, decision_ms=round(self.decision_ms[-1], 4))
@@ -278,16 +315,16 @@ class Brain:
     def _heard(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> bool:
         """A teammate's pose; one heard for the first time, or again after a silence, gets our whole map
         (True then; with map sync as a fill that stands for every delta so far)."""
-        prev = self.teammates.get(msg.src)
+        prev = self.teammates.get(msg.origin)
         if prev is not None and msg.tick < prev.heard:
             return False
         rejoined = (prev is None or t - prev.heard > self.config.resync_after) and self.belief is not None
         if rejoined and self.sync is not None:
-            outbox.append(RadioMsg(self.sync.whole(self.belief), dst=msg.src))  # type: ignore[arg-type]
+            outbox.append(RadioMsg(self.sync.whole(self.belief), dst=msg.origin))  # type: ignore[arg-type]
         elif rejoined:
             cells, values = self.belief.known()  # type: ignore[union-attr]
-            outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=msg.src))
-        self.teammates[msg.src] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
+            outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=msg.origin))
+        self.teammates[msg.origin] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
         return rejoined
 
     def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray, occupied: set[Cell]) -> Cell:

@@ -15,9 +15,11 @@ from pathlib import Path
 from typing import Any
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.messages import MAX_TTL
 from fleet_emu.core.radio import COMM_MODELS, RadioConfig
 
 MAX_ROBOTS = 256
+RELAY_POLICIES = ("none", "flood", "tree")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,6 +43,8 @@ class Scenario:
     barrier_timeout: float = 10.0
     belief_every: int = 10
     base: bool | tuple[int, int] = False  # a base station: False (none), True (at the start cell) or a cell
+    relay: str = "none"  # multi-hop relaying in the robots (agents/relay.py): none, flood or tree
+    relay_ttl: int = 0  # hops left after the first on the messages a robot makes (0: one hop)
 
     # --- reading and writing ------------------------------------------------------------------------------
 
@@ -121,6 +125,9 @@ class Scenario:
             del d["base"]
         else:
             d["base"] = list(self.base) if isinstance(self.base, tuple) else self.base
+        for k, default in (("relay", "none"), ("relay_ttl", 0)):  # absent at their defaults, as before relaying
+            if d[k] == default:
+                del d[k]
         return d
 
     def override(self, **flags: Any) -> Scenario:
@@ -194,11 +201,14 @@ class Scenario:
             raise ConfigError(f"base must be true, false or a cell [ROW, COL] (--base-cell ROW,COL; got {self.base!r})")
         if not isinstance(self.allocator, dict) or not isinstance(self.allocator.get("type"), str):
             raise ConfigError("allocator needs a 'type' name")
+        if self.relay not in RELAY_POLICIES:
+            raise ConfigError(f"--relay must be one of {', '.join(RELAY_POLICIES)} (got {self.relay!r})")
+        _integer("--relay-ttl", self.relay_ttl, 0, MAX_TTL)
         return self
 
 
 _TOP = {"name", "base", "seed", "max_ticks", "target_coverage", "stall_ticks", "coverage_stall_ticks",
-        "barrier_timeout", "belief_every"}
+        "barrier_timeout", "belief_every", "relay", "relay_ttl"}
 _SECTIONS = ("map", "fleet", "radio", "allocator")
 
 

@@ -80,6 +80,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--base", action="store_const", const=True, default=None,
                    help="a base station (its own process) at the start cell; see --base-cell")
     r.add_argument("--base-cell", type=_cell, metavar="ROW,COL", help="a base station at this cell")
+    r.add_argument("--relay", choices=("none", "flood", "tree"),
+                   help="multi-hop relaying in the robots: none (default), flood (every robot forwards) or tree")
+    r.add_argument("--relay-ttl", type=int, metavar="K",
+                   help="hops left after the first on the messages a robot makes (default 0: one hop)")
     r.add_argument("--max-ticks", type=int)
     r.add_argument("--target-coverage", type=float)
     r.add_argument("--comm", choices=COMM_MODELS,
@@ -154,7 +158,8 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
         map=args.map, robots=args.robots, allocator=args.allocator, loss=args.loss,
         comm_range=args.comm_range, sensor_range=args.sensor_range, cell_size=args.cell_size, seed=args.seed,
         start=args.start, max_ticks=args.max_ticks, target_coverage=args.target_coverage, comm=args.comm,
-        base=args.base_cell if args.base_cell is not None else args.base)
+        base=args.base_cell if args.base_cell is not None else args.base,
+        relay=getattr(args, "relay", None), relay_ttl=getattr(args, "relay_ttl", None))
 
 
 def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:

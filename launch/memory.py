@@ -99,7 +99,7 @@ class Fleet:
         self._map_data = map_data
         self._starts = _placement(starts, self.possible_agents)
         self.agents: list[str] = []
-        self.monitor = Monitor(tuple(self.possible_agents), base=scenario.has_base)
+        self.monitor = Monitor(tuple(self.possible_agents), base=scenario.has_base, relay=scenario.relay != "none")
         self._started: float | None = None
 
     # --- the ParallelEnv API ------------------------------------------------------------------------------
@@ -121,7 +121,7 @@ class Fleet:
         self.brains = {r: Brain(r, make_allocator(allocator_config(s)), generator(s.seed, r), brain_config(s),
                                 team=frozenset(self.possible_agents), on_drop=self._on_drop(r))
                        for r in self.possible_agents}
-        self.monitor = Monitor(tuple(self.possible_agents), base=s.has_base)
+        self.monitor = Monitor(tuple(self.possible_agents), base=s.has_base, relay=s.relay != "none")
         self._world_seq = self._netem_seq = 0
         self._started = time.perf_counter()
         self.done = False

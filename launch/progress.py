@@ -13,6 +13,7 @@ from rich.table import Table
 from fleet_emu.core.radio import RadioConfig
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.recording.monitor import Monitor
+from fleet_emu.recording.relaystats import relay_line
 
 
 class Progress:
@@ -85,6 +86,8 @@ def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
         rows.insert(-3, ("real time", _realtime(result)))
     if result.get("base_connected_fraction"):
         rows.insert(11, ("base connected", _base(result)))
+    if result.get("relay"):
+        rows.insert(-4, ("relaying", relay_line(result["relay"])))
     for k, v in rows:
         t.add_row(k, v)
     return t

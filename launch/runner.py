@@ -220,7 +220,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     A signal (``opts.interrupts``) is only ever a request: the teardown and the files are never cut short."""
     keys = Keys(run_id)
     robots = tuple(robot_ids(scenario.robots))
-    monitor = Monitor(robots, base=scenario.has_base)
+    monitor = Monitor(robots, base=scenario.has_base, relay=scenario.relay != "none")
     engine = "in-process" if opts.in_process else "processes"
     meta = {"run_id": run_id, "scenario": scenario.to_dict(), "engine": engine}
     if opts.realtime_hz:

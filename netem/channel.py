@@ -4,7 +4,9 @@ Counting convention: every (message, intended receiver) pair is one transmission
 ``sent == delivered + dropped_loss + dropped_signal``; ``bytes_sent`` counts each message's encoded size once
 (one radio emission reaches every receiver); the base station, in a run with one, is a receiver like a robot.
 Messages are :class:`~fleet_emu.core.messages.Envelope` s, routed
-by their header; their payloads are never decoded here.
+by their header; their payloads are never decoded here. A message for one receiver reaches only it, unless it
+may still be relayed (``ttl > 0``, ``agents/relay.py``): a radio emission is heard by everyone in range, and
+a relay must hear a message that is not for it to forward it; only relaying runs seal messages with a ttl.
 """
 
 from __future__ import annotations
@@ -81,7 +83,7 @@ class Channel:
         for src in robots:
             for msg in bundles.get(src, ()):
                 c.bytes_sent += len(msg.encode())
-                receivers = [r for r in robots if r != src and (msg.dst == "*" or msg.dst == r)]
+                receivers = [r for r in robots if r != src and (msg.dst == "*" or msg.dst == r or msg.ttl > 0)]
                 for dst in receivers:
                     rng = self.base_rng if BASE in (src, dst) else self.rng
                     lost = rng.random() < self.loss

@@ -105,7 +105,8 @@ class RunMetrics:
         self.run_id = run_id
         self.engine = engine
         self.robots = tuple(robot_ids(int(scenario["robots"])))
-        self.monitor = Monitor(self.robots, base=scenario.get("base", False) is not False)
+        self.monitor = Monitor(self.robots, base=scenario.get("base", False) is not False,
+                               relay=scenario.get("relay", "none") != "none")
         self.messages = 0
         self.undecodable = 0
         self.team: FirstSeen | None = None  # every robot's observations (its values: the true map, where sensed)
@@ -138,9 +139,9 @@ class RunMetrics:
             except DecodeError:
                 self.undecodable += 1
                 return
-            if isinstance(msg, TxBundle) and msg.src in self.tx_bytes:
-                self.tx_bytes[msg.src] += len(data)
-                self.series.tx_bytes[msg.tick] = self.series.tx_bytes.get(msg.tick, 0) + len(data)
+        if isinstance(msg, TxBundle) and msg.src in self.tx_bytes:  # (the monitor folds it too when relaying)
+            self.tx_bytes[msg.src] += len(data)
+            self.series.tx_bytes[msg.tick] = self.series.tx_bytes.get(msg.tick, 0) + len(data)
         if isinstance(msg, WorldState) and msg.src == "world":
             self._state(msg)
         elif isinstance(msg, Links) and msg.src == "netem":

@@ -24,16 +24,20 @@ from fleet_emu.core.messages import (
     Command,
     Links,
     Message,
+    RxBundle,
     Stop,
+    TxBundle,
     WorldClock,
     WorldState,
 )
 from fleet_emu.core.radio import RadioConfig
 from fleet_emu.core.reach import BaseConnectivity
 from fleet_emu.core.version import SCHEMA_VERSION
+from fleet_emu.recording.relaystats import RelayStats
 
 #: The channels the monitor folds (``ParsedKey.channel``); the rest is not even decoded.
 _FOLDED = frozenset({"state", "links", "stop", "report", "cmd", "clock", "timing"})
+_RADIO = frozenset({"tx", "rx"})  # folded too in a relaying run (recording/relaystats.py)
 
 
 def base_graph(lk: Links) -> tuple[tuple[str, ...], np.ndarray]:
@@ -73,11 +77,17 @@ class Monitor:
     base_reach: BaseConnectivity = dataclasses.field(default_factory=BaseConnectivity)
     base_curve: list[tuple[int, float]] = dataclasses.field(default_factory=list)  # (tick, fraction connected)
     base_report: BaseReport | None = None
+    relay: bool = False  # the run relays: fold the radio bundles' headers into ``relay_stats``
+    relay_stats: RelayStats | None = None
+
+    def __post_init__(self) -> None:
+        if self.relay and self.relay_stats is None:
+            self.relay_stats = RelayStats(len(self.robots) + int(self.base))
 
     def feed(self, key: str, data: bytes, wall_ns: int | None = None) -> Message | None:
         """Decode and fold one sample; returns the message (None if it is not one the monitor uses)."""
         got = parse_key(key)
-        if got is None or got[1].channel not in _FOLDED:
+        if got is None or not (got[1].channel in _FOLDED or (self.relay and got[1].channel in _RADIO)):
             return None
         try:
             msg = decode(data)
@@ -126,6 +136,10 @@ class Monitor:
                 self.clock = msg
         elif isinstance(msg, AgentTiming):
             self.timing[msg.src] = msg
+        elif isinstance(msg, TxBundle) and self.relay_stats is not None:
+            self.relay_stats.fold_tx(msg)
+        elif isinstance(msg, RxBundle) and self.relay_stats is not None and msg.src == "netem":
+            self.relay_stats.fold_rx(msg)
 
     def _fold_base(self, lk: Links) -> None:
         """One tick of base connectivity (``core/reach.py``): the robots' links and theirs to the base."""
@@ -206,7 +220,9 @@ class Monitor:
             "ticks_per_second": self.ticks_per_second(),
             "schema_version": SCHEMA_VERSION,
             "fleet_emu": __version__,
-        } | (self.realtime() if self.clock is not None else {}) | (self.base_result() if self.base else {})
+        } | (self.realtime() if self.clock is not None else {}) | (self.base_result() if self.base else {}) | (
+            {"relay": {"policy": scenario.get("relay", "none"), "ttl": scenario.get("relay_ttl", 0),
+                       "kinds": self.relay_stats.result()}} if self.relay_stats is not None else {})
 
     def realtime(self) -> dict[str, Any]:
         """A real-time run's keys (none in lockstep, which publishes no clock): ``realtime_hz``, and under

@@ -8,6 +8,7 @@ from rich.table import Table
 
 from fleet_emu.launch.progress import radio_label
 from fleet_emu.recording.read import Run
+from fleet_emu.recording.relaystats import relay_line
 
 
 def fmt(v: Any, pct: bool = False) -> str:
@@ -53,6 +54,7 @@ def summary_table(run: Run) -> Table:
         *([("base connected", _base(m))] if m.get("base_connected_fraction") else []),
         ("radio msgs", f"sent {rd['sent']}, delivered {rd['delivered']}, lost {rd['dropped']['loss']}, "
                        f"out of range {rd['dropped']['signal']}"),
+        *([("relaying", relay_line(m["relay"]))] if m.get("relay") else []),
         ("tx bytes/robot/tick", f"{fmt(rd['bytes_per_robot_per_tick'])} "
                                 f"({_each({r: v['bytes_per_tick'] for r, v in per_robot.items()})})"),
         ("decision ms", f"mean {fmt(dt['mean_ms'])}, p50 {fmt(dt['p50_ms'])}, p95 {fmt(dt['p95_ms'])}, "

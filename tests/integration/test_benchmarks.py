@@ -181,3 +181,15 @@ def test_base_connectivity_prints_a_row_per_allocator(small_map: Path) -> None:
     assert len(rows) == 2
     overall = float(rows[0].split("|")[2].split("±")[0])
     assert 0.0 <= overall < 1.0  # a 2 m disk radio leaves the base behind on this map
+
+
+def test_relay_prints_a_row_per_policy_and_ttl(small_map: Path) -> None:
+    proc = _bench("relay.py", "--map", str(small_map), "--robots", "3", "--seeds", "1", "--comm-range", "2",
+                  "--max-ticks", "40", "--ttls", "2")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    rows = {tuple(c.strip() for c in ln.split("|")[1:3]): ln for ln in proc.stdout.splitlines()
+            if ln.startswith("| ") and not ln.startswith("| relay") and not ln.startswith("| ---")}
+    assert set(rows) == {("none", "0"), ("flood", "2"), ("tree", "2")}
+    assert float(rows[("flood", "2")].split("|")[5].split("±")[0]) > 0  # some beacons crossed a relay
+    bad = _bench("relay.py", "--map", "/no/such/map.png", "--seeds", "1")
+    assert bad.returncode == 2 and bad.stderr.startswith("relay: error: ") and bad.stderr.count("\n") == 1
