@@ -157,14 +157,15 @@ def test_a_host_killed_mid_run_fails_its_robots_and_the_run_ends_with_a_result(
     all_users, own = users
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     out = tmp_path / "out"
-    # a run that always lasts its 400 ticks (4 robots see 59 % of this maze by then), so the kill lands mid-run
-    launcher = _start(["run", "--robots", "4", "--max-ticks", "400", "--seed", "2", "--quiet", "--hosts", "1",
+    # a run of 1,500 ticks (4 robots see 59 % of this maze in 400): well over 10 s even at 100 ticks/s, so the
+    # kill, a second after the host's last robot started, lands mid-run
+    launcher = _start(["run", "--robots", "4", "--max-ticks", "1500", "--seed", "2", "--quiet", "--hosts", "1",
                        "--map", "maze", "--sensor-range", "2", "--target-coverage", "1.0",
                        "--listen", endpoint, "--credentials", str(all_users), "--out", str(out)])
     host = _start(["host", "--connect", endpoint, "--credentials", str(own), "--out", str(tmp_path / "h"), *WAIT])
     try:
         wait_for(lambda: len(list((tmp_path / "h").glob("*/host0/r3.log"))) == 1, 120)
-        time.sleep(3.0)  # the run is going
+        time.sleep(1.0)  # the run is going
         robots = [p for c in children_of(host.pid) for p in [c, *children_of(c)]]
         if sig == signal.SIGKILL:
             os.killpg(host.pid, sig)  # the host and its fork server; its robots are in their own groups
@@ -179,7 +180,7 @@ def test_a_host_killed_mid_run_fails_its_robots_and_the_run_ends_with_a_result(
                 os.killpg(p.pid, signal.SIGKILL)
     res = result(out)
     assert code == 1, err
-    assert res["failed"] == ["r1", "r3"] and res["reason"] == "max_ticks" and res["ticks"] == 400
+    assert res["failed"] == ["r1", "r3"] and res["reason"] in ("max_ticks", "coverage") and res["ticks"] > 0
     wait_for(lambda: not any(pid_alive(p) for p in robots), 10)  # the host's robots did not outlive it
 
 
