@@ -103,8 +103,7 @@ class AgentNode(NodeBase):
             if item is None:
                 continue
             key, data, _ = item
-            parsed = self.keys.parse(key)
-            channel = parsed.channel if parsed is not None else None
+            channel = self.keys.channel(key)
             if channel == "stop":
                 if self.decode(key, data, Stop) is not None:
                     return tick
@@ -161,8 +160,7 @@ class AgentNode(NodeBase):
                 if item is None:
                     continue
                 key, data, _ = item
-                parsed = self.keys.parse(key)
-                channel = parsed.channel if parsed is not None else None
+                channel = self.keys.channel(key)
                 if channel == "stop":
                     if self.decode(key, data, Stop) is not None:
                         if worker is not None:  # let a decision under way finish, briefly

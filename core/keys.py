@@ -85,6 +85,11 @@ class Keys:
         got = parse_key(key_expr)
         return got[1] if got is not None and got[0] == self.run else None
 
+    def channel(self, key_expr: object) -> str | None:
+        """The channel a key of this run names (``parse(key).channel``); None where :meth:`parse` gives None."""
+        parsed = self.parse(key_expr)
+        return parsed.channel if parsed is not None else None
+
 
 def parse_key(key_expr: object) -> tuple[str, ParsedKey] | None:
     """The run and the channel a key names, whatever the run (for a recording read back); None for a key the

@@ -123,8 +123,7 @@ class NetemNode(NodeBase):
         if item is None:
             return None
         key, data, _ = item
-        parsed = self.keys.parse(key)
-        channel = parsed.channel if parsed is not None else None
+        channel = self.keys.channel(key)
         if channel == "hello":
             self.answer_hello(key, data)
         elif channel == "stop":

@@ -24,6 +24,7 @@ def test_every_key_parses_back_to_what_built_it() -> None:
     }
     for expr, parsed in built.items():
         assert k.parse(expr) == parsed, expr
+        assert k.channel(expr) == parsed.channel, expr
 
 
 @pytest.mark.parametrize("expr", [
@@ -36,7 +37,7 @@ def test_every_key_parses_back_to_what_built_it() -> None:
     "",
 ])
 def test_foreign_or_malformed_keys_parse_to_none(expr: str) -> None:
-    assert Keys("run1").parse(expr) is None
+    assert Keys("run1").parse(expr) is None and Keys("run1").channel(expr) is None
 
 
 def test_run_ids_and_robot_ids() -> None:
