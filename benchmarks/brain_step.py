@@ -87,20 +87,15 @@ def _own_copy(open_: Any) -> Any:
     return opened
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:  # one line, exit 2
-        _fail(message)
-
-
 def _fail(message: str) -> NoReturn:
-    print(f"brain_step: error: {message}", file=sys.stderr)
-    raise SystemExit(2)
+    scale.fail("brain_step", message)
 
 
 def main(argv: list[str] | None = None) -> None:
     from fleet_emu.core.errors import FleetError
 
-    p = _Parser(prog="brain_step.py", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = scale.OneLineParser(prog="brain_step.py", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--robots", type=int, default=16)
     p.add_argument("--ticks", type=int, default=60)
     p.add_argument("--cells", type=int, default=512)

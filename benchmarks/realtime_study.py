@@ -44,23 +44,18 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from scale import REAL_MAP, fit_cell_size, machine, open_start
+from scale import REAL_MAP, OneLineParser, fail, fit_cell_size, machine, open_start
 
 ALLOCATORS = {"greedy": {"type": "greedy"}, "minpos-par": {"type": "minpos", "wavefront": "parallel"}}
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:  # one line, exit 2
-        _fail(message)
-
-
 def _fail(message: str) -> NoReturn:
-    print(f"realtime_study: error: {message}", file=sys.stderr)
-    raise SystemExit(2)
+    fail("realtime_study", message)
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
-    p = _Parser(prog="realtime_study.py", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(prog="realtime_study.py", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--hz", type=float, default=10.0, help="world ticks per second")
     p.add_argument("--robots", type=int, nargs="+", default=[8, 32, 64], help="fleet sizes")
     p.add_argument("--allocators", nargs="+", default=list(ALLOCATORS), choices=list(ALLOCATORS))

@@ -58,14 +58,20 @@ REAL_MAP = ROOT.parent / "shared" / "maps" / "stage" / "cave.yaml"
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:  # one line, exit 2
-        _fail(message)
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, ``PROG: error: ...``, and exit 2 (the benchmarks')."""
+
+    def error(self, message: str) -> NoReturn:
+        fail(Path(self.prog).stem, message)
+
+
+def fail(prog: str, message: str) -> NoReturn:
+    print(f"{prog}: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
 
 
 def _fail(message: str) -> NoReturn:
-    print(f"scale: error: {message}", file=sys.stderr)
-    raise SystemExit(2)
+    fail("scale", message)
 
 
 # --- /proc -----------------------------------------------------------------------------------------------
@@ -266,7 +272,7 @@ def line(row: dict[str, Any]) -> str:
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
-    p = _Parser(prog="scale.py", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(prog="scale.py", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--robots", type=int, nargs="+", default=[16, 32, 64, 100], help="fleet sizes")
     p.add_argument("--ticks", type=int, default=30, help="ticks per run (the scenario's max_ticks)")
     p.add_argument("--cells", type=int, default=512, help="cells across the maps (their larger side)")
