@@ -8,10 +8,11 @@ map deltas (``dst = "*"``), so the base hears them whenever it is linked to the 
 robot are not for the base. It asks for nothing: a delta lost on the way to the base stays missing until the
 cells come again in another robot's delta (the robots' map sync, ``agents/mapsync.py``, is between robots).
 
-:meth:`BaseStation.plan` is where a base-station planner goes (the ``mhm`` allocator of issue 10's later part,
-``agents/allocators/mhm/``): it gets the station (its belief, the robots' last cells, the tick) and returns the
-radio messages the base would send. Today the base only listens: the default planner sends nothing, and
-the node shell (``agents/base_node.py``) has no ``radio/tx/base`` key to send on.
+:meth:`BaseStation.plan` is where a base-station planner goes (the ``mhm`` allocator, issue 10 part 4:
+``agents/allocators/mhm/station.py``): it gets the station (its belief, the robots' last cells, the tick) and
+returns the radio messages the base sends; :meth:`BaseStation.step` seals them as the base's envelopes (origin
+``base``, its one sequence counter), which the node shell publishes on ``radio/tx/base``. Without a planner the
+base only listens and sends nothing.
 
 No Zenoh, no clock, no files.
 """
@@ -30,7 +31,7 @@ from fleet_emu.core.codec import Context
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import UNKNOWN, Cell
 from fleet_emu.core.keys import BASE
-from fleet_emu.core.messages import Envelope, RadioMsg, open_envelope
+from fleet_emu.core.messages import Envelope, RadioMsg, open_envelope, seal
 
 #: A base-station planner: the station after its tick's merge, to the radio messages it would send.
 Planner = Callable[["BaseStation"], Sequence[RadioMsg]]
@@ -63,17 +64,17 @@ class BaseStation:
         self.seq = 0
 
     def next_seq(self) -> int:
-        """The base's one sequence counter (its report today; its envelopes once it sends)."""
+        """The base's one sequence counter: its envelopes, its tx bundles and its report."""
         self.seq += 1
         return self.seq
 
-    def step(self, tick: int, inbox: Sequence[Envelope]) -> tuple[RadioMsg, ...]:
-        """Merge what the radio delivered at ``tick``; the planner's messages (none without a planner)."""
+    def step(self, tick: int, inbox: Sequence[Envelope]) -> tuple[Envelope, ...]:
+        """Merge what the radio delivered at ``tick``; the planner's messages, sealed (none without a planner)."""
         self.tick = tick
         self.ticks += 1
         for env in inbox:
-            if env.src == BASE or env.dst not in ("*", BASE):
-                continue  # with relaying: overheard on its way to a robot
+            if env.src == BASE or env.origin == BASE or env.dst not in ("*", BASE):
+                continue  # with relaying: overheard on its way to a robot, or its own orders relayed back
             try:
                 env.validate(self.ctx)
                 if not self.seen.add((env.origin, env.seq)):
@@ -94,7 +95,7 @@ class BaseStation:
             # other robots' protocol messages (an allocator's) are not for the base: ignored
         self.belief.take_news()  # the base shares nothing yet: do not let the news pile up
         self.belief.take_changed()
-        return self.plan()
+        return tuple(seal(m, BASE, tick, self.next_seq()) for m in self.plan())
 
     def plan(self) -> tuple[RadioMsg, ...]:
         """The hook for a base-station planner (module docstring); no planner, no messages."""

@@ -2,10 +2,14 @@
 
 The base is a fixed radio endpoint: netem computes its links from its cell like a robot's and delivers to it,
 on ``radio/rx/base``, what robots broadcast. It is driven only by those rx bundles: it takes no part in the
-world's lockstep barrier (it has no command to send, and sends nothing on the radio yet), so it can never hold
-a tick up, and a run's robots do the same with or without it (netem draws the base's receptions from a
-generator of its own). Each bundle is stepped, in the order netem sent them, through
-:class:`~fleet_emu.agents.base.BaseStation`.
+world's lockstep barrier (it has no command to send), and a run's robots do the same with or without it
+(netem draws the base's receptions from a generator of its own). Each bundle is stepped, in the order netem
+sent them, through :class:`~fleet_emu.agents.base.BaseStation`.
+
+In a run whose allocator plans at the base (``mhm``, ``Scenario.plans_at_base``) the base also sends: after
+stepping the rx bundle of tick t it publishes its tx bundle of t on ``radio/tx/base`` (the planner's orders,
+sent even when empty), and netem waits for it as for a robot's before it sends tick t, so the run stays
+lockstep and deterministic. Other runs publish nothing there and are as before.
 
 At the world's stop of tick T it waits (at most :data:`FINAL_GRACE` seconds) for the bundles up to T - 1, the
 last netem sends, so that its map is the same in every engine; then it publishes its
@@ -21,11 +25,12 @@ import time
 
 import zenoh
 
+from fleet_emu.agents.allocators.mhm.station import station_planner
 from fleet_emu.agents.base import BaseStation
 from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
-from fleet_emu.core.messages import BaseReport, RxBundle, Stop
+from fleet_emu.core.messages import BaseReport, RxBundle, Stop, TxBundle
 from fleet_emu.core.node import NodeBase, node_main, undeclare
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.world.node import base_cell
@@ -41,7 +46,9 @@ class BaseNode(NodeBase):
         cell = base_cell(scenario, map_data)
         assert cell is not None, "a base process for a scenario without a base"
         self.station = BaseStation(cell, map_data.grid.shape, frozenset(robot_ids(scenario.robots)),
-                                   on_drop=self.drop)
+                                   planner=station_planner(scenario), on_drop=self.drop)
+        self.sends = scenario.plans_at_base
+        self.pub_tx: zenoh.Publisher | None = None
         self.next_tick = 0
 
     def next_seq(self) -> int:
@@ -52,7 +59,11 @@ class BaseNode(NodeBase):
         inbox = Inbox()
         handles = [inbox.subscribe(session, keys.rx(BASE)), inbox.subscribe(session, keys.stop)]
         pub_report = publisher(session, keys.report(BASE))
-        handles += [pub_report, *self.declare_presence(session, inbox)]
+        handles.append(pub_report)
+        if self.sends:
+            self.pub_tx = publisher(session, keys.tx(BASE))
+            handles.append(self.pub_tx)
+        handles += self.declare_presence(session, inbox)
         try:
             stop = await self._until_stop(inbox)
             if stop.src == "world":
@@ -92,7 +103,9 @@ class BaseNode(NodeBase):
         elif channel == "rx":
             b = self.decode(key, data, RxBundle)  # loosely: the station checks each envelope against the team
             if b is not None and b.dst == BASE and b.tick >= self.next_tick:  # one key, one publisher: in order
-                self.station.step(b.tick, b.msgs)
+                out = self.station.step(b.tick, b.msgs)
+                if self.pub_tx is not None:
+                    self.pub_tx.put(TxBundle(src=BASE, tick=b.tick, seq=self.next_seq(), msgs=out).encode())
                 self.next_tick = b.tick + 1
             elif b is not None:
                 self.drop(key, "rx bundle for another node or a past tick")

@@ -40,6 +40,8 @@ from fleet_emu.agents.relay import Relay
 from fleet_emu.core.codec import Context
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import FREE, MOVES, STAY, Cell
+from fleet_emu.core.kernels import wavefront
+from fleet_emu.core.keys import BASE, robot_ids
 from fleet_emu.core.messages import Command, Envelope, Observation, RadioMsg, open_envelope, seal
 from fleet_emu.core.scenario import Scenario
 
@@ -106,6 +108,12 @@ def brain_config(scenario: Scenario) -> BrainConfig:
     lossless = r.comm == "ideal" or (r.comm == "full" and r.loss == 0)
     return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_sync=not lossless,
                        relay=scenario.relay, relay_ttl=scenario.relay_ttl)
+
+
+def radio_team(scenario: Scenario) -> frozenset[str]:
+    """Who a robot hears radio messages from: the robots, and the base station when it plans (``mhm``: its
+    orders); a message from anyone else is dropped as malformed."""
+    return frozenset(robot_ids(scenario.robots)) | ({BASE} if scenario.plans_at_base else set())
 
 
 def allocator_config(scenario: Scenario) -> dict[str, Any]:
@@ -275,14 +283,22 @@ class Brain:
         move = STAY
         wants = False  # the robot wants to move but a teammate stands on every way down the wavefront
         dist, blocked = None, set()
-        if alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None:
+        going = alloc.status is AllocStatus.GOAL and alloc.target is not None  # a planner's goal cell (mhm)
+        if (alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None) or going:
             blocked = {expected[r] for r, tm in self.teammates.items()
                        if tm.heard >= t - 1 and expected[r] == tm.cell}
-            dist = problem.wavefront_to(alloc.cluster)
+            if going:
+                mask = alloc.passable if alloc.passable is not None else problem.passable
+                dist = goal_wavefront(mask, alloc.target)  # type: ignore[arg-type]
+            else:
+                dist = problem.wavefront_to(alloc.cluster)  # type: ignore[arg-type]
             move = next_move(dist, obs.cell, blocked)
             wants = move == STAY and dist[obs.cell] > 0
+        if alloc.routes is not None and self.relay is not None:
+            self.relay.set_routes(alloc.routes)  # a base planner's tree (mhm), for the next ticks' forwarding
         self.plan = Plan(dist, alloc.target, alloc.status.name, frozenset(blocked))
-        move = self._unstick(obs.cell, move, wants, belief.grid, set(expected.values()))
+        move = self._unstick(obs.cell, move, wants, belief.grid, set(expected.values()),
+                             alloc.passable if going else None)
         c_news = time.thread_time()
         cpu["navigation"] += (c_news - c_nav) * 1000.0
         outbox.extend(alloc.outbox)
@@ -327,21 +343,30 @@ class Brain:
         self.teammates[msg.origin] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
         return rejoined
 
-    def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray, occupied: set[Cell]) -> Cell:
+    def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray, occupied: set[Cell],
+                 passable: np.ndarray | None = None) -> Cell:
         """A robot whose moves keep failing, or that keeps waiting for a teammate to clear its way (two
         robots head-on in a corridor), tries a random free step (not onto a cell in ``occupied``, the
-        teammates' expected cells), drawn from its own generator."""
+        teammates' expected cells; inside ``passable`` when a planner's goal restricts it), drawn from its own
+        generator."""
         if (self.last_cell == cell and self.last_move != STAY) or wants:
             self.stuck += 1
         else:
             self.stuck = 0
         if (move != STAY or wants) and self.stuck >= self.config.unstick_after:
             options = [m for m in MOVES if _free(grid, (cell[0] + m[0], cell[1] + m[1]))
-                       and (cell[0] + m[0], cell[1] + m[1]) not in occupied]
+                       and (cell[0] + m[0], cell[1] + m[1]) not in occupied
+                       and (passable is None or passable[cell[0] + m[0], cell[1] + m[1]])]
             if options:
                 move = options[int(self.rng.integers(len(options)))]
         self.last_cell, self.last_move = cell, move
         return move
+
+
+def goal_wavefront(passable: np.ndarray, goal: Cell) -> np.ndarray:
+    """BFS distance to ``goal`` over ``passable`` cells (-1 unreached: a robot steps down it only from a
+    passable cell)."""
+    return wavefront(passable, np.array([goal[0] * passable.shape[1] + goal[1]], dtype=np.int64), -1)
 
 
 def _free(grid: np.ndarray, cell: Cell) -> bool:

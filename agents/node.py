@@ -19,12 +19,12 @@ import numpy as np
 import zenoh
 
 from fleet_emu.agents.allocators import make_allocator
-from fleet_emu.agents.brain import Brain, allocator_config, brain_config
+from fleet_emu.agents.brain import Brain, allocator_config, brain_config, radio_team
 from fleet_emu.agents.realtime import Timing, percentiles
 from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.codec import Context
 from fleet_emu.core.kernels import warm_up
-from fleet_emu.core.keys import Keys, robot_ids
+from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import (
     AgentReport,
     AgentTiming,
@@ -51,7 +51,7 @@ class AgentNode(NodeBase):
         self.robot = robot
         allocator = make_allocator(allocator_config(scenario))
         self.brain = Brain(robot, allocator, generator(scenario.seed, robot), brain_config(scenario),
-                           team=frozenset(robot_ids(scenario.robots)), on_drop=self.drop)
+                           team=radio_team(scenario), on_drop=self.drop)
         self.ctx_world = Context(senders=frozenset({"world"}))
         self.realtime = bool(realtime_hz)
         self.timing = Timing()

@@ -14,7 +14,7 @@ The keys each node writes (README "Key expressions"):
 world      ``world/**`` (state, obs, clock), ``ctl/hello``, ``ctl/stop``, ``ctl/ready/world``
 netem      ``radio/rx/*``, ``netem/links``, ``ctl/ready/netem``
 robot rK   ``robot/rK/**`` (cmd, belief, timing), ``radio/tx/rK``, ``ctl/report/rK``, ``ctl/ready/rK``
-base       ``ctl/report/base``, ``ctl/ready/base`` (the base station: it only listens today)
+base       ``radio/tx/base`` (a base-station planner's orders), ``ctl/report/base``, ``ctl/ready/base``
 launcher   ``ctl/stop``, ``ctl/failed/*``, ``ctl/ready/launcher``
 recorder   nothing (it subscribes to ``fleet/<run>/**``)
 host K     nothing in the run (it reads the run's keys, e.g. the launcher's liveliness token)
@@ -63,8 +63,8 @@ def writes(node: str) -> list[str]:
         return ["ctl/stop", "ctl/failed/*", "ctl/ready/launcher"]
     if node == RECORDER or role_of(node) == HOST:
         return []
-    if node == BASE:  # a radio endpoint that only listens (issue 10 part 1); radio/tx/base comes with relaying
-        return [f"ctl/report/{BASE}", f"ctl/ready/{BASE}"]
+    if node == BASE:  # a fixed radio endpoint; it sends on radio/tx/base when it plans (mhm, issue 10 part 4)
+        return [f"radio/tx/{BASE}", f"ctl/report/{BASE}", f"ctl/ready/{BASE}"]
     return [f"robot/{node}/**", f"radio/tx/{node}", f"ctl/report/{node}", f"ctl/ready/{node}"]
 
 

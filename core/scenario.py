@@ -20,6 +20,9 @@ from fleet_emu.core.radio import COMM_MODELS, RadioConfig
 
 MAX_ROBOTS = 256
 RELAY_POLICIES = ("none", "flood", "tree")
+#: Allocators that plan at the base station (issue 10, part 4): a run with one needs ``base``, the base joins
+#: netem's lockstep as a sender (``radio/tx/base``), and the robots relay (``tree`` by default, below).
+BASE_PLANNERS = frozenset({"mhm"})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,6 +48,14 @@ class Scenario:
     base: bool | tuple[int, int] = False  # a base station: False (none), True (at the start cell) or a cell
     relay: str = "none"  # multi-hop relaying in the robots (agents/relay.py): none, flood or tree
     relay_ttl: int = 0  # hops left after the first on the messages a robot makes (0: one hop)
+
+    def __post_init__(self) -> None:
+        """A base-station planner's orders must cross several hops: with ``relay = "none"`` (the default) it
+        runs with ``tree`` relaying and, when ``relay_ttl`` is 0, the largest hop limit (README "MHM")."""
+        if self.plans_at_base and self.relay == "none":
+            object.__setattr__(self, "relay", "tree")
+            if self.relay_ttl == 0:
+                object.__setattr__(self, "relay_ttl", MAX_TTL)
 
     # --- reading and writing ------------------------------------------------------------------------------
 
@@ -157,6 +168,24 @@ class Scenario:
         return self.base is not False
 
     @property
+    def plans_at_base(self) -> bool:
+        """Whether the allocator is a base-station planner (:data:`BASE_PLANNERS`): the base sends orders."""
+        return isinstance(self.allocator, dict) and self.allocator.get("type") in BASE_PLANNERS
+
+    @property
+    def link_cells(self) -> float:
+        """The distance in cells within which two endpoints are linked whatever lies between them: ``disk``,
+        its range; ``wall``, eq. 4's range through ``max_walls`` walls (the most it counts), so a link that
+        close holds through any walls; ``full`` and ``ideal``, the map can be no larger (1e6)."""
+        r = self.radio
+        if r.comm == "disk":
+            return r.comm_range / self.cell_size
+        if r.comm == "wall":
+            return r.comm_range * 10 ** (-(r.threshold + r.max_walls * r.waf) / (10 * r.path_loss)) / self.cell_size \
+                if r.path_loss > 0 else 1e6
+        return 1e6
+
+    @property
     def sensor_cells(self) -> float:
         """Sensor range in cells."""
         return self.sensor_range / self.cell_size
@@ -204,6 +233,9 @@ class Scenario:
         if self.relay not in RELAY_POLICIES:
             raise ConfigError(f"--relay must be one of {', '.join(RELAY_POLICIES)} (got {self.relay!r})")
         _integer("--relay-ttl", self.relay_ttl, 0, MAX_TTL)
+        if self.plans_at_base and not self.has_base:
+            raise ConfigError(f"--allocator {self.allocator['type']} plans at the base station: it needs --base "
+                              "(or --base-cell ROW,COL; in a scenario base = true)")
         return self
 
 

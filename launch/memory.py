@@ -26,8 +26,9 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.agents.allocators import make_allocator
+from fleet_emu.agents.allocators.mhm.station import station_planner
 from fleet_emu.agents.base import BaseStation
-from fleet_emu.agents.brain import Brain, allocator_config, brain_config
+from fleet_emu.agents.brain import Brain, allocator_config, brain_config, radio_team
 from fleet_emu.core.errors import RunError
 from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
@@ -119,7 +120,7 @@ class Fleet:
         self.base: BaseStation | None = None
         self._base_dropped = 0
         self.brains = {r: Brain(r, make_allocator(allocator_config(s)), generator(s.seed, r), brain_config(s),
-                                team=frozenset(self.possible_agents), on_drop=self._on_drop(r))
+                                team=radio_team(s), on_drop=self._on_drop(r))
                        for r in self.possible_agents}
         self.monitor = Monitor(tuple(self.possible_agents), base=s.has_base, relay=s.relay != "none")
         self._world_seq = self._netem_seq = 0
@@ -130,7 +131,8 @@ class Fleet:
         cell = base_cell(s, self.map, self.world)  # after the reset: a random start is drawn there
         if cell is not None:
             self.base = BaseStation(cell, self.map.grid.shape, frozenset(self.possible_agents),
-                                    on_drop=self._on_base_drop)
+                                    planner=station_planner(s), on_drop=self._on_base_drop)
+        self._base_tx: tuple[Envelope, ...] | None = None  # the base's tx bundle of the tick, when it sends
         self._publish(readings)
         return dict(self.obs), {r: {} for r in self.agents}
 
@@ -160,6 +162,8 @@ class Fleet:
             moves[r] = cmd.move
         if actions:
             moves |= {r: tuple(m) for r, m in actions.items() if r in moves}  # type: ignore[misc]
+        if self._base_tx is not None:  # a planning base's orders (agents/base_node.py), sent after the robots'
+            bundles[BASE] = self._base_tx
         self.channel.transmit(t, self.nodes, self.link, bundles)
         self._publish(w.step(moves))
         gain = w.coverage - before
@@ -253,7 +257,10 @@ class Fleet:
         for r in self.nodes:
             self._emit(self.keys.rx(r), RxBundle(src="netem", tick=t, seq=self._nseq(), dst=r, msgs=self.rx[r]))
         if self.base is not None:  # the base process, driven by its rx bundle (agents/base_node.py)
-            self.base.step(t, self.rx[BASE])
+            out = self.base.step(t, self.rx[BASE])
+            if self.scenario.plans_at_base:
+                self._base_tx = out
+                self._emit(self.keys.tx(BASE), TxBundle(src=BASE, tick=t, seq=self.base.next_seq(), msgs=out))
 
     def _on_base_drop(self, _key: str, _why: str) -> None:
         self._base_dropped += 1

@@ -8,6 +8,9 @@ no robot. What arrived from the robots between the states of t and t + 1 (whatev
 with: a late decision's bundle too) is sent at t, over the links of t, so it is delivered at t + latency as in
 lockstep; a robot that sent nothing in that time sent nothing at t.
 The channel itself is :class:`netem.channel.Channel`; the signal model is :mod:`fleet_emu.core.radio`.
+
+A base station that plans (``mhm``: ``Scenario.plans_at_base``) is a sender too: netem waits for its tx bundle
+of t as for a live robot's (lockstep), and sends it from the base's cell, after the robots' bundles.
 """
 
 from __future__ import annotations
@@ -44,7 +47,9 @@ class NetemNode(NodeBase):
         self.base = base_cell(scenario, map_data)  # a fixed radio endpoint, in a run with a base station
         self.channel = Channel(scenario.radio.applied_loss, generator(scenario.seed, "netem"), scenario.radio.latency,
                                generator(scenario.seed, "netem", BASE))
-        self.ctx_tx = Context(senders=frozenset(self.robots), shape=map_data.grid.shape)
+        self.base_sends = self.base is not None and scenario.plans_at_base  # the base's orders (mhm)
+        senders = frozenset(self.robots) | ({BASE} if self.base_sends else set())
+        self.ctx_tx = Context(senders=senders, shape=map_data.grid.shape)
         self.ctx_world = Context(senders=frozenset({"world"}))
         self.states: dict[int, WorldState] = {}
         self.tx: dict[int, dict[str, TxBundle]] = {}
@@ -156,7 +161,8 @@ class NetemNode(NodeBase):
 
     async def _await_tx(self, inbox: Inbox, tick: int, live: tuple[str, ...]) -> dict | None:
         deadline = time.monotonic() + self.scenario.barrier_timeout
-        needed = set(live)
+        base = {BASE} if self.base_sends else set()  # the world does not wait for the base: netem does
+        needed = set(live) | base
         while not needed <= set(self.tx.get(tick, {})):
             if self.abort:
                 return None
@@ -166,9 +172,9 @@ class NetemNode(NodeBase):
             if len(self.tx.get(tick, {})) > heard:  # as the world's barrier: silent since the last bundle
                 deadline = time.monotonic() + self.scenario.barrier_timeout
             if tick + 1 in self.states:  # the world moved on: only robots it failed may stay silent
-                needed &= set(self.states[tick + 1].live)
+                needed &= set(self.states[tick + 1].live) | base
         got = self.tx.pop(tick, {})
-        return {r: got[r].msgs for r in live if r in got}
+        return {r: got[r].msgs for r in (*live, *base) if r in got}
 
     def _publish_tick(self, state: WorldState, live: tuple[str, ...]) -> tuple[tuple[str, ...], np.ndarray]:
         """The links and rx bundles of the state's tick; the tick's radio endpoints and their link matrix."""

@@ -17,6 +17,7 @@ from fleet_emu.agents.allocators.base import (
     Problem,
     robot_order,
 )
+from fleet_emu.agents.allocators.mhm import robot as _mhm_robot  # noqa: F401  (registers ``mhm``)
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.agents.allocators.registry import allocator_class, allocator_names, make_allocator
 

@@ -12,7 +12,7 @@ import dataclasses
 import enum
 import functools
 import operator
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -29,21 +29,30 @@ INF = np.inf
 
 class AllocStatus(enum.Enum):
     """What an allocation says: a cluster was assigned, there is no reachable frontier, or the robot waits
-    (a protocol round is under way)."""
+    (a protocol round is under way); a planner's orders (``mhm``) add ``GOAL``, drive to a given cell (not a
+    frontier cluster's) over ``Allocation.passable``, and ``HOLD``, stay (a relay node, or a robot without a
+    usable order)."""
 
     ASSIGNED = "assigned"
     NO_FRONTIER = "no_frontier"
     WAITING = "waiting"
+    GOAL = "goal"
+    HOLD = "hold"
 
 
 @dataclasses.dataclass(frozen=True)
 class Allocation:
-    """The result of one call: ``cluster`` indexes ``Problem.clusters``; ``target`` is that cluster's target."""
+    """The result of one call: ``cluster`` indexes ``Problem.clusters``; ``target`` is that cluster's target
+    (with ``GOAL``, the goal cell itself). ``passable`` (``GOAL`` only) restricts the cells navigation and
+    unsticking may use (None: every known-free cell); ``routes`` (not None) are new relay routes for the
+    robot's ``tree`` relaying (``agents/relay.py``), a parent map."""
 
     status: AllocStatus
     cluster: int | None = None
     target: Cell | None = None
     outbox: tuple[RadioMsg, ...] = ()
+    passable: np.ndarray | None = dataclasses.field(default=None, compare=False, repr=False)
+    routes: Mapping[str, str] | None = None
 
     @staticmethod
     def assigned(problem: Problem, j: int, outbox: tuple[RadioMsg, ...] = ()) -> Allocation:
@@ -52,6 +61,16 @@ class Allocation:
     @staticmethod
     def none(outbox: tuple[RadioMsg, ...] = ()) -> Allocation:
         return Allocation(AllocStatus.NO_FRONTIER, None, None, outbox)
+
+    @staticmethod
+    def goal(cell: Cell, passable: np.ndarray | None = None, routes: Mapping[str, str] | None = None) -> Allocation:
+        """Drive to ``cell`` over ``passable`` cells."""
+        return Allocation(AllocStatus.GOAL, None, cell, passable=passable, routes=routes)
+
+    @staticmethod
+    def hold(routes: Mapping[str, str] | None = None) -> Allocation:
+        """Stay where it stands."""
+        return Allocation(AllocStatus.HOLD, routes=routes)
 
 
 @dataclasses.dataclass

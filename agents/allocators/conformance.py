@@ -69,6 +69,12 @@ def _check(problem: Problem, a: Any, name: str) -> None:
         assert problem.wavefronts[a.cluster][me] >= 0, f"{name}: assigned an unreachable cluster"
     else:
         assert a.cluster is None or a.status is AllocStatus.WAITING, f"{name}: a cluster without ASSIGNED"
+    if a.status is AllocStatus.GOAL:
+        rows, cols = problem.belief.shape
+        assert a.target is not None and 0 <= a.target[0] < rows and 0 <= a.target[1] < cols, \
+            f"{name}: goal off the grid"
+        assert a.passable is None or (a.passable.shape == problem.belief.shape and a.passable.dtype == bool), \
+            f"{name}: passable is not a boolean mask of the grid"
     assert isinstance(a.outbox, tuple), f"{name}: outbox is not a tuple"
     for m in a.outbox:
         assert isinstance(m, RadioMsg) and isinstance(m.dst, str), f"{name}: an outbox entry is not a RadioMsg"

@@ -7,7 +7,7 @@ import numpy as np
 from fleet_emu.agents.base import BaseStation
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
 from fleet_emu.core.grid import UNKNOWN, from_ascii
-from fleet_emu.core.messages import RadioMsg, seal
+from fleet_emu.core.messages import RadioMsg, open_envelope, seal
 
 TRUTH, _ = from_ascii("""
     #####
@@ -62,7 +62,8 @@ def test_a_planner_hook_gets_the_station_after_the_merge() -> None:
     st = BaseStation((1, 1), TRUTH.shape, TEAM, planner=planner)
     cells, values = _cells((1, 1), (1, 2))
     out = st.step(0, [seal(RadioMsg(MapDelta(cells=cells, values=values)), "r0", 0, 1)])
-    assert seen == [2] and len(out) == 1 and out[0].body == PoseBeacon(cell=(1, 1))
+    assert seen == [2] and len(out) == 1 and open_envelope(out[0]).body == PoseBeacon(cell=(1, 1))
+    assert out[0].origin == out[0].src == "base" and out[0].tick == 0  # sealed as the base's
 
 
 def test_relayed_copies_are_merged_once_under_their_origin_and_others_mail_is_ignored() -> None:

@@ -124,17 +124,19 @@ def test_the_monitor_never_folds_a_spoofed_state_and_counts_it() -> None:
 
 
 def test_the_base_writes_only_its_own_keys_and_no_robot_writes_the_bases() -> None:
-    assert writes("base") == ["ctl/report/base", "ctl/ready/base"]
+    assert writes("base") == ["radio/tx/base", "ctl/report/base", "ctl/ready/base"]  # tx: a planner's orders
+    assert _may_write("base", K.tx("base")) and not _may_write("r0", K.tx("base"))
     for expr in (K.cmd("r0"), K.tx("r0"), K.report("r0"), K.ready("r0"), K.belief("r0"), K.rx("base"), K.state,
                  K.links, K.stop, K.failed("r0"), K.hello):
         assert not _may_write("base", expr), expr
     for robot in ("r0", "r1"):
-        for expr in (K.report("base"), K.ready("base"), K.rx("base")):
+        for expr in (K.report("base"), K.ready("base"), K.rx("base"), K.tx("base")):
             assert not _may_write(robot, expr), (robot, expr)
     acl = acl_config("run1", fleet_nodes(robot_ids(2), base=True))
     policy = next(p for p in acl["policies"] if p["subjects"] == ["user base"])
     rules = {r["id"]: r for r in acl["rules"]}
-    assert rules["put base"]["key_exprs"] == ["fleet/run1/ctl/report/base", "fleet/run1/ctl/ready/base"]
+    assert rules["put base"]["key_exprs"] == ["fleet/run1/radio/tx/base", "fleet/run1/ctl/report/base",
+                                              "fleet/run1/ctl/ready/base"]
     assert rules["token base"]["key_exprs"] == ["fleet/run1/alive/base/base"]
     assert sorted(policy["rules"]) == ["put base", "token base"]
     assert "base" not in fleet_nodes(robot_ids(2))  # a run without a base has no base user

@@ -153,9 +153,9 @@ def test_a_robot_cannot_put_on_the_bases_keys_nor_the_base_on_a_robots(router) -
         for k in ("ctl/report/base", "ctl/ready/base", "radio/rx/base", "radio/tx/base"):
             r1.put(f"fleet/{RUN}/{k}", b"r1")
         for k in ("robot/r0/cmd", "radio/tx/r0", "ctl/report/r0", "ctl/ready/r1", "radio/rx/r0", "world/state",
-                  "netem/links", "ctl/stop", "radio/tx/base"):
+                  "netem/links", "ctl/stop", "radio/tx/r1"):
             base.put(f"fleet/{RUN}/{k}", b"base")
-        allowed = ["base ctl/report/base", "base ctl/ready/base", "r1 ctl/report/r1"]
+        allowed = ["base ctl/report/base", "base ctl/ready/base", "base radio/tx/base", "r1 ctl/report/r1"]
         for a in allowed:
             who, k = a.split(" ")
             (base if who == "base" else r1).put(f"fleet/{RUN}/{k}", who.encode())

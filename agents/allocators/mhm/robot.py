@@ -1,0 +1,117 @@
+"""The ``mhm`` allocator: a robot that obeys the base station's MHM orders (Mukhija et al., section III-D;
+the planning is the base's, ``planner.py``, run by ``station.py`` in the base process).
+
+Each tick the robot keeps the newest :class:`~.orders.MhmOrders` it heard (by ``plan_tick``; copies relayed late
+are older and ignored) and decides from it alone:
+
+- A **node** holds: it stands on its node's cell, a relay (section III: "a node does not move"). Should it
+  not yet be there (orders that moved on while it drove), it drives to that cell like an explorer.
+- An **explorer** drives to its goal over the *safe area it knows*: its own known-free cells within r_comm
+  of a relay cell of the orders (the base, the hinged nodes), the cell it stands on included. Explorers stay
+  in range of a relay at every step (section III); the base plans every goal inside its own safe area.
+- **Without a usable order** (none heard yet, no goal, a goal outside the safe area the robot knows, or no
+  path to it inside that area) the robot keeps its *last safe position*: the last cell it stood on that was
+  in the safe area of the orders it had then. It holds there, or, standing outside the safe area (its relay
+  unhinged before its new orders came), drives back there over its known-free cells. It never drives out
+  of range on an old plan. Choice: the paper's robots hear every order at once; over a lossy multi-hop
+  radio they do not, and this is the conservative reading of "a robot is never farther than r_comm".
+- The orders' ``routes`` go to the robot's relay (``Allocation.routes``, applied by the brain to the
+  ``tree`` policy) when new orders arrive: forwarding decisions of the tick an order arrives use the routes
+  before it.
+
+Parameters: ``r_comm`` and ``sensor_range`` in cells (in a run: the scenario's radio, ``Scenario.link_cells``,
+and sensor), ``x_min`` eq. 1's X_min, ``hinges`` the cap on hinge points per expansion (0: none; 1: the
+single-hinge variant, an approximation of the SHM baseline, which the paper describes only by reference),
+``cluster_max`` frontier cells per cluster and ``patience`` ticks without progress before a planner's wait
+ends. The base builds its planner from the same parameters (:func:`mhm_config`), so robots and base agree on
+r_comm. The allocator draws no random numbers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.agents.allocators.mhm.explore import safe_area
+from fleet_emu.agents.allocators.mhm.orders import MhmOrders
+from fleet_emu.agents.allocators.mhm.planner import MhmConfig
+from fleet_emu.agents.allocators.params import Param
+from fleet_emu.core.grid import FREE, Cell
+from fleet_emu.core.kernels import wavefront
+from fleet_emu.core.keys import BASE
+from fleet_emu.core.messages import RadioMsg
+
+
+def mhm_config(params: dict[str, Any]) -> MhmConfig:
+    """The planner's configuration from the allocator's parameters (``Mhm.params()``)."""
+    return MhmConfig(r_comm=float(params["r_comm"]), sensor_range=float(params["sensor_range"]),
+                     x_min=int(params["x_min"]), hinges=int(params["hinges"]),
+                     cluster_max=int(params["cluster_max"]), patience=int(params["patience"]))
+
+
+def _reaches(passable: np.ndarray, goal: Cell, me: Cell) -> bool:
+    dist = wavefront(passable, np.array([goal[0] * passable.shape[1] + goal[1]], dtype=np.int64), -1)
+    return bool(dist[me] > 0)
+
+
+class Mhm(Allocator, plugin_name="mhm"):
+    """Obeys the base station's MHM orders (module docstring)."""
+
+    parameters = {
+        "r_comm": Param(20.0, gt=0),
+        "sensor_range": Param(8.0, gt=0),
+        "x_min": Param(1, ge=1),
+        "hinges": Param(0, ge=0),
+        "cluster_max": Param(30, ge=1),
+        "patience": Param(60, ge=1),
+    }
+    scenario_fields = {"r_comm": "link_cells", "sensor_range": "sensor_cells"}
+
+    def __init__(self, **params: Any) -> None:
+        super().__init__(**params)
+        self.order: MhmOrders | None = None
+        self.last_safe: Cell | None = None
+
+    def reset(self, rng: np.random.Generator) -> None:
+        super().reset(rng)
+        self.order = None
+        self.last_safe = None
+
+    def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
+        fresh = False
+        for msg in inbox:
+            body = msg.body
+            if isinstance(body, MhmOrders) and msg.origin == BASE and (
+                    self.order is None or body.plan_tick > self.order.plan_tick):
+                self.order, fresh = body, True
+        routes = dict(self.order.routes) if fresh and self.order is not None else None
+        me = problem.poses[problem.me]
+        order = self.order
+        if order is None or problem.me not in order.roles:
+            return self._keep(problem, me, None, routes)
+        safe = safe_area(problem.belief, order.relays, self.r_comm)
+        if safe[me]:
+            self.last_safe = me
+        goal = order.goals.get(problem.me)
+        if goal is None or goal == me or not safe[goal]:
+            return self._keep(problem, me, safe, routes)
+        passable = safe.copy()
+        passable[me] = True
+        if not _reaches(passable, goal, me):
+            return self._keep(problem, me, safe, routes)
+        return Allocation.goal(goal, passable, routes)
+
+    def _keep(self, problem: Problem, me: Cell, safe: np.ndarray | None, routes: dict[str, str] | None
+              ) -> Allocation:
+        """Hold the last safe position: stay on it, or drive back to it when standing outside the safe area."""
+        back = self.last_safe
+        if safe is None or safe[me] or back is None or back == me:
+            return Allocation.hold(routes)
+        passable = problem.belief == FREE
+        passable[me] = True
+        if not _reaches(passable, back, me):
+            return Allocation.hold(routes)
+        return Allocation.goal(back, passable, routes)
