@@ -7,12 +7,14 @@ from pathlib import Path
 import pytest
 
 from fleet_emu.agents.allocators import allocator_names
+from fleet_emu.core.scenario import BASE_PLANNERS
 
 from .conftest import fleet, result
 
 
 @pytest.mark.parametrize("loss", [0.0, 0.3, 0.5])
-@pytest.mark.parametrize("allocator", allocator_names())
+@pytest.mark.parametrize("allocator", [a for a in allocator_names() if a not in BASE_PLANNERS])
+# mhm needs a base station and stops where its robots cannot reach (step 18): tests/integration/test_mhm.py
 def test_every_allocator_completes_under_loss(allocator: str, loss: float, small_map: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
     # loss 0.5 runs one process per robot; the others run every node in one process (each its own session)

@@ -9,6 +9,7 @@ import pytest
 
 import fleet_emu as fe
 from fleet_emu.agents.allocators import allocator_names
+from fleet_emu.core.scenario import BASE_PLANNERS
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic
 
@@ -18,7 +19,9 @@ from .conftest import fleet, result
 @pytest.mark.parametrize("loss", [0.0, 0.3])
 @pytest.mark.parametrize("allocator", allocator_names())
 def test_memory_equals_processes(allocator: str, loss: float, small_map: Path) -> None:
-    s = fe.Scenario().override(map=str(small_map), robots=3, allocator=allocator, loss=loss, seed=5, max_ticks=150)
+    base = {"base": True} if allocator in BASE_PLANNERS else {}  # mhm: the base plans and sends its orders
+    s = fe.Scenario().override(map=str(small_map), robots=3, allocator=allocator, loss=loss, seed=5, max_ticks=150,
+                               **base)
     over_zenoh = fe.run(s)  # world, netem and one process per robot, over a Zenoh router
     in_memory = Fleet(s).run()
     assert over_zenoh["engine"] == "processes" and in_memory["engine"] == "memory"

@@ -12,6 +12,7 @@ from PIL import Image
 import fleet_emu as fe
 from fleet_emu.agents.allocators import allocator_names
 from fleet_emu.core import grid as fe_grid
+from fleet_emu.core.scenario import BASE_PLANNERS
 from fleet_emu.launch.memory import Fleet, seed_test
 from fleet_emu.launch.result import deterministic
 from fleet_emu.world.sim import StartAreaError
@@ -45,7 +46,8 @@ def scenario(rooms: Path, **over: object) -> fe.Scenario:
 
 @pytest.mark.parametrize("allocator", allocator_names())
 def test_seed_test_passes_for_every_allocator(allocator: str, rooms: Path) -> None:
-    seed_test(scenario(rooms, allocator=allocator), seed=3, ticks=40)
+    base = {"base": True} if allocator in BASE_PLANNERS else {}  # mhm plans at a base station
+    seed_test(scenario(rooms, allocator=allocator, **base), seed=3, ticks=40)
 
 
 def test_reset_and_step_follow_parallel_env(rooms: Path) -> None:
