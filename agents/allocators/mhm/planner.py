@@ -39,8 +39,15 @@ phase 2's in ``chain``, the explorers' in ``explore``):
   cell, so that the first ones in do not park on the cell's edge, often a doorway, in the way of the
   others. ``stalls`` counts these.
 - *Membership for tree breaking*: an explorer belongs to the hinged node nearest it (Euclidean, lower id on
-  ties), as the breaking starts. A recalled robot has arrived in the parent cell when it is within r_comm of
-  the parent's node (the definition of a cell).
+  ties), taken afresh before each popped level; an explorer that no relay staying up covers (``d < r_comm``)
+  belongs to the nearest cell of the level whatever node is nearest (ties between node cells would otherwise
+  leave it stranded when its real relay unhinges). A recalled robot has arrived in the parent cell when it is
+  within r_comm of the parent's node (the definition of a cell).
+- *Orders take time* (the fleet's radio; none in ``sim``): with ``latency`` > 0 (ticks per hop), before each
+  popped level every explorer holds for ``2 * latency * (depth + 1)`` ticks, ``depth`` the deepest node's
+  hop count: the hold order reaches the deepest robot and its beacon from where it stopped comes back before
+  the base takes the level's membership from the poses it heard. Without loss this makes the poses the base
+  breaks with the robots' real ones; with loss it is best effort.
 """
 
 from __future__ import annotations
@@ -79,7 +86,8 @@ Wait = Generator[None, None, object]
 class MhmConfig:
     """``r_comm`` and ``sensor_range`` in cells (the paper: 40 and 15 pixels), ``x_min`` eq. 1's X_min,
     ``hinges`` the cap on H per expansion (0: none; 1: the single-hinge variant), ``cluster_max`` frontier
-    cells per cluster, ``patience`` ticks without progress before a wait ends."""
+    cells per cluster, ``patience`` ticks without progress before a wait ends, ``latency`` the radio's ticks
+    per hop (0: orders arrive at once, as in ``sim``)."""
 
     r_comm: float = 40.0
     sensor_range: float = 15.0
@@ -87,6 +95,7 @@ class MhmConfig:
     hinges: int = 0
     cluster_max: int = 30
     patience: int = 60
+    latency: int = 0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -364,11 +373,11 @@ class MhmPlanner:
         roots = [b for b in roots if any(j in self.node_of for j in self.tree.subtree(b))]
         if not roots:
             return
-        hinged = sorted(self.hinged())
-        members = {r: min(hinged, key=lambda j: math.dist(self.tree[j].pos, c)) for r, c in self.explorers().items()}
         keep: set[int] = set()  # cells a recalled robot could not leave, and their ancestors
         for level in reversed(break_stack(self.tree, roots)):
-            movers = {r: self.tree.parent(i) for r, i in members.items() if i in level}
+            yield from self._settle()
+            members = self._members(level)
+            movers = {r: self.tree.parent(i) for r, i in members.items()}
             best: dict[str, float] = {}
             quiet = 0
             while True:
@@ -386,14 +395,34 @@ class MhmPlanner:
             if stuck:
                 self.stalls += 1
                 self._note(f"break: {sorted(away)} could not leave cells {sorted(stuck)}; kept hinged")
-            for r, p in movers.items():
-                if r not in away:
-                    members[r] = p  # type: ignore[assignment]
             for i in level:
                 if i in stuck or i in keep:  # the constraint first: a cell with a robot left in it stays up
                     keep.add(self.tree.parent(i))  # type: ignore[arg-type]
                 elif i in self.node_of:
-                    members[self.node_of.pop(i)] = self.tree.parent(i)  # type: ignore[assignment]
+                    self.node_of.pop(i)
+
+    def _members(self, level: list[int]) -> dict[str, int]:
+        """The explorers in the cells of ``level`` (module docstring, membership), each with its cell."""
+        hinged = sorted(self.hinged())
+        staying = [self.tree[j].pos for j in hinged if j not in level] + list(self.pending.values())
+        out: dict[str, int] = {}
+        for r, c in self.explorers().items():
+            nearest = min(hinged, key=lambda j: math.dist(self.tree[j].pos, c))
+            if nearest in level:
+                out[r] = nearest
+            elif not any(math.dist(c, p) < self.config.r_comm for p in staying):
+                out[r] = min(level, key=lambda j: (math.dist(self.tree[j].pos, c), j))
+        return out
+
+    def _settle(self) -> Wait:
+        """With ``latency`` > 0: every explorer holds until orders and beacons have crossed the tree
+        (module docstring)."""
+        if self.config.latency <= 0:
+            return
+        depth = max((self.tree.hopcount(i) for i in self.node_of), default=0)
+        self.goals = {}
+        for _ in range(2 * self.config.latency * (depth + 1)):
+            yield
 
     # --- helpers ------------------------------------------------------------------------------------------
 

@@ -11,8 +11,9 @@ are older and ignored) and decides from it alone:
   in range of a relay at every step (section III); the base plans every goal inside its own safe area.
 - **Without a usable order** (none heard yet, no goal, a goal outside the safe area the robot knows, or no
   path to it inside that area) the robot keeps its *last safe position*: the last cell it stood on that was
-  in the safe area of the orders it had then. It holds there, or, standing outside the safe area (its relay
-  unhinged before its new orders came), drives back there over its known-free cells. It never drives out
+  in the safe area of the orders it had then. It holds there. Standing outside the safe area of its newest
+  orders (its relay unhinged before it heard of it), it drives over its known-free cells to the nearest
+  cell of that safe area, or, when it knows no way there, back to its last safe cell. It never drives out
   of range on an old plan. Choice: the paper's robots hear every order at once; over a lossy multi-hop
   radio they do not, and this is the conservative reading of "a robot is never farther than r_comm".
 - The orders' ``routes`` go to the robot's relay (``Allocation.routes``, applied by the brain to the
@@ -35,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
-from fleet_emu.agents.allocators.mhm.explore import safe_area
+from fleet_emu.agents.allocators.mhm.explore import descend, safe_area
 from fleet_emu.agents.allocators.mhm.orders import MhmOrders
 from fleet_emu.agents.allocators.mhm.planner import MhmConfig
 from fleet_emu.agents.allocators.params import Param
@@ -106,12 +107,15 @@ class Mhm(Allocator, plugin_name="mhm"):
 
     def _keep(self, problem: Problem, me: Cell, safe: np.ndarray | None, routes: dict[str, str] | None
               ) -> Allocation:
-        """Hold the last safe position: stay on it, or drive back to it when standing outside the safe area."""
-        back = self.last_safe
-        if safe is None or safe[me] or back is None or back == me:
+        """Hold the last safe position; standing outside the safe area, go into it (module docstring)."""
+        if safe is None or safe[me]:
             return Allocation.hold(routes)
         passable = problem.belief == FREE
         passable[me] = True
-        if not _reaches(passable, back, me):
+        dist = wavefront(passable, np.flatnonzero(safe).astype(np.int64), -1)
+        if dist[me] > 0:
+            return Allocation.goal(descend(dist, me), passable, routes)
+        back = self.last_safe
+        if back is None or back == me or not _reaches(passable, back, me):
             return Allocation.hold(routes)
         return Allocation.goal(back, passable, routes)

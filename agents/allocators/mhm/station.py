@@ -21,6 +21,7 @@ Choices where the paper is silent, and why:
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -75,5 +76,5 @@ def station_planner(scenario: Scenario) -> MhmStation | None:
     if not scenario.plans_at_base:
         return None
     params = make_allocator(allocator_config(scenario)).params()
-    return MhmStation(mhm_config(params), robot_ids(scenario.robots), generator(scenario.seed, BASE, "mhm"),
-                      scenario.relay_ttl)
+    config = dataclasses.replace(mhm_config(params), latency=scenario.radio.latency)
+    return MhmStation(config, robot_ids(scenario.robots), generator(scenario.seed, BASE, "mhm"), scenario.relay_ttl)

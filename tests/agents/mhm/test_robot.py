@@ -106,7 +106,15 @@ def test_outside_the_safe_area_it_drives_back_to_its_last_safe_cell() -> None:
     assert got.passable is not None and got.passable[1, 6] and got.passable[1, 7] and not got.passable[1, 5]
     lost = _orders(tick=10, goals={"r0": (1, 11)}, relays=(BASE_CELL,))
     back = a.allocate(_problem(at=(1, 6)), [_msg(lost)])
-    assert back.status is AllocStatus.GOAL and back.target == (1, 3)  # back to its last safe cell
+    assert back.status is AllocStatus.GOAL and back.target == (1, 4)  # the nearest safe cell (d < 4 from B)
+    grid, robots = _grid()
+    grid[1:3, 5] = 100  # a wall between it and the safe area: it knows no way in but back where it came from
+    grid[1, 5] = 0
+    walled = Problem(me="r0", poses=robots | {"r0": (1, 6)}, belief=grid, clusters=[])
+    assert a.allocate(walled, ()).target == (1, 4)
+    grid[1, 5] = 100
+    shut = Problem(me="r0", poses=robots | {"r0": (1, 6)}, belief=grid, clusters=[])
+    assert a.allocate(shut, ()).status is AllocStatus.HOLD  # no way at all: it holds
 
 
 def _obs(cell: tuple[int, int], tick: int) -> Observation:
