@@ -1,0 +1,32 @@
+"""MHM end to end (issue 10, parts 4-5): ``fleet run --allocator mhm --base`` with 6 robots, one OS process per
+node over Zenoh. The base plans and broadcasts its orders on ``radio/tx/base``; robots relay them over the tree
+and obey. Without loss every robot keeps a path of links to the base on every tick, and the fleet reaches its
+target coverage. (Disk radio of 3 m on the two-room map: r_comm = 6 cells.)"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .conftest import fleet, result
+
+
+def test_mhm_keeps_every_robot_connected_to_the_base_and_completes(small_map: Path, tmp_path: Path) -> None:
+    out = tmp_path / "mhm"
+    fleet("run", "--map", str(small_map), "--robots", "6", "--allocator", "mhm", "--base", "--comm", "disk",
+          "--comm-range", "3", "--sensor-range", "1.5", "--loss", "0", "--seed", "0", "--max-ticks", "300",
+          "--no-record", "--quiet", "--out", str(out))
+    res = result(out)
+    assert res["failed"] == [] and res["malformed_dropped"] == 0
+    assert res["completed"] is True and res["coverage"] >= 0.99, res["reason"]
+    frac = res["base_connected_fraction"]
+    assert frac["all_ticks"] == 1.0 and frac["overall"] == 1.0  # the constraint held on every tick
+    assert res["scenario"]["relay"] == "tree" and res["scenario"]["relay_ttl"] == 16  # mhm's defaults
+    orders = res["relay"]["kinds"]["mhm"]
+    assert orders["sent"] >= res["ticks"] - 5 and orders["delivered"] > 0  # the base planned and was heard
+    assert orders["hops"].get("2", 0) > 0  # and robots relayed its orders
+
+
+def test_mhm_without_a_base_is_refused_in_one_line(small_map: Path, tmp_path: Path) -> None:
+    bad = fleet("run", "--map", str(small_map), "--allocator", "mhm", "--out", str(tmp_path / "x"), check=False)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "needs --base" in bad.stderr
+    assert not (tmp_path / "x").exists()
