@@ -23,6 +23,8 @@ RELAY_POLICIES = ("none", "flood", "tree")
 #: Allocators that plan at the base station (issue 10, part 4): a run with one needs ``base``, the base joins
 #: netem's lockstep as a sender (``radio/tx/base``), and the robots relay (``tree`` by default, below).
 BASE_PLANNERS = frozenset({"mhm"})
+DEFAULT_STALL = 30
+BASE_PLANNER_STALL = 200  # a base planner's runs: robots hold while the base waits (Scenario.__post_init__)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,7 +43,7 @@ class Scenario:
     seed: int = 0
     max_ticks: int = 2000
     target_coverage: float = 0.99
-    stall_ticks: int = 30
+    stall_ticks: int = DEFAULT_STALL  # ticks without a move nor a new cell sensed that end the run
     coverage_stall_ticks: int = 500  # ticks without coverage growth that end the run as a stall
     barrier_timeout: float = 10.0
     belief_every: int = 10
@@ -51,11 +53,16 @@ class Scenario:
 
     def __post_init__(self) -> None:
         """A base-station planner's orders must cross several hops: with ``relay = "none"`` (the default) it
-        runs with ``tree`` relaying and, when ``relay_ttl`` is 0, the largest hop limit (README "MHM")."""
+        runs with ``tree`` relaying and, when ``relay_ttl`` is 0, the largest hop limit. And its robots hold
+        while the base waits (orders crossing the tree, a robot slow to reach its hinge point, up to the
+        planner's patience): at the default ``stall_ticks`` (30) it runs with :data:`BASE_PLANNER_STALL`
+        (README "MHM")."""
         if self.plans_at_base and self.relay == "none":
             object.__setattr__(self, "relay", "tree")
             if self.relay_ttl == 0:
                 object.__setattr__(self, "relay_ttl", MAX_TTL)
+        if self.plans_at_base and self.stall_ticks == DEFAULT_STALL:
+            object.__setattr__(self, "stall_ticks", BASE_PLANNER_STALL)
 
     # --- reading and writing ------------------------------------------------------------------------------
 

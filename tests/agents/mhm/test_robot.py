@@ -176,7 +176,8 @@ def test_mhm_needs_a_base_and_relays_on_the_tree_by_default() -> None:
     with pytest.raises(ConfigError, match="needs --base"):
         Scenario().override(allocator="mhm")
     s = Scenario().override(allocator="mhm", base=True)
-    assert s.plans_at_base and s.relay == "tree" and s.relay_ttl == 16
+    assert s.plans_at_base and s.relay == "tree" and s.relay_ttl == 16 and s.stall_ticks == 200
+    assert Scenario().override(allocator="mhm", base=True, stall_ticks=40).stall_ticks == 40
     assert Scenario().override(allocator="mhm", base=True, relay="flood", relay_ttl=5).relay_ttl == 5
     assert Scenario().relay == "none" and not Scenario().plans_at_base
     assert Scenario().override(comm="disk", comm_range=3.0).link_cells == pytest.approx(6.0)
