@@ -57,6 +57,7 @@ class BaseStation:
         self.planner = planner
         self.on_drop = on_drop
         self.heard: dict[str, Heard] = {}
+        self.mail: list[RadioMsg] = []  # this tick's protocol messages addressed to the base, for the planner
         self.seen = SeenCache()  # message ids handled: relayed copies are merged once
         self.merged = 0  # map deltas and fills merged
         self.ticks = 0  # rx bundles stepped
@@ -72,6 +73,7 @@ class BaseStation:
         """Merge what the radio delivered at ``tick``; the planner's messages, sealed (none without a planner)."""
         self.tick = tick
         self.ticks += 1
+        self.mail = []
         for env in inbox:
             if env.src == BASE or env.origin == BASE or env.dst not in ("*", BASE):
                 continue  # with relaying: overheard on its way to a robot, or its own orders relayed back
@@ -92,7 +94,9 @@ class BaseStation:
                 prev = self.heard.get(msg.origin)
                 if prev is None or msg.tick >= prev.tick:
                     self.heard[msg.origin] = Heard(cell=body.cell, tick=msg.tick)
-            # other robots' protocol messages (an allocator's) are not for the base: ignored
+            elif env.dst == BASE:  # a protocol message for the base (mhm's acks): the planner's mail
+                self.mail.append(msg)
+            # other protocol messages broadcast by robots (an allocator's) are not for the base: ignored
         self.belief.take_news()  # the base shares nothing yet: do not let the news pile up
         self.belief.take_changed()
         return tuple(seal(m, BASE, tick, self.next_seq()) for m in self.plan())

@@ -9,6 +9,10 @@ known-free cells within r_comm of one, section III's "an explorer is never farth
 closest node") and ``plan_tick``, the base's tick the orders were made at (a robot keeps the newest it heard;
 relayed copies arrive late, or never). ``done``: the planner reached step 18.
 
+Each robot that has orders answers every tick with an :class:`MhmAck` to the base (``dst = "base"``, relayed up
+the tree): the plan tick of the orders it follows and the cell it stands on. The base breaks a tree only once
+every explorer has confirmed that it follows the orders that told it to hold (``planner.py``, tree breaking).
+
 A payload of its own kind (``mhm``), owned by this protocol like the trade messages are by ``trade.py``; netem
 and relays never decode it. Decoding checks every robot id against the team, every cell against the grid and
 every role against :data:`ROLES`, so a malformed order is counted and dropped by the receiving brain.
@@ -67,3 +71,17 @@ class MhmOrders(Payload):
             raise DecodeError("mhm: no relay cells, or too many")
         for cell in self.relays:
             check_cell(cell, shape, "mhm")
+
+
+@dataclasses.dataclass(frozen=True)
+class MhmAck(Payload):
+    """A robot's answer to the base: it follows the orders of ``plan_tick``, and stands on ``cell``."""
+
+    KIND = "mhm_ack"
+    plan_tick: int
+    cell: Cell
+
+    def validate(self, ctx: Context | None) -> None:
+        if self.plan_tick < 0:
+            raise DecodeError("mhm_ack: negative plan tick")
+        check_cell(self.cell, ctx.shape if ctx else None, "mhm_ack")

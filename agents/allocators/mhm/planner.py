@@ -43,11 +43,13 @@ phase 2's in ``chain``, the explorers' in ``explore``):
   belongs to the nearest cell of the level whatever node is nearest (ties between node cells would otherwise
   leave it stranded when its real relay unhinges). A recalled robot has arrived in the parent cell when it is
   within r_comm of the parent's node (the definition of a cell).
-- *Orders take time* (the fleet's radio; none in ``sim``): with ``latency`` > 0 (ticks per hop), before each
-  popped level every explorer holds for ``2 * latency * (depth + 1)`` ticks, ``depth`` the deepest node's
-  hop count: the hold order reaches the deepest robot and its beacon from where it stopped comes back before
-  the base takes the level's membership from the poses it heard. Without loss this makes the poses the base
-  breaks with the robots' real ones; with loss it is best effort.
+- *Orders take time and get lost* (the fleet's radio; none in ``sim``): with ``latency`` > 0, before each
+  popped level every explorer holds until it has confirmed (its ack, ``View.follows``) that it follows orders
+  at least as new as the hold, or ``patience`` ticks passed: its pose, from that ack or later, is then where
+  it stopped, and the base takes the level's membership from it. An explorer that missed the hold would
+  otherwise still be moving on an older goal, into a cell whose relay is about to leave. A cell of the level
+  within r_comm of an explorer that never confirmed (lost acks, or a robot out of reach) stays hinged, with its
+  ancestors: the constraint comes first.
 """
 
 from __future__ import annotations
@@ -109,11 +111,13 @@ class Order:
 
 @dataclasses.dataclass(frozen=True)
 class View:
-    """What the base knows at ``tick``: its team map and each robot's last known cell."""
+    """What the base knows at ``tick``: its team map, each robot's last known cell, and (over a radio) the plan
+    tick of the newest orders each robot confirmed it follows."""
 
     tick: int
     grid: np.ndarray
     poses: Mapping[str, Cell]
+    follows: Mapping[str, int] = dataclasses.field(default_factory=dict)
 
 
 class MhmPlanner:
@@ -375,7 +379,7 @@ class MhmPlanner:
             return
         keep: set[int] = set()  # cells a recalled robot could not leave, and their ancestors
         for level in reversed(break_stack(self.tree, roots)):
-            yield from self._settle()
+            unsure = yield from self._settle()
             members = self._members(level)
             movers = {r: self.tree.parent(i) for r, i in members.items()}
             best: dict[str, float] = {}
@@ -392,6 +396,8 @@ class MhmPlanner:
                 yield
             self.goals = {}
             stuck = {members[r] for r in away}
+            stuck |= {i for i in level for r in unsure if r in self.poses
+                      and math.dist(self.poses[r], self.tree[i].pos) < self.config.r_comm}
             if stuck:
                 self.stalls += 1
                 self._note(f"break: {sorted(away)} could not leave cells {sorted(stuck)}; kept hinged")
@@ -415,14 +421,22 @@ class MhmPlanner:
         return out
 
     def _settle(self) -> Wait:
-        """With ``latency`` > 0: every explorer holds until orders and beacons have crossed the tree
-        (module docstring)."""
+        """With ``latency`` > 0: every explorer holds until it confirmed that it follows orders from now on,
+        or ``patience`` ticks (module docstring); the explorers that did not confirm."""
         if self.config.latency <= 0:
-            return
-        depth = max((self.tree.hopcount(i) for i in self.node_of), default=0)
+            return set()
         self.goals = {}
-        for _ in range(2 * self.config.latency * (depth + 1)):
+        t0 = self.view.tick if self.view else 0
+        unsure: set[str] = set()
+        for _ in range(self.config.patience):
             yield
+            follows = self.view.follows if self.view else {}
+            unsure = {r for r in self.explorers() if follows.get(r, -1) < t0}
+            if not unsure:
+                return unsure
+        self.stalls += 1
+        self._note(f"break: {sorted(unsure)} did not confirm the hold; their cells stay hinged")
+        return unsure
 
     # --- helpers ------------------------------------------------------------------------------------------
 

@@ -16,6 +16,8 @@ are older and ignored) and decides from it alone:
   cell of that safe area, or, when it knows no way there, back to its last safe cell. It never drives out
   of range on an old plan. Choice: the paper's robots hear every order at once; over a lossy multi-hop
   radio they do not, and this is the conservative reading of "a robot is never farther than r_comm".
+- Each tick it follows orders, it answers the base with an ``MhmAck`` (their plan tick, its cell), which the
+  base waits for before it breaks a tree.
 - The orders' ``routes`` go to the robot's relay (``Allocation.routes``, applied by the brain to the
   ``tree`` policy) when new orders arrive: forwarding decisions of the tick an order arrives use the routes
   before it.
@@ -30,6 +32,7 @@ r_comm. The allocator draws no random numbers.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
@@ -37,7 +40,7 @@ import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.mhm.explore import descend, safe_area
-from fleet_emu.agents.allocators.mhm.orders import MhmOrders
+from fleet_emu.agents.allocators.mhm.orders import MhmAck, MhmOrders
 from fleet_emu.agents.allocators.mhm.planner import MhmConfig
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.grid import FREE, Cell
@@ -93,6 +96,10 @@ class Mhm(Allocator, plugin_name="mhm"):
         order = self.order
         if order is None or problem.me not in order.roles:
             return self._keep(problem, me, None, routes)
+        ack = (RadioMsg(MhmAck(plan_tick=order.plan_tick, cell=me), dst=BASE),)
+        return dataclasses.replace(self._obey(problem, me, order, routes), outbox=ack)
+
+    def _obey(self, problem: Problem, me: Cell, order: MhmOrders, routes: dict[str, str] | None) -> Allocation:
         safe = safe_area(problem.belief, order.relays, self.r_comm)
         if safe[me]:
             self.last_safe = me

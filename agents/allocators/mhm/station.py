@@ -13,8 +13,9 @@ Choices where the paper is silent, and why:
   knows a robot only once a beacon reached it, so the planner starts when every robot has been heard, or
   after ``patience`` ticks with the robots heard by then (a robot never heard gets no goal, holds, and is
   not in the plan). Until then the base sends nothing and the robots hold.
-- *Poses.* The planner sees a robot at the cell its last beacon reached the base with, not the cell the
-  beacon says it moves to: a plan that waits for a robot to arrive then waits for a beacon sent from there.
+- *Poses.* The planner sees a robot at the cell of its newest beacon or ack that reached the base, not the
+  cell a beacon says it moves to: a plan that waits for a robot to arrive then waits for a message sent from
+  there. Each robot's newest ack also tells the planner which orders it follows (``View.follows``).
 - *Orders every tick*, even unchanged: a robot that lost one hears the next; the message is small (a role
   and a goal per robot, the routes, the relay cells).
 """
@@ -27,11 +28,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from fleet_emu.agents.allocators import make_allocator
-from fleet_emu.agents.allocators.mhm.orders import MhmOrders
+from fleet_emu.agents.allocators.mhm.orders import MhmAck, MhmOrders
 from fleet_emu.agents.allocators.mhm.planner import MhmConfig, MhmPlanner, View
 from fleet_emu.agents.allocators.mhm.robot import mhm_config
 from fleet_emu.agents.base import BaseStation
 from fleet_emu.agents.brain import allocator_config
+from fleet_emu.core.grid import Cell
 from fleet_emu.core.keys import BASE, robot_ids
 from fleet_emu.core.messages import RadioMsg
 from fleet_emu.core.rng import generator
@@ -47,10 +49,21 @@ class MhmStation:
         self.rng = rng
         self.ttl = ttl
         self.planner: MhmPlanner | None = None
+        self.acks: dict[str, tuple[int, int, Cell]] = {}  # robot -> (tick sent, plan tick followed, cell)
         self.first_tick: int | None = None
 
     def __call__(self, station: BaseStation) -> tuple[RadioMsg, ...]:
-        poses = {r: h.cell for r, h in sorted(station.heard.items()) if r in self.robots}
+        for msg in station.mail:  # acks: the orders a robot follows, and where it stood then
+            body = msg.body
+            if isinstance(body, MhmAck) and msg.origin in self.robots:
+                prev = self.acks.get(msg.origin)
+                if prev is None or msg.tick > prev[0]:
+                    self.acks[msg.origin] = (msg.tick, body.plan_tick, body.cell)
+        poses = {}
+        for r in self.robots:  # the newest of its beacon and its ack
+            h, a = station.heard.get(r), self.acks.get(r)
+            if h is not None or a is not None:
+                poses[r] = a[2] if a is not None and (h is None or a[0] > h.tick) else h.cell  # type: ignore[union-attr]
         if self.first_tick is None:
             self.first_tick = station.tick
         if self.planner is None:
@@ -59,7 +72,8 @@ class MhmStation:
                 return ()
             self.planner = MhmPlanner(station.cell, sorted(poses), self.config, self.rng)
         p = self.planner
-        orders = p.step(View(station.tick, station.belief.grid, poses))
+        follows = {r: a[1] for r, a in self.acks.items()}
+        orders = p.step(View(station.tick, station.belief.grid, poses, follows))
         body = MhmOrders(
             plan_tick=station.tick,
             roles={r: o.role for r, o in orders.items()},

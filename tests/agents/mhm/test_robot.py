@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from fleet_emu.agents.allocators import AllocStatus, Problem, make_allocator
-from fleet_emu.agents.allocators.mhm.orders import MhmOrders
+from fleet_emu.agents.allocators.mhm.orders import MhmAck, MhmOrders
 from fleet_emu.agents.allocators.mhm.robot import Mhm
 from fleet_emu.agents.brain import Brain, BrainConfig
 from fleet_emu.core.codec import Context
@@ -74,6 +74,13 @@ def test_an_explorer_drives_to_its_goal_inside_the_safe_area() -> None:
     assert got.routes == {"r0": "base", "r1": "base"}  # new orders: their routes
     again = a.allocate(_problem(), ())
     assert again.status is AllocStatus.GOAL and again.routes is None  # the same orders: no new routes
+
+
+def test_a_robot_with_orders_acks_them_to_the_base_and_one_without_sends_nothing() -> None:
+    a = _alloc()
+    assert a.allocate(_problem(), ()).outbox == ()
+    got = a.allocate(_problem(), [_msg(_orders(tick=7))])
+    assert [(m.dst, m.body) for m in got.outbox] == [("base", MhmAck(plan_tick=7, cell=(1, 3)))]
 
 
 def test_a_goal_outside_the_safe_area_is_not_obeyed_and_an_older_order_is_ignored() -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fleet_emu.agents.allocators.mhm.orders import MhmOrders
+from fleet_emu.agents.allocators.mhm.orders import MhmAck, MhmOrders
 from fleet_emu.agents.allocators.mhm.planner import MhmConfig
 from fleet_emu.agents.allocators.mhm.station import MhmStation, station_planner
 from fleet_emu.agents.base import BaseStation
@@ -65,3 +65,14 @@ def test_only_a_base_planner_scenario_gets_a_station_planner() -> None:
     assert station_planner(Scenario()) is None and station_planner(Scenario().override(base=True)) is None
     p = station_planner(Scenario().override(allocator="mhm", base=True, comm="disk", comm_range=3.0))
     assert p is not None and p.config.r_comm == 6.0 and p.config.latency == 1 and p.ttl == 16
+
+
+def test_acks_reach_the_planner_as_poses_and_the_orders_followed() -> None:
+    st = _station()
+    st.step(0, _heard("r0", (1, 1), 0, 1) + _heard("r1", (2, 1), 0, 1))
+    ack = seal(RadioMsg(MhmAck(plan_tick=0, cell=(1, 2)), dst="base"), "r0", 1, 3)
+    st.step(2, [ack])
+    planner = st.planner.planner  # type: ignore[union-attr]
+    assert planner is not None and planner.view is not None
+    assert planner.view.poses["r0"] == (1, 2) and planner.view.poses["r1"] == (2, 1)  # the ack is newer
+    assert dict(planner.view.follows) == {"r0": 0}
