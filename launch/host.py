@@ -34,7 +34,7 @@ from fleet_emu.core.keys import HOST_ID, HostKeys, Keys
 from fleet_emu.core.messages import HostAssign, HostStatus
 from fleet_emu.core.node import undeclare
 from fleet_emu.launch.forked import fork_server_enabled
-from fleet_emu.launch.hosts import agent_argv
+from fleet_emu.launch.hosts import agent_argv, check_reliable
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import AGENTS, Supervisor
 
@@ -201,6 +201,7 @@ class Host:
 def cmd_host(args: argparse.Namespace, interrupts: Interrupts) -> int:
     """``fleet host``: 0 after serving (``--once``), 130/143 on a signal, 2 on bad input or a refused login."""
     name, cred = host_login(args.credentials, args.name, args.tls_ca)
+    check_reliable("--connect", args.connect)
     if not 0 < args.connect_timeout <= 3600:
         raise ConfigError(f"--connect-timeout must be in (0, 3600] seconds (got {args.connect_timeout:g})")
     if cred is None:

@@ -81,8 +81,9 @@ def placement(robots: list[str], hosts: list[str], shares: tuple[int, ...] = ())
     return where
 
 
-def host_credentials(path: Path | None) -> dict[str, Credential]:
-    """The hosts' logins (``hostK:password`` lines of a users file) the embedded router accepts."""
+def host_credentials(path: Path | None, plan: HostPlan | None = None) -> dict[str, Credential]:
+    """The hosts' logins (``hostK:password`` lines of a users file) the embedded router accepts; a ConfigError
+    when they cannot make ``plan`` (too few hosts, or one of its ``names`` missing)."""
     if path is None:
         raise ConfigError("--hosts with the embedded router needs --credentials USERS, whose hostK:password lines "
                           "the hosts log in with (`fleet router-config --hosts N` writes them)")
@@ -93,6 +94,12 @@ def host_credentials(path: Path | None) -> dict[str, Credential]:
     hosts = {u: Credential(u, p) for u, p in users.items() if role_of(u) == "host"}
     if not hosts:
         raise ConfigError(f"--credentials {path} has no host user (hostK:password lines)")
+    missing = [h for h in plan.names if h not in hosts] if plan is not None else []
+    if missing:
+        raise ConfigError(f"--credentials {path} has no user {missing[0]!r} of the scenario's [hosts] names")
+    if plan is not None and plan.count > len(hosts):
+        raise ConfigError(f"--credentials {path} has {len(hosts)} host user(s) for {plan.count} hosts: make them "
+                          f"with `fleet router-config --hosts {plan.count}`")
     return hosts
 
 
@@ -115,6 +122,14 @@ SECURE_PROTOCOLS = ("tls", "quic")
 LOOPBACK = "tcp/127.0.0.1:0"
 
 
+def check_reliable(flag: str, endpoint: str) -> None:
+    """A ConfigError for a ``udp/`` endpoint: Zenoh does not retransmit over UDP (its reliability is hop to hop,
+    from the link), and the fleet's only losses must be the ones netem decides (DESIGN.md "Time")."""
+    if endpoint.startswith("udp/"):
+        raise ConfigError(f"{flag} {endpoint}: Zenoh does not retransmit over udp/, and a lockstep run may lose no "
+                          f"message: use tcp/, tls/ or quic/")
+
+
 def listen_endpoints(listen: str | None, tls_cert: Path | None, tls_key: Path | None) -> list[str]:
     """The embedded router's endpoints for ``--listen`` (``tcp/``, or ``tls/`` and ``quic/`` with
     ``--tls-cert`` and ``--tls-key``): the one given, and for a ``tls/`` or ``quic/`` one a loopback ``tcp/``
@@ -124,9 +139,7 @@ def listen_endpoints(listen: str | None, tls_cert: Path | None, tls_key: Path | 
     if not sep or not address:
         raise ConfigError(f"--listen {listen!r} is not an endpoint (expected <protocol>/<address>:<port>, e.g. "
                           f"tcp/192.0.2.1:7447)")
-    if proto == "udp":
-        raise ConfigError(f"--listen {listen}: Zenoh does not retransmit over udp/, and a lockstep run may lose no "
-                          f"message: use tcp/, tls/ or quic/")
+    check_reliable("--listen", listen or LOOPBACK)
     if proto not in LISTEN_PROTOCOLS:
         raise ConfigError(f"--listen {listen}: the embedded router listens on tcp/, tls/ or quic/ (got {proto}/)")
     secure = proto in SECURE_PROTOCOLS

@@ -46,6 +46,7 @@ from fleet_emu.launch.hosts import (
     Hosts,
     HostsError,
     check_hosts,
+    check_reliable,
     host_credentials,
     listen_endpoints,
     spawn_nodes,
@@ -123,7 +124,7 @@ def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] |
     nodes = fleet_nodes(robot_ids(scenario.robots), scenario.has_base)
     ca = str(opts.tls_ca.absolute()) if opts.tls_ca is not None else None
     if opts.connect is None:
-        hosts = host_credentials(opts.credentials) if scenario.hosts else {}
+        hosts = host_credentials(opts.credentials, scenario.hosts) if scenario.hosts else {}
         return {n: Credential(n, p) for n, p in make_credentials(nodes).items()} | hosts
     if opts.credentials is None:
         return None
@@ -151,6 +152,8 @@ def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None, 
         listen_endpoints(opts.listen, opts.tls_cert, opts.tls_key)
     elif opts.tls_cert is not None or opts.tls_key is not None:
         raise ConfigError("--tls-cert and --tls-key go with a tls/ or quic/ --listen (the embedded router's)")
+    else:
+        check_reliable("--connect", opts.connect)
     hz = opts.realtime_hz
     if hz is not None and (isinstance(hz, bool) or not isinstance(hz, int | float) or not 0 < hz <= MAX_HZ):
         raise ConfigError(f"--realtime must be a number of ticks per second > 0 and <= {MAX_HZ:g} (got {hz!r})")

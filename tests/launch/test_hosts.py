@@ -12,8 +12,9 @@ from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.keys import HostKeys, host_ids, robot_ids
 from fleet_emu.core.messages import HostAssign, HostStatus
+from fleet_emu.core.scenario import HostPlan
 from fleet_emu.launch.host import host_login
-from fleet_emu.launch.hosts import agent_argv, check_hosts, host_credentials, placement
+from fleet_emu.launch.hosts import agent_argv, check_hosts, check_reliable, host_credentials, placement
 
 
 def test_robots_are_dealt_round_robin_over_this_machine_and_the_hosts() -> None:
@@ -99,6 +100,12 @@ def test_bad_host_options_are_one_line(tmp_path: Path) -> None:
     none.write_text("world:a\n")
     with pytest.raises(ConfigError, match="has no host user"):
         host_credentials(none)
+    with pytest.raises(ConfigError, match=r"has 2 host user\(s\) for 3 hosts: make them with `fleet router-config "
+                                          r"--hosts 3`"):
+        host_credentials(users, HostPlan(3))
+    with pytest.raises(ConfigError, match="has no user 'host5' of the scenario's \\[hosts\\] names"):
+        host_credentials(users, HostPlan(1, ("host5",)))
+    assert set(host_credentials(users, HostPlan(1, ("host1",)))) == {"host0", "host1"}
     with pytest.raises(ConfigError, match="holds 2 host users"):
         host_login(users, None, None)
     assert host_login(users, "host1", None)[1].password == "c"  # type: ignore[union-attr]
@@ -162,3 +169,6 @@ def test_the_embedded_router_listens_on_tcp_tls_or_quic(tmp_path: Path) -> None:
             ("quic/10.0.0.1:7447", tmp_path / "none.pem", "--tls-cert .*none.pem: no such file")]:
         with pytest.raises(ConfigError, match=match):
             listen_endpoints(listen, cert, pem if cert is not None else None)
+    with pytest.raises(ConfigError, match=r"--connect udp/10\.0\.0\.1:7447: Zenoh does not retransmit over udp/"):
+        check_reliable("--connect", "udp/10.0.0.1:7447")  # fleet run --connect and fleet host --connect
+    check_reliable("--connect", "quic/10.0.0.1:7447")
