@@ -85,8 +85,9 @@ def host_credentials(path: Path | None, plan: HostPlan | None = None) -> dict[st
     """The hosts' logins (``hostK:password`` lines of a users file) the embedded router accepts; a ConfigError
     when they cannot make ``plan`` (too few hosts, or one of its ``names`` missing)."""
     if path is None:
-        raise ConfigError("--hosts with the embedded router needs --credentials USERS, whose hostK:password lines "
-                          "the hosts log in with (`fleet router-config --hosts N` writes them)")
+        raise ConfigError("--hosts (or a scenario's [hosts]) with the embedded router needs --credentials USERS, "
+                          "whose hostK:password lines the hosts log in with (`fleet router-config --hosts N` writes "
+                          "them)")
     try:
         users = read_dictionary(path.read_text())
     except (OSError, UnicodeDecodeError, ValueError) as exc:
@@ -109,10 +110,11 @@ def check_hosts(hosts: int, in_process: bool, connect: str | None, listen: str |
     if hosts < 0 or hosts > 64:
         raise ConfigError(f"--hosts must be in 0..64 (got {hosts})")
     if hosts and in_process:
-        raise ConfigError("--hosts runs robots as processes on other machines: it takes no --in-process")
+        raise ConfigError("--hosts (or a scenario's [hosts]) runs robots as processes on other machines: it "
+                          "takes no --in-process")
     if hosts and connect is None and listen is None:
-        raise ConfigError("--hosts needs a router the hosts can reach: --listen tcp/ADDRESS:PORT for the embedded "
-                          "one, or --connect")
+        raise ConfigError("--hosts (or a scenario's [hosts]) needs a router the hosts can reach: --listen "
+                          "tcp/ADDRESS:PORT for the embedded one, or --connect")
     if listen is not None and connect is not None:
         raise ConfigError("--listen is the embedded router's: it takes no --connect")
 

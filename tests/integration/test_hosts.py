@@ -150,10 +150,12 @@ def test_too_few_hosts_is_one_line_and_a_result(users: tuple[Path, Path], small_
                                                    "(`fleet host --connect ...`), 0 came (none)"
     assert result(out)["reason"] == "error"
     bad = fleet(*RUN, "--map", str(small_map), "--out", str(tmp_path / "x"), check=False)
-    assert bad.returncode == 2 and "--hosts with the embedded router needs --credentials USERS" in bad.stderr
+    assert bad.returncode == 2 and "--hosts (or a scenario's [hosts]) with the embedded router needs " \
+        "--credentials USERS" in bad.stderr
     bad = fleet(*RUN, "--map", str(small_map), "--credentials", str(all_users), "--out", str(tmp_path / "x"),
                 check=False)
-    assert bad.returncode == 2 and "--hosts needs a router the hosts can reach" in bad.stderr
+    assert bad.returncode == 2 and "--hosts (or a scenario's [hosts]) needs a router the hosts can " \
+        "reach" in bad.stderr
     assert not (tmp_path / "x").exists()
 
 
