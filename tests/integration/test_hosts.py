@@ -211,6 +211,7 @@ def test_a_real_time_run_with_a_host_runs_its_robots_in_real_time(
     assert robots["r1"]["decisions"] >= 1 and robots["r1"]["plan_steps"] + robots["r1"]["waits"] >= 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
 def test_a_host_killed_mid_run_fails_its_robots_and_the_run_ends_with_a_result(
         sig: signal.Signals, users: tuple[Path, Path], tmp_path: Path) -> None:
