@@ -42,13 +42,18 @@ def _base(mode: str) -> zenoh.Config:
     return conf
 
 
-def router_config(listen: str = "tcp/127.0.0.1:0", dictionary_file: str | None = None,
-                  acl: dict[str, Any] | None = None) -> zenoh.Config:
-    """An embedded loopback router; port 0 lets the OS pick (read it back with :func:`router_locators`).
-    With ``dictionary_file`` (``user:password`` lines) it refuses sessions without valid credentials, and
-    with ``acl`` (``fleet_emu.core.access.acl_config``) it filters what each user may put."""
+def router_config(listen: str | list[str] = "tcp/127.0.0.1:0", dictionary_file: str | None = None,
+                  acl: dict[str, Any] | None = None, tls: tuple[str, str] | None = None) -> zenoh.Config:
+    """An embedded loopback router (or one listening on ``listen``, an endpoint or several); port 0 lets the
+    OS pick (read it back with :func:`router_locators`). With ``dictionary_file`` (``user:password`` lines) it
+    refuses sessions without valid credentials, with ``acl`` (``fleet_emu.core.access.acl_config``) it filters
+    what each user may put, and ``tls`` (its certificate and private key, PEM files) serves ``tls/`` and
+    ``quic/`` endpoints."""
     conf = _base("router")
-    conf.insert_json5("listen/endpoints", json.dumps([listen]))
+    conf.insert_json5("listen/endpoints", json.dumps([listen] if isinstance(listen, str) else listen))
+    if tls is not None:
+        conf.insert_json5("transport/link/tls/listen_certificate", json.dumps(tls[0]))
+        conf.insert_json5("transport/link/tls/listen_private_key", json.dumps(tls[1]))
     conf.insert_json5("scouting/delay", "0")
     conf.insert_json5("adminspace/enabled", "true")
     if dictionary_file is not None:

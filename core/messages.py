@@ -328,6 +328,7 @@ class BeliefSnapshot(Message):
 
 # --- the hosts' lobby (fleet-host/<host>/..., launch/hosts.py) --------------------------------------------
 
+MAX_REALTIME_HZ = 1000.0  # the fastest real-time rate a run accepts (``fleet run --realtime``)
 HOST_EVENTS = frozenset({"accepted", "busy", "spawned", "exited", "ended"})
 
 
@@ -335,8 +336,9 @@ HOST_EVENTS = frozenset({"accepted", "busy", "spawned", "exited", "ended"})
 class HostAssign(Message):
     """The launcher's request to host ``host`` (fleet-host/<host>/spawn): start ``robots`` of run ``run``, whose
     scenario (as ``scenario.json``) is ``scenario``; ``secrets`` maps each robot to its bus credential (JSON,
-    user and password: the host adds its own TLS CA), empty on an unauthenticated bus. ``end`` set: tear the
-    run's robots down instead."""
+    user and password: the host adds its own TLS CA), empty on an unauthenticated bus; ``realtime_hz`` the
+    run's real-time rate (``fleet run --realtime HZ``; 0: lockstep), which the robots are started with. ``end``
+    set: tear the run's robots down instead."""
 
     KIND = "host_assign"
     host: str
@@ -346,11 +348,14 @@ class HostAssign(Message):
     secrets: dict[str, str] = dataclasses.field(default_factory=dict)
     fork_server: bool = True
     end: bool = False
+    realtime_hz: float = 0.0
 
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)
         if not HOST_ID.fullmatch(self.host) or not RUN_ID.fullmatch(self.run):
             raise DecodeError("host_assign: bad host or run id")
+        if not 0.0 <= self.realtime_hz <= MAX_REALTIME_HZ:  # NaN fails too
+            raise DecodeError(f"host_assign: realtime_hz {self.realtime_hz!r} not in [0, {MAX_REALTIME_HZ:g}]")
         if not all(ROBOT_ID.fullmatch(r) for r in self.robots) or len(set(self.robots)) != len(self.robots):
             raise DecodeError("host_assign: bad robot ids")
         if not set(self.secrets) <= set(self.robots):

@@ -3,6 +3,10 @@ CLI flags (or keyword arguments) on top.
 
 Every value is checked for type, finiteness and range before any process starts; a bad one is a
 :class:`ConfigError` whose message is one line naming the field and what it accepts.
+
+``[hosts]`` (:class:`HostPlan`, README "Robots on other machines") says where the robots run, not what they do:
+a lockstep run gives the same result wherever its robots are, so a run without it keeps its ``scenario.json``
+as before, and ``launch.result.deterministic`` leaves it out.
 """
 
 from __future__ import annotations
@@ -15,16 +19,75 @@ from pathlib import Path
 from typing import Any
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.keys import HOST_ID
 from fleet_emu.core.messages import MAX_TTL
 from fleet_emu.core.radio import COMM_MODELS, RadioConfig
 
 MAX_ROBOTS = 256
+MAX_HOSTS = 64
 RELAY_POLICIES = ("none", "flood", "tree")
 #: Allocators that plan at the base station (issue 10, part 4): a run with one needs ``base``, the base joins
 #: netem's lockstep as a sender (``radio/tx/base``), and the robots relay (``tree`` by default, below).
 BASE_PLANNERS = frozenset({"mhm"})
 DEFAULT_STALL = 30
 BASE_PLANNER_STALL = 200  # a base planner's runs: robots hold while the base waits (Scenario.__post_init__)
+
+
+@dataclasses.dataclass(frozen=True)
+class HostPlan:
+    """The scenario's ``[hosts]``: robots on ``count`` other machines (``fleet host``), as ``fleet run --hosts
+    count`` does. ``names``: which hosts (``hostK`` logins; default the first ``count`` that come, by number);
+    ``robots``: how many robots each of them runs, in that order, the rest running here (default: robots dealt
+    round-robin over this machine and the hosts). Placement is dealt one robot at a time round the machines that
+    still have room (``launch.hosts.placement``)."""
+
+    count: int
+    names: tuple[str, ...] = ()
+    robots: tuple[int, ...] = ()
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], where: str) -> HostPlan | None:
+        """``[hosts]``: ``count``, ``names``, ``robots`` (None for ``count = 0`` alone: no hosts)."""
+        bad = set(d) - {"count", "names", "robots"}
+        if bad:
+            raise ConfigError(f"{where}: unknown key(s) in [hosts]: {', '.join(sorted(bad))} (count, names, robots)")
+        lists = {}
+        for key in ("names", "robots"):
+            value = d.get(key, [])
+            if not isinstance(value, list | tuple):
+                raise ConfigError(f"{where}: [hosts] {key} must be a list (got {value!r})")
+            lists[key] = tuple(value)
+        if "count" not in d and not lists["names"]:
+            raise ConfigError(f"{where}: [hosts] needs count = N or names = [\"host0\", ...]")
+        count = d.get("count", len(lists["names"]))
+        if count == 0 and not isinstance(count, bool) and not lists["names"] and not lists["robots"]:
+            return None
+        return cls(count, lists["names"], lists["robots"])
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``[hosts]`` table, with only the keys given."""
+        return {"count": self.count, **({"names": list(self.names)} if self.names else {}),
+                **({"robots": list(self.robots)} if self.robots else {})}
+
+    def validate(self, fleet: int) -> None:
+        """A ConfigError on the first bad value; ``fleet`` is the scenario's number of robots."""
+        _integer("[hosts] count", self.count, 1, MAX_HOSTS)
+        if self.names:
+            if len(self.names) != self.count:
+                raise ConfigError(f"[hosts] names lists {len(self.names)} host(s) but count is {self.count}")
+            bad = [n for n in self.names if not isinstance(n, str) or not HOST_ID.fullmatch(n)]
+            if bad:
+                raise ConfigError(f"[hosts] names must be host0, host1, ... (the hosts' logins; got {bad[0]!r})")
+            if len(set(self.names)) != len(self.names):
+                raise ConfigError(f"[hosts] names lists a host twice ({', '.join(self.names)})")
+        if self.robots:
+            if len(self.robots) != self.count:
+                raise ConfigError(f"[hosts] robots gives {len(self.robots)} number(s) for {self.count} host(s)")
+            for n in self.robots:
+                _integer("[hosts] robots (each host's)", n, 0, MAX_ROBOTS)
+            if sum(self.robots) > fleet:
+                raise ConfigError(f"[hosts] robots puts {sum(self.robots)} robots on hosts, more than the fleet's "
+                                  f"{fleet} (--robots)")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,6 +113,7 @@ class Scenario:
     base: bool | tuple[int, int] = False  # a base station: False (none), True (at the start cell) or a cell
     relay: str = "none"  # multi-hop relaying in the robots (agents/relay.py): none, flood or tree
     relay_ttl: int = 0  # hops left after the first on the messages a robot makes (0: one hop)
+    hosts: HostPlan | None = None  # robots on other machines (``fleet host``); None: all here
 
     def __post_init__(self) -> None:
         """A base-station planner's orders must cross several hops: with ``relay = "none"`` (the default) it
@@ -94,7 +158,7 @@ class Scenario:
                 _move(m, flat, ("cell_size",), "map")
             elif k == "fleet":
                 _move(dict(v), flat, ("robots", "sensor_range", "start", "base"), "fleet")
-            elif k in ("radio", "allocator"):
+            elif k in ("radio", "allocator", "hosts"):
                 flat[k] = dict(v)
             elif k in _TOP:
                 flat[k] = v
@@ -134,6 +198,10 @@ class Scenario:
                 d[cell_key] = tuple(d[cell_key])
         if "allocator" in d and not isinstance(d["allocator"], dict):
             raise ConfigError(f"{where}: allocator must be a table with a 'type' name")
+        if isinstance(d.get("hosts"), dict):
+            d["hosts"] = HostPlan.from_dict(d["hosts"], where)
+        elif d.get("hosts") is not None and not isinstance(d["hosts"], HostPlan):
+            raise ConfigError(f"{where}: hosts must be a [hosts] table (count, names, robots)")
         return cls(radio=RadioConfig(**radio), **d).validate()
 
     def to_dict(self) -> dict[str, Any]:
@@ -146,11 +214,17 @@ class Scenario:
         for k, default in (("relay", "none"), ("relay_ttl", 0)):  # absent at their defaults, as before relaying
             if d[k] == default:
                 del d[k]
+        if self.hosts is None:  # absent without hosts: runs on one machine keep their scenario.json
+            del d["hosts"]
+        else:
+            d["hosts"] = self.hosts.to_dict()
         return d
 
     def override(self, **flags: Any) -> Scenario:
         """Flags on top (None means not given): ``loss``, ``comm_range`` and ``comm`` go to the radio;
-        ``allocator`` a name (its parameters kept when the name is unchanged); the rest by field name."""
+        ``allocator`` a name (its parameters kept when the name is unchanged); ``hosts`` a number (``--hosts N``:
+        the robots dealt round-robin over this machine and any N hosts, replacing the scenario's ``[hosts]``; 0:
+        every robot here); the rest by field name."""
         top: dict[str, Any] = {}
         radio: dict[str, Any] = {}
         names = {f.name for f in dataclasses.fields(self)}
@@ -161,6 +235,10 @@ class Scenario:
                 radio[k] = v
             elif k == "allocator":
                 top["allocator"] = {"type": v} if v != self.allocator.get("type") else self.allocator
+            elif k == "hosts" and not isinstance(v, HostPlan):
+                if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= MAX_HOSTS:
+                    raise ConfigError(f"--hosts must be in 0..{MAX_HOSTS} (got {v!r})")
+                top["hosts"] = HostPlan(v) if v else None
             elif k in names:
                 top[k] = tuple(v) if k in ("start", "base") and isinstance(v, list) else v
             else:
@@ -243,12 +321,16 @@ class Scenario:
         if self.plans_at_base and not self.has_base:
             raise ConfigError(f"--allocator {self.allocator['type']} plans at the base station: it needs --base "
                               "(or --base-cell ROW,COL; in a scenario base = true)")
+        if self.hosts is not None:
+            if not isinstance(self.hosts, HostPlan):
+                raise ConfigError(f"hosts must be a [hosts] table (count, names, robots; got {self.hosts!r})")
+            self.hosts.validate(self.robots)
         return self
 
 
 _TOP = {"name", "base", "seed", "max_ticks", "target_coverage", "stall_ticks", "coverage_stall_ticks",
         "barrier_timeout", "belief_every", "relay", "relay_ttl"}
-_SECTIONS = ("map", "fleet", "radio", "allocator")
+_SECTIONS = ("map", "fleet", "radio", "allocator", "hosts")
 
 
 def _read(p: Path) -> str:

@@ -105,10 +105,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --connect: the users file written by `fleet router-config`")
     r.add_argument("--tls-ca", type=Path, metavar="CA.pem", help="with a tls/ --connect: the CA that signed the router")
     r.add_argument("--run-id", help="the <run> of the key expressions (default: a timestamp)")
-    r.add_argument("--hosts", type=int, default=0, metavar="N",
-                   help="deal the robots round-robin between this machine and N `fleet host`s, waiting for them")
+    r.add_argument("--hosts", type=int, metavar="N",
+                   help="deal the robots round-robin between this machine and N `fleet host`s, waiting for them "
+                        "(replaces the scenario's [hosts]; 0: every robot here)")
     r.add_argument("--listen", metavar="ENDPOINT",
                    help="the embedded router's endpoint, one the hosts reach (e.g. tcp/192.0.2.1:7447)")
+    r.add_argument("--tls-cert", type=Path, metavar="CERT.pem",
+                   help="with a tls/ or quic/ --listen: the embedded router's certificate (signed by a CA)")
+    r.add_argument("--tls-key", type=Path, metavar="KEY.pem", help="with --tls-cert: its private key")
     r.add_argument("--host-timeout", type=float, default=None, metavar="S",
                    help="seconds to wait for the --hosts (default 60)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -159,7 +163,8 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
         comm_range=args.comm_range, sensor_range=args.sensor_range, cell_size=args.cell_size, seed=args.seed,
         start=args.start, max_ticks=args.max_ticks, target_coverage=args.target_coverage, comm=args.comm,
         base=args.base_cell if args.base_cell is not None else args.base,
-        relay=getattr(args, "relay", None), relay_ttl=getattr(args, "relay_ttl", None))
+        relay=getattr(args, "relay", None), relay_ttl=getattr(args, "relay_ttl", None),
+        hosts=getattr(args, "hosts", None))
 
 
 def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
@@ -176,12 +181,14 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
         raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
     if args.engine == "memory" and args.realtime is not None:
         raise ConfigError("--realtime needs the processes engine: --engine memory is lockstep only")
-    memory_flags = (("--in-process", args.in_process), ("--connect", args.connect), ("--hosts", args.hosts),
-                    ("--listen", args.listen), ("--[no-]fork-server", args.fork_server is not None))
+    hosts = "--hosts" if args.hosts else "[hosts] (the scenario's; --hosts 0 runs every robot here)"
+    memory_flags = (("--in-process", args.in_process), ("--connect", args.connect), (hosts, scenario.hosts),
+                    ("--listen", args.listen), ("--tls-cert", args.tls_cert), ("--tls-key", args.tls_key),
+                    ("--[no-]fork-server", args.fork_server is not None))
     if args.engine == "memory" and any(v for _, v in memory_flags):
         flag = next(f for f, v in memory_flags if v)
         raise ConfigError(f"--engine memory runs without Zenoh nor processes: it takes no {flag}")
-    if args.connect is None and (args.tls_ca or (args.credentials and not args.hosts)):  # --hosts: the hosts' logins
+    if args.connect is None and (args.tls_ca or (args.credentials and not scenario.hosts)):  # the hosts' logins
         raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
         if args.engine == "memory":
@@ -195,7 +202,8 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
                               connect=args.connect, run_id=run_id, grid_every=args.grid_every,
                               on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
                               interrupts=interrupts, on_warning=_warn, fork_server=args.fork_server,
-                              hosts=args.hosts, listen=args.listen, realtime_hz=args.realtime,
+                              listen=args.listen, realtime_hz=args.realtime, tls_cert=args.tls_cert,
+                              tls_key=args.tls_key,
                               **({"host_timeout": args.host_timeout} if args.host_timeout is not None else {}))
             result = run_fleet(scenario, opts)
     if interrupts.signum is not None:

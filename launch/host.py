@@ -4,12 +4,12 @@ The protocol is in ``launch/hosts.py`` (the launcher's side). Here: log in as th
 a ``hostK:password`` line), subscribe to ``fleet-host/hostK/spawn``, declare the token ``fleet-host/hostK/alive``,
 and serve runs one at a time (``--once``: one, then exit). For a run: answer ``accepted`` (``busy`` to another
 run's request meanwhile), write its scenario, start each robot as the launcher would (``agent_argv``, this host's
-own ``--connect``, the robot's credential on its standard input with this host's ``--tls-ca``, its own process
-group, from a fork server unless turned off), report ``spawned``/``exited`` per robot, and ``ended`` once every
-robot is gone. The robots are torn down (SIGTERM to their groups, then SIGKILL) when the launcher asks, when its
-token ``fleet/<run>/alive/launcher/launcher`` goes, and on this process's SIGINT/SIGTERM (exit 130/143); a robot
-whose host dies exits by itself (its parent watchdog). A malformed request, or one not from the launcher, is
-counted and dropped.
+own ``--connect``, the run's ``--realtime`` rate, the robot's credential on its standard input with this host's
+``--tls-ca``, its own process group, from a fork server unless turned off), report ``spawned``/``exited`` per
+robot, and ``ended`` once every robot is gone. The robots are torn down (SIGTERM to their groups, then SIGKILL)
+when the launcher asks, when its token ``fleet/<run>/alive/launcher/launcher`` goes, and on this process's
+SIGINT/SIGTERM (exit 130/143); a robot whose host dies exits by itself (its parent watchdog). A malformed
+request, or one not from the launcher, is counted and dropped.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from fleet_emu.core.keys import HOST_ID, HostKeys, Keys
 from fleet_emu.core.messages import HostAssign, HostStatus
 from fleet_emu.core.node import undeclare
 from fleet_emu.launch.forked import fork_server_enabled
-from fleet_emu.launch.hosts import agent_argv
+from fleet_emu.launch.hosts import agent_argv, check_reliable
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import AGENTS, Supervisor
 
@@ -168,7 +168,7 @@ class Host:
             if robot in req.secrets:  # the launcher's login for it, with this host's CA
                 obj = json.loads(req.secrets[robot])
                 secret = Credential(str(obj["user"]), str(obj["password"]), self.tls_ca).to_json()
-            argv = agent_argv(robot, req.run, self.endpoint, scenario, secret is not None)
+            argv = agent_argv(robot, req.run, self.endpoint, scenario, secret is not None, req.realtime_hz or None)
             child = sup.spawn(robot, AGENTS, argv, secret)
             self.report(req.run, "spawned", robot=robot, pid=child.pid)
 
@@ -201,6 +201,7 @@ class Host:
 def cmd_host(args: argparse.Namespace, interrupts: Interrupts) -> int:
     """``fleet host``: 0 after serving (``--once``), 130/143 on a signal, 2 on bad input or a refused login."""
     name, cred = host_login(args.credentials, args.name, args.tls_ca)
+    check_reliable("--connect", args.connect)
     if not 0 < args.connect_timeout <= 3600:
         raise ConfigError(f"--connect-timeout must be in (0, 3600] seconds (got {args.connect_timeout:g})")
     if cred is None:

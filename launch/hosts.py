@@ -1,16 +1,18 @@
 """Robots on other machines: the launcher's side of ``fleet host`` (``launch/host.py`` is the host's).
 
-``fleet run --hosts N`` deals the robots round-robin over this machine and N hosts (:func:`placement`: ``r0``
-here, ``r1`` on the first host, ..., deterministic, and the result does not depend on it: lockstep), and starts
-each host's robots there. The protocol, over the run's own Zenoh router, in the hosts' lobby
+``fleet run --hosts N`` (or a scenario's ``[hosts]``, :class:`~fleet_emu.core.scenario.HostPlan`) deals the
+robots round-robin over this machine and N hosts (:func:`placement`: ``r0`` here, ``r1`` on the first host,
+..., or as many per host as ``[hosts] robots`` says; deterministic, and the result does not depend on it:
+lockstep), and starts each host's robots there. The protocol, over the run's own Zenoh router, in the hosts' lobby
 ``fleet-host/<host>/...`` (outside every run's ``fleet/<run>/**``, so the recorder never records it):
 
 1. A host (``fleet host --connect ENDPOINT --credentials FILE``) logs in as its own user ``hostK``, subscribes
    to ``fleet-host/hostK/spawn``, then declares its liveliness token ``fleet-host/hostK/alive``.
 2. The launcher watches ``fleet-host/*/alive`` and waits up to ``--host-timeout`` seconds for N hosts (a one-line
-   error naming the ones that came, after it), and takes the first N by name.
+   error naming the ones that came, after it), and takes the first N by number (or the ``[hosts] names``).
 3. It puts a :class:`~fleet_emu.core.messages.HostAssign` on each host's ``spawn`` key: the run id, the
-   scenario, the host's robots and each robot's credential (``secrets``), repeated every second until the host
+   scenario, the real-time rate (``--realtime``; 0 in lockstep), the host's robots and each robot's credential
+   (``secrets``), repeated every second until the host
    answers ``accepted`` (or ``busy``: it serves another run) on ``fleet-host/hostK/status``.
 4. The host writes the scenario, starts each robot exactly as the launcher would here (:func:`agent_argv`: the
    same argv, its own ``--connect``, the credential on standard input, its own process group, from a fork
@@ -46,7 +48,7 @@ from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.keys import BASE, HostKeys, robot_ids
 from fleet_emu.core.messages import HostAssign, HostStatus
 from fleet_emu.core.node import undeclare
-from fleet_emu.core.scenario import Scenario
+from fleet_emu.core.scenario import HostPlan, Scenario
 from fleet_emu.launch.forked import FORK_TIMEOUT, NOT_STARTED
 
 if TYPE_CHECKING:
@@ -62,17 +64,30 @@ class HostsError(RunError):
     """Not enough hosts came, or one refused its robots."""
 
 
-def placement(robots: list[str], hosts: list[str]) -> dict[str, str | None]:
-    """Where each robot runs: round-robin over this machine (None) and ``hosts``."""
+def placement(robots: list[str], hosts: list[str], shares: tuple[int, ...] = ()) -> dict[str, str | None]:
+    """Where each robot runs: dealt one at a time round this machine (None) and ``hosts``, in that order,
+    skipping a machine that has its share (``shares``: each host's number of robots, the rest here; none:
+    plain round-robin, which equal shares give too)."""
     slots: list[str | None] = [None, *hosts]
-    return {r: slots[i % len(slots)] for i, r in enumerate(robots)}
+    room = [len(robots) - sum(shares), *shares] if shares else [len(robots)] * len(slots)
+    where: dict[str, str | None] = {}
+    i = 0
+    for r in robots:
+        while room[i % len(slots)] == 0:
+            i += 1
+        room[i % len(slots)] -= 1
+        where[r] = slots[i % len(slots)]
+        i += 1
+    return where
 
 
-def host_credentials(path: Path | None) -> dict[str, Credential]:
-    """The hosts' logins (``hostK:password`` lines of a users file) the embedded router accepts."""
+def host_credentials(path: Path | None, plan: HostPlan | None = None) -> dict[str, Credential]:
+    """The hosts' logins (``hostK:password`` lines of a users file) the embedded router accepts; a ConfigError
+    when they cannot make ``plan`` (too few hosts, or one of its ``names`` missing)."""
     if path is None:
-        raise ConfigError("--hosts with the embedded router needs --credentials USERS, whose hostK:password lines "
-                          "the hosts log in with (`fleet router-config --hosts N` writes them)")
+        raise ConfigError("--hosts (or a scenario's [hosts]) with the embedded router needs --credentials USERS, "
+                          "whose hostK:password lines the hosts log in with (`fleet router-config --hosts N` writes "
+                          "them)")
     try:
         users = read_dictionary(path.read_text())
     except (OSError, UnicodeDecodeError, ValueError) as exc:
@@ -80,20 +95,65 @@ def host_credentials(path: Path | None) -> dict[str, Credential]:
     hosts = {u: Credential(u, p) for u, p in users.items() if role_of(u) == "host"}
     if not hosts:
         raise ConfigError(f"--credentials {path} has no host user (hostK:password lines)")
+    missing = [h for h in plan.names if h not in hosts] if plan is not None else []
+    if missing:
+        raise ConfigError(f"--credentials {path} has no user {missing[0]!r} of the scenario's [hosts] names")
+    if plan is not None and plan.count > len(hosts):
+        raise ConfigError(f"--credentials {path} has {len(hosts)} host user(s) for {plan.count} hosts: make them "
+                          f"with `fleet router-config --hosts {plan.count}`")
     return hosts
 
 
 def check_hosts(hosts: int, in_process: bool, connect: str | None, listen: str | None) -> None:
-    """The ``--hosts`` options that can be wrong before anything starts."""
+    """The ``--hosts`` options (``hosts``: how many, from the flag or the scenario's ``[hosts]``) that can be
+    wrong before anything starts."""
     if hosts < 0 or hosts > 64:
         raise ConfigError(f"--hosts must be in 0..64 (got {hosts})")
     if hosts and in_process:
-        raise ConfigError("--hosts runs robots as processes on other machines: it takes no --in-process")
+        raise ConfigError("--hosts (or a scenario's [hosts]) runs robots as processes on other machines: it "
+                          "takes no --in-process")
     if hosts and connect is None and listen is None:
-        raise ConfigError("--hosts needs a router the hosts can reach: --listen tcp/ADDRESS:PORT for the embedded "
-                          "one, or --connect")
+        raise ConfigError("--hosts (or a scenario's [hosts]) needs a router the hosts can reach: --listen "
+                          "tcp/ADDRESS:PORT for the embedded one, or --connect")
     if listen is not None and connect is not None:
         raise ConfigError("--listen is the embedded router's: it takes no --connect")
+
+
+LISTEN_PROTOCOLS = ("tcp", "tls", "quic")  # what the embedded router listens on (tls and quic: with a certificate)
+SECURE_PROTOCOLS = ("tls", "quic")
+LOOPBACK = "tcp/127.0.0.1:0"
+
+
+def check_reliable(flag: str, endpoint: str) -> None:
+    """A ConfigError for a ``udp/`` endpoint: Zenoh does not retransmit over UDP (its reliability is hop to hop,
+    from the link), and the fleet's only losses must be the ones netem decides (DESIGN.md "Time")."""
+    if endpoint.startswith("udp/"):
+        raise ConfigError(f"{flag} {endpoint}: Zenoh does not retransmit over udp/, and a lockstep run may lose no "
+                          f"message: use tcp/, tls/ or quic/")
+
+
+def listen_endpoints(listen: str | None, tls_cert: Path | None, tls_key: Path | None) -> list[str]:
+    """The embedded router's endpoints for ``--listen`` (``tcp/``, or ``tls/`` and ``quic/`` with
+    ``--tls-cert`` and ``--tls-key``): the one given, and for a ``tls/`` or ``quic/`` one a loopback ``tcp/``
+    one too, which this machine's own processes use (they need no CA). ``udp/`` is refused: Zenoh does not
+    retransmit over UDP, and lockstep must lose no message but the ones netem decides (DESIGN.md "Time")."""
+    proto, sep, address = (listen or LOOPBACK).partition("/")
+    if not sep or not address:
+        raise ConfigError(f"--listen {listen!r} is not an endpoint (expected <protocol>/<address>:<port>, e.g. "
+                          f"tcp/192.0.2.1:7447)")
+    check_reliable("--listen", listen or LOOPBACK)
+    if proto not in LISTEN_PROTOCOLS:
+        raise ConfigError(f"--listen {listen}: the embedded router listens on tcp/, tls/ or quic/ (got {proto}/)")
+    secure = proto in SECURE_PROTOCOLS
+    if secure and (tls_cert is None or tls_key is None):
+        raise ConfigError(f"--listen {listen}: a {proto}/ router needs --tls-cert CERT.pem and --tls-key KEY.pem "
+                          f"(signed by a CA the hosts trust: `fleet host --tls-ca CA.pem`)")
+    if not secure and (tls_cert is not None or tls_key is not None):
+        raise ConfigError("--tls-cert and --tls-key go with a tls/ or quic/ --listen")
+    for flag, path in (("--tls-cert", tls_cert), ("--tls-key", tls_key)):
+        if path is not None and not path.is_file():
+            raise ConfigError(f"{flag} {path}: no such file")
+    return [listen or LOOPBACK, LOOPBACK] if secure else [listen or LOOPBACK]
 
 
 def agent_argv(robot: str, run_id: str, endpoint: str, scenario_file: Path, auth: bool,
@@ -113,7 +173,7 @@ def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str,
     hosts = remote.gather(requested or threading.Event()) if remote is not None else []
     if remote is not None and not hosts:  # a signal while waiting: nothing is started
         raise KeyboardInterrupt
-    where = placement(robots, hosts)
+    where = placement(robots, hosts, scenario.hosts.robots if scenario.hosts else ())
     common = ["--run", run_id, "--connect", endpoint, "--scenario", str(work / "scenario.json")]
     common += ["--realtime", repr(float(realtime_hz))] if realtime_hz else []
     auth = ["--auth-stdin"] if creds else []
@@ -135,9 +195,13 @@ def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str,
         secrets = {r: json.dumps({"user": creds[r].user, "password": creds[r].password}) for r in robots} \
             if creds else {}
         text = (work / "scenario.json").read_text()
-        for name, handle in remote.start(run_id, plan, text, secrets, sup.server is not None).items():
+        for name, handle in remote.start(run_id, plan, text, secrets, sup.server is not None, realtime_hz).items():
             sup.adopt(name, handle)
     return plan
+
+
+def _number(host: str) -> int:
+    return int(host[4:])
 
 
 class RemoteRobot:
@@ -171,9 +235,10 @@ class RemoteRobot:
 class Hosts:
     """The launcher's view of the hosts, over its own session: who is there, and their robots' handles."""
 
-    def __init__(self, session: zenoh.Session, count: int, timeout: float = HOST_TIMEOUT) -> None:
+    def __init__(self, session: zenoh.Session, plan: HostPlan, timeout: float = HOST_TIMEOUT) -> None:
         self.session = session
-        self.count = count
+        self.count = plan.count
+        self.names = plan.names  # the hosts to wait for (none: any ``count``)
         self.timeout = timeout
         self.changed = threading.Condition()
         self.alive: set[str] = set()
@@ -241,25 +306,29 @@ class Hosts:
     # --- the launcher's side -------------------------------------------------------------------------------
 
     def gather(self, requested: threading.Event) -> list[str]:
-        """The first :attr:`count` hosts by name, once that many are there; [] if ``requested`` (a signal)
-        is set first; :class:`HostsError` after :attr:`timeout` seconds."""
+        """The :attr:`names` hosts, or the first :attr:`count` by number, once they are there; [] if
+        ``requested`` (a signal) is set first; :class:`HostsError` after :attr:`timeout` seconds."""
         deadline = time.monotonic() + self.timeout
         with self.changed:
-            while len(self.alive) < self.count:
+            while not (set(self.names) <= self.alive if self.names else len(self.alive) >= self.count):
                 if requested.is_set():
                     return []
                 if time.monotonic() > deadline:
-                    came = ", ".join(sorted(self.alive)) or "none"
+                    came = ", ".join(sorted(self.alive, key=_number)) or "none"
+                    if self.names:
+                        missing = ", ".join(h for h in self.names if h not in self.alive)
+                        raise HostsError(f"[hosts] names: waited {self.timeout:g} s for {missing} (`fleet host "
+                                         f"--connect ...`); came: {came}")
                     raise HostsError(f"--hosts {self.count}: waited {self.timeout:g} s for {self.count} host(s) "
                                      f"(`fleet host --connect ...`), {len(self.alive)} came ({came})")
                 self.changed.wait(0.2)
-            return sorted(self.alive, key=lambda h: int(h[4:]))[:self.count]
+            return list(self.names) or sorted(self.alive, key=_number)[:self.count]
 
     def start(self, run: str, plan: dict[str, list[str]], scenario: str, secrets: dict[str, str],
-              fork_server: bool) -> dict[str, RemoteRobot]:
-        """Send every host its robots; repeat until each accepts; wait for their pids (a robot not reported
-        within :data:`FORK_TIMEOUT` counts as never started). :class:`HostsError` if a host refuses or is
-        silent."""
+              fork_server: bool, realtime_hz: float | None = None) -> dict[str, RemoteRobot]:
+        """Send every host its robots (with the run's real-time rate, if any); repeat until each accepts; wait
+        for their pids (a robot not reported within :data:`FORK_TIMEOUT` counts as never started).
+        :class:`HostsError` if a host refuses or is silent."""
         for host in plan:  # one subscriber per host: a wildcard one never reaches a host through the ACL
             self._handles.append(self.session.declare_subscriber(HostKeys(host).status, self._on_status))
         with self.changed:
@@ -268,7 +337,8 @@ class Hosts:
                 for r in robots:
                     self.robots[r] = RemoteRobot(r, host, self)
         requests = {h: HostAssign(src="launcher", tick=0, seq=0, host=h, run=run, robots=tuple(rs), scenario=scenario,
-                                  secrets={r: secrets[r] for r in rs if r in secrets}, fork_server=fork_server)
+                                  secrets={r: secrets[r] for r in rs if r in secrets}, fork_server=fork_server,
+                                  realtime_hz=float(realtime_hz or 0.0))
                     for h, rs in plan.items()}
         deadline = time.monotonic() + ACCEPT_TIMEOUT
         while True:

@@ -19,8 +19,12 @@ UNTIMED = frozenset({"run_id", "decision_ms", "agent_peak_rss_kb", "ticks_per_se
 
 
 def deterministic(data: Mapping[str, Any]) -> dict[str, Any]:
-    """``result.json`` without the :data:`UNTIMED` keys: what a seed reproduces on every engine."""
-    return {k: v for k, v in data.items() if k not in UNTIMED}
+    """``result.json`` without the :data:`UNTIMED` keys, nor the scenario's ``hosts`` (where the robots ran):
+    what a seed reproduces on every engine, on one machine or several."""
+    out = {k: v for k, v in data.items() if k not in UNTIMED}
+    if isinstance(out.get("scenario"), dict) and "hosts" in out["scenario"]:
+        out["scenario"] = {k: v for k, v in out["scenario"].items() if k != "hosts"}
+    return out
 
 
 @dataclasses.dataclass(frozen=True)

@@ -36,12 +36,21 @@ from fleet_emu.core.bus import client_config, publisher, router_config, router_l
 from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import BASE, RUN_ID, Keys, robot_ids
-from fleet_emu.core.messages import Failed, Stop
+from fleet_emu.core.messages import MAX_REALTIME_HZ, Failed, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch import budget
 from fleet_emu.launch.forked import fork_server_enabled
-from fleet_emu.launch.hosts import HOST_TIMEOUT, Hosts, HostsError, check_hosts, host_credentials, spawn_nodes
+from fleet_emu.launch.hosts import (
+    HOST_TIMEOUT,
+    Hosts,
+    HostsError,
+    check_hosts,
+    check_reliable,
+    host_credentials,
+    listen_endpoints,
+    spawn_nodes,
+)
 from fleet_emu.launch.result import Result, write_json_atomic
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import Supervisor
@@ -54,7 +63,7 @@ from fleet_emu.world.maps import load_map
 from fleet_emu.world.node import base_cell, build_world
 
 CONNECT_TIMEOUT = 5.0  # seconds ``--connect`` keeps trying an external router before giving up
-MAX_HZ = 1000.0  # the fastest real-time rate accepted
+MAX_HZ = MAX_REALTIME_HZ  # the fastest real-time rate accepted
 
 
 @dataclasses.dataclass(frozen=True)
@@ -77,8 +86,9 @@ class RunOptions:
     on_warning: Callable[[str], None] | None = None  # told once the input is checked (an unauthenticated bus)
     on_spawn: Callable[[dict[str, Any]], None] | None = None  # told result.json's ``pids`` once the nodes start
     fork_server: bool | None = None  # robots forked from one fork server (None: unless FLEET_FORK_SERVER=0)
-    hosts: int = 0  # robots dealt between this machine and this many `fleet host`s (``launch/hosts.py``)
     listen: str | None = None  # the embedded router's endpoint (default: loopback, a port the OS picks)
+    tls_cert: Path | None = None  # with a ``tls/`` or ``quic/`` ``listen``: the router's certificate (PEM) ...
+    tls_key: Path | None = None  # ... and its private key
     host_timeout: float = HOST_TIMEOUT  # seconds to wait for the hosts
     realtime_hz: float | None = None  # real time: the world ticks at this rate on the wall clock (None: lockstep)
 
@@ -114,7 +124,7 @@ def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] |
     nodes = fleet_nodes(robot_ids(scenario.robots), scenario.has_base)
     ca = str(opts.tls_ca.absolute()) if opts.tls_ca is not None else None
     if opts.connect is None:
-        hosts = host_credentials(opts.credentials) if opts.hosts else {}
+        hosts = host_credentials(opts.credentials, scenario.hosts) if scenario.hosts else {}
         return {n: Credential(n, p) for n, p in make_credentials(nodes).items()} | hosts
     if opts.credentials is None:
         return None
@@ -129,17 +139,21 @@ def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] |
     return {n: Credential(n, users[n], ca) for n in nodes}
 
 
-def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None) -> None:
-    """The run's options that can be wrong before anything starts: the run id, the real-time rate, the TLS CA
-    file, and
+def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None, hosts: int = 0) -> None:
+    """The run's options that can be wrong before anything starts: the run id, the hosts' (``hosts``: the
+    scenario's number of hosts), the real-time rate, the TLS CA file, and
     ``connect`` (its syntax, and a router answering there within :data:`CONNECT_TIMEOUT` and accepting the
     launcher's credential)."""
     if opts.run_id and not RUN_ID.fullmatch(opts.run_id):
         raise ConfigError(f"--run-id must be letters, digits, '_', '-' or '.' (not first), at most 100 "
                           f"(got {opts.run_id!r})")
-    check_hosts(opts.hosts, opts.in_process, opts.connect, opts.listen)
-    if opts.hosts and opts.realtime_hz is not None:
-        raise ConfigError("--realtime runs every robot on this machine today: it takes no --hosts")
+    check_hosts(hosts, opts.in_process, opts.connect, opts.listen)
+    if opts.connect is None:
+        listen_endpoints(opts.listen, opts.tls_cert, opts.tls_key)
+    elif opts.tls_cert is not None or opts.tls_key is not None:
+        raise ConfigError("--tls-cert and --tls-key go with a tls/ or quic/ --listen (the embedded router's)")
+    else:
+        check_reliable("--connect", opts.connect)
     hz = opts.realtime_hz
     if hz is not None and (isinstance(hz, bool) or not isinstance(hz, int | float) or not 0 < hz <= MAX_HZ):
         raise ConfigError(f"--realtime must be a number of ticks per second > 0 and <= {MAX_HZ:g} (got {hz!r})")
@@ -187,7 +201,7 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     check_machine(scenario, map_data, "in-process" if opts.in_process else "processes",
                   not opts.in_process and fork_server_enabled(opts.fork_server))
     creds = credentials(scenario, opts)
-    check_options(opts, creds)
+    check_options(opts, creds, scenario.hosts.count if scenario.hosts else 0)
     if opts.connect is not None and creds is None and opts.on_warning is not None:
         opts.on_warning("--connect without --credentials: this run's bus is not authenticated "
                         "(see `fleet router-config`)")
@@ -242,11 +256,15 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         if opts.connect:
             endpoint = opts.connect
         else:
+            listen = listen_endpoints(opts.listen, opts.tls_cert, opts.tls_key)
+            tls = (str(opts.tls_cert.absolute()), str(opts.tls_key.absolute())) \
+                if opts.tls_cert is not None and opts.tls_key is not None else None
             try:
-                router = stack.enter_context(_closing(_open_router(run_id, creds, opts.listen or "tcp/127.0.0.1:0")))
+                router = stack.enter_context(_closing(_open_router(run_id, creds, listen, tls)))
             except zenoh.ZError as exc:
                 raise RunError(f"cannot open the embedded Zenoh router: {str(exc).splitlines()[0]}") from None
-            endpoint = router_locators(router)[0]
+            # this machine's processes: the router's first endpoint, or with tls/ or quic/ its loopback tcp/ one
+            endpoint = next(loc for loc in router_locators(router) if tls is None or loc.startswith("tcp/"))
         login = creds or {}
         session = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(LAUNCHER)))))
         listener = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(RECORDER)))))
@@ -257,7 +275,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         pub_stop = publisher(session, keys.stop)
         handles: list[Declared] = [pub_ready, pub_stop,
                                    session.liveliness().declare_token(keys.alive("launcher", "launcher"))]
-        remote = stack.enter_context(Hosts(session, opts.hosts, opts.host_timeout)) if opts.hosts else None
+        remote = stack.enter_context(Hosts(session, scenario.hosts, opts.host_timeout)) if scenario.hosts else None
         consumer = Consumer(keys, samples, monitor, recorder, pub_ready, viz)
         consumer.start()
         nodes_thread: threading.Thread | None = None
@@ -347,17 +365,19 @@ def _closing(session: zenoh.Session) -> Iterator[zenoh.Session]:
             session.close()
 
 
-def _open_router(run_id: str, creds: dict[str, Credential] | None, listen: str) -> zenoh.Session:
-    """The embedded router: user/password authentication and access control for this run's users. The
-    users file lives in a private temporary directory only while the router opens (Zenoh reads it then)."""
+def _open_router(run_id: str, creds: dict[str, Credential] | None, listen: list[str],
+                 tls: tuple[str, str] | None = None) -> zenoh.Session:
+    """The embedded router: user/password authentication and access control for this run's users (and with
+    ``tls``, its certificate and key, for a ``tls/`` or ``quic/`` endpoint). The users file lives in a private
+    temporary directory only while the router opens (Zenoh reads it then)."""
     if creds is None:
-        return zenoh.open(router_config(listen))
+        return zenoh.open(router_config(listen, tls=tls))
     with tempfile.TemporaryDirectory(prefix="fleet-auth-") as private:  # mode 0700
         users = Path(private) / "users.txt"
         fd = os.open(users, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
         with os.fdopen(fd, "w") as f:
             f.write(dictionary_text({n: c.password for n, c in creds.items()}))
-        return zenoh.open(router_config(listen, dictionary_file=str(users), acl=acl_config(run_id, creds)))
+        return zenoh.open(router_config(listen, dictionary_file=str(users), acl=acl_config(run_id, creds), tls=tls))
 
 
 def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoint: str,

@@ -107,3 +107,44 @@ def test_a_base_cell_off_the_map_or_on_a_wall_is_one_line() -> None:
     assert base_cell(Scenario().override(robots=1, base=(1, 3)), md) == (1, 3)
     assert base_cell(Scenario().override(robots=1, base=True), md) == (1, 1)  # the start cell
     assert base_cell(Scenario().override(robots=1), md) is None
+
+
+def test_hosts_from_toml_json_and_the_flag_and_absent_by_default(tmp_path: Path) -> None:
+    from fleet_emu.core.scenario import HostPlan
+
+    assert "hosts" not in Scenario().to_dict() and Scenario().hosts is None  # runs on one machine are unchanged
+    toml = tmp_path / "h.toml"
+    toml.write_text('[fleet]\nrobots = 8\n[hosts]\nnames = ["host3", "host1"]\nrobots = [4, 2]\n')
+    s = Scenario.load(toml)
+    assert s.hosts == HostPlan(2, ("host3", "host1"), (4, 2))
+    assert s.to_dict()["hosts"] == {"count": 2, "names": ["host3", "host1"], "robots": [4, 2]}
+    assert Scenario.from_dict(json.loads(json.dumps(s.to_dict()))) == s
+    toml.write_text("[hosts]\ncount = 2\n")
+    assert Scenario.load(toml).to_dict()["hosts"] == {"count": 2}
+    assert s.override(hosts=3).hosts == HostPlan(3)  # --hosts N replaces the table: round-robin over any N
+    assert s.override(hosts=0).hosts is None and "hosts" not in s.override(hosts=0).to_dict()  # --hosts 0: all here
+    toml.write_text("[hosts]\ncount = 0\n")
+    assert Scenario.load(toml).hosts is None
+
+
+@pytest.mark.parametrize("table, match", [
+    ("count = 2\nrobotz = 1", r"unknown key\(s\) in \[hosts\]: robotz \(count, names, robots\)"),
+    ("", r"\[hosts\] needs count = N or names"),
+    ("count = 65", r"\[hosts\] count must be from 1 to 64 \(got 65\)"),
+    ("count = \"2\"", r"\[hosts\] count must be a whole number"),
+    ("count = 3\nnames = [\"host0\"]", r"\[hosts\] names lists 1 host\(s\) but count is 3"),
+    ("names = [\"lab-a\"]", r"\[hosts\] names must be host0, host1, ... \(the hosts' logins; got 'lab-a'\)"),
+    ("names = [\"host1\", \"host1\"]", r"\[hosts\] names lists a host twice"),
+    ("count = 2\nrobots = [1]", r"\[hosts\] robots gives 1 number\(s\) for 2 host\(s\)"),
+    ("count = 1\nrobots = [-1]", r"\[hosts\] robots \(each host's\) must be from 0 to 256"),
+    ("count = 2\nrobots = [3, 2]", r"\[hosts\] robots puts 5 robots on hosts, more than the fleet's 4"),
+    ("count = 1\nrobots = 3", r"\[hosts\] robots must be a list"),
+])
+def test_a_bad_hosts_table_is_one_line(table: str, match: str, tmp_path: Path) -> None:
+    toml = tmp_path / "h.toml"
+    toml.write_text(f"[fleet]\nrobots = 4\n[hosts]\n{table}\n")
+    with pytest.raises(ConfigError, match=match) as exc:
+        Scenario.load(toml)
+    assert "\n" not in str(exc.value)
+    with pytest.raises(ConfigError, match=r"--hosts must be in 0..64 \(got -1\)"):
+        Scenario().override(hosts=-1)

@@ -19,9 +19,11 @@ from fleet_emu.core.access import Credential, read_dictionary
 from fleet_emu.core.bus import client_config, publisher, router_locators
 from fleet_emu.core.keys import HostKeys
 from fleet_emu.core.messages import HostAssign
+from fleet_emu.core.scenario import HostPlan, Scenario
 from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
 from tests.integration.conftest import ROOT, children_of, fleet, pid_alive, result, wait_for
+from tests.integration.test_security import _make_certs
 
 FLEET = [sys.executable, "-m", "fleet_emu.launch"]
 WAIT = ["--connect-timeout", "120"]  # a host may start before the launcher's router
@@ -38,9 +40,13 @@ def users(tmp_path: Path) -> tuple[Path, Path]:
     """A users file with two hosts (``router-config --hosts 2``) and host0's own one-line file."""
     users = tmp_path / "users.txt"
     router_config_text(4, users, listen="tcp/127.0.0.1:0", hosts=2)
-    own = tmp_path / "host0.txt"
-    own.write_text(next(ln for ln in users.read_text().splitlines() if ln.startswith("host0:")) + "\n")
-    return users, own
+    return users, _own(users, "host0")
+
+
+def _own(users: Path, host: str) -> Path:
+    own = users.with_name(f"{host}.txt")
+    own.write_text(next(ln for ln in users.read_text().splitlines() if ln.startswith(f"{host}:")) + "\n")
+    return own
 
 
 def _start(args: list[str], prefix: list[str] | None = None) -> subprocess.Popen[str]:
@@ -144,13 +150,68 @@ def test_too_few_hosts_is_one_line_and_a_result(users: tuple[Path, Path], small_
                                                    "(`fleet host --connect ...`), 0 came (none)"
     assert result(out)["reason"] == "error"
     bad = fleet(*RUN, "--map", str(small_map), "--out", str(tmp_path / "x"), check=False)
-    assert bad.returncode == 2 and "--hosts with the embedded router needs --credentials USERS" in bad.stderr
+    assert bad.returncode == 2 and "--hosts (or a scenario's [hosts]) with the embedded router needs " \
+        "--credentials USERS" in bad.stderr
     bad = fleet(*RUN, "--map", str(small_map), "--credentials", str(all_users), "--out", str(tmp_path / "x"),
                 check=False)
-    assert bad.returncode == 2 and "--hosts needs a router the hosts can reach" in bad.stderr
+    assert bad.returncode == 2 and "--hosts (or a scenario's [hosts]) needs a router the hosts can " \
+        "reach" in bad.stderr
     assert not (tmp_path / "x").exists()
 
 
+def test_a_scenario_s_hosts_over_quic_place_its_robots_and_the_result_is_the_one_machine_run(
+        users: tuple[Path, Path], small_map: Path, tmp_path: Path) -> None:
+    all_users, _ = users
+    ca, cert, key = _make_certs(tmp_path)  # for localhost and 127.0.0.1
+    scenario = tmp_path / "lab.toml"  # the default scenario, and three robots on host1 (of host0 and host1)
+    scenario.write_text((ROOT / "launch/scenarios/default.toml").read_text()
+                        + '\n[hosts]\nnames = ["host1"]\nrobots = [3]\n')
+    endpoint = f"quic/127.0.0.1:{_free_port()}"
+    launcher = _start(["run", "--scenario", str(scenario), "--map", str(small_map), "--robots", "4", "--max-ticks",
+                       "50", "--seed", "5", "--quiet", "--listen", endpoint, "--tls-cert", str(cert), "--tls-key",
+                       str(key), "--credentials", str(all_users), "--out", str(tmp_path / "split")])
+    host = _start(["host", "--connect", endpoint, "--credentials", str(_own(all_users, "host1")), "--tls-ca",
+                   str(ca), "--once", "--out", str(tmp_path / "h"), *WAIT])
+    code, err = _finish(launcher)
+    host_code, host_err = _finish(host, 30)
+    assert code in (0, 3), err
+    assert host_code == 0, host_err
+    split = result(tmp_path / "split")
+    assert split["pids"]["hosts"] == {"host1": ["r1", "r2", "r3"]} and split["failed"] == []
+    assert split["scenario"]["hosts"] == {"count": 1, "names": ["host1"], "robots": [3]}
+    assert Scenario.load(tmp_path / "split" / "scenario.json").hosts == HostPlan(1, ("host1",), (3,))
+    assert deterministic(split) == deterministic(_one_machine(small_map, tmp_path / "one"))
+    bad = [fleet("run", "--scenario", str(scenario), "--engine", "memory", check=False),
+           fleet("run", "--scenario", str(scenario), "--hosts", "0", "--listen", "udp/127.0.0.1:7447", check=False)]
+    assert [(p.returncode, p.stderr.strip().splitlines()) for p in bad] == [
+        (2, ["fleet: error: --engine memory runs without Zenoh nor processes: it takes no [hosts] (the "
+             "scenario's; --hosts 0 runs every robot here)"]),
+        (2, ["fleet: error: --listen udp/127.0.0.1:7447: Zenoh does not retransmit over udp/, and a lockstep run "
+             "may lose no message: use tcp/, tls/ or quic/"])]
+
+
+def test_a_real_time_run_with_a_host_runs_its_robots_in_real_time(
+        users: tuple[Path, Path], small_map: Path, tmp_path: Path) -> None:
+    all_users, own = users
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    launcher = _start(["run", "--robots", "3", "--realtime", "20", "--max-ticks", "60", "--seed", "5", "--quiet",
+                       "--hosts", "1", "--map", str(small_map), "--listen", endpoint, "--credentials",
+                       str(all_users), "--out", str(tmp_path / "rt")])
+    host = _start(["host", "--connect", endpoint, "--credentials", str(own), "--once", "--out", str(tmp_path / "h"),
+                   *WAIT])
+    code, err = _finish(launcher)
+    host_code, host_err = _finish(host, 30)
+    assert code in (0, 3), err
+    assert host_code == 0, host_err
+    res = result(tmp_path / "rt")
+    assert res["pids"]["hosts"] == {"host0": ["r1"]} and res["failed"] == [] and res["realtime_hz"] == 20.0
+    robots = res["realtime"]["robots"]
+    assert set(robots) == {"r0", "r1", "r2"}
+    # r1 decided and stepped in real time on the host (started in lockstep, it would report no decision)
+    assert robots["r1"]["decisions"] >= 1 and robots["r1"]["plan_steps"] + robots["r1"]["waits"] >= 1
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
 def test_a_host_killed_mid_run_fails_its_robots_and_the_run_ends_with_a_result(
         sig: signal.Signals, users: tuple[Path, Path], tmp_path: Path) -> None:

@@ -103,6 +103,7 @@ def _one_process_per_robot(res: dict, robots: int) -> None:
     assert len({*agents, res["pids"]["world"], res["pids"]["netem"]}) == robots + 2
 
 
+@pytest.mark.slow
 def test_installed_fleet_runs_beside_clashing_packages(venv: Venv, small_map: Path, tmp_path: Path) -> None:
     shadow = tmp_path / "shadow"
     for name in ("launch", "core"):
@@ -125,6 +126,7 @@ def test_installed_fleet_runs_beside_clashing_packages(venv: Venv, small_map: Pa
         assert "Traceback" not in log.read_text(errors="replace"), log.name
 
 
+@pytest.mark.slow
 def test_an_allocator_plugin_installed_from_outside(venv: Venv, small_map: Path, tmp_path: Path) -> None:
     pkg = tmp_path / "largest-alloc"
     pkg.mkdir()

@@ -12,8 +12,9 @@ from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.keys import HostKeys, host_ids, robot_ids
 from fleet_emu.core.messages import HostAssign, HostStatus
+from fleet_emu.core.scenario import HostPlan
 from fleet_emu.launch.host import host_login
-from fleet_emu.launch.hosts import agent_argv, check_hosts, host_credentials, placement
+from fleet_emu.launch.hosts import agent_argv, check_hosts, check_reliable, host_credentials, placement
 
 
 def test_robots_are_dealt_round_robin_over_this_machine_and_the_hosts() -> None:
@@ -99,6 +100,12 @@ def test_bad_host_options_are_one_line(tmp_path: Path) -> None:
     none.write_text("world:a\n")
     with pytest.raises(ConfigError, match="has no host user"):
         host_credentials(none)
+    with pytest.raises(ConfigError, match=r"has 2 host user\(s\) for 3 hosts: make them with `fleet router-config "
+                                          r"--hosts 3`"):
+        host_credentials(users, HostPlan(3))
+    with pytest.raises(ConfigError, match="has no user 'host5' of the scenario's \\[hosts\\] names"):
+        host_credentials(users, HostPlan(1, ("host5",)))
+    assert set(host_credentials(users, HostPlan(1, ("host1",)))) == {"host0", "host1"}
     with pytest.raises(ConfigError, match="holds 2 host users"):
         host_login(users, None, None)
     assert host_login(users, "host1", None)[1].password == "c"  # type: ignore[union-attr]
@@ -122,11 +129,46 @@ def test_a_spawn_request_whose_credential_is_not_its_robots_is_dropped() -> None
             decode(bad.encode())
 
 
-def test_realtime_with_hosts_is_refused_and_local_robots_get_the_rate() -> None:
-    from fleet_emu.launch.runner import RunOptions, check_options
-
-    with pytest.raises(ConfigError, match="--realtime runs every robot on this machine today: it takes no --hosts"):
-        check_options(RunOptions(hosts=1, listen="tcp/127.0.0.1:7447", realtime_hz=10.0))
+def test_a_spawn_request_carries_the_real_time_rate_and_the_robots_get_it() -> None:
+    msg = HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", robots=("r1",), realtime_hz=10.0)
+    assert decode(msg.encode(), expected=HostAssign).realtime_hz == 10.0
+    assert decode(HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1").encode()).realtime_hz == 0.0
+    for hz in (-1.0, 1001.0, float("nan"), float("inf")):
+        with pytest.raises(DecodeError, match="realtime_hz"):
+            decode(HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", realtime_hz=hz).encode())
     argv = agent_argv("r0", "run1", "tcp/127.0.0.1:7447", Path("s.json"), True, 10.0)
     assert argv[argv.index("--realtime") + 1] == "10.0" and "--realtime" not in agent_argv(
         "r0", "run1", "tcp/127.0.0.1:7447", Path("s.json"), True)
+
+
+def test_a_scenario_s_shares_place_the_robots_and_equal_shares_are_round_robin() -> None:
+    robots = robot_ids(7)
+    assert placement(robots, ["host5", "host2"], (4, 1)) == {  # dealt round the machines that have room
+        "r0": None, "r1": "host5", "r2": "host2", "r3": None, "r4": "host5", "r5": "host5", "r6": "host5"}
+    assert placement(robots, ["host0"], (7,)) == {r: "host0" for r in robots}
+    assert placement(robots, ["host0", "host1"], (0, 0)) == {r: None for r in robots}
+    assert placement(robot_ids(6), ["host0"], (3,)) == placement(robot_ids(6), ["host0"])
+
+
+def test_the_embedded_router_listens_on_tcp_tls_or_quic(tmp_path: Path) -> None:
+    from fleet_emu.launch.hosts import listen_endpoints
+
+    pem = tmp_path / "x.pem"
+    pem.write_text("")
+    assert listen_endpoints(None, None, None) == ["tcp/127.0.0.1:0"]
+    assert listen_endpoints("tcp/10.0.0.1:7447", None, None) == ["tcp/10.0.0.1:7447"]
+    for proto in ("tls", "quic"):  # and a loopback tcp/ one for this machine's processes
+        assert listen_endpoints(f"{proto}/10.0.0.1:7447", pem, pem) == [f"{proto}/10.0.0.1:7447", "tcp/127.0.0.1:0"]
+    for listen, cert, match in [
+            ("udp/10.0.0.1:7447", None, "Zenoh does not retransmit over udp/, and a lockstep run may lose no message: "
+                                        "use tcp/, tls/ or quic/"),
+            ("ws/10.0.0.1:7447", None, r"the embedded router listens on tcp/, tls/ or quic/ \(got ws/\)"),
+            ("10.0.0.1:7447", None, "is not an endpoint"),
+            ("tls/10.0.0.1:7447", None, "a tls/ router needs --tls-cert CERT.pem and --tls-key KEY.pem"),
+            ("tcp/10.0.0.1:7447", pem, "--tls-cert and --tls-key go with a tls/ or quic/ --listen"),
+            ("quic/10.0.0.1:7447", tmp_path / "none.pem", "--tls-cert .*none.pem: no such file")]:
+        with pytest.raises(ConfigError, match=match):
+            listen_endpoints(listen, cert, pem if cert is not None else None)
+    with pytest.raises(ConfigError, match=r"--connect udp/10\.0\.0\.1:7447: Zenoh does not retransmit over udp/"):
+        check_reliable("--connect", "udp/10.0.0.1:7447")  # fleet run --connect and fleet host --connect
+    check_reliable("--connect", "quic/10.0.0.1:7447")

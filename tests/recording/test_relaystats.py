@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+from collections import Counter
 
 from fleet_emu.core.messages import Envelope, RxBundle, TxBundle
 from fleet_emu.recording.relaystats import RelayStats, relay_line
@@ -55,3 +56,42 @@ def test_the_fold_does_not_depend_on_arrival_order() -> None:
 def test_a_duplicate_arrival_counts_once_with_its_first_tick() -> None:
     late = RxBundle(src="netem", tick=6, seq=4, dst="r2", msgs=(dataclasses.replace(B, src="r1", ttl=0),))
     assert fold((*SAMPLES, late))["pose"] == fold(tuple(SAMPLES))["pose"]
+
+
+def long_run(horizon: int, ticks: int = 300) -> tuple[RelayStats, dict]:
+    """r0 broadcasts every tick (ttl 1); r1 hears it a tick later and relays it; r2 hears the relay at +2,
+    except every fifth message, which r2 never gets."""
+    st = RelayStats(endpoints=3, horizon=horizon)
+    peak = 0
+    for t in range(ticks):
+        b = Envelope(src="r0", tick=t, seq=t, origin="r0", dst="*", ttl=1, payload_kind="pose", payload=b"x")
+        st.fold_tx(TxBundle(src="r0", tick=t, seq=t, msgs=(b,)))
+        if t >= 1:
+            prev = dataclasses.replace(b, tick=t - 1, seq=t - 1)
+            st.fold_rx(RxBundle(src="netem", tick=t, seq=2 * t, dst="r1", msgs=(prev,)))
+            st.fold_tx(TxBundle(src="r1", tick=t, seq=t, msgs=(dataclasses.replace(prev, src="r1", ttl=0),)))
+        if t >= 2 and (t - 2) % 5:
+            two = dataclasses.replace(b, src="r1", tick=t - 2, seq=t - 2, ttl=0)
+            st.fold_rx(RxBundle(src="netem", tick=t, seq=2 * t + 1, dst="r2", msgs=(two,)))
+        peak = max(peak, len(st.made) + len(st.arrivals))
+    return st, {"peak": peak, "result": st.result()}
+
+
+def test_a_long_run_settles_old_messages_and_gives_the_unbounded_result() -> None:
+    _, bounded = long_run(horizon=16)
+    _, unbounded = long_run(horizon=10_000)
+    assert bounded["result"] == unbounded["result"]
+    assert bounded["peak"] <= 3 * 16 and unbounded["peak"] >= 290  # kept: only the last horizon's messages
+    pose = bounded["result"]["pose"]
+    assert pose["sent"] == 300 and pose["hops"] == {"1": 299, "2": 238}
+
+
+def test_the_median_of_a_histogram_is_numpys() -> None:
+    import numpy as np
+
+    from fleet_emu.recording.relaystats import median
+
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 5, 10, 101):
+        values = rng.integers(0, 6, n)
+        assert median(Counter(values.tolist())) == float(np.percentile(values, 50))

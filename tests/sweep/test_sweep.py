@@ -18,6 +18,7 @@ from fleet_emu.sweep.study import Study
 from .conftest import fleet
 
 
+@pytest.mark.slow
 def test_a_sweep_writes_one_row_per_run_and_resumes(study_dir: Path) -> None:
     out = study_dir / "out"
     first = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out), "--jobs", "2", "--limit", "5")
@@ -60,6 +61,7 @@ def test_seeds_runs_the_first_seeds_and_a_later_call_completes(study_dir: Path) 
     assert sorted(r["param.seed"] for r in read_rows(out)) == [0] * 4 + [1] * 4
 
 
+@pytest.mark.slow
 def test_a_grown_grid_keeps_the_finished_runs_and_runs_only_the_new_points(study_dir: Path) -> None:
     out = study_dir / "out"
     assert sweep(str(study_dir / "tiny.toml"), out, jobs=1, quiet=True) == 0
