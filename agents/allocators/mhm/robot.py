@@ -20,7 +20,10 @@ are older and ignored) and decides from it alone:
   base waits for before it breaks a tree.
 - The orders' ``routes`` go to the robot's relay (``Allocation.routes``, applied by the brain to the
   ``tree`` policy) when new orders arrive: forwarding decisions of the tick an order arrives use the routes
-  before it.
+  before it. A node also takes as its children the explorers it heard last tick within r_comm (every tick):
+  the base routes an explorer through the relay nearest the cell it last heard it at, which is stale once the
+  explorer moves on; an explorer that left that relay's range for another's would otherwise be heard by
+  nobody who forwards (its acks and beacons lost, its orders not forwarded to it) while still in range.
 
 Parameters: ``r_comm`` and ``sensor_range`` in cells (in a run: the scenario's radio, ``Scenario.link_cells``,
 and sensor), ``x_min`` eq. 1's X_min, ``hinges`` the cap on hinge points per expansion (0: none; 1: the
@@ -33,6 +36,7 @@ r_comm. The allocator draws no random numbers.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -91,13 +95,25 @@ class Mhm(Allocator, plugin_name="mhm"):
             if isinstance(body, MhmOrders) and msg.origin == BASE and (
                     self.order is None or body.plan_tick > self.order.plan_tick):
                 self.order, fresh = body, True
-        routes = dict(self.order.routes) if fresh and self.order is not None else None
         me = problem.poses[problem.me]
         order = self.order
+        routes = dict(order.routes) if fresh and order is not None else None
+        if order is not None and order.roles.get(problem.me) == "node":
+            routes = self._adopt(problem, me, order)
         if order is None or problem.me not in order.roles:
             return self._keep(problem, me, None, routes)
         ack = (RadioMsg(MhmAck(plan_tick=order.plan_tick, cell=me), dst=BASE),)
         return dataclasses.replace(self._obey(problem, me, order, routes), outbox=ack)
+
+    def _adopt(self, problem: Problem, me: Cell, order: MhmOrders) -> dict[str, str]:
+        """A node's routes: the base's, with every explorer it heard last tick within r_comm as its child too
+        (module docstring)."""
+        routes = dict(order.routes)
+        for r, cell in problem.poses.items():
+            if (order.roles.get(r) == "explorer" and problem.heard.get(r, -1) >= problem.tick - 1
+                    and routes.get(r) != problem.me and math.dist(cell, me) < self.r_comm):
+                routes[r] = problem.me
+        return routes
 
     def _obey(self, problem: Problem, me: Cell, order: MhmOrders, routes: dict[str, str] | None) -> Allocation:
         safe = safe_area(problem.belief, order.relays, self.r_comm)

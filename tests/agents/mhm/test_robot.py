@@ -98,6 +98,16 @@ def test_a_node_holds_on_its_cell() -> None:
     assert got.status is AllocStatus.HOLD
 
 
+def test_a_node_adopts_the_explorers_it_hears_in_range_as_children() -> None:
+    a = _alloc()
+    order = _orders(roles={"r0": "node", "r1": "explorer"}, goals={"r0": (1, 3)}, routes={"r0": "base", "r1": "base"})
+    p = _problem()
+    p.tick, p.heard = 5, {"r1": 4}  # r1 at (2, 3), one cell away, heard last tick
+    assert a.allocate(p, [_msg(order)]).routes == {"r0": "base", "r1": "r0"}
+    p.tick = 7  # r1 not heard for three ticks: the base's routes as they are
+    assert a.allocate(p, ()).routes == {"r0": "base", "r1": "base"}
+
+
 def test_orders_from_a_robot_are_not_obeyed() -> None:
     a = _alloc()
     assert a.allocate(_problem(), [_msg(_orders(), origin="r1")]).status is AllocStatus.HOLD
