@@ -80,17 +80,21 @@ class Channel:
         index = {r: i for i, r in enumerate(robots)}
         due = self._pending[tick + self.latency]
         c = self.counters
+        has_base = BASE in index
         for src in robots:
+            row = link[index[src]].tolist()
             for msg in bundles.get(src, ()):
                 c.bytes_sent += len(msg.encode())
                 receivers = [r for r in robots if r != src and (msg.dst == "*" or msg.dst == r or msg.ttl > 0)]
-                for dst in receivers:
-                    rng = self.base_rng if BASE in (src, dst) else self.rng
-                    lost = rng.random() < self.loss
-                    c.sent += 1
-                    if not link[index[src], index[dst]]:
+                if has_base and (src == BASE or BASE in receivers):
+                    draws = [(self.base_rng if BASE in (src, dst) else self.rng).random() for dst in receivers]
+                else:  # one draw per receiver in turn, taken at once: the same numbers (issue 11, part 4)
+                    draws = self.rng.random(len(receivers)).tolist()
+                c.sent += len(receivers)
+                for dst, draw in zip(receivers, draws, strict=True):
+                    if not row[index[dst]]:
                         c.dropped_signal += 1
-                    elif lost:
+                    elif draw < self.loss:
                         c.dropped_loss += 1
                     else:
                         c.delivered += 1
