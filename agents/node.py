@@ -138,9 +138,11 @@ class AgentNode(NodeBase):
         self.pub_tx.put(TxBundle(src=self.robot, tick=obs.tick, seq=self.next_seq(), msgs=out).encode())
         self.pub_cmd.put(cmd.encode())
         if self.pub_belief is not None and obs.tick % self.scenario.belief_every == 0 \
-                and self.brain.belief is not None and self._belief_heard():
-            self.pub_belief.put(BeliefSnapshot(src=self.robot, tick=obs.tick, seq=self.next_seq(),
-                                               grid=self.brain.belief.grid).encode())
+                and self.brain.belief is not None:
+            seq = self.next_seq()  # drawn even when not sent: the counter (and so the radio's bytes) stays the same
+            if self._belief_heard():
+                self.pub_belief.put(BeliefSnapshot(src=self.robot, tick=obs.tick, seq=seq,
+                                                   grid=self.brain.belief.grid).encode())
 
 
     def _belief_heard(self) -> bool:
