@@ -135,6 +135,7 @@ class MapFill(Payload):
 
 _POSE_KEYS = frozenset({"cell", "next", "maps", "want"})
 _MAP_KEYS = frozenset({"cells", "values", "n", "covers"})
+_FILL_KEYS = frozenset({"cells", "values", "seqs", "upto"})
 
 
 def _cell_of(value: Any, shape: tuple[int, int] | None) -> Cell | None:
@@ -220,3 +221,19 @@ def _fast_map(obj: dict, ctx: Context | None) -> MapDelta | None:
     delta = object.__new__(MapDelta)
     delta.__dict__.update(cells=got[0], values=got[1], n=n, covers=covers)
     return delta
+
+
+@fast_decoder(MapFill)
+def _fast_fill(obj: dict, ctx: Context | None) -> MapFill | None:
+    if not obj.keys() <= _FILL_KEYS:
+        return None
+    seqs, upto = obj.get("seqs", []), obj.get("upto", 0)
+    seqs = _seqs_of(seqs)
+    if seqs is None or type(upto) is not int or upto < 0:
+        return None
+    got = _fast_cells(MapFill, obj, ctx)
+    if got is None:
+        return None
+    fill = object.__new__(MapFill)
+    fill.__dict__.update(cells=got[0], values=got[1], seqs=seqs, upto=upto)
+    return fill

@@ -11,7 +11,7 @@ import msgpack
 import numpy as np
 import pytest
 
-from fleet_emu.agents.protocol import MapDelta, PoseBeacon
+from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
 from fleet_emu.core.codec import Context, DecodeError, decode, decode_payload, generic_decode
 from fleet_emu.core.messages import Envelope, RxBundle, TxBundle
 
@@ -67,6 +67,10 @@ SAMPLES = {
     "map": [MapDelta(cells=np.array([0, 19], np.int32), values=np.array([0, 100], np.int8)).fields_obj(),
             MapDelta(cells=np.array([3], np.int32), values=np.array([-1], np.int8), n=5, covers=(1, 4)).fields_obj(),
             MapDelta(cells=np.zeros(0, np.int32), values=np.zeros(0, np.int8), n=1).fields_obj()],
+    "mapfill": [MapFill(cells=np.array([0, 19], np.int32), values=np.array([0, 100], np.int8)).fields_obj(),
+                MapFill(cells=np.array([3], np.int32), values=np.array([0], np.int8), seqs=(2, 5), upto=9).fields_obj(),
+                {"cells": {"dtype": "int32", "shape": [1], "data": b"\1\0\0\0"},
+                 "values": {"dtype": "int8", "shape": [1], "data": b"\0"}}],
 }
 
 
