@@ -159,6 +159,25 @@ def _seqs_of(value: Any) -> tuple[int, ...] | None:
     return tuple(value)
 
 
+def _wants_of(want: dict) -> dict[str, tuple[int, ...]] | None:
+    """A beacon's requests (robot -> a list of delta numbers) with each list checked as :func:`_seqs_of` does,
+    every list at once: list ``i`` shifted by ``i * big`` (``big`` above every number) and led by that shift
+    itself gives one sequence that is strictly ascending exactly when every list is, from at least 1. None for
+    anything else."""
+    lists = list(want.values())
+    if not set(map(type, lists)) <= {list} or max(map(len, lists), default=0) > MAX_SEQS:
+        return None
+    flat = list(itertools.chain.from_iterable(lists))
+    if flat:
+        if not set(map(type, flat)) <= {int}:
+            return None
+        big = max(max(flat), 0) + 1
+        shifted = [big * i + x for i, seqs in enumerate(lists) for x in (0, *seqs)]
+        if not all(map(operator.lt, shifted, itertools.islice(shifted, 1, None))):
+            return None
+    return {r: tuple(seqs) for r, seqs in want.items()}
+
+
 @fast_decoder(PoseBeacon)
 def _fast_pose(obj: dict, ctx: Context | None) -> PoseBeacon | None:
     if not obj.keys() <= _POSE_KEYS:
@@ -182,8 +201,8 @@ def _fast_pose(obj: dict, ctx: Context | None) -> PoseBeacon | None:
         senders = ctx.senders if ctx is not None else None
         if senders is not None and not want.keys() <= senders:
             return None
-        want = {r: _seqs_of(v) for r, v in want.items()}
-        if None in want.values():
+        want = _wants_of(want)
+        if want is None:
             return None
     beacon = object.__new__(PoseBeacon)
     beacon.__dict__.update(cell=cell, next=nxt, maps=maps, want=want)

@@ -26,6 +26,7 @@ from fleet_emu.core.codec import (
     fast_decoder,
     peek_tick,
 )
+from fleet_emu.core.codec import _to_obj as to_obj
 from fleet_emu.core.grid import MOVES, STAY, Cell
 from fleet_emu.core.keys import HOST_ID, ROBOT_ID, RUN_ID
 from fleet_emu.core.version import SCHEMA_VERSION
@@ -252,13 +253,20 @@ def open_envelope(env: Envelope, ctx: Context | None = None) -> RadioMsg:
 def _pack_bundle(bundle: TxBundle | RxBundle) -> bytes:
     """A bundle's bytes as ``msgpack.packb(bundle.to_obj())`` gives them, with each envelope's kept bytes
     (:meth:`Envelope.encode`) put in as they are rather than packed again."""
-    obj = bundle.to_obj()
-    msgs = obj.pop("msgs")
+    obj = {"kind": bundle.KIND, "v": SCHEMA_VERSION,
+           **{name: to_obj(getattr(bundle, name)) for name in _BUNDLE_HEAD[type(bundle)]}}
     head = msgpack.packb(obj, use_bin_type=True)
     n = len(obj) + 1  # a map header of 0x80 + n (n < 16 here), then the fields; msgs is the last field
     assert head[0] == 0x80 + n - 1 and n < 16
-    body = msgpack.packb("msgs") + _array_header(len(msgs)) + b"".join(e.encode() for e in bundle.msgs)
+    body = msgpack.packb("msgs") + _array_header(len(bundle.msgs)) + b"".join(e.encode() for e in bundle.msgs)
     return bytes([0x80 + n]) + head[1:] + body
+
+
+def _bundle_head(cls: type) -> tuple[str, ...]:
+    """A bundle class's fields before ``msgs``, its last."""
+    names = tuple(f.name for f in dataclasses.fields(cls))
+    assert names[-1] == "msgs"
+    return names[:-1]
 
 
 def _array_header(n: int) -> bytes:
@@ -296,6 +304,9 @@ class RxBundle(Message):
 
     def encode(self) -> bytes:
         return _pack_bundle(self)
+
+
+_BUNDLE_HEAD = {cls: _bundle_head(cls) for cls in (TxBundle, RxBundle)}
 
 
 # --- netem -> everyone ---------------------------------------------------------------------------------

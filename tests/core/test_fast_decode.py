@@ -116,3 +116,28 @@ def test_bundles_encode_as_msgpack_packs_them(n: int) -> None:
         data = bundle.encode()
         assert data == msgpack.packb(bundle.to_obj(), use_bin_type=True)
         assert decode(data, None, type(bundle)) == bundle
+
+
+def test_a_beacons_requests_are_checked_as_one_sequence_as_list_by_list() -> None:
+    """The fast pose decoder checks every request list at once (``_wants_of``): the same verdict as checking
+    each list (``check_seqs``) on random lists, ascending or not, with zeros, negatives and large numbers."""
+    from fleet_emu.agents.protocol import _wants_of, check_seqs
+
+    rng = np.random.default_rng(11)
+    verdicts = set()
+    for _ in range(3000):
+        want = {}
+        for r in range(int(rng.integers(0, 4))):
+            n = int(rng.integers(0, 5))
+            pool = [0, -3, 1, 2, 3, 5, 8, 2**40] if rng.random() < 0.5 else list(range(1, 9))
+            seqs = sorted(rng.choice(pool, n).tolist()) if rng.random() < 0.7 else rng.choice(pool, n).tolist()
+            want[f"r{r}"] = [int(x) for x in seqs]
+        try:
+            for seqs in want.values():
+                check_seqs(tuple(seqs), "pose")
+            expected = {r: tuple(v) for r, v in want.items()}
+        except DecodeError:
+            expected = None
+        assert _wants_of(want) == expected, want
+        verdicts.add(expected is None)
+    assert verdicts == {True, False}
