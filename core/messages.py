@@ -246,8 +246,10 @@ def open_envelope(env: Envelope, ctx: Context | None = None) -> RadioMsg:
     else:
         body = decode_payload(env.payload_kind, env.payload, ctx)
         object.__setattr__(env, "_opened", (ctx, body))
-    return RadioMsg(body=body, dst=env.dst, ttl=env.ttl, src=env.src, origin=env.origin, tick=env.tick,
-                    seq=env.seq)
+    msg = object.__new__(RadioMsg)  # RadioMsg(...) without the frozen dataclass's setattr per field
+    msg.__dict__.update(body=body, dst=env.dst, ttl=env.ttl, src=env.src, origin=env.origin, tick=env.tick,
+                        seq=env.seq)
+    return msg
 
 
 def _pack_bundle(bundle: TxBundle | RxBundle) -> bytes:
