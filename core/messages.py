@@ -11,12 +11,25 @@ from __future__ import annotations
 
 import dataclasses
 
+import msgpack
 import numpy as np
 
 from fleet_emu.core.access import Credential
-from fleet_emu.core.codec import Context, DecodeError, Message, Payload, decode, decode_payload, peek_tick
+from fleet_emu.core.codec import (
+    MAX_ARRAY_BYTES,
+    Context,
+    DecodeError,
+    Message,
+    Payload,
+    decode,
+    decode_payload,
+    fast_decoder,
+    peek_tick,
+)
+from fleet_emu.core.codec import _to_obj as to_obj
 from fleet_emu.core.grid import MOVES, STAY, Cell
 from fleet_emu.core.keys import HOST_ID, ROBOT_ID, RUN_ID
+from fleet_emu.core.version import SCHEMA_VERSION
 
 __all__ = [
     "Context", "DecodeError", "Message", "Payload", "decode", "decode_payload", "peek_tick",
@@ -38,10 +51,20 @@ def check_cells(cells: np.ndarray, values: np.ndarray, shape: tuple[int, int] | 
         raise DecodeError(f"{what}: cells and values differ in length")
     if cells.dtype.kind not in "iu" or values.dtype != np.int8:
         raise DecodeError(f"{what}: wrong dtypes")
-    if len(cells) and (cells.min() < 0 or (shape is not None and cells.max() >= shape[0] * shape[1])):
+    if len(cells) and _out_of_range(cells, shape):
         raise DecodeError(f"{what}: cell index out of range")
     if len(values) and not _VALID_BYTE[values.view(np.uint8)].all():
         raise DecodeError(f"{what}: cell value not in (-1, 0, 100)")
+
+
+def _out_of_range(cells: np.ndarray, shape: tuple[int, int] | None) -> bool:
+    """Whether a cell index of ``cells`` (not empty) is negative or (with a shape) past the grid's last cell.
+    Signed indices are seen as unsigned of the same width, so that one maximum finds both: a negative one
+    becomes larger than any grid."""
+    if shape is not None and cells.dtype.kind == "i" and cells.dtype.itemsize >= 4:
+        size = shape[0] * shape[1]
+        return size <= 0 or int(cells.view(f"u{cells.dtype.itemsize}").max()) >= size
+    return bool(cells.min() < 0 or (shape is not None and cells.max() >= shape[0] * shape[1]))
 
 
 def check_cell(cell: Cell, shape: tuple[int, int] | None, what: str) -> None:
@@ -140,6 +163,15 @@ class Envelope(Message):
     payload_kind: str
     payload: bytes
 
+    def encode(self) -> bytes:
+        """The envelope's bytes, packed once and kept (an envelope is immutable): netem puts each broadcast
+        envelope in every receiver's rx bundle, and counts its size (issue 11, part 4)."""
+        packed = self.__dict__.get("_packed")
+        if packed is None:
+            packed = super().encode()
+            object.__setattr__(self, "_packed", packed)
+        return packed
+
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)
         if not 0 <= self.ttl <= MAX_TTL:
@@ -148,6 +180,32 @@ class Envelope(Message):
             raise DecodeError("radio: payload too large")
         if ctx is not None and ctx.senders is not None and self.origin not in ctx.senders:
             raise DecodeError(f"radio: unknown origin {self.origin!r}")
+
+
+_ENVELOPE_KEYS = frozenset({"kind", "v", "src", "tick", "seq", "origin", "dst", "ttl", "payload_kind", "payload"})
+
+
+@fast_decoder(Envelope)
+def _fast_envelope(obj: dict, ctx: Context | None) -> Envelope | None:
+    """An envelope straight from its map when every field has exactly its type and it validates
+    (:meth:`Envelope.validate`'s checks, inlined); None for anything else, which the generic decode then
+    checks (an rx bundle holds every teammate's envelopes: issue 11, part 4)."""
+    if obj.keys() != _ENVELOPE_KEYS:
+        return None
+    src, tick, seq, origin, dst = obj["src"], obj["tick"], obj["seq"], obj["origin"], obj["dst"]
+    v, ttl, kind, payload = obj["v"], obj["ttl"], obj["payload_kind"], obj["payload"]
+    if not (type(v) is int and v <= SCHEMA_VERSION and type(src) is str and type(tick) is int and tick >= 0
+            and type(seq) is int and seq >= 0 and type(origin) is str and type(dst) is str and type(ttl) is int
+            and 0 <= ttl <= MAX_TTL and type(kind) is str and type(payload) is bytes
+            and len(payload) <= min(MAX_PAYLOAD_BYTES, MAX_ARRAY_BYTES)):
+        return None
+    senders = ctx.senders if ctx is not None else None
+    if senders is not None and (src not in senders or origin not in senders):
+        return None
+    env = object.__new__(Envelope)
+    env.__dict__.update(src=src, tick=tick, seq=seq, origin=origin, dst=dst, ttl=ttl, payload_kind=kind,
+                        payload=payload)
+    return env
 
 
 @dataclasses.dataclass(frozen=True)
@@ -188,8 +246,38 @@ def open_envelope(env: Envelope, ctx: Context | None = None) -> RadioMsg:
     else:
         body = decode_payload(env.payload_kind, env.payload, ctx)
         object.__setattr__(env, "_opened", (ctx, body))
-    return RadioMsg(body=body, dst=env.dst, ttl=env.ttl, src=env.src, origin=env.origin, tick=env.tick,
-                    seq=env.seq)
+    msg = object.__new__(RadioMsg)  # RadioMsg(...) without the frozen dataclass's setattr per field
+    msg.__dict__.update(body=body, dst=env.dst, ttl=env.ttl, src=env.src, origin=env.origin, tick=env.tick,
+                        seq=env.seq)
+    return msg
+
+
+def _pack_bundle(bundle: TxBundle | RxBundle) -> bytes:
+    """A bundle's bytes as ``msgpack.packb(bundle.to_obj())`` gives them, with each envelope's kept bytes
+    (:meth:`Envelope.encode`) put in as they are rather than packed again."""
+    obj = {"kind": bundle.KIND, "v": SCHEMA_VERSION,
+           **{name: to_obj(getattr(bundle, name)) for name in _BUNDLE_HEAD[type(bundle)]}}
+    head = msgpack.packb(obj, use_bin_type=True)
+    n = len(obj) + 1  # a map header of 0x80 + n (n < 16 here), then the fields; msgs is the last field
+    assert head[0] == 0x80 + n - 1 and n < 16
+    body = msgpack.packb("msgs") + _array_header(len(bundle.msgs)) + b"".join(e.encode() for e in bundle.msgs)
+    return bytes([0x80 + n]) + head[1:] + body
+
+
+def _bundle_head(cls: type) -> tuple[str, ...]:
+    """A bundle class's fields before ``msgs``, its last."""
+    names = tuple(f.name for f in dataclasses.fields(cls))
+    assert names[-1] == "msgs"
+    return names[:-1]
+
+
+def _array_header(n: int) -> bytes:
+    """msgpack's header of an array of ``n`` items."""
+    if n < 16:
+        return bytes([0x90 + n])
+    if n < 1 << 16:
+        return b"\xdc" + n.to_bytes(2, "big")
+    return b"\xdd" + n.to_bytes(4, "big")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -198,6 +286,9 @@ class TxBundle(Message):
 
     KIND = "tx"
     msgs: tuple[Envelope, ...]
+
+    def encode(self) -> bytes:
+        return _pack_bundle(self)
 
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)
@@ -212,6 +303,12 @@ class RxBundle(Message):
     KIND = "rx"
     dst: str
     msgs: tuple[Envelope, ...]
+
+    def encode(self) -> bytes:
+        return _pack_bundle(self)
+
+
+_BUNDLE_HEAD = {cls: _bundle_head(cls) for cls in (TxBundle, RxBundle)}
 
 
 # --- netem -> everyone ---------------------------------------------------------------------------------
@@ -294,6 +391,9 @@ class AgentReport(Message):
     peak_rss_kb: int
     decision_cpu_ms: float = 0.0  # thread CPU in the allocator, summed over the decisions (issue 11)
     step_cpu_ms: float = 0.0  # thread CPU in the brain's whole step, summed (decision included)
+    # the agent process's CPU (every thread) from the start of its first step to this report: minus step_cpu_ms,
+    # its bus work over the same ticks (benchmarks/scale.py's a.bus); 0 where not measured (the memory engine)
+    process_cpu_ms: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)

@@ -91,6 +91,9 @@ def test_scale_reports_a_row_per_map_and_fleet(small_map: Path) -> None:
         start, tps, total, cores = float(r[3]), float(r[5]), float(r[12]), float(r[13])
         assert start > 0 and tps > 0 and total > 0 and cores > 0, r
         assert all(float(v) > 0 for v in r[14:19]), r  # PSS of agents, world, netem and the launcher
+        # decide, brain and a.bus come from the agents' own clocks over the same steps: a.bus (the process's
+        # CPU outside its steps) is never negative, as it was from the /proc window under load
+        assert float(r[8]) > 0 and float(r[9]) > 0 and float(r[10]) >= 0, r
     assert [r[3] for r in rows if len(r) < 21] == ["start:", "cap:"] * 2
     assert rows[0][1].startswith(("19x", "20x", "21x"))  # the maze fitted to about 20 cells across
     assert len(proc.stderr.strip().splitlines()) == 8  # two map lines, six progress lines
