@@ -1,9 +1,10 @@
-"""Every message of the lockstep protocol, defined once (DESIGN.md "Messages"), and the radio envelope.
+"""Every message of the lockstep protocol, defined once (DESIGN.md "Messages"): the one module to import them from.
 
-Barrier messages (world -> agents, netem -> agents, agents -> world/netem), control messages, and the
-:class:`Envelope` that carries one radio message inside tx/rx bundles. Radio payloads are not defined here:
-each protocol owns its own (``agents/protocol.py`` for poses and map deltas, each allocator's module for its
-messages), and netem routes envelopes without decoding them. Encode with ``msg.encode()``; decode with
+The barrier messages (world -> agents, netem -> agents, agents -> world/netem), netem's links, the belief snapshots
+and the real-time messages are defined here; the radio envelope and its bundles in ``core/envelope.py``, the control
+messages and the hosts' lobby in ``core/lobby.py``, and re-exported here. Radio payloads are not defined here: each
+protocol owns its own (``agents/protocol.py`` for poses and map deltas, each allocator's module for its messages),
+and netem routes envelopes without decoding them. Encode with ``msg.encode()``; decode with
 :func:`fleet_emu.core.codec.decode`.
 """
 
@@ -11,32 +12,39 @@ from __future__ import annotations
 
 import dataclasses
 
-import msgpack
 import numpy as np
 
-from fleet_emu.core.access import Credential
-from fleet_emu.core.codec import (
-    MAX_ARRAY_BYTES,
-    Context,
-    DecodeError,
-    Message,
-    Payload,
-    decode,
-    decode_payload,
-    fast_decoder,
-    peek_tick,
+from fleet_emu.core.codec import Context, DecodeError, Message, Payload, decode, decode_payload, peek_tick
+from fleet_emu.core.envelope import (
+    MAX_PAYLOAD_BYTES,
+    MAX_TTL,
+    Envelope,
+    RadioMsg,
+    RxBundle,
+    TxBundle,
+    open_envelope,
+    seal,
 )
-from fleet_emu.core.codec import _to_obj as to_obj
 from fleet_emu.core.grid import MOVES, STAY, Cell
-from fleet_emu.core.keys import HOST_ID, ROBOT_ID, RUN_ID
-from fleet_emu.core.version import SCHEMA_VERSION
+from fleet_emu.core.lobby import (
+    HOST_EVENTS,
+    MAX_REALTIME_HZ,
+    AgentReport,
+    BaseReport,
+    Failed,
+    Hello,
+    HostAssign,
+    HostStatus,
+    Ready,
+    Stop,
+)
 
 __all__ = [
     "Context", "DecodeError", "Message", "Payload", "decode", "decode_payload", "peek_tick",
-    "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope",
-    "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Failed",
-    "Stop",
-    "AgentReport", "BeliefSnapshot", "HostAssign", "HostStatus", "WorldClock", "AgentTiming", "STALE",
+    "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope", "MAX_TTL",
+    "MAX_PAYLOAD_BYTES", "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links",
+    "Hello", "Ready", "Failed", "Stop", "AgentReport", "BaseReport", "BeliefSnapshot", "HostAssign",
+    "HostStatus", "HOST_EVENTS", "MAX_REALTIME_HZ", "WorldClock", "AgentTiming", "STALE",
 ]
 
 VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
@@ -143,174 +151,6 @@ class Command(Message):
             check_cell(self.target, ctx.shape if ctx else None, "cmd")
 
 
-# --- radio (inside bundles) --------------------------------------------------------------------------
-
-MAX_TTL = 16
-MAX_PAYLOAD_BYTES = 16 * 1024 * 1024
-
-
-@dataclasses.dataclass(frozen=True)
-class Envelope(Message):
-    """One radio message as netem and relays see it: who sent this hop (``src``), who made it (``origin``),
-    for whom (``dst``: a robot id, ``base`` or ``*`` for everyone), hops left (``ttl``), and an opaque
-    ``payload`` of ``payload_kind`` that only the protocol owning that kind decodes. ``(origin, seq)`` is the
-    message's id; ``seq`` comes from the origin's one counter."""
-
-    KIND = "radio"
-    origin: str
-    dst: str
-    ttl: int
-    payload_kind: str
-    payload: bytes
-
-    def encode(self) -> bytes:
-        """The envelope's bytes, packed once and kept (an envelope is immutable): netem puts each broadcast
-        envelope in every receiver's rx bundle, and counts its size (issue 11, part 4)."""
-        packed = self.__dict__.get("_packed")
-        if packed is None:
-            packed = super().encode()
-            object.__setattr__(self, "_packed", packed)
-        return packed
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        if not 0 <= self.ttl <= MAX_TTL:
-            raise DecodeError("radio: ttl out of range")
-        if len(self.payload) > MAX_PAYLOAD_BYTES:
-            raise DecodeError("radio: payload too large")
-        if ctx is not None and ctx.senders is not None and self.origin not in ctx.senders:
-            raise DecodeError(f"radio: unknown origin {self.origin!r}")
-
-
-_ENVELOPE_KEYS = frozenset({"kind", "v", "src", "tick", "seq", "origin", "dst", "ttl", "payload_kind", "payload"})
-
-
-@fast_decoder(Envelope)
-def _fast_envelope(obj: dict, ctx: Context | None) -> Envelope | None:
-    """An envelope straight from its map when every field has exactly its type and it validates
-    (:meth:`Envelope.validate`'s checks, inlined); None for anything else, which the generic decode then
-    checks (an rx bundle holds every teammate's envelopes: issue 11, part 4)."""
-    if obj.keys() != _ENVELOPE_KEYS:
-        return None
-    src, tick, seq, origin, dst = obj["src"], obj["tick"], obj["seq"], obj["origin"], obj["dst"]
-    v, ttl, kind, payload = obj["v"], obj["ttl"], obj["payload_kind"], obj["payload"]
-    if not (type(v) is int and v <= SCHEMA_VERSION and type(src) is str and type(tick) is int and tick >= 0
-            and type(seq) is int and seq >= 0 and type(origin) is str and type(dst) is str and type(ttl) is int
-            and 0 <= ttl <= MAX_TTL and type(kind) is str and type(payload) is bytes
-            and len(payload) <= min(MAX_PAYLOAD_BYTES, MAX_ARRAY_BYTES)):
-        return None
-    senders = ctx.senders if ctx is not None else None
-    if senders is not None and (src not in senders or origin not in senders):
-        return None
-    env = object.__new__(Envelope)
-    env.__dict__.update(src=src, tick=tick, seq=seq, origin=origin, dst=dst, ttl=ttl, payload_kind=kind,
-                        payload=payload)
-    return env
-
-
-@dataclasses.dataclass(frozen=True)
-class RadioMsg:
-    """A radio message as a robot's protocols see it: a decoded :class:`~fleet_emu.core.codec.Payload` and its
-    envelope's header. A protocol that sends gives ``body`` and ``dst`` (and ``ttl``); the sender's brain
-    fills in the rest when it seals the envelope."""
-
-    body: Payload
-    dst: str = "*"
-    ttl: int = 0
-    src: str = ""
-    origin: str = ""
-    tick: int = 0
-    seq: int = 0
-
-    @property
-    def kind(self) -> str:
-        return self.body.KIND
-
-
-def seal(msg: RadioMsg, src: str, tick: int, seq: int) -> Envelope:
-    """The envelope of a message ``src`` makes at ``tick``."""
-    return Envelope(src=src, tick=tick, seq=seq, origin=src, dst=msg.dst, ttl=msg.ttl, payload_kind=msg.kind,
-                    payload=msg.body.encode())
-
-
-def open_envelope(env: Envelope, ctx: Context | None = None) -> RadioMsg:
-    """Decode an envelope's payload; raises DecodeError (an unknown kind included).
-
-    The decoded payload is kept on the envelope with the context it was checked against, and given again to
-    the next receiver with an equal context: in the memory engine one broadcast envelope object reaches every
-    teammate, and decoding it once is enough (a payload is immutable: frozen, its arrays read-only views of
-    the message bytes). Over Zenoh every receiver decodes its own copy, so nothing changes there."""
-    cached = env.__dict__.get("_opened")
-    if cached is not None and cached[0] == ctx:
-        body = cached[1]
-    else:
-        body = decode_payload(env.payload_kind, env.payload, ctx)
-        object.__setattr__(env, "_opened", (ctx, body))
-    msg = object.__new__(RadioMsg)  # RadioMsg(...) without the frozen dataclass's setattr per field
-    msg.__dict__.update(body=body, dst=env.dst, ttl=env.ttl, src=env.src, origin=env.origin, tick=env.tick,
-                        seq=env.seq)
-    return msg
-
-
-def _pack_bundle(bundle: TxBundle | RxBundle) -> bytes:
-    """A bundle's bytes as ``msgpack.packb(bundle.to_obj())`` gives them, with each envelope's kept bytes
-    (:meth:`Envelope.encode`) put in as they are rather than packed again."""
-    obj = {"kind": bundle.KIND, "v": SCHEMA_VERSION,
-           **{name: to_obj(getattr(bundle, name)) for name in _BUNDLE_HEAD[type(bundle)]}}
-    head = msgpack.packb(obj, use_bin_type=True)
-    n = len(obj) + 1  # a map header of 0x80 + n (n < 16 here), then the fields; msgs is the last field
-    assert head[0] == 0x80 + n - 1 and n < 16
-    body = msgpack.packb("msgs") + _array_header(len(bundle.msgs)) + b"".join(e.encode() for e in bundle.msgs)
-    return bytes([0x80 + n]) + head[1:] + body
-
-
-def _bundle_head(cls: type) -> tuple[str, ...]:
-    """A bundle class's fields before ``msgs``, its last."""
-    names = tuple(f.name for f in dataclasses.fields(cls))
-    assert names[-1] == "msgs"
-    return names[:-1]
-
-
-def _array_header(n: int) -> bytes:
-    """msgpack's header of an array of ``n`` items."""
-    if n < 16:
-        return bytes([0x90 + n])
-    if n < 1 << 16:
-        return b"\xdc" + n.to_bytes(2, "big")
-    return b"\xdd" + n.to_bytes(4, "big")
-
-
-@dataclasses.dataclass(frozen=True)
-class TxBundle(Message):
-    """Everything one robot sends at ``tick`` (radio/tx/<robot>); sent even when empty."""
-
-    KIND = "tx"
-    msgs: tuple[Envelope, ...]
-
-    def encode(self) -> bytes:
-        return _pack_bundle(self)
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        if any(m.src != self.src for m in self.msgs):
-            raise DecodeError("tx: a message's src differs from the bundle's")
-
-
-@dataclasses.dataclass(frozen=True)
-class RxBundle(Message):
-    """What netem delivers to robot ``dst`` at ``tick`` (radio/rx/<robot>); sent even when empty."""
-
-    KIND = "rx"
-    dst: str
-    msgs: tuple[Envelope, ...]
-
-    def encode(self) -> bytes:
-        return _pack_bundle(self)
-
-
-_BUNDLE_HEAD = {cls: _bundle_head(cls) for cls in (TxBundle, RxBundle)}
-
-
 # --- netem -> everyone ---------------------------------------------------------------------------------
 
 @dataclasses.dataclass(frozen=True)
@@ -343,74 +183,6 @@ class Links(Message):
                 raise DecodeError(f"links: {name} of shape {arr.shape} for {n} robots")
 
 
-# --- control ---------------------------------------------------------------------------------------------
-
-@dataclasses.dataclass(frozen=True)
-class Hello(Message):
-    """The world's start handshake (ctl/hello): every node answers with :class:`Ready`."""
-
-    KIND = "hello"
-
-
-@dataclasses.dataclass(frozen=True)
-class Ready(Message):
-    """A node's answer to :class:`Hello` (ctl/ready/<id>): its subscriptions are in place."""
-
-    KIND = "ready"
-    role: str
-    pid: int
-
-
-@dataclasses.dataclass(frozen=True)
-class Failed(Message):
-    """The launcher saw a robot's process exit (ctl/failed/<robot>): the world fails it at once, even
-    before its liveliness token existed."""
-
-    KIND = "failed"
-    robot: str
-    reason: str
-
-
-@dataclasses.dataclass(frozen=True)
-class Stop(Message):
-    """The run is over (ctl/stop): nodes report and exit."""
-
-    KIND = "stop"
-    reason: str
-
-
-@dataclasses.dataclass(frozen=True)
-class AgentReport(Message):
-    """An agent's summary when it stops (ctl/report/<robot>): counters the launcher puts in result.json."""
-
-    KIND = "report"
-    decisions: int
-    decision_ms_mean: float
-    decision_ms_p95: float
-    dropped: int
-    peak_rss_kb: int
-    decision_cpu_ms: float = 0.0  # thread CPU in the allocator, summed over the decisions (issue 11)
-    step_cpu_ms: float = 0.0  # thread CPU in the brain's whole step, summed (decision included)
-    # the agent process's CPU (every thread) from the start of its first step to this report: minus step_cpu_ms,
-    # its bus work over the same ticks (benchmarks/scale.py's a.bus); 0 where not measured (the memory engine)
-    process_cpu_ms: float = 0.0
-
-
-@dataclasses.dataclass(frozen=True)
-class BaseReport(Message):
-    """The base station's summary when it stops (ctl/report/base): what its team map holds
-    (``agents/base.py``): known cells of ``cells``, the map deltas and fills merged, the ticks heard."""
-
-    KIND = "base_report"
-    cell: Cell
-    known_cells: int
-    cells: int
-    merged: int
-    ticks: int
-    dropped: int
-    peak_rss_kb: int
-
-
 @dataclasses.dataclass(frozen=True)
 class BeliefSnapshot(Message):
     """A robot's whole belief grid (robot/<robot>/belief), every few ticks, for the recording only."""
@@ -424,69 +196,6 @@ class BeliefSnapshot(Message):
             raise DecodeError("belief: expected a 2-D int8 grid")
         if ctx is not None and ctx.shape is not None and self.grid.shape != ctx.shape:
             raise DecodeError("belief: grid shape differs from the map's")
-
-
-# --- the hosts' lobby (fleet-host/<host>/..., launch/hosts.py) --------------------------------------------
-
-MAX_REALTIME_HZ = 1000.0  # the fastest real-time rate a run accepts (``fleet run --realtime``)
-HOST_EVENTS = frozenset({"accepted", "busy", "spawned", "exited", "ended"})
-
-
-@dataclasses.dataclass(frozen=True)
-class HostAssign(Message):
-    """The launcher's request to host ``host`` (fleet-host/<host>/spawn): start ``robots`` of run ``run``, whose
-    scenario (as ``scenario.json``) is ``scenario``; ``secrets`` maps each robot to its bus credential (JSON,
-    user and password: the host adds its own TLS CA), empty on an unauthenticated bus; ``realtime_hz`` the
-    run's real-time rate (``fleet run --realtime HZ``; 0: lockstep), which the robots are started with. ``end``
-    set: tear the run's robots down instead."""
-
-    KIND = "host_assign"
-    host: str
-    run: str
-    robots: tuple[str, ...] = ()
-    scenario: str = ""
-    secrets: dict[str, str] = dataclasses.field(default_factory=dict)
-    fork_server: bool = True
-    end: bool = False
-    realtime_hz: float = 0.0
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        if not HOST_ID.fullmatch(self.host) or not RUN_ID.fullmatch(self.run):
-            raise DecodeError("host_assign: bad host or run id")
-        if not 0.0 <= self.realtime_hz <= MAX_REALTIME_HZ:  # NaN fails too
-            raise DecodeError(f"host_assign: realtime_hz {self.realtime_hz!r} not in [0, {MAX_REALTIME_HZ:g}]")
-        if not all(ROBOT_ID.fullmatch(r) for r in self.robots) or len(set(self.robots)) != len(self.robots):
-            raise DecodeError("host_assign: bad robot ids")
-        if not set(self.secrets) <= set(self.robots):
-            raise DecodeError("host_assign: a secret for a robot not assigned")
-        for robot, secret in self.secrets.items():
-            try:
-                cred = Credential.from_json(secret)
-            except ValueError:
-                raise DecodeError(f"host_assign: {robot}'s credential is not a user and password") from None
-            if cred.user != robot:
-                raise DecodeError(f"host_assign: {robot}'s credential is {cred.user!r}'s")
-
-
-@dataclasses.dataclass(frozen=True)
-class HostStatus(Message):
-    """A host's report (fleet-host/<host>/status) about run ``run``: ``accepted`` (or ``busy`` with another run),
-    ``spawned`` (``robot`` with its ``pid``), ``exited`` (``robot`` with its exit ``code``), ``ended`` (every
-    robot of the run is gone)."""
-
-    KIND = "host_status"
-    run: str
-    event: str
-    robot: str = ""
-    pid: int = 0
-    code: int = 0
-    error: str = ""
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        if self.event not in HOST_EVENTS:
-            raise DecodeError(f"host_status: unknown event {self.event!r}")
 
 
 # --- real-time mode only (``fleet run --realtime HZ``) ---------------------------------------------------------
