@@ -196,6 +196,8 @@ def parse(argv: list[str] | None) -> Any:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=None, help="write Fig. 7 (PNG) here")
     p.add_argument("--json", type=Path, default=None, help="write the rows and curves (JSON) here")
+    p.add_argument("--from", dest="from_json", type=Path, nargs="+", default=None, metavar="JSON",
+                   help="run nothing: the table and --out of these --json files' rows, joined")
     a = p.parse_args(argv)
     if min(a.robots) < 1:
         _fail(f"--robots must be at least 1 (got {min(a.robots)})")
@@ -218,11 +220,46 @@ def parse(argv: list[str] | None) -> Any:
     for path in (a.out, a.json):
         if path is not None and not path.parent.is_dir():
             _fail(f"no such directory for {path}: {path.parent}")
+    for path in a.from_json or ():
+        if not path.is_file():
+            _fail(f"no such file: {path}")
     return a
+
+
+def saved_rows(paths: list[Path]) -> list[dict[str, Any]]:
+    """The rows of earlier ``--json`` files, in order (a bad file is a one-line error)."""
+    rows: list[dict[str, Any]] = []
+    for path in paths:
+        try:
+            rows += json.loads(path.read_text())["rows"]
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            _fail(f"{path} is not a --json file of this script: {exc}")
+    return rows
+
+
+def draw(rows: list[dict[str, Any]], a: Any) -> None:
+    """Fig. 7 from the rows: cells seen against ticks, a line per fleet size, a panel per allocator and map."""
+    from fleet_emu.recording.plots import panels_plot
+
+    panels: dict[tuple[str, str], dict[str, list[int]]] = {}
+    for r in sorted((r for r in rows if "seen" in r), key=lambda r: r["robots"]):
+        panels.setdefault((r["map"], r["allocator"]), {})[f"{r['robots']} robots"] = r["seen"]
+    panels_plot(panels, a.out, xlabel="tick", ylabel="cells seen",
+                title=f"Mukhija et al. Fig. 7 setting: {a.cells}x{a.cells} cells, r_comm {a.r_comm:g}, "
+                      f"sensor {a.sensor:g}, base at the start")
 
 
 def main(argv: list[str] | None = None) -> None:
     a = parse(argv)
+    if a.from_json:
+        rows = saved_rows(a.from_json)
+        print(header(a.at))
+        for r in rows:
+            if "seen" in r:
+                print(line(r["map"], r["allocator"], r["robots"], r, a.at))
+        if a.out is not None:
+            draw(rows, a)
+        return
     from fleet_emu.core.errors import MapError
     from fleet_emu.core.grid import FREE
     from fleet_emu.core.kernels import warm_up
@@ -269,15 +306,7 @@ def main(argv: list[str] | None = None) -> None:
         a.json.write_text(json.dumps({"setting": {k: (str(v) if isinstance(v, Path) else v)
                                                   for k, v in vars(a).items()}, "rows": rows}))
     if a.out is not None:
-        from fleet_emu.recording.plots import panels_plot
-
-        panels: dict[tuple[str, str], dict[str, list[int]]] = {}
-        for r in rows:
-            if "seen" in r:
-                panels.setdefault((r["map"], r["allocator"]), {})[f"{r['robots']} robots"] = r["seen"]
-        panels_plot(panels, a.out, xlabel="tick", ylabel="cells seen",
-                    title=f"Mukhija et al. Fig. 7 setting: {a.cells}x{a.cells} cells, r_comm {a.r_comm:g}, "
-                          f"sensor {a.sensor:g}, base at the start")
+        draw(rows, a)
     if failed:
         print(f"paper_setting: {failed} of {total} runs failed (see the lines above)", file=sys.stderr)
         raise SystemExit(1)
