@@ -2,7 +2,8 @@
 
     python benchmarks/paper_setting.py [--maps grid PATH ...] [--robots 10 20] [--allocators mhm minpos connectivity]
         [--cells 512] [--r-comm 40] [--sensor 15] [--max-ticks 2000] [--at 250 500 1000 2000] [--cell-size 1]
-        [--loss 0] [--seed 0] [--out fig7.png] [--json curves.json]
+        [--loss 0] [--seed 0] [--out fig7.png] [--json runs.json]
+    python benchmarks/paper_setting.py --from runs.json more.json [--max-ticks 3000 | --at ...] [--out fig7.png]
 
 The paper (section IV): 512 x 512-pixel bounded maps, one grid cell = one pixel, r_comm = 40 pixels, a sensor
 range of 15 pixels, 10 to 50 robots; Fig. 7 plots MHM's total visibility (grid cells seen) against ticks, a
@@ -43,8 +44,10 @@ lowest share of any tick), ``ms mean / p95 / max`` (planner CPU per MHM tick; al
 mean only, for the others), ``plan s`` (that CPU summed over the run: all robots for the others) and ``run s``
 (this thread's CPU for the whole run). ``--out`` draws Fig. 7 (``recording.plots.panels_plot``: cells seen
 against ticks, a line per fleet size, a panel per allocator and map); ``--json`` writes the rows and the
-curves. Progress goes to stderr. Exit 0 when every run finished, 1 when one failed (an ``error`` row), 2 on a
-bad argument (one line).
+curves, and ``--from`` runs nothing but prints the table and draws ``--out`` from such files, joined (runs
+split over several invocations, e.g. one per map; ``--at`` or ``--max-ticks`` pick the columns). Progress
+goes to stderr. Exit 0 when every run finished, 1 when one failed (an ``error`` row), 2 on a bad argument
+(one line).
 """
 
 from __future__ import annotations
