@@ -229,14 +229,19 @@ def parse(argv: list[str] | None) -> Any:
     return a
 
 
-def saved_rows(paths: list[Path]) -> list[dict[str, Any]]:
-    """The rows of earlier ``--json`` files, in order (a bad file is a one-line error)."""
+def saved_rows(paths: list[Path], a: Any) -> list[dict[str, Any]]:
+    """The rows of earlier ``--json`` files, in order (a bad file is a one-line error); the first file's
+    setting (cells, r_comm, sensor) goes into ``a`` for the figure's title."""
     rows: list[dict[str, Any]] = []
     for path in paths:
         try:
-            rows += json.loads(path.read_text())["rows"]
+            saved = json.loads(path.read_text())
+            rows += saved["rows"]
+            setting = saved["setting"]
         except (OSError, ValueError, KeyError, TypeError) as exc:
             _fail(f"{path} is not a --json file of this script: {exc}")
+        if path == paths[0]:
+            a.cells, a.r_comm, a.sensor = setting["cells"], setting["r_comm"], setting["sensor"]
     return rows
 
 
@@ -255,7 +260,7 @@ def draw(rows: list[dict[str, Any]], a: Any) -> None:
 def main(argv: list[str] | None = None) -> None:
     a = parse(argv)
     if a.from_json:
-        rows = saved_rows(a.from_json)
+        rows = saved_rows(a.from_json, a)
         print(header(a.at))
         for r in rows:
             if "seen" in r:
