@@ -44,8 +44,9 @@ lowest share of any tick), ``ms mean / p95 / max`` (planner CPU per MHM tick; al
 mean only, for the others), ``plan s`` (that CPU summed over the run: all robots for the others) and ``run s``
 (this thread's CPU for the whole run). ``--out`` draws Fig. 7 (``recording.plots.panels_plot``: cells seen
 against ticks, a line per fleet size, a panel per allocator and map); ``--json`` writes the rows and the
-curves, and ``--from`` runs nothing but prints the table and draws ``--out`` from such files, joined (runs
-split over several invocations, e.g. one per map; ``--at`` or ``--max-ticks`` pick the columns). Progress
+curves (after every run), and ``--from`` runs nothing but prints the table and draws ``--out`` from such
+files, joined (runs split over several invocations, e.g. one per map; ``--at`` or ``--max-ticks`` pick the
+columns). Progress
 goes to stderr. Exit 0 when every run finished, 1 when one failed (an ``error`` row), 2 on a bad argument
 (one line).
 """
@@ -229,6 +230,16 @@ def parse(argv: list[str] | None) -> Any:
     return a
 
 
+def save(rows: list[dict[str, Any]], a: Any) -> None:
+    """Write ``--json`` (after every run, so that an interrupted invocation keeps the runs it finished)."""
+    if a.json is not None:
+        setting = {k: (str(v) if isinstance(v, Path) else [str(p) for p in v] if k == "from_json" and v else v)
+                   for k, v in vars(a).items()}
+        tmp = a.json.with_name(a.json.name + ".tmp")
+        tmp.write_text(json.dumps({"setting": setting, "rows": rows}))
+        tmp.replace(a.json)
+
+
 def saved_rows(paths: list[Path], a: Any) -> list[dict[str, Any]]:
     """The rows of earlier ``--json`` files, in order (a bad file is a one-line error); the first file's
     setting (cells, r_comm, sensor) goes into ``a`` for the figure's title."""
@@ -305,14 +316,13 @@ def main(argv: list[str] | None = None) -> None:
                           file=sys.stderr, flush=True)
                     print(f"{label:>10} {allocator:>12} {n:>6} error: {type(exc).__name__}", flush=True)
                     rows.append({"map": label, "allocator": allocator, "robots": n, "error": str(exc)})
+                    save(rows, a)
                     continue
                 print(line(label, allocator, n, row, a.at), flush=True)
                 print(f"[{k}/{total}] {label} {allocator} {n}: {row['ticks']} ticks, {row['end']}, "
                       f"{time.perf_counter() - wall:.0f} s wall", file=sys.stderr, flush=True)
                 rows.append({"map": label, "allocator": allocator, "robots": n} | row)
-    if a.json is not None:
-        a.json.write_text(json.dumps({"setting": {k: (str(v) if isinstance(v, Path) else v)
-                                                  for k, v in vars(a).items()}, "rows": rows}))
+                save(rows, a)
     if a.out is not None:
         draw(rows, a)
     if failed:
