@@ -38,17 +38,16 @@ AMD Turion of 2009).
 One row per map, allocator and fleet size (stdout), as each run ends: ``ticks`` run, ``end`` (``step18``,
 ``max_ticks``, ``coverage``, ``stall``), ``coverage`` (the share of the free cells reachable from the start
 that some robot sensed), ``seen@T`` the cells (free or occupied) some robot sensed by tick T (Fig. 7's
-ordinate; the last value after a run ended), ``base`` (``overall``: the mean over ticks of the share of
-robots with a path of links to the base; ``all``: the share of ticks every robot had one; ``worst``: the
-lowest share of any tick), ``ms mean / p95 / max`` (planner CPU per MHM tick; allocator CPU per decision,
-mean only, for the others), ``plan s`` (that CPU summed over the run: all robots for the others) and ``run s``
-(this thread's CPU for the whole run). ``--out`` draws Fig. 7 (``recording.plots.panels_plot``: cells seen
-against ticks, a line per fleet size, a panel per allocator and map); ``--json`` writes the rows and the
-curves (after every run), and ``--from`` runs nothing but prints the table and draws ``--out`` from such
-files, joined (runs split over several invocations, e.g. one per map; ``--at`` or ``--max-ticks`` pick the
-columns). Progress
-goes to stderr. Exit 0 when every run finished, 1 when one failed (an ``error`` row), 2 on a bad argument
-(one line).
+ordinate; the last value after a run that ended, ``-`` past ``--max-ticks``), ``base`` (``overall``: the
+mean over ticks of the share of robots with a path of links to the base; ``all``: the share of ticks every
+robot had one; ``worst``: the lowest share of any tick), ``ms mean / p95 / max`` (planner CPU per MHM tick;
+allocator CPU per decision, mean only, for the others), ``plan s`` (that CPU summed over the run: all robots
+for the others) and ``run s`` (this thread's CPU for the whole run). ``--out`` draws Fig. 7
+(``recording.plots.panels_plot``: cells seen against ticks, a line per fleet size, a panel per allocator and
+map); ``--json`` writes the rows and the curves (after every run), and ``--from`` runs nothing but prints the
+table and draws ``--out`` from such files, joined (runs split over several invocations, e.g. one per map;
+``--at`` or ``--max-ticks`` pick the columns). Progress goes to stderr. Exit 0 when every run finished, 1
+when one failed (an ``error`` row), 2 on a bad argument (one line).
 """
 
 from __future__ import annotations
@@ -117,7 +116,8 @@ def run_mhm(grid: np.ndarray, base: Cell, robots: int, a: Any) -> dict[str, Any]
 
     config = MhmConfig(r_comm=a.r_comm, sensor_range=a.sensor)
     t0 = time.thread_time()
-    out = simulate(grid, base, robots, config, a.seed, a.max_ticks, clock=time.thread_time)
+    # ticks 0 .. max_ticks, as the memory engine's runs (the sim's loop stops before its max_ticks)
+    out = simulate(grid, base, robots, config, a.seed, a.max_ticks + 1, clock=time.thread_time)
     run_s = time.thread_time() - t0
     ms = sorted(out.step_ms)
     return {
@@ -164,6 +164,15 @@ def run_fleet(grid: np.ndarray, base: Cell, robots: int, allocator: str, a: Any)
 
 # --- the table -------------------------------------------------------------------------------------------
 
+def seen_at(row: dict[str, Any], tick: int) -> str:
+    """Cells seen by ``tick``: the last value after a run that ended (nothing more to see), ``-`` past a run
+    cut at ``--max-ticks``."""
+    seen = row["seen"]
+    if tick >= len(seen) and row["end"] == "max_ticks":
+        return "-"
+    return str(seen[min(tick, len(seen) - 1)])
+
+
 def header(at: list[int]) -> str:
     return (f"{'map':>10} {'allocator':>12} {'robots':>6} {'ticks':>5} {'end':>9} {'coverage':>8} "
             + " ".join(f"{'seen@' + str(t):>10}" for t in at)
@@ -172,13 +181,11 @@ def header(at: list[int]) -> str:
 
 
 def line(map_name: str, allocator: str, robots: int, row: dict[str, Any], at: list[int]) -> str:
-    seen = row["seen"]
-
     def num(v: float | None, width: int, f: str) -> str:
         return f"{'-':>{width}}" if v is None else f"{v:>{width}{f}}"
 
     return (f"{map_name:>10} {allocator:>12} {robots:>6} {row['ticks']:>5} {row['end']:>9} {row['coverage']:>8.3f} "
-            + " ".join(f"{seen[min(t, len(seen) - 1)]:>10}" for t in at)
+            + " ".join(f"{seen_at(row, t):>10}" for t in at)
             + f" {row['overall']:>7.3f} {row['all']:>5.3f} {row['worst']:>5.3f} {num(row['ms_mean'], 8, '.3f')}"
             f" {num(row['ms_p95'], 7, '.2f')} {num(row['ms_max'], 7, '.1f')} {row['plan_s']:>7.1f}"
             f" {row['run_s']:>7.1f}")

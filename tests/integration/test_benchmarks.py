@@ -217,7 +217,8 @@ def test_paper_setting_prints_fig7_rows_and_draws_them(small_map: Path, tmp_path
     assert all(r[12:14] == ["-", "-"] for r in rows[2:])  # p95 / max only for MHM's planner
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     saved = json.loads(data.read_text())["rows"]
-    assert [len(r["seen"]) for r in saved[2:]] == [r["ticks"] + 1 for r in saved[2:]]  # ticks 0..T
+    assert [len(r["seen"]) for r in saved] == [r["ticks"] + 1 for r in saved]  # ticks 0..T
+    assert [(r["end"], r["ticks"]) for r in saved[:2]] == [("step18", 27), ("max_ticks", 30)]  # MHM: up to tick 30
     again = _bench("paper_setting.py", "--from", str(data), "--at", "10", "30", "--max-ticks", "30")
     assert again.returncode == 0 and again.stdout.strip().splitlines()[1:] == lines[4:], again.stderr[-2000:]
 
