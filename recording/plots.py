@@ -150,15 +150,15 @@ def compare_plot(runs: list[Run], path: Path) -> None:
 def panels_plot(panels: Mapping[tuple[str, str], Mapping[str, Sequence[float]]], path: Path, *, xlabel: str,
                 ylabel: str, title: str) -> None:
     """Small multiples: one panel per ``(row, column)`` key (rows and columns in the keys' first-seen order),
-    one line per named series in each (the value at each tick 0, 1, ...), the y axis shared along a row.
-    ``benchmarks/paper_setting.py`` draws Mukhija et al.'s Fig. 7 (cells seen against ticks, a line per fleet
-    size) with it, a column per allocator and a row per map."""
+    one line per named series in each (the value at each tick 0, 1, ...), the x axis shared by all, the y axis
+    along a row. ``benchmarks/paper_setting.py`` draws Mukhija et al.'s Fig. 7 (cells seen against ticks, a
+    line per fleet size) with it, a column per allocator and a row per map."""
     rows = list(dict.fromkeys(r for r, _ in panels))
     cols = list(dict.fromkeys(c for _, c in panels))
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(4.2 * len(cols), 3.4 * len(rows)), dpi=110, layout="constrained")
-    axes = np.atleast_2d(fig.subplots(len(rows), len(cols), sharey="row", squeeze=False))
+    axes = np.atleast_2d(fig.subplots(len(rows), len(cols), sharex=True, sharey="row", squeeze=False))
     for i, row in enumerate(rows):
         for j, col in enumerate(cols):
             ax = axes[i, j]
