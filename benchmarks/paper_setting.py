@@ -45,9 +45,9 @@ allocator CPU per decision, mean only, for the others), ``plan s`` (that CPU sum
 for the others) and ``run s`` (this thread's CPU for the whole run). ``--out`` draws Fig. 7
 (``recording.plots.panels_plot``: cells seen against ticks, a line per fleet size, a panel per allocator and
 map); ``--json`` writes the rows and the curves (after every run), and ``--from`` runs nothing but prints the
-table and draws ``--out`` from such files, joined (runs split over several invocations, e.g. one per map;
-``--at`` or ``--max-ticks`` pick the columns). Progress goes to stderr. Exit 0 when every run finished, 1
-when one failed (an ``error`` row), 2 on a bad argument (one line).
+table and draws ``--out`` from such files, joined and sorted by map, allocator and fleet size (runs split
+over several invocations, e.g. one per map; ``--at`` or ``--max-ticks`` pick the columns). Progress goes to
+stderr. Exit 0 when every run finished, 1 when one failed (an ``error`` row), 2 on a bad argument (one line).
 """
 
 from __future__ import annotations
@@ -279,6 +279,9 @@ def main(argv: list[str] | None = None) -> None:
     a = parse(argv)
     if a.from_json:
         rows = saved_rows(a.from_json, a)
+        maps = {m: i for i, m in enumerate(dict.fromkeys(r["map"] for r in rows))}
+        allocators = {x: i for i, x in enumerate(dict.fromkeys(r["allocator"] for r in rows))}
+        rows.sort(key=lambda r: (maps[r["map"]], allocators[r["allocator"]], r["robots"]))
         print(header(a.at))
         for r in rows:
             if "seen" in r:
