@@ -231,34 +231,50 @@ class Brain:
         cpu["decode"] += (c_rest - c_decode) * 1000.0
         sync = self.sync
         rejoined: list[str] = []
+        # Teammates' map deltas and fills are merged together (Belief.merge_many), in the order they came, once
+        # the loop is done, or before anything reads the belief (a whole map for a teammate): the same belief
+        # as merging each as it comes (issue 11, part 4).
+        pending: list[tuple[np.ndarray, np.ndarray]] = []
+
+        def flush() -> None:
+            if pending:
+                c_m = time.thread_time()
+                belief.merge_many(pending)
+                pending.clear()
+                cpu["merge"] += (time.thread_time() - c_m) * 1000.0
+
+        resync = self.config.resync_after
         for msg in opened:
             if msg.origin == self.me:
                 continue
             body = msg.body
             if isinstance(body, PoseBeacon):
+                prev = self.teammates.get(msg.origin)
+                if prev is None or t - prev.heard > resync:  # it may get our whole map
+                    flush()
                 if self._heard(msg, body, t, outbox):
                     rejoined.append(msg.origin)
                 if sync is not None and body.maps is not None:
                     sync.peer(msg.origin).exists(body.maps)
                 if sync is not None and body.want is not None and self.me in body.want:
-                    fill = sync.answer(body.want[self.me], belief)
+                    seqs = body.want[self.me]
+                    if sync.sends_whole(seqs):
+                        flush()
+                    fill = sync.answer(seqs, belief)
                     if fill is not None:
                         outbox.append(RadioMsg(fill, dst=msg.origin))
             elif isinstance(body, MapDelta):
-                c_m = time.thread_time()
-                belief.merge(body.cells, body.values)
-                cpu["merge"] += (time.thread_time() - c_m) * 1000.0
+                pending.append((body.cells, body.values))
                 if sync is not None and body.n is not None:
                     sync.peer(msg.origin).received(body.n)
                     sync.peer(msg.origin).filled(body.covers or (), 0)
             elif isinstance(body, MapFill):
-                c_m = time.thread_time()
-                belief.merge(body.cells, body.values)
-                cpu["merge"] += (time.thread_time() - c_m) * 1000.0
+                pending.append((body.cells, body.values))
                 if sync is not None:
                     sync.peer(msg.origin).filled(body.seqs, body.upto)
             else:
                 protocol.append(msg)
+        flush()
         want = None
         if sync is not None:
             for r in rejoined:  # it sends us its whole map as we send it ours: ask only if that is lost

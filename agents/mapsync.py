@@ -168,10 +168,14 @@ class MapSync:
         """A teammate asks for the deltas ``seqs``: they go again in the next broadcast delta (None), or the
         whole map goes to the teammate when ``seqs`` is empty or one of them is no longer kept (or was never
         sent)."""
-        if not seqs or any(n not in self.history for n in seqs):
+        if self.sends_whole(seqs):
             return self.whole(belief)
         self.pending.update(seqs)
         return None
+
+    def sends_whole(self, seqs: tuple[int, ...]) -> bool:
+        """Whether :meth:`answer` answers ``seqs`` with the whole map (the only answer that reads the belief)."""
+        return not seqs or any(n not in self.history for n in seqs)
 
     def news(self, cells: np.ndarray) -> tuple[np.ndarray, tuple[int, ...] | None]:
         """The cells of the delta about to be broadcast: this tick's news, and the cells of the oldest

@@ -55,6 +55,7 @@ class AgentNode(NodeBase):
         self.ctx_world = Context(senders=frozenset({"world"}))
         self.realtime = bool(realtime_hz)
         self.timing = Timing()
+        self.cpu0: float | None = None  # the process's CPU time when its first step began (AgentReport)
 
     def next_seq(self) -> int:
         """The robot's one counter, shared with its brain."""
@@ -88,7 +89,9 @@ class AgentNode(NodeBase):
                 src=self.robot, tick=tick, seq=self.next_seq(), decisions=len(self.brain.decision_ms),
                 decision_ms_mean=float(ms.mean()), decision_ms_p95=float(np.percentile(ms, 95)),
                 dropped=self.dropped, peak_rss_kb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
-                decision_cpu_ms=self.brain.decision_cpu_ms, step_cpu_ms=self.brain.step_cpu_ms).encode())
+                decision_cpu_ms=self.brain.decision_cpu_ms, step_cpu_ms=self.brain.step_cpu_ms,
+                process_cpu_ms=(time.process_time() - self.cpu0) * 1000.0 if self.cpu0 is not None else 0.0
+            ).encode())
             await asyncio.sleep(0.05)
         finally:
             undeclare(handles)
@@ -127,6 +130,8 @@ class AgentNode(NodeBase):
 
     def _act(self, obs: Observation, bundle: RxBundle) -> None:
         """One tick: the brain's decision, then the tx bundle, the command and (every few ticks) the belief."""
+        if self.cpu0 is None:
+            self.cpu0 = time.process_time()
         self._send(obs, *self.brain.step(obs, bundle.msgs))
 
     def _send(self, obs: Observation, cmd: Command, out: tuple[Envelope, ...]) -> None:
@@ -134,9 +139,21 @@ class AgentNode(NodeBase):
         self.pub_cmd.put(cmd.encode())
         if self.pub_belief is not None and obs.tick % self.scenario.belief_every == 0 \
                 and self.brain.belief is not None:
-            self.pub_belief.put(BeliefSnapshot(src=self.robot, tick=obs.tick, seq=self.next_seq(),
-                                               grid=self.brain.belief.grid).encode())
+            seq = self.next_seq()  # drawn even when not sent: the counter (and so the radio's bytes) stays the same
+            if self._belief_heard():
+                self.pub_belief.put(BeliefSnapshot(src=self.robot, tick=obs.tick, seq=seq,
+                                                   grid=self.brain.belief.grid).encode())
 
+
+    def _belief_heard(self) -> bool:
+        """Whether a subscriber (the recorder) listens to the belief snapshots: they are for the recording
+        only, and a run that does not record would put a whole grid per robot on the bus for nobody (256 kB
+        per robot every ``belief_every`` ticks on a 512 x 512 map: issue 11, part 4)."""
+        assert self.pub_belief is not None
+        try:
+            return bool(self.pub_belief.matching_status.matching)
+        except zenoh.ZError:  # not known: send it, as before
+            return True
 
     async def _realtime(self, inbox: Inbox) -> int:
         """Act on the newest observation as it comes (module docstring of :mod:`agents.realtime`), until the
@@ -199,6 +216,8 @@ class AgentNode(NodeBase):
 
         def work() -> tuple[Observation, Command, tuple[Envelope, ...], float]:
             t0 = time.perf_counter()
+            if self.cpu0 is None:
+                self.cpu0 = time.process_time()
             for o in absorbed:
                 self.brain.absorb(o)
             cmd, out = self.brain.step(obs, received)

@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import operator
 from typing import Any
 
 import numpy as np
 
-from fleet_emu.core.codec import Context, Payload
+from fleet_emu.core.codec import Context, Payload, fast_decoder, packed_array
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
 from fleet_emu.core.messages import check_cell, check_cells
@@ -32,7 +33,8 @@ def check_seqs(seqs: tuple[int, ...], what: str) -> None:
     """Delta numbers: at most :data:`MAX_SEQS`, each >= 1, strictly ascending."""
     if len(seqs) > MAX_SEQS:
         raise DecodeError(f"{what}: more than {MAX_SEQS} delta numbers")
-    if any(s < 1 for s in seqs) or any(b <= a for a, b in itertools.pairwise(seqs)):
+    # strictly ascending from at least 1 (each number >= 1 follows), pairs compared in one pass in C
+    if seqs and (seqs[0] < 1 or not all(map(operator.lt, seqs, itertools.islice(seqs, 1, None)))):
         raise DecodeError(f"{what}: delta numbers must be >= 1 and strictly ascending")
 
 
@@ -71,10 +73,13 @@ class PoseBeacon(Payload):
                 raise DecodeError(f"pose: next cell {self.next} is not one step from {self.cell}")
         if self.maps is not None and self.maps < 0:
             raise DecodeError("pose: negative map delta count")
-        for robot, seqs in (self.want or {}).items():
-            if ctx is not None and ctx.senders is not None and robot not in ctx.senders:
+        if self.want:
+            senders = ctx.senders if ctx is not None else None
+            if senders is not None and not self.want.keys() <= senders:
+                robot = next(r for r in self.want if r not in senders)
                 raise DecodeError(f"pose: request to an unknown robot {robot!r}")
-            check_seqs(seqs, "pose")
+            for seqs in self.want.values():
+                check_seqs(seqs, "pose")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -120,3 +125,134 @@ class MapFill(Payload):
         check_seqs(self.seqs, "mapfill")
         if self.upto < 0:
             raise DecodeError("mapfill: negative upto")
+
+
+# --- fast decoders (issue 11, part 4) ----------------------------------------------------------------------
+# Every robot decodes every teammate's beacon and delta each tick, so these are the codec's hot path at 100
+# robots. Each accepts a payload's map only when every field has exactly its type and the payload validates
+# (the checks of ``validate``, in one pass where they can be), and returns None otherwise: the generic decode
+# then checks it and raises the error (:data:`fleet_emu.core.codec._FAST`).
+
+_POSE_KEYS = frozenset({"cell", "next", "maps", "want"})
+_MAP_KEYS = frozenset({"cells", "values", "n", "covers"})
+_FILL_KEYS = frozenset({"cells", "values", "seqs", "upto"})
+
+
+def _cell_of(value: Any, shape: tuple[int, int] | None) -> Cell | None:
+    """``value`` as a cell inside ``shape`` when it is a list of two ints there, else None."""
+    if type(value) is not list or len(value) != 2:
+        return None
+    r, c = value
+    if type(r) is not int or type(c) is not int:
+        return None
+    if shape is not None and not (0 <= r < shape[0] and 0 <= c < shape[1]):
+        return None
+    return r, c
+
+
+def _seqs_of(value: Any) -> tuple[int, ...] | None:
+    """``value`` as delta numbers (:func:`check_seqs`) when it is a list of them, else None."""
+    if type(value) is not list or len(value) > MAX_SEQS or not set(map(type, value)) <= {int}:
+        return None
+    if value and (value[0] < 1 or not all(map(operator.lt, value, itertools.islice(value, 1, None)))):
+        return None
+    return tuple(value)
+
+
+def _wants_of(want: dict) -> dict[str, tuple[int, ...]] | None:
+    """A beacon's requests (robot -> a list of delta numbers) with each list checked as :func:`_seqs_of` does,
+    every list at once: list ``i`` shifted by ``i * big`` (``big`` above every number) and led by that shift
+    itself gives one sequence that is strictly ascending exactly when every list is, from at least 1. None for
+    anything else."""
+    lists = list(want.values())
+    if not set(map(type, lists)) <= {list} or max(map(len, lists), default=0) > MAX_SEQS:
+        return None
+    flat = list(itertools.chain.from_iterable(lists))
+    if flat:
+        if not set(map(type, flat)) <= {int}:
+            return None
+        big = max(max(flat), 0) + 1
+        shifted = [big * i + x for i, seqs in enumerate(lists) for x in (0, *seqs)]
+        if not all(map(operator.lt, shifted, itertools.islice(shifted, 1, None))):
+            return None
+    return {r: tuple(seqs) for r, seqs in want.items()}
+
+
+@fast_decoder(PoseBeacon)
+def _fast_pose(obj: dict, ctx: Context | None) -> PoseBeacon | None:
+    if not obj.keys() <= _POSE_KEYS:
+        return None
+    shape = ctx.shape if ctx is not None else None
+    cell = _cell_of(obj.get("cell"), shape)
+    if cell is None:
+        return None
+    nxt = obj.get("next")
+    if nxt is not None:
+        nxt = _cell_of(nxt, shape)
+        if nxt is None or abs(nxt[0] - cell[0]) + abs(nxt[1] - cell[1]) > 1:
+            return None
+    maps = obj.get("maps")
+    if maps is not None and (type(maps) is not int or maps < 0):
+        return None
+    want = obj.get("want")
+    if want is not None:
+        if type(want) is not dict or not set(map(type, want)) <= {str}:
+            return None
+        senders = ctx.senders if ctx is not None else None
+        if senders is not None and not want.keys() <= senders:
+            return None
+        want = _wants_of(want)
+        if want is None:
+            return None
+    beacon = object.__new__(PoseBeacon)
+    beacon.__dict__.update(cell=cell, next=nxt, maps=maps, want=want)
+    return beacon
+
+
+def _fast_cells(cls: type[MapDelta] | type[MapFill], obj: dict, ctx: Context | None
+                ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The checked cells and values of a map delta or fill, or None."""
+    cells = packed_array(obj.get("cells"))
+    values = packed_array(obj.get("values"))
+    if cells is None or values is None:
+        return None
+    try:
+        check_cells(cells, values, ctx.shape if ctx is not None else None, cls.KIND)
+    except DecodeError:
+        return None
+    return cells, values
+
+
+@fast_decoder(MapDelta)
+def _fast_map(obj: dict, ctx: Context | None) -> MapDelta | None:
+    if not obj.keys() <= _MAP_KEYS:
+        return None
+    n, covers = obj.get("n"), obj.get("covers")
+    if n is not None and (type(n) is not int or n < 1):
+        return None
+    if covers is not None:
+        covers = _seqs_of(covers)
+        if covers is None or n is None or (covers and covers[-1] >= n):
+            return None
+    got = _fast_cells(MapDelta, obj, ctx)
+    if got is None:
+        return None
+    delta = object.__new__(MapDelta)
+    delta.__dict__.update(cells=got[0], values=got[1], n=n, covers=covers)
+    return delta
+
+
+@fast_decoder(MapFill)
+def _fast_fill(obj: dict, ctx: Context | None) -> MapFill | None:
+    if not obj.keys() <= _FILL_KEYS:
+        return None
+    seqs, upto = obj.get("seqs", []), obj.get("upto", 0)
+    seqs = _seqs_of(seqs)
+    if seqs is None or type(upto) is not int or upto < 0:
+        return None
+    got = _fast_cells(MapFill, obj, ctx)
+    if got is None:
+        return None
+    fill = object.__new__(MapFill)
+    fill.__dict__.update(cells=got[0], values=got[1], seqs=seqs, upto=upto)
+    return fill

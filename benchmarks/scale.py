@@ -21,8 +21,10 @@ One table row per map and robot count (stdout):
   teardown excluded): ``world``, ``netem``, and each agent's split with the agents' own thread-CPU clocks
   (their ``ctl/report``): ``decide`` (the allocator's ``allocate``), ``brain`` (the rest of ``Brain.step``:
   belief merge, frontier clusters, radio payload decode, navigation), ``a.bus`` (the agent process's CPU
-  outside ``Brain.step``: Zenoh's threads, message encode and decode, asyncio; ``decide`` and ``brain`` are
-  averaged over every decision of the run, the process CPU over the window); ``router`` is the run's launcher
+  outside ``Brain.step``: Zenoh's threads, message encode and decode, asyncio); all three are averaged over
+  every decision of the run, from the agents' own clocks (thread CPU of the step, process CPU from the first
+  step to the report: the same ticks, so ``a.bus`` is never negative; it was, when the process CPU came from
+  the /proc window, whose ticks under load are not the agents'); ``router`` is the run's launcher
   process (the embedded Zenoh router and the launcher's fold); ``total`` their sum, and ``cores`` the CPU seconds
   per wall second over the window (at most the machine's cores);
 - PSS in MB (``/proc/PID/smaps_rollup``, shared pages divided among the processes mapping them), sampled a
@@ -216,12 +218,13 @@ def run_one(name: str, cs: float, robots: int, start: tuple[int, int], a: argpar
     window_ticks, wall = last[0] - first[0], last[1] - first[1]
     per = window_ticks * robots / 1000.0  # ms per robot-tick from CPU seconds
     cpu = {k: last[2][k] - first[2].get(k, 0.0) for k in last[2]}
-    agents = [k for k in cpu if k.startswith("r")]
-    agent_ms = sum(cpu[k] for k in agents) / per
     reports = list(mon.reports.values())
     decisions = sum(r.decisions for r in reports) or 1
     decide = sum(r.decision_cpu_ms for r in reports) / decisions
     step = sum(r.step_cpu_ms for r in reports) / decisions
+    # the agents' own clocks over the same steps: their process CPU from their first step to their report
+    # (the /proc window of the other processes is not the agents' ticks under load: a.bus came out negative)
+    agent_ms = sum(r.process_cpu_ms for r in reports) / decisions
     agent_pss = [sampler.pss[k] / 1024 for k in sampler.pss if k.startswith("r")] or [0.0]
     row = {
         "start": ((mon.first_state_ns or t0) - t0) / 1e9,

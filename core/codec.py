@@ -161,9 +161,13 @@ def _converter(hint: Any) -> Convert:
     if origin is dict:
         key_c, val_c = (_converter(a) for a in typing.get_args(hint))
 
+        str_keys = key_c is _str
+
         def mapping(value: Any, name: str, ctx: Context | None) -> Any:
             if not isinstance(value, dict):
                 raise DecodeError(f"{name}: expected a map")
+            if str_keys and _all_of(value, str):
+                return {k: val_c(v, name, ctx) for k, v in value.items()}
             return {key_c(k, name, ctx): val_c(v, name, ctx) for k, v in value.items()}
         return mapping
     if hint is Any:
@@ -177,14 +181,31 @@ def _converter(hint: Any) -> Convert:
 def _tuple_converter(args: tuple[Any, ...]) -> Convert:
     if len(args) == 2 and args[1] is Ellipsis:
         item = _converter(args[0])
+        exact = _EXACT.get(item)  # a list of exactly that scalar type is checked in one pass (issue 11, part 4)
 
         def homogeneous(value: Any, name: str, ctx: Context | None) -> Any:
             if not isinstance(value, (list, tuple)):
                 raise DecodeError(f"{name}: expected a list")
+            if exact is not None and _all_of(value, exact):
+                return tuple(value)
             return tuple(item(v, name, ctx) for v in value)
         return homogeneous
     items = [_converter(a) for a in args]
+    fixed = fixed_of(items)
+    exact_items = [_EXACT.get(c) for c in items]
+    if items and all(e is int for e in exact_items):  # a Cell (or any tuple of ints): the common case in one pass
+        n = len(items)
 
+        def ints(value: Any, name: str, ctx: Context | None) -> Any:
+            if type(value) is list and len(value) == n and _all_of(value, int):
+                return tuple(value)
+            return fixed(value, name, ctx)
+        return ints
+    return fixed
+
+
+def fixed_of(items: list[Convert]) -> Convert:
+    """The converter of a fixed-length tuple whose items have the converters ``items``."""
     def fixed(value: Any, name: str, ctx: Context | None) -> Any:
         if not isinstance(value, (list, tuple)):
             raise DecodeError(f"{name}: expected a list")
@@ -194,6 +215,12 @@ def _tuple_converter(args: tuple[Any, ...]) -> Convert:
     return fixed
 
 
+def _all_of(values: Any, kind: type) -> bool:
+    """Every item of ``values`` is exactly of type ``kind`` (not a subclass: never a bool for an int): one pass
+    in C, the fast path of the checking converters, which fall back to their item-by-item check otherwise."""
+    return set(map(type, values)) <= {kind}
+
+
 def _bool(value: Any, name: str, ctx: Context | None) -> bool:
     if not isinstance(value, bool):
         raise DecodeError(f"{name}: expected bool")
@@ -201,6 +228,8 @@ def _bool(value: Any, name: str, ctx: Context | None) -> bool:
 
 
 def _int(value: Any, name: str, ctx: Context | None) -> int:
+    if type(value) is int:
+        return value
     if not isinstance(value, int) or isinstance(value, bool):
         raise DecodeError(f"{name}: expected int")
     return value
@@ -213,6 +242,8 @@ def _float(value: Any, name: str, ctx: Context | None) -> float:
 
 
 def _str(value: Any, name: str, ctx: Context | None) -> str:
+    if type(value) is str:
+        return value
     if not isinstance(value, str):
         raise DecodeError(f"{name}: expected str")
     return value
@@ -225,6 +256,8 @@ def _bytes(value: Any, name: str, ctx: Context | None) -> bytes:
 
 
 _SCALARS: dict[Any, Convert] = {bool: _bool, int: _int, float: _float, str: _str, bytes: _bytes}
+#: The scalar converters that accept a value of exactly this type as it is (their fast path).
+_EXACT: dict[Convert, type] = {_int: int, _str: str}
 
 
 def _array(value: Any, name: str) -> np.ndarray:
@@ -235,13 +268,56 @@ def _array(value: Any, name: str) -> np.ndarray:
         raise DecodeError(f"{name}: bad packed array")
     if not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in shape) or len(shape) > 3:
         raise DecodeError(f"{name}: bad array shape")
-    dt = np.dtype(dtype)
+    dt = _DTYPES[dtype]
     count = 1
     for s in shape:  # Python ints: no overflow for any shape
         count *= s
     if count * dt.itemsize != len(data) or len(data) > MAX_ARRAY_BYTES:
         raise DecodeError(f"{name}: array data does not match its shape")
-    return np.frombuffer(data, dtype=dt).reshape(shape)
+    arr = np.frombuffer(data, dtype=dt)
+    return arr if len(shape) == 1 else arr.reshape(shape)
+
+
+_DTYPES = {name: np.dtype(name) for name in ALLOWED_DTYPES}
+
+
+#: Fast decoders (issue 11, part 4), by record class: a function of the record's msgpack map (a message's with
+#: ``kind`` and ``v``, a payload's without) and the context that returns the record when the map is well formed
+#: and valid in the common way, and None otherwise, in which case the generic, checking decode runs (and
+#: raises the error). So a fast decoder decides nothing: it only accepts sooner what the generic decode
+#: accepts (``tests/core/test_fast_decode.py`` checks the two agree on mutated maps). Registered with
+#: :func:`fast_decoder` by the module that defines the record.
+FastDecoder = Callable[[dict, "Context | None"], "Record | None"]
+_FAST: dict[type, FastDecoder] = {}
+
+
+def fast_decoder(cls: type[Record]) -> Callable[[FastDecoder], FastDecoder]:
+    """Register the decorated function as ``cls``'s fast decoder (see :data:`_FAST`)."""
+    def register(fn: FastDecoder) -> FastDecoder:
+        _FAST[cls] = fn
+        return fn
+    return register
+
+
+def generic_decode(data: bytes, ctx: Context | None = None, expected: type[M] | None = None,
+                   kind: str | None = None) -> Any:
+    """:func:`decode` (or, with ``kind``, :func:`decode_payload`) without the fast decoders: the definition
+    they are tested against."""
+    saved = dict(_FAST)
+    _FAST.clear()
+    try:
+        return decode_payload(kind, data, ctx) if kind is not None else decode(data, ctx, expected)
+    finally:
+        _FAST.update(saved)
+
+
+def packed_array(value: Any) -> np.ndarray | None:
+    """A packed array (:func:`_to_obj`'s form) as a read-only view of its bytes, or None when ``value`` is not
+    a valid one (for fast decoders, which leave the error to the generic decode)."""
+    try:
+        return _array(value, "")
+    except DecodeError:
+        return None
 
 
 def _decode_obj(obj: Any, ctx: Context | None, expected: type[Message] | None = None) -> Message:
@@ -251,6 +327,11 @@ def _decode_obj(obj: Any, ctx: Context | None, expected: type[Message] | None = 
     cls = Message.REGISTRY.get(kind) if isinstance(kind, str) else None
     if cls is None:
         raise DecodeError(f"unknown message kind {kind!r}")
+    fast = _FAST.get(cls)
+    if fast is not None and (expected is None or issubclass(cls, expected)):
+        record = fast(obj, ctx)
+        if record is not None:
+            return record  # type: ignore[return-value]
     if expected is not None and not issubclass(cls, expected):
         raise DecodeError(f"expected {expected.KIND or expected.__name__}, got {kind!r}")
     version = obj.get("v", 1)
@@ -279,20 +360,25 @@ def _fields(cls: type[Record]) -> tuple[tuple[_Field, ...], frozenset[str]]:
 
 def _build(cls: type[Record], fields: dict[Any, Any], ctx: Context | None) -> Record:
     """A record of ``cls`` from its decoded field map, every field checked against its type, then validated."""
-    plan, names = _fields(cls)
+    names = _fields(cls)[1]
     if not names.issuperset(fields):
         extra = set(fields) - names
         raise DecodeError(f"{cls.KIND}: unexpected fields {sorted(map(str, extra))}")
     values = {}
-    for f in plan:
-        if f.name not in fields:
-            if f.optional:
-                continue
-            raise DecodeError(f"{cls.KIND}: missing field {f.name!r}")
-        values[f.name] = f.convert(fields[f.name], f.label, ctx)
+    for name, label, optional, convert in _steps(cls):
+        if name in fields:
+            values[name] = convert(fields[name], label, ctx)
+        elif not optional:
+            raise DecodeError(f"{cls.KIND}: missing field {name!r}")
     record = cls(**values)
     record.validate(ctx)
     return record
+
+
+@functools.cache
+def _steps(cls: type[Record]) -> tuple[tuple[str, str, bool, Convert], ...]:
+    """:func:`_fields`'s plan as plain tuples (the decoding loop unpacks them rather than read attributes)."""
+    return tuple((f.name, f.label, f.optional, f.convert) for f in _fields(cls)[0])
 
 
 def _guarded(build: Callable[[], R]) -> R:
@@ -327,6 +413,11 @@ def decode_payload(kind: str, data: bytes, ctx: Context | None = None) -> Payloa
     obj = _unpack(data)
     if not isinstance(obj, dict):
         raise DecodeError(f"{kind}: payload is not a map")
+    fast = _FAST.get(cls)
+    if fast is not None:
+        record = _guarded(lambda: fast(obj, ctx))
+        if record is not None:
+            return record  # type: ignore[return-value]
     return _guarded(lambda: _build(cls, obj, ctx))  # type: ignore[return-value]
 
 

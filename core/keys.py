@@ -76,6 +76,15 @@ class Keys:
     def alive(self, role: str, node: str) -> str:
         return key(self.run, "alive", role, node)
 
+    def folded(self, radio: bool = False) -> tuple[str, ...]:
+        """The keys the launcher's fold reads (``recording/monitor.py``), and the world's hello it answers:
+        what it subscribes to when it does not record (issue 11, part 4: at 256 robots the observations, the
+        rx and tx bundles and the belief snapshots are most of the bus); with ``radio`` (a relaying run, whose
+        bundles' headers it folds) the radio bundles too."""
+        return (self.state, self.clock, self.links, self.hello, self.stop, self.report("*"),
+                self.wildcard("robot", "*", "cmd"), self.wildcard("robot", "*", "timing"),
+                *((self.tx("*"), self.rx("*")) if radio else ()))
+
     def wildcard(self, *parts: str) -> str:
         return key(self.run, *parts)
 

@@ -1,9 +1,10 @@
-"""Every message of the lockstep protocol, defined once (DESIGN.md "Messages"), and the radio envelope.
+"""Every message of the lockstep protocol, defined once (DESIGN.md "Messages"): the one module to import them from.
 
-Barrier messages (world -> agents, netem -> agents, agents -> world/netem), control messages, and the
-:class:`Envelope` that carries one radio message inside tx/rx bundles. Radio payloads are not defined here:
-each protocol owns its own (``agents/protocol.py`` for poses and map deltas, each allocator's module for its
-messages), and netem routes envelopes without decoding them. Encode with ``msg.encode()``; decode with
+The barrier messages (world -> agents, netem -> agents, agents -> world/netem), netem's links, the belief snapshots
+and the real-time messages are defined here; the radio envelope and its bundles in ``core/envelope.py``, the control
+messages and the hosts' lobby in ``core/lobby.py``, and re-exported here. Radio payloads are not defined here: each
+protocol owns its own (``agents/protocol.py`` for poses and map deltas, each allocator's module for its messages),
+and netem routes envelopes without decoding them. Encode with ``msg.encode()``; decode with
 :func:`fleet_emu.core.codec.decode`.
 """
 
@@ -13,17 +14,37 @@ import dataclasses
 
 import numpy as np
 
-from fleet_emu.core.access import Credential
 from fleet_emu.core.codec import Context, DecodeError, Message, Payload, decode, decode_payload, peek_tick
+from fleet_emu.core.envelope import (
+    MAX_PAYLOAD_BYTES,
+    MAX_TTL,
+    Envelope,
+    RadioMsg,
+    RxBundle,
+    TxBundle,
+    open_envelope,
+    seal,
+)
 from fleet_emu.core.grid import MOVES, STAY, Cell
-from fleet_emu.core.keys import HOST_ID, ROBOT_ID, RUN_ID
+from fleet_emu.core.lobby import (
+    HOST_EVENTS,
+    MAX_REALTIME_HZ,
+    AgentReport,
+    BaseReport,
+    Failed,
+    Hello,
+    HostAssign,
+    HostStatus,
+    Ready,
+    Stop,
+)
 
 __all__ = [
     "Context", "DecodeError", "Message", "Payload", "decode", "decode_payload", "peek_tick",
-    "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope",
-    "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links", "Hello", "Ready", "Failed",
-    "Stop",
-    "AgentReport", "BeliefSnapshot", "HostAssign", "HostStatus", "WorldClock", "AgentTiming", "STALE",
+    "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope", "MAX_TTL",
+    "MAX_PAYLOAD_BYTES", "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links",
+    "Hello", "Ready", "Failed", "Stop", "AgentReport", "BaseReport", "BeliefSnapshot", "HostAssign",
+    "HostStatus", "HOST_EVENTS", "MAX_REALTIME_HZ", "WorldClock", "AgentTiming", "STALE",
 ]
 
 VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
@@ -38,10 +59,20 @@ def check_cells(cells: np.ndarray, values: np.ndarray, shape: tuple[int, int] | 
         raise DecodeError(f"{what}: cells and values differ in length")
     if cells.dtype.kind not in "iu" or values.dtype != np.int8:
         raise DecodeError(f"{what}: wrong dtypes")
-    if len(cells) and (cells.min() < 0 or (shape is not None and cells.max() >= shape[0] * shape[1])):
+    if len(cells) and _out_of_range(cells, shape):
         raise DecodeError(f"{what}: cell index out of range")
     if len(values) and not _VALID_BYTE[values.view(np.uint8)].all():
         raise DecodeError(f"{what}: cell value not in (-1, 0, 100)")
+
+
+def _out_of_range(cells: np.ndarray, shape: tuple[int, int] | None) -> bool:
+    """Whether a cell index of ``cells`` (not empty) is negative or (with a shape) past the grid's last cell.
+    Signed indices are seen as unsigned of the same width, so that one maximum finds both: a negative one
+    becomes larger than any grid."""
+    if shape is not None and cells.dtype.kind == "i" and cells.dtype.itemsize >= 4:
+        size = shape[0] * shape[1]
+        return size <= 0 or int(cells.view(f"u{cells.dtype.itemsize}").max()) >= size
+    return bool(cells.min() < 0 or (shape is not None and cells.max() >= shape[0] * shape[1]))
 
 
 def check_cell(cell: Cell, shape: tuple[int, int] | None, what: str) -> None:
@@ -120,100 +151,6 @@ class Command(Message):
             check_cell(self.target, ctx.shape if ctx else None, "cmd")
 
 
-# --- radio (inside bundles) --------------------------------------------------------------------------
-
-MAX_TTL = 16
-MAX_PAYLOAD_BYTES = 16 * 1024 * 1024
-
-
-@dataclasses.dataclass(frozen=True)
-class Envelope(Message):
-    """One radio message as netem and relays see it: who sent this hop (``src``), who made it (``origin``),
-    for whom (``dst``: a robot id, ``base`` or ``*`` for everyone), hops left (``ttl``), and an opaque
-    ``payload`` of ``payload_kind`` that only the protocol owning that kind decodes. ``(origin, seq)`` is the
-    message's id; ``seq`` comes from the origin's one counter."""
-
-    KIND = "radio"
-    origin: str
-    dst: str
-    ttl: int
-    payload_kind: str
-    payload: bytes
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        if not 0 <= self.ttl <= MAX_TTL:
-            raise DecodeError("radio: ttl out of range")
-        if len(self.payload) > MAX_PAYLOAD_BYTES:
-            raise DecodeError("radio: payload too large")
-        if ctx is not None and ctx.senders is not None and self.origin not in ctx.senders:
-            raise DecodeError(f"radio: unknown origin {self.origin!r}")
-
-
-@dataclasses.dataclass(frozen=True)
-class RadioMsg:
-    """A radio message as a robot's protocols see it: a decoded :class:`~fleet_emu.core.codec.Payload` and its
-    envelope's header. A protocol that sends gives ``body`` and ``dst`` (and ``ttl``); the sender's brain
-    fills in the rest when it seals the envelope."""
-
-    body: Payload
-    dst: str = "*"
-    ttl: int = 0
-    src: str = ""
-    origin: str = ""
-    tick: int = 0
-    seq: int = 0
-
-    @property
-    def kind(self) -> str:
-        return self.body.KIND
-
-
-def seal(msg: RadioMsg, src: str, tick: int, seq: int) -> Envelope:
-    """The envelope of a message ``src`` makes at ``tick``."""
-    return Envelope(src=src, tick=tick, seq=seq, origin=src, dst=msg.dst, ttl=msg.ttl, payload_kind=msg.kind,
-                    payload=msg.body.encode())
-
-
-def open_envelope(env: Envelope, ctx: Context | None = None) -> RadioMsg:
-    """Decode an envelope's payload; raises DecodeError (an unknown kind included).
-
-    The decoded payload is kept on the envelope with the context it was checked against, and given again to
-    the next receiver with an equal context: in the memory engine one broadcast envelope object reaches every
-    teammate, and decoding it once is enough (a payload is immutable: frozen, its arrays read-only views of
-    the message bytes). Over Zenoh every receiver decodes its own copy, so nothing changes there."""
-    cached = env.__dict__.get("_opened")
-    if cached is not None and cached[0] == ctx:
-        body = cached[1]
-    else:
-        body = decode_payload(env.payload_kind, env.payload, ctx)
-        object.__setattr__(env, "_opened", (ctx, body))
-    return RadioMsg(body=body, dst=env.dst, ttl=env.ttl, src=env.src, origin=env.origin, tick=env.tick,
-                    seq=env.seq)
-
-
-@dataclasses.dataclass(frozen=True)
-class TxBundle(Message):
-    """Everything one robot sends at ``tick`` (radio/tx/<robot>); sent even when empty."""
-
-    KIND = "tx"
-    msgs: tuple[Envelope, ...]
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        if any(m.src != self.src for m in self.msgs):
-            raise DecodeError("tx: a message's src differs from the bundle's")
-
-
-@dataclasses.dataclass(frozen=True)
-class RxBundle(Message):
-    """What netem delivers to robot ``dst`` at ``tick`` (radio/rx/<robot>); sent even when empty."""
-
-    KIND = "rx"
-    dst: str
-    msgs: tuple[Envelope, ...]
-
-
 # --- netem -> everyone ---------------------------------------------------------------------------------
 
 @dataclasses.dataclass(frozen=True)
@@ -246,71 +183,6 @@ class Links(Message):
                 raise DecodeError(f"links: {name} of shape {arr.shape} for {n} robots")
 
 
-# --- control ---------------------------------------------------------------------------------------------
-
-@dataclasses.dataclass(frozen=True)
-class Hello(Message):
-    """The world's start handshake (ctl/hello): every node answers with :class:`Ready`."""
-
-    KIND = "hello"
-
-
-@dataclasses.dataclass(frozen=True)
-class Ready(Message):
-    """A node's answer to :class:`Hello` (ctl/ready/<id>): its subscriptions are in place."""
-
-    KIND = "ready"
-    role: str
-    pid: int
-
-
-@dataclasses.dataclass(frozen=True)
-class Failed(Message):
-    """The launcher saw a robot's process exit (ctl/failed/<robot>): the world fails it at once, even
-    before its liveliness token existed."""
-
-    KIND = "failed"
-    robot: str
-    reason: str
-
-
-@dataclasses.dataclass(frozen=True)
-class Stop(Message):
-    """The run is over (ctl/stop): nodes report and exit."""
-
-    KIND = "stop"
-    reason: str
-
-
-@dataclasses.dataclass(frozen=True)
-class AgentReport(Message):
-    """An agent's summary when it stops (ctl/report/<robot>): counters the launcher puts in result.json."""
-
-    KIND = "report"
-    decisions: int
-    decision_ms_mean: float
-    decision_ms_p95: float
-    dropped: int
-    peak_rss_kb: int
-    decision_cpu_ms: float = 0.0  # thread CPU in the allocator, summed over the decisions (issue 11)
-    step_cpu_ms: float = 0.0  # thread CPU in the brain's whole step, summed (decision included)
-
-
-@dataclasses.dataclass(frozen=True)
-class BaseReport(Message):
-    """The base station's summary when it stops (ctl/report/base): what its team map holds
-    (``agents/base.py``): known cells of ``cells``, the map deltas and fills merged, the ticks heard."""
-
-    KIND = "base_report"
-    cell: Cell
-    known_cells: int
-    cells: int
-    merged: int
-    ticks: int
-    dropped: int
-    peak_rss_kb: int
-
-
 @dataclasses.dataclass(frozen=True)
 class BeliefSnapshot(Message):
     """A robot's whole belief grid (robot/<robot>/belief), every few ticks, for the recording only."""
@@ -324,69 +196,6 @@ class BeliefSnapshot(Message):
             raise DecodeError("belief: expected a 2-D int8 grid")
         if ctx is not None and ctx.shape is not None and self.grid.shape != ctx.shape:
             raise DecodeError("belief: grid shape differs from the map's")
-
-
-# --- the hosts' lobby (fleet-host/<host>/..., launch/hosts.py) --------------------------------------------
-
-MAX_REALTIME_HZ = 1000.0  # the fastest real-time rate a run accepts (``fleet run --realtime``)
-HOST_EVENTS = frozenset({"accepted", "busy", "spawned", "exited", "ended"})
-
-
-@dataclasses.dataclass(frozen=True)
-class HostAssign(Message):
-    """The launcher's request to host ``host`` (fleet-host/<host>/spawn): start ``robots`` of run ``run``, whose
-    scenario (as ``scenario.json``) is ``scenario``; ``secrets`` maps each robot to its bus credential (JSON,
-    user and password: the host adds its own TLS CA), empty on an unauthenticated bus; ``realtime_hz`` the
-    run's real-time rate (``fleet run --realtime HZ``; 0: lockstep), which the robots are started with. ``end``
-    set: tear the run's robots down instead."""
-
-    KIND = "host_assign"
-    host: str
-    run: str
-    robots: tuple[str, ...] = ()
-    scenario: str = ""
-    secrets: dict[str, str] = dataclasses.field(default_factory=dict)
-    fork_server: bool = True
-    end: bool = False
-    realtime_hz: float = 0.0
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        if not HOST_ID.fullmatch(self.host) or not RUN_ID.fullmatch(self.run):
-            raise DecodeError("host_assign: bad host or run id")
-        if not 0.0 <= self.realtime_hz <= MAX_REALTIME_HZ:  # NaN fails too
-            raise DecodeError(f"host_assign: realtime_hz {self.realtime_hz!r} not in [0, {MAX_REALTIME_HZ:g}]")
-        if not all(ROBOT_ID.fullmatch(r) for r in self.robots) or len(set(self.robots)) != len(self.robots):
-            raise DecodeError("host_assign: bad robot ids")
-        if not set(self.secrets) <= set(self.robots):
-            raise DecodeError("host_assign: a secret for a robot not assigned")
-        for robot, secret in self.secrets.items():
-            try:
-                cred = Credential.from_json(secret)
-            except ValueError:
-                raise DecodeError(f"host_assign: {robot}'s credential is not a user and password") from None
-            if cred.user != robot:
-                raise DecodeError(f"host_assign: {robot}'s credential is {cred.user!r}'s")
-
-
-@dataclasses.dataclass(frozen=True)
-class HostStatus(Message):
-    """A host's report (fleet-host/<host>/status) about run ``run``: ``accepted`` (or ``busy`` with another run),
-    ``spawned`` (``robot`` with its ``pid``), ``exited`` (``robot`` with its exit ``code``), ``ended`` (every
-    robot of the run is gone)."""
-
-    KIND = "host_status"
-    run: str
-    event: str
-    robot: str = ""
-    pid: int = 0
-    code: int = 0
-    error: str = ""
-
-    def validate(self, ctx: Context | None) -> None:
-        super().validate(ctx)
-        if self.event not in HOST_EVENTS:
-            raise DecodeError(f"host_status: unknown event {self.event!r}")
 
 
 # --- real-time mode only (``fleet run --realtime HZ``) ---------------------------------------------------------

@@ -269,8 +269,13 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         session = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(LAUNCHER)))))
         listener = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(RECORDER)))))
         samples: queue.Queue[tuple[str, bytes, int] | None] = queue.Queue()
-        sub = listener.declare_subscriber(
-            keys.all, lambda s: samples.put((str(s.key_expr), s.payload.to_bytes(), time.time_ns())))
+
+        def take(s: zenoh.Sample) -> None:
+            samples.put((str(s.key_expr), s.payload.to_bytes(), time.time_ns()))
+        # everything when recording; else only what the fold reads (Keys.folded): at 256 robots the rest (obs,
+        # the radio bundles with every first contact's whole maps, belief snapshots) was most of the bus
+        subs = [listener.declare_subscriber(k, take)
+                for k in ((keys.all,) if recorder is not None else keys.folded(radio=scenario.relay != "none"))]
         pub_ready = publisher(session, keys.ready("launcher"))
         pub_stop = publisher(session, keys.stop)
         handles: list[Declared] = [pub_ready, pub_stop,
@@ -316,7 +321,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
             if nodes_thread is not None:
                 nodes_thread.join(STOP_GRACE)
             time.sleep(0.1)  # let the last samples reach the subscriber
-            undeclare([sub])
+            undeclare(subs)
             samples.put(None)
             consumer.join()  # it may still answer a hello on pub_ready: undeclare that only after it ends
             undeclare(handles)

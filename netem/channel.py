@@ -80,21 +80,34 @@ class Channel:
         index = {r: i for i, r in enumerate(robots)}
         due = self._pending[tick + self.latency]
         c = self.counters
+        has_base = BASE in index
         for src in robots:
-            for msg in bundles.get(src, ()):
+            msgs = bundles.get(src, ())
+            if not msgs:
+                continue
+            row = link[index[src]]
+            others = [r for r in robots if r != src]
+            others_linked = row[[index[r] for r in others]] if others else np.zeros(0, dtype=bool)
+            for msg in msgs:
                 c.bytes_sent += len(msg.encode())
-                receivers = [r for r in robots if r != src and (msg.dst == "*" or msg.dst == r or msg.ttl > 0)]
-                for dst in receivers:
-                    rng = self.base_rng if BASE in (src, dst) else self.rng
-                    lost = rng.random() < self.loss
-                    c.sent += 1
-                    if not link[index[src], index[dst]]:
-                        c.dropped_signal += 1
-                    elif lost:
-                        c.dropped_loss += 1
-                    else:
-                        c.delivered += 1
-                        due[dst].append(msg)
+                if msg.dst == "*" or msg.ttl > 0:
+                    receivers, linked = others, others_linked
+                else:
+                    receivers = [msg.dst] if msg.dst in index and msg.dst != src else []
+                    linked = row[[index[r] for r in receivers]] if receivers else others_linked[:0]
+                if has_base and (src == BASE or BASE in receivers):
+                    draws = np.array([(self.base_rng if BASE in (src, dst) else self.rng).random()
+                                      for dst in receivers])
+                else:  # one draw per receiver in turn, taken at once: the same numbers (issue 11, part 4)
+                    draws = self.rng.random(len(receivers))
+                ok = linked & (draws >= self.loss) if len(receivers) else linked
+                n_linked, n_ok = int(np.count_nonzero(linked)), int(np.count_nonzero(ok))
+                c.sent += len(receivers)
+                c.dropped_signal += len(receivers) - n_linked
+                c.dropped_loss += n_linked - n_ok
+                c.delivered += n_ok
+                for j in np.flatnonzero(ok).tolist():
+                    due[receivers[j]].append(msg)
 
     def deliver(self, tick: int) -> dict[str, list[Envelope]]:
         """What arrives at ``tick``, per receiver (and forget it)."""

@@ -6,7 +6,7 @@ overlays several runs' coverage curves with :func:`compare_plot`.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -144,6 +144,32 @@ def compare_plot(runs: list[Run], path: Path) -> None:
     ax.set(xlabel="tick", ylabel="coverage (%)", ylim=(0, 102), title="coverage")
     ax.legend(fontsize=8, loc="lower right")
     ax.grid(alpha=0.3)
+    fig.savefig(path)
+
+
+def panels_plot(panels: Mapping[tuple[str, str], Mapping[str, Sequence[float]]], path: Path, *, xlabel: str,
+                ylabel: str, title: str) -> None:
+    """Small multiples: one panel per ``(row, column)`` key (rows and columns in the keys' first-seen order),
+    one line per named series in each (the value at each tick 0, 1, ...), the x axis shared by all, the y axis
+    along a row. ``benchmarks/paper_setting.py`` draws Mukhija et al.'s Fig. 7 (cells seen against ticks, a
+    line per fleet size) with it, a column per allocator and a row per map."""
+    rows = list(dict.fromkeys(r for r, _ in panels))
+    cols = list(dict.fromkeys(c for _, c in panels))
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(4.2 * len(cols), 3.4 * len(rows)), dpi=110, layout="constrained")
+    axes = np.atleast_2d(fig.subplots(len(rows), len(cols), sharex=True, sharey="row", squeeze=False))
+    for i, row in enumerate(rows):
+        for j, col in enumerate(cols):
+            ax = axes[i, j]
+            for label, ys in (panels.get((row, col)) or {}).items():
+                ax.plot(np.arange(len(ys)), np.asarray(ys, dtype=float), lw=1.5, label=label)
+            ax.set(title=f"{col}: {row}", xlabel=xlabel if i == len(rows) - 1 else "",
+                   ylabel=ylabel if j == 0 else "")
+            ax.grid(alpha=0.3)
+            if ax.lines:
+                ax.legend(fontsize=8, loc="lower right")
+    fig.suptitle(title, fontsize=10)
     fig.savefig(path)
 
 

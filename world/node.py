@@ -32,7 +32,8 @@ from fleet_emu.core.scenario import Scenario
 from fleet_emu.world.realtime import CommandLatch, TickClock
 from fleet_emu.world.sim import Reading, World, WorldConfig
 
-HELLO_PERIOD = 0.1
+HELLO_PERIOD = 0.1  # seconds between the first hellos; each wait is 1.5 times the last, up to HELLO_MAX
+HELLO_MAX = 0.5  # (every node answers every hello: at 256 robots a fixed 0.1 s gave ~80 rounds of 256 readies)
 # How long the world waits for every node's ready: a base, and a second per robot (robots started afresh each
 # import numpy, numba and scipy: 28 s for 32 of them on 2 loaded cores; 256 forked robots took 47 s).
 STARTUP_TIMEOUT = 120.0
@@ -135,11 +136,11 @@ class WorldNode(NodeBase):
         return reason
 
     async def _handshake(self, inbox: Inbox, pub_hello: zenoh.Publisher) -> bool:
-        """Repeat the hello until the launcher (its recorder), netem and every agent answered: their
-        subscriptions are then in place, so nothing of tick 0 is published into the void."""
+        """Repeat the hello, less and less often, until the launcher (its recorder), netem and every agent
+        answered: their subscriptions are then in place, so nothing of tick 0 is published into the void."""
         waiting = {"launcher", "netem", *([BASE] if self.scenario.has_base else []), *self.robots}
         deadline = time.monotonic() + self.startup_timeout
-        next_hello = 0.0
+        next_hello, period = 0.0, HELLO_PERIOD
         while waiting:
             now = time.monotonic()
             if now > deadline:
@@ -147,8 +148,9 @@ class WorldNode(NodeBase):
                 return False
             if now >= next_hello:
                 pub_hello.put(Hello(src="world", tick=0, seq=0).encode())
-                next_hello = now + HELLO_PERIOD
-            item = await inbox.get(timeout=HELLO_PERIOD)
+                next_hello = now + period
+                period = min(HELLO_MAX, period * 1.5)
+            item = await inbox.get(timeout=max(0.0, next_hello - time.monotonic()))
             if item is None:
                 continue
             key, data, is_put = item

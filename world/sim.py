@@ -83,6 +83,13 @@ class World:
     def shape(self) -> tuple[int, int]:
         return self.grid.shape  # type: ignore[return-value]
 
+    @property
+    def sensed_cells(self) -> int:
+        """Cells of the map, free or occupied, that some robot's sensor has returned so far (the team's
+        "total visibility" of Mukhija et al. Fig. 7); 0 before :meth:`reset`."""
+        sensed = getattr(self, "_sensed", None)
+        return int(sensed.sum()) if sensed is not None else 0
+
     def start_cells(self, n: int | None = None, radius: int | None = None) -> list[Cell]:
         """The ``n`` free cells nearest the start (all of them without ``n``; only those within ``radius`` BFS
         steps with it), nearest first: BFS distance, then row-major, so deterministic. The first ``n`` of

@@ -28,3 +28,27 @@ def test_changed_cells_are_taken_once_and_news_come_in_order() -> None:
     assert idx.tolist() == [2, 5, 9] and val.tolist() == [100, 0, 0] and idx.dtype == np.int32
     b.merge(np.array([5]), np.array([100], np.int8))
     assert b.take_changed().tolist() == [5] and b.take_news()[0].tolist() == [5]
+
+
+def test_merge_many_is_the_merges_in_turn() -> None:
+    """Random parts (repeated cells across parts, cells changed and changed back, unknown values, and parts
+    that repeat a cell themselves): the same grid, news, changed cells and count as merging them one by one."""
+    rng = np.random.default_rng(5)
+    for trial in range(300):
+        shape = (int(rng.integers(1, 6)), int(rng.integers(1, 6)))
+        size = shape[0] * shape[1]
+        start = rng.choice(np.array([-1, 0, 100], np.int8), size=shape)
+        parts = []
+        for _ in range(int(rng.integers(0, 6))):
+            n = int(rng.integers(0, size + 1))
+            cells = (rng.integers(0, size, n) if trial % 3 == 0 else rng.permutation(size)[:n]).astype(np.int32)
+            parts.append((cells, rng.choice(np.array([-1, 0, 100], np.int8), size=n)))
+        one, many = Belief(shape), Belief(shape)
+        one.grid[:] = start
+        many.grid[:] = start
+        counted = sum(one.merge(c, v) for c, v in parts)
+        assert many.merge_many(parts) == counted
+        assert (many.grid == one.grid).all()
+        assert sorted(set(many.take_changed().tolist())) == sorted(set(one.take_changed().tolist()))
+        got, want = many.take_news(), one.take_news()
+        assert got[0].tolist() == want[0].tolist() and got[1].tolist() == want[1].tolist()

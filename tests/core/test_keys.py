@@ -44,3 +44,15 @@ def test_run_ids_and_robot_ids() -> None:
     with pytest.raises(ValueError):
         key("a/b")
     assert robot_ids(3) == ["r0", "r1", "r2"]
+
+
+@pytest.mark.parametrize("radio", [False, True])
+def test_the_launcher_without_a_recording_subscribes_to_what_its_fold_reads(radio: bool) -> None:
+    """``Keys.folded``: the channels the monitor folds (recording/monitor.py), the world's hello the launcher
+    answers, and the radio bundles only in a relaying run; never the observations, rx bundles and beliefs."""
+    from fleet_emu.recording.monitor import _FOLDED, _RADIO
+
+    keys = Keys("run1")
+    channels = {keys.parse(k.replace("*", "r3")).channel for k in keys.folded(radio)}  # type: ignore[union-attr]
+    assert channels == _FOLDED | {"hello"} | (_RADIO if radio else set())
+    assert not {"obs", "belief", "ready", "failed"} & channels

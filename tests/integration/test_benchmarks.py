@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -91,6 +92,9 @@ def test_scale_reports_a_row_per_map_and_fleet(small_map: Path) -> None:
         start, tps, total, cores = float(r[3]), float(r[5]), float(r[12]), float(r[13])
         assert start > 0 and tps > 0 and total > 0 and cores > 0, r
         assert all(float(v) > 0 for v in r[14:19]), r  # PSS of agents, world, netem and the launcher
+        # decide, brain and a.bus come from the agents' own clocks over the same steps: a.bus (the process's
+        # CPU outside its steps) is never negative, as it was from the /proc window under load
+        assert float(r[8]) > 0 and float(r[9]) > 0 and float(r[10]) >= 0, r
     assert [r[3] for r in rows if len(r) < 21] == ["start:", "cap:"] * 2
     assert rows[0][1].startswith(("19x", "20x", "21x"))  # the maze fitted to about 20 cells across
     assert len(proc.stderr.strip().splitlines()) == 8  # two map lines, six progress lines
@@ -193,3 +197,39 @@ def test_relay_prints_a_row_per_policy_and_ttl(small_map: Path) -> None:
     assert float(rows[("flood", "2")].split("|")[5].split("±")[0]) > 0  # some beacons crossed a relay
     bad = _bench("relay.py", "--map", "/no/such/map.png", "--seeds", "1")
     assert bad.returncode == 2 and bad.stderr.startswith("relay: error: ") and bad.stderr.count("\n") == 1
+
+
+def test_paper_setting_prints_fig7_rows_and_draws_them(small_map: Path, tmp_path: Path) -> None:
+    """Issue 10, part 6: a row per allocator and fleet size; MHM keeps every robot connected to the base (its
+    constraint), the cells seen grow, and the PNG and the JSON are written; ``--from`` redraws from the JSON."""
+    png, data = tmp_path / "fig7.png", tmp_path / "fig7.json"
+    proc = _bench("paper_setting.py", "--maps", str(small_map), "--cells", "24", "--r-comm", "6", "--sensor", "3",
+                  "--robots", "2", "3", "--allocators", "mhm", "minpos", "--max-ticks", "30", "--at", "10", "30",
+                  "--out", str(png), "--json", str(data))
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.strip().splitlines()
+    assert lines[0].startswith("# benchmarks/paper_setting.py (issue 10, part 6): ")
+    assert "# map two_rooms: drawn at " in lines[2] and lines[2].endswith("base at (11, 12)")  # padded
+    assert lines[3].split()[:8] == ["map", "allocator", "robots", "ticks", "end", "coverage", "seen@10", "seen@30"]
+    rows = [ln.split() for ln in lines[4:]]
+    assert [(r[1], r[2]) for r in rows] == [("mhm", "2"), ("mhm", "3"), ("minpos", "2"), ("minpos", "3")]
+    for r in rows:
+        assert 0 < int(r[6]) <= int(r[7]) <= 24 * 24, r  # cells seen by ticks 10 and 30: grow, within the map
+        assert 0.0 <= float(r[10]) <= float(r[8]) <= 1.0, r  # worst tick <= overall share connected
+    assert all(float(r[10]) == 1.0 for r in rows[:2])  # MHM: every robot linked to the base at every tick
+    assert all(r[12:14] == ["-", "-"] for r in rows[2:])  # p95 / max only for MHM's planner
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    saved = json.loads(data.read_text())["rows"]
+    assert [len(r["seen"]) for r in saved] == [r["ticks"] + 1 for r in saved]  # ticks 0..T
+    assert [(r["end"], r["ticks"]) for r in saved[:2]] == [("step18", 27), ("max_ticks", 30)]  # MHM: up to tick 30
+    again = _bench("paper_setting.py", "--from", str(data), "--at", "10", "30", "--max-ticks", "30")
+    assert again.returncode == 0 and again.stdout.strip().splitlines()[1:] == lines[4:], again.stderr[-2000:]
+
+
+def test_paper_setting_bad_input_is_one_line() -> None:
+    proc = _bench("paper_setting.py", "--allocators", "telepathy")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert proc.stderr.startswith("paper_setting: error: unknown allocator 'telepathy'")
+    proc = _bench("paper_setting.py", "--maps", "/no/such/map.png")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert proc.stderr.startswith("paper_setting: error: map /no/such/map.png: ")

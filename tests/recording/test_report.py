@@ -301,3 +301,20 @@ def test_bad_input(case: str, tmp_path: Path, small_run: Path, capsys: pytest.Ca
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith("fleet: error: ") and err.count("\n") == 1, err
+
+
+def test_panels_plot_draws_a_panel_per_key_and_a_line_per_series(tmp_path: Path) -> None:
+    """The small multiples of ``benchmarks/paper_setting.py`` (Fig. 7): rows and columns from the keys."""
+    from fleet_emu.recording.plots import panels_plot
+
+    out = tmp_path / "panels.png"
+    panels = {("grid", "mhm"): {"10 robots": [1, 5, 9], "20 robots": [1, 8, 20]},
+              ("grid", "minpos"): {"10 robots": [1, 2]}, ("cave", "mhm"): {"10 robots": [3, 4, 4, 6]}}
+    panels_plot(panels, out, xlabel="tick", ylabel="cells seen", title="t")
+    with Image.open(out) as im:
+        two_by_two = im.size
+    assert out.stat().st_size > 5_000 and colours(out) > 4
+    panels_plot({("grid", "mhm"): panels[("grid", "mhm")]}, out, xlabel="tick", ylabel="cells seen", title="t")
+    with Image.open(out) as im:
+        one = im.size
+    assert two_by_two[0] > 1.5 * one[0] and two_by_two[1] > 1.5 * one[1]  # 2 columns, 2 rows against 1 x 1

@@ -90,6 +90,18 @@ def test_sensing_returns_true_values_and_stops_at_walls() -> None:
     assert 0 < w.coverage < 1
 
 
+def test_sensed_cells_count_walls_too_and_only_grow() -> None:
+    """``sensed_cells`` (Mukhija et al. Fig. 7's "total visibility") counts every cell a sensor returned,
+    occupied ones included, once, while ``coverage`` counts free reachable cells only."""
+    w = _world(ROOMS, 1, sensor_range=4.0)
+    assert w.sensed_cells == 0
+    first = w.reset()["r0"]
+    assert w.sensed_cells == len(first.cells) and (first.values == OCCUPIED).any()
+    before = w.sensed_cells
+    second = w.step({"r0": (0, 1)})["r0"]  # one step east: most cells seen again
+    assert w.sensed_cells == len(set(first.cells.tolist()) | set(second.cells.tolist())) > before
+
+
 def test_moves_respect_walls_and_other_robots() -> None:
     w = _world("""
     #######

@@ -1,0 +1,193 @@
+"""The radio envelope and the bundles that carry it (DESIGN.md "Radio envelope"; split out of
+``core/messages.py``, which re-exports every name here).
+
+An :class:`Envelope` carries one radio message: its header (who sent this hop, who made it, for whom, hops
+left, the message id) and an opaque payload that only the protocol owning its kind decodes
+(:func:`open_envelope`). A robot's :class:`TxBundle` holds what it sends in a tick, netem's :class:`RxBundle`
+what reaches a robot; both are packed from each envelope's kept bytes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import msgpack
+
+from fleet_emu.core.codec import (
+    MAX_ARRAY_BYTES,
+    Context,
+    DecodeError,
+    Message,
+    Payload,
+    decode_payload,
+    fast_decoder,
+)
+from fleet_emu.core.codec import _to_obj as to_obj
+from fleet_emu.core.version import SCHEMA_VERSION
+
+# --- radio (inside bundles) --------------------------------------------------------------------------
+
+MAX_TTL = 16
+MAX_PAYLOAD_BYTES = 16 * 1024 * 1024
+
+
+@dataclasses.dataclass(frozen=True)
+class Envelope(Message):
+    """One radio message as netem and relays see it: who sent this hop (``src``), who made it (``origin``),
+    for whom (``dst``: a robot id, ``base`` or ``*`` for everyone), hops left (``ttl``), and an opaque
+    ``payload`` of ``payload_kind`` that only the protocol owning that kind decodes. ``(origin, seq)`` is the
+    message's id; ``seq`` comes from the origin's one counter."""
+
+    KIND = "radio"
+    origin: str
+    dst: str
+    ttl: int
+    payload_kind: str
+    payload: bytes
+
+    def encode(self) -> bytes:
+        """The envelope's bytes, packed once and kept (an envelope is immutable): netem puts each broadcast
+        envelope in every receiver's rx bundle, and counts its size (issue 11, part 4)."""
+        packed = self.__dict__.get("_packed")
+        if packed is None:
+            packed = super().encode()
+            object.__setattr__(self, "_packed", packed)
+        return packed
+
+    def validate(self, ctx: Context | None) -> None:
+        super().validate(ctx)
+        if not 0 <= self.ttl <= MAX_TTL:
+            raise DecodeError("radio: ttl out of range")
+        if len(self.payload) > MAX_PAYLOAD_BYTES:
+            raise DecodeError("radio: payload too large")
+        if ctx is not None and ctx.senders is not None and self.origin not in ctx.senders:
+            raise DecodeError(f"radio: unknown origin {self.origin!r}")
+
+
+_ENVELOPE_KEYS = frozenset({"kind", "v", "src", "tick", "seq", "origin", "dst", "ttl", "payload_kind", "payload"})
+
+
+@fast_decoder(Envelope)
+def _fast_envelope(obj: dict, ctx: Context | None) -> Envelope | None:
+    """An envelope straight from its map when every field has exactly its type and it validates
+    (:meth:`Envelope.validate`'s checks, inlined); None for anything else, which the generic decode then
+    checks (an rx bundle holds every teammate's envelopes: issue 11, part 4)."""
+    if obj.keys() != _ENVELOPE_KEYS:
+        return None
+    src, tick, seq, origin, dst = obj["src"], obj["tick"], obj["seq"], obj["origin"], obj["dst"]
+    v, ttl, kind, payload = obj["v"], obj["ttl"], obj["payload_kind"], obj["payload"]
+    if not (type(v) is int and v <= SCHEMA_VERSION and type(src) is str and type(tick) is int and tick >= 0
+            and type(seq) is int and seq >= 0 and type(origin) is str and type(dst) is str and type(ttl) is int
+            and 0 <= ttl <= MAX_TTL and type(kind) is str and type(payload) is bytes
+            and len(payload) <= min(MAX_PAYLOAD_BYTES, MAX_ARRAY_BYTES)):
+        return None
+    senders = ctx.senders if ctx is not None else None
+    if senders is not None and (src not in senders or origin not in senders):
+        return None
+    env = object.__new__(Envelope)
+    env.__dict__.update(src=src, tick=tick, seq=seq, origin=origin, dst=dst, ttl=ttl, payload_kind=kind,
+                        payload=payload)
+    return env
+
+
+@dataclasses.dataclass(frozen=True)
+class RadioMsg:
+    """A radio message as a robot's protocols see it: a decoded :class:`~fleet_emu.core.codec.Payload` and its
+    envelope's header. A protocol that sends gives ``body`` and ``dst`` (and ``ttl``); the sender's brain
+    fills in the rest when it seals the envelope."""
+
+    body: Payload
+    dst: str = "*"
+    ttl: int = 0
+    src: str = ""
+    origin: str = ""
+    tick: int = 0
+    seq: int = 0
+
+    @property
+    def kind(self) -> str:
+        return self.body.KIND
+
+
+def seal(msg: RadioMsg, src: str, tick: int, seq: int) -> Envelope:
+    """The envelope of a message ``src`` makes at ``tick``."""
+    return Envelope(src=src, tick=tick, seq=seq, origin=src, dst=msg.dst, ttl=msg.ttl, payload_kind=msg.kind,
+                    payload=msg.body.encode())
+
+
+def open_envelope(env: Envelope, ctx: Context | None = None) -> RadioMsg:
+    """Decode an envelope's payload; raises DecodeError (an unknown kind included).
+
+    The decoded payload is kept on the envelope with the context it was checked against, and given again to
+    the next receiver with an equal context: in the memory engine one broadcast envelope object reaches every
+    teammate, and decoding it once is enough (a payload is immutable: frozen, its arrays read-only views of
+    the message bytes). Over Zenoh every receiver decodes its own copy, so nothing changes there."""
+    cached = env.__dict__.get("_opened")
+    if cached is not None and cached[0] == ctx:
+        body = cached[1]
+    else:
+        body = decode_payload(env.payload_kind, env.payload, ctx)
+        object.__setattr__(env, "_opened", (ctx, body))
+    msg = object.__new__(RadioMsg)  # RadioMsg(...) without the frozen dataclass's setattr per field
+    msg.__dict__.update(body=body, dst=env.dst, ttl=env.ttl, src=env.src, origin=env.origin, tick=env.tick,
+                        seq=env.seq)
+    return msg
+
+
+def _pack_bundle(bundle: TxBundle | RxBundle) -> bytes:
+    """A bundle's bytes as ``msgpack.packb(bundle.to_obj())`` gives them, with each envelope's kept bytes
+    (:meth:`Envelope.encode`) put in as they are rather than packed again."""
+    obj = {"kind": bundle.KIND, "v": SCHEMA_VERSION,
+           **{name: to_obj(getattr(bundle, name)) for name in _BUNDLE_HEAD[type(bundle)]}}
+    head = msgpack.packb(obj, use_bin_type=True)
+    n = len(obj) + 1  # a map header of 0x80 + n (n < 16 here), then the fields; msgs is the last field
+    assert head[0] == 0x80 + n - 1 and n < 16
+    body = msgpack.packb("msgs") + _array_header(len(bundle.msgs)) + b"".join(e.encode() for e in bundle.msgs)
+    return bytes([0x80 + n]) + head[1:] + body
+
+
+def _bundle_head(cls: type) -> tuple[str, ...]:
+    """A bundle class's fields before ``msgs``, its last."""
+    names = tuple(f.name for f in dataclasses.fields(cls))
+    assert names[-1] == "msgs"
+    return names[:-1]
+
+
+def _array_header(n: int) -> bytes:
+    """msgpack's header of an array of ``n`` items."""
+    if n < 16:
+        return bytes([0x90 + n])
+    if n < 1 << 16:
+        return b"\xdc" + n.to_bytes(2, "big")
+    return b"\xdd" + n.to_bytes(4, "big")
+
+
+@dataclasses.dataclass(frozen=True)
+class TxBundle(Message):
+    """Everything one robot sends at ``tick`` (radio/tx/<robot>); sent even when empty."""
+
+    KIND = "tx"
+    msgs: tuple[Envelope, ...]
+
+    def encode(self) -> bytes:
+        return _pack_bundle(self)
+
+    def validate(self, ctx: Context | None) -> None:
+        super().validate(ctx)
+        if any(m.src != self.src for m in self.msgs):
+            raise DecodeError("tx: a message's src differs from the bundle's")
+
+
+@dataclasses.dataclass(frozen=True)
+class RxBundle(Message):
+    """What netem delivers to robot ``dst`` at ``tick`` (radio/rx/<robot>); sent even when empty."""
+
+    KIND = "rx"
+    dst: str
+    msgs: tuple[Envelope, ...]
+
+    def encode(self) -> bytes:
+        return _pack_bundle(self)
+
+
+_BUNDLE_HEAD = {cls: _bundle_head(cls) for cls in (TxBundle, RxBundle)}
