@@ -37,7 +37,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--max-ticks", type=int, default=400)
     p.add_argument("--allocators", nargs="+", default=None)
     a = p.parse_args(argv)
-    names = a.allocators or [n for n in allocator_names() if n != "mhm"]  # mhm plans on the base: a later part
+    names = a.allocators or allocator_names()  # mhm too: every run here has its base
     print(f"# {a.map}, {a.robots} robots, {a.comm} radio, range {a.comm_range} m, loss {a.loss}, "
           f"{a.max_ticks} ticks at most, seeds 0..{a.seeds - 1}, base at the start cell")
     print("| allocator | base connected (overall) | all connected (ticks) | base knows | coverage | ticks |")
