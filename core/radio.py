@@ -47,6 +47,17 @@ class RadioConfig:
         """The loss probability the channel applies: none on the ideal radio."""
         return 0.0 if self.comm == "ideal" else self.loss
 
+    @property
+    def sure_range(self) -> float:
+        """The distance in metres within which two endpoints are linked whatever lies between them: ``disk``,
+        its range; ``wall``, eq. 4 solved for ``P = threshold`` with ``max_walls`` walls (the most it counts);
+        ``full`` and ``ideal`` (or a path loss of 0), infinite."""
+        if self.comm == "disk":
+            return self.comm_range
+        if self.comm == "wall" and self.path_loss > 0:
+            return self.comm_range * 10 ** (-(self.threshold + self.max_walls * self.waf) / (10 * self.path_loss))
+        return math.inf
+
 
 def signal_db(distance_m: float, walls: int, p: RadioConfig) -> float:
     """Benavides eq. 4 for one pair; ``distance_m`` is clamped to a millimetre (same-cell pairs)."""

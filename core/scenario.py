@@ -259,16 +259,9 @@ class Scenario:
 
     @property
     def link_cells(self) -> float:
-        """The distance in cells within which two endpoints are linked whatever lies between them: ``disk``,
-        its range; ``wall``, eq. 4's range through ``max_walls`` walls (the most it counts), so a link that
-        close holds through any walls; ``full`` and ``ideal``, the map can be no larger (1e6)."""
-        r = self.radio
-        if r.comm == "disk":
-            return r.comm_range / self.cell_size
-        if r.comm == "wall":
-            return r.comm_range * 10 ** (-(r.threshold + r.max_walls * r.waf) / (10 * r.path_loss)) / self.cell_size \
-                if r.path_loss > 0 else 1e6
-        return 1e6
+        """:attr:`RadioConfig.sure_range` in cells; 1e6 (no map is larger) where it is infinite."""
+        r = self.radio.sure_range
+        return r / self.cell_size if math.isfinite(r) else 1e6
 
     @property
     def sensor_cells(self) -> float:

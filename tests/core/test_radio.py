@@ -60,3 +60,15 @@ def test_disk_links_within_range_through_walls_and_full_links_all() -> None:
     assert full.sum() == 6
     assert RadioConfig(comm="ideal", loss=0.5).applied_loss == 0.0
     assert RadioConfig(comm="full", loss=0.5).applied_loss == 0.5
+
+
+def test_sure_range_is_where_eq4_meets_the_threshold_through_every_counted_wall() -> None:
+    import math
+
+    from fleet_emu.core.radio import RadioConfig, signal_db
+
+    p = RadioConfig(comm="wall", comm_range=10.0, threshold=0.0)
+    assert math.isclose(signal_db(p.sure_range, p.max_walls + 3, p), p.threshold, abs_tol=1e-9)
+    assert signal_db(p.sure_range * 1.01, p.max_walls, p) < p.threshold
+    assert RadioConfig(comm="disk", comm_range=7.0).sure_range == 7.0
+    assert math.isinf(RadioConfig(comm="full").sure_range)
