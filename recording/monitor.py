@@ -72,6 +72,7 @@ class Monitor:
     cells: dict[int, dict[str, Cell]] = dataclasses.field(default_factory=dict)  # tick -> live robots' cells
     status: dict[tuple[int, str], str] = dataclasses.field(default_factory=dict)  # (tick, robot) -> cmd status
     clock: WorldClock | None = None  # real-time runs only: the world's last clock
+    elapsed: dict[int, float] = dataclasses.field(default_factory=dict)  # and its wall seconds by tick
     timing: dict[str, AgentTiming] = dataclasses.field(default_factory=dict)  # and each robot's summary
     base: bool = False  # the run has a base station: fold base connectivity and the base's report
     base_reach: BaseConnectivity = dataclasses.field(default_factory=BaseConnectivity)
@@ -134,6 +135,7 @@ class Monitor:
         elif isinstance(msg, WorldClock) and msg.src == "world":
             if self.clock is None or msg.tick >= self.clock.tick:
                 self.clock = msg
+            self.elapsed[msg.tick] = msg.elapsed
         elif isinstance(msg, AgentTiming):
             self.timing[msg.src] = msg
         elif isinstance(msg, TxBundle) and self.relay_stats is not None:
@@ -226,7 +228,8 @@ class Monitor:
 
     def realtime(self) -> dict[str, Any]:
         """A real-time run's keys (none in lockstep, which publishes no clock): ``realtime_hz``, and under
-        ``realtime`` the world's ``overruns``, its achieved rate, and per robot its ``late_commands``
+        ``realtime`` the world's ``overruns``, its achieved rate, the wall seconds at which coverage reached
+        0.9 and 0.99 (``t90_s``, ``t99_s``: from tick 0's scheduled time), and per robot its ``late_commands``
         (decisions applied a tick late), ``late_steps`` (steps along the last plan that came late),
         ``missed_ticks`` (no command at all: it stood), ``decisions``, ``plan_steps``, ``waits`` and its
         decision-time percentiles (``decision_ms``: the whole step in its worker thread; ``allocator_ms``)."""
@@ -242,8 +245,14 @@ class Monitor:
                 {"decisions": None, "plan_steps": None, "waits": None, "decision_ms": None, "allocator_ms": None})
         return {"realtime_hz": ck.hz, "realtime": {
             "world_overruns": ck.overruns, "elapsed_s": round(ck.elapsed, 3),
+            "t90_s": self._wall(self.t90), "t99_s": self._wall(self.t99),
             "ticks_per_second": round(ck.tick / ck.elapsed, 3) if ck.elapsed > 0 else None,
             "late_commands": sum(ck.late.values()), "robots": robots}}
+
+    def _wall(self, tick: int | None) -> float | None:
+        """The world's wall seconds at ``tick`` since tick 0 was scheduled (None if its clock never came)."""
+        at = self.elapsed.get(tick) if tick is not None else None
+        return round(at, 3) if at is not None else None
 
     def dropped_by(self) -> dict[str, int]:
         """Messages each process dropped as malformed or spoofed: the launcher's own count, the world's and

@@ -3,6 +3,8 @@ summaries (and so recomputed from a recording); a lockstep run, which publishes 
 
 from __future__ import annotations
 
+import dataclasses
+
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import AgentTiming, Command, WorldClock, WorldState
 from fleet_emu.recording.monitor import Monitor
@@ -48,6 +50,7 @@ def test_a_real_time_run_reports_late_commands_overruns_and_decision_times_per_r
     assert res["realtime_hz"] == 10.0
     rt = res["realtime"]
     assert rt["world_overruns"] == 1 and rt["late_commands"] == 5 and rt["ticks_per_second"] == 10.0
+    assert rt["t90_s"] is None and rt["t99_s"] is None  # coverage 0.5 reached neither
     assert rt["robots"]["r0"] == {"late_commands": 5, "late_steps": 3, "missed_ticks": 2, "decisions": 7,
                                   "plan_steps": 30, "waits": 2, "decision_ms": _timing("r0", 7).decision_ms,
                                   "allocator_ms": _timing("r0", 7).allocator_ms}
@@ -60,3 +63,15 @@ def test_a_spoofed_clock_is_never_folded() -> None:
     m.feed(K.clock, WorldClock(src="r0", tick=1, seq=1, hz=10.0, elapsed=0.1, overruns=0, late={}, late_steps={},
                                missed={}).encode())
     assert m.clock is None and m.malformed == 1
+
+
+def test_the_wall_seconds_to_90_and_99_percent_come_from_the_clock_of_that_tick() -> None:
+    m = Monitor(ROBOTS)
+    for tick, cov in ((3, 0.5), (4, 0.95), (5, 0.97), (6, 0.995)):
+        m.feed(K.state, dataclasses.replace(_state(tick), coverage=cov).encode())
+        # the world ran slower than asked: tick k at 0.25 k s, not 0.1 k s
+        m.feed(K.clock, WorldClock(src="world", tick=tick, seq=tick, hz=10.0, elapsed=0.25 * tick, overruns=tick,
+                                    late={}, late_steps={}, missed={}).encode())
+    rt = m.result(SCENARIO, "run", 0.99)["realtime"]
+    assert (m.t90, m.t99) == (4, 6)
+    assert (rt["t90_s"], rt["t99_s"]) == (1.0, 1.5)
