@@ -81,7 +81,10 @@ def __dir__() -> list[str]:
 
 def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | None = None,
         in_process: bool = False, connect: str | None = None, run_id: str = "",
-        grid_every: int | None = None, engine: str = "processes", realtime_hz: float | None = None) -> Result:
+        grid_every: int | None = None, engine: str = "processes", realtime_hz: float | None = None,
+        credentials: str | Path | None = None, tls_ca: str | Path | None = None, listen: str | None = None,
+        tls_cert: str | Path | None = None, tls_key: str | Path | None = None,
+        host_timeout: float | None = None) -> Result:
     """Run one scenario as a real fleet (world, netem and one process per robot over Zenoh; with
     ``in_process`` every node in this process, a session each) and return its :class:`Result`.
 
@@ -93,6 +96,10 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
     ``engine="memory"`` steps the same objects in this process with no Zenoh (:class:`Fleet`): the same
     result for a seed, several times faster. ``realtime_hz`` runs the processes engine in real time: the
     world ticks that many times a second on the wall clock (not deterministic; the memory engine refuses it).
+    The rest are ``fleet run``'s options of the same names: ``credentials`` and ``tls_ca`` with ``connect``
+    (or ``credentials`` the hosts' users file of a scenario with ``[hosts]``); ``listen``, ``tls_cert`` and
+    ``tls_key`` the embedded router's endpoint and TLS identity, e.g. for hosts on other machines;
+    ``host_timeout`` the seconds to wait for them.
     """
     from fleet_emu.launch.runner import RunOptions, run_fleet
 
@@ -110,11 +117,25 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
         from fleet_emu.core.errors import ConfigError
 
         raise ConfigError("realtime_hz needs the processes engine: the memory engine is lockstep only")
+    bus = {"credentials": credentials, "tls_ca": tls_ca, "listen": listen, "tls_cert": tls_cert, "tls_key": tls_key,
+           "host_timeout": host_timeout, "hosts (the scenario's [hosts])": scenario.hosts}
+    if engine == "memory" and any(v is not None for v in bus.values()):
+        from fleet_emu.core.errors import ConfigError
+
+        name = next(k for k, v in bus.items() if v is not None)
+        raise ConfigError(f"the memory engine runs without Zenoh nor processes: it takes no {name}")
     if engine == "memory":
         from fleet_emu.launch.memory import run_memory
 
         return run_memory(scenario, out_dir, record=out_dir is not None and record is not False, run_id=run_id,
                           grid_every=grid_every)
     opts = RunOptions(out_dir=out_dir, in_process=in_process, record=out_dir is not None and record is not False,
-                      connect=connect, run_id=run_id, grid_every=grid_every, realtime_hz=realtime_hz)
+                      connect=connect, run_id=run_id, grid_every=grid_every, realtime_hz=realtime_hz,
+                      credentials=_path(credentials), tls_ca=_path(tls_ca), listen=listen,
+                      tls_cert=_path(tls_cert), tls_key=_path(tls_key),
+                      **({"host_timeout": host_timeout} if host_timeout is not None else {}))
     return run_fleet(scenario, opts)
+
+
+def _path(value: str | Path | None) -> Path | None:
+    return Path(value) if value is not None else None

@@ -67,7 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="fleet", description="Multi-robot exploration under realistic radio, over Eclipse Zenoh.")
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
     r = sub.add_parser("run", help="run one scenario (the default one with no arguments)")
-    r.add_argument("--scenario", type=Path, help="scenario TOML (see launch/scenarios/)")
+    r.add_argument("scenario_file", nargs="?", type=Path, metavar="SCENARIO",
+                   help="a scenario TOML or a run's scenario.json, as --scenario")
+    r.add_argument("--scenario", type=Path, help="scenario TOML (see launch/scenarios/) or a run's scenario.json")
     r.add_argument("--map", help="built-in map name (see `fleet maps`) or a PNG/PGM/ROS YAML path")
     r.add_argument("--robots", type=int)
     r.add_argument("--allocator", help="allocator name (see `fleet allocators`)")
@@ -157,7 +159,10 @@ def build_parser() -> argparse.ArgumentParser:
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
     from fleet_emu.core.scenario import Scenario
 
-    base = Scenario.load(args.scenario or DEFAULT_SCENARIO)
+    given = getattr(args, "scenario_file", None)
+    if given is not None and args.scenario is not None:
+        raise ConfigError(f"two scenarios given ({given} and --scenario {args.scenario}): give one")
+    base = Scenario.load(given or args.scenario or DEFAULT_SCENARIO)
     return base.override(
         map=args.map, robots=args.robots, allocator=args.allocator, loss=args.loss,
         comm_range=args.comm_range, sensor_range=args.sensor_range, cell_size=args.cell_size, seed=args.seed,
@@ -171,7 +176,7 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     from rich.console import Console
 
     from fleet_emu.launch.progress import Progress, summary_table
-    from fleet_emu.launch.runner import RunOptions, check_options, new_run_id, run_fleet
+    from fleet_emu.launch.runner import RunOptions, check_logins, check_options, new_run_id, run_fleet
 
     console = Console(stderr=True)
     scenario = scenario_from_args(args)
@@ -188,8 +193,7 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     if args.engine == "memory" and any(v for _, v in memory_flags):
         flag = next(f for f, v in memory_flags if v)
         raise ConfigError(f"--engine memory runs without Zenoh nor processes: it takes no {flag}")
-    if args.connect is None and (args.tls_ca or (args.credentials and not scenario.hosts)):  # the hosts' logins
-        raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
+    check_logins(args.connect, args.credentials, args.tls_ca, scenario.hosts is not None)
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
         if args.engine == "memory":
             from fleet_emu.launch.memory import run_memory

@@ -54,7 +54,7 @@ from fleet_emu.launch.hosts import (
 from fleet_emu.launch.result import Result, write_json_atomic
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import Supervisor
-from fleet_emu.launch.watch import STOP_GRACE, Consumer, wait_for_end
+from fleet_emu.launch.watch import STOP_GRACE, Consumer, Drain, wait_for_end
 from fleet_emu.recording.foxglove import FoxgloveFold
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.monitor import Monitor
@@ -192,6 +192,12 @@ def _make_out(out: Path) -> None:
         raise ConfigError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
 
 
+def check_logins(connect: str | None, credentials: Path | None, tls_ca: Path | None, hosts: bool) -> None:
+    """A users file and a CA certificate are an external router's (or the users file the hosts' logins)."""
+    if connect is None and (tls_ca or (credentials and not hosts)):
+        raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
+
+
 def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     """Run one scenario to its end. ``result.json`` is written (atomically) when ``opts.out_dir`` is given,
     on every exit path; Ctrl-C re-raises KeyboardInterrupt after it, and a failed run raises RunError.
@@ -200,6 +206,7 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     map_data = check(scenario)
     check_machine(scenario, map_data, "in-process" if opts.in_process else "processes",
                   not opts.in_process and fork_server_enabled(opts.fork_server))
+    check_logins(opts.connect, opts.credentials, opts.tls_ca, scenario.hosts is not None)
     creds = credentials(scenario, opts)
     check_options(opts, creds, scenario.hosts.count if scenario.hosts else 0)
     if opts.connect is not None and creds is None and opts.on_warning is not None:
@@ -269,13 +276,10 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
         session = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(LAUNCHER)))))
         listener = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(RECORDER)))))
         samples: queue.Queue[tuple[str, bytes, int] | None] = queue.Queue()
-
-        def take(s: zenoh.Sample) -> None:
-            samples.put((str(s.key_expr), s.payload.to_bytes(), time.time_ns()))
         # everything when recording; else only what the fold reads (Keys.folded): at 256 robots the rest (obs,
         # the radio bundles with every first contact's whole maps, belief snapshots) was most of the bus
-        subs = [listener.declare_subscriber(k, take)
-                for k in ((keys.all,) if recorder is not None else keys.folded(radio=scenario.relay != "none"))]
+        drains = [Drain(listener, k, samples)
+                  for k in ((keys.all,) if recorder is not None else keys.folded(radio=scenario.relay != "none"))]
         pub_ready = publisher(session, keys.ready("launcher"))
         pub_stop = publisher(session, keys.stop)
         handles: list[Declared] = [pub_ready, pub_stop,
@@ -321,7 +325,8 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
             if nodes_thread is not None:
                 nodes_thread.join(STOP_GRACE)
             time.sleep(0.1)  # let the last samples reach the subscriber
-            undeclare(subs)
+            for drain in drains:
+                drain.undeclare()
             samples.put(None)
             consumer.join()  # it may still answer a hello on pub_ready: undeclare that only after it ends
             undeclare(handles)

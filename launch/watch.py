@@ -4,6 +4,7 @@ run when the world or netem dies."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import threading
@@ -100,3 +101,31 @@ class Consumer(threading.Thread):
                 self.viz.feed(key, data, msg)
             if msg is not None:
                 self.changed.set()
+
+
+class Drain(threading.Thread):
+    """One subscriber of the launcher's listener session, drained into the consumer's queue.
+
+    Zenoh hands each sample to a FIFO channel in Rust, never to Python on its own threads: a Python callback
+    there must take the GIL for every sample, and in this process (which also holds the embedded router) the
+    Zenoh threads that wait for it stall the router's routing and its leases. At 256 robots a recording (every
+    message, the first contacts' whole maps among them) made most robots' sessions expire that way.
+    The thread ends when the subscriber is undeclared and its channel is empty."""
+
+    CAPACITY = 1 << 20  # samples held before Zenoh waits for this thread (the queue behind it is unbounded)
+
+    def __init__(self, session: zenoh.Session, key: str, samples: queue.Queue) -> None:
+        super().__init__(daemon=True, name=f"drain {key}")
+        self.subscriber = session.declare_subscriber(key, zenoh.handlers.FifoChannel(self.CAPACITY))
+        self.samples = samples
+        self.start()
+
+    def run(self) -> None:
+        for s in self.subscriber.handler:  # recv() waits without the GIL; ends once undeclared and empty
+            self.samples.put((str(s.key_expr), s.payload.to_bytes(), time.time_ns()))
+
+    def undeclare(self) -> None:
+        """Undeclare the subscriber and wait for what its channel still held."""
+        with contextlib.suppress(zenoh.ZError):
+            self.subscriber.undeclare()
+        self.join(STOP_GRACE)

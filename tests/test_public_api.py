@@ -85,3 +85,25 @@ def test_fleet_in_memory_from_python(tmp_path: Path, monkeypatch: pytest.MonkeyP
     assert fe.load_recording(tmp_path / "kept").result["path_length"] == kept["path_length"]
     with pytest.raises(fe.ConfigError, match="engine"):
         fe.run(s, engine="memory", in_process=True)
+
+
+def test_run_takes_the_cli_s_bus_options_and_refuses_them_where_they_mean_nothing(tmp_path: Path) -> None:
+    """``fe.run`` has ``fleet run``'s router options; the memory engine, which has no bus, refuses them and a
+    scenario's ``[hosts]`` (it would run every robot here and say nothing); a users file without ``connect``
+    (nor hosts) is refused as the CLI refuses it, before anything starts."""
+    s = fe.Scenario().override(robots=2, max_ticks=5, allocator="nearest")
+    hosted = fe.Scenario.from_dict(s.to_dict() | {"hosts": {"count": 1}})
+    assert hosted.hosts is not None and hosted.hosts.count == 1
+    with pytest.raises(fe.ConfigError, match=r"memory engine .* no hosts"):
+        fe.run(hosted, engine="memory")
+    with pytest.raises(fe.ConfigError, match=r"memory engine .* no listen"):
+        fe.run(s, engine="memory", listen="tcp/127.0.0.1:0")
+    users = tmp_path / "users.txt"
+    users.write_text("launcher:x\n")
+    with pytest.raises(fe.ConfigError, match="go with --connect"):
+        fe.run(s, tmp_path / "out", credentials=users)
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(fe.ConfigError, match=r"memory engine .* no credentials"):
+        fe.run(s, engine="memory", credentials=users)
+    done = fe.run(s, listen="tcp/127.0.0.1:0", in_process=True)  # an explicit endpoint reaches the router
+    assert done.ticks == 5

@@ -81,7 +81,7 @@ def test_same_seed_same_run_and_in_process_agrees(small_map: Path, tmp_path: Pat
     for topic in ma:  # every message of every tick, the memory engine's too
         assert ma[topic] == mb[topic] == mc[topic] == md[topic], f"{topic} differs between runs"
     again = tmp_path / "again"  # the scenario.json a run writes reproduces it
-    fleet("run", "--scenario", str(a / "scenario.json"), "--quiet", "--out", str(again))
+    fleet("run", str(a / "scenario.json"), "--quiet", "--out", str(again))  # the file alone: as --scenario
     assert _comparable(result(again)) == _comparable(ra)
     other = tmp_path / "other"
     fleet("run", "--map", str(small_map), "--robots", "3", "--seed", "5", "--loss", "0.3", "--quiet",
