@@ -29,6 +29,12 @@ One row per map, robot count and allocator (stdout):
 - decision wall time in ms (the brain's whole step in the robot's worker thread): ``p50`` and ``p90`` the median
   over the robots of each robot's percentile, ``p99`` and ``max`` the largest over the robots.
 
+``--lockstep`` runs the same scenarios in lockstep instead, on the memory engine (deterministic: every robot
+decides every tick, however long it takes): the reference that says how much of a real-time run's ``t99`` is
+the allocator's choices rather than its computing time. Its rows have ``t99 s`` the run's wall seconds, ``tps``
+its ticks per second, ``p50`` and ``p90`` the mean and p95 of ``result.json``'s ``decision_ms``; the
+real-time columns are empty.
+
 A fleet larger than the world's start area is a ``start`` row, not run. ``--max-ticks`` caps every run (a short
 cap makes a quick look: ``t99`` is then ``-``). Exit 0 when every run finished, 1 when one failed, 2 on a bad
 argument (one line).
@@ -68,6 +74,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--sensor-cells", type=float, default=8.0, help="sensor range in cells")
     p.add_argument("--comm-cells", type=float, default=20.0, help="comm range c in cells")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--lockstep", action="store_true", help="the lockstep reference on the memory engine instead")
     a = p.parse_args(argv)
     if not 0 < a.hz <= 1000:
         _fail(f"--hz must be > 0 and <= 1000 (got {a.hz})")
@@ -116,6 +123,17 @@ def run_one(scenario: Any, hz: float) -> dict[str, Any]:
     }
 
 
+def run_lockstep(scenario: Any) -> dict[str, Any]:
+    """One lockstep run of the same scenario on the memory engine; its row (real-time columns empty)."""
+    from fleet_emu.launch.memory import run_memory
+
+    res = run_memory(scenario, record=False).data
+    return {"t99": res["t99"], "t99s": res["wall_seconds"] if res["t99"] is not None else None,
+            "ticks": res["ticks"], "reason": res["reason"], "cov": res["coverage"],
+            "tps": res.get("ticks_per_second") or res["ticks"] / res["wall_seconds"],
+            "p50": res["decision_ms"]["mean"], "p90": res["decision_ms"]["p95"], "failed": len(res["failed"])}
+
+
 COLUMNS = [("map", 8, "s"), ("cells", 9, "s"), ("robots", 6, "d"), ("allocator", 10, "s"), ("t99", 5, "s"),
            ("t99 s", 6, "s"), ("ticks", 5, "d"), ("reason", 9, "s"), ("cov", 5, ".3f"), ("tps", 5, ".2f"),
            ("ovr", 4, "d"), ("late", 6, ".1f"), ("lstep", 6, ".1f"), ("miss", 5, ".1f"), ("dec", 6, ".1f"),
@@ -155,9 +173,11 @@ def main(argv: list[str] | None = None) -> None:
         maps.append((name, Path(name).stem, cs, shape, start))
         print(f"map {name}: {shape[0]} x {shape[1]} cells at {cs:.5g} m, start {start}", file=sys.stderr, flush=True)
     print(f"# benchmarks/realtime_study.py (issue 11, part 5): {machine()}")
-    print(f"# real time at {a.hz:g} Hz, processes engine, wall radio, loss 0.1, target 0.99, cap {a.max_ticks} ticks, "
+    mode = "lockstep, memory engine" if a.lockstep else f"real time at {a.hz:g} Hz, processes engine"
+    print(f"# {mode}, wall radio, loss 0.1, target 0.99, cap {a.max_ticks} ticks, "
           f"stall {a.stall_seconds:g} s, sensor {a.sensor_cells:g} cells, comm {a.comm_cells:g} cells, seed {a.seed}")
-    print("# decision ms: the brain's whole step in the robot's worker thread (wall clock)")
+    print("# decision ms: result.json's decision_ms, p50 its mean and p90 its p95" if a.lockstep else
+          "# decision ms: the brain's whole step in the robot's worker thread (wall clock)")
     print(" ".join(f"{name:>{w}}" for name, w, _ in COLUMNS), flush=True)
     failed = 0
     for name, label, cs, shape, start in maps:
@@ -167,7 +187,8 @@ def main(argv: list[str] | None = None) -> None:
                                        "allocator": alloc}
                 t = time.monotonic()
                 try:
-                    row |= run_one(scenario_for(name, cs, n, start, ALLOCATORS[alloc], a), a.hz)
+                    sc = scenario_for(name, cs, n, start, ALLOCATORS[alloc], a)
+                    row |= run_lockstep(sc) if a.lockstep else run_one(sc, a.hz)
                     row["load1"] = os.getloadavg()[0]
                     failed += bool(row["failed"])
                     print(f"{label} {n} {alloc}: {row['ticks']} ticks ({row['reason']}), "

@@ -41,8 +41,9 @@ class MemoryModel:
     base: float = 90.0  # the base station's process (a run with one): 82 MB on the maze, 4 robots, like the world's
     netem: float = 80.0  # 76 MB at 32 robots, 88 MB at 80 with Zenoh's shared memory off
     netem_per_robot: float = 0.5
-    launcher: float = 100.0  # the launcher and its embedded router: 101 MB at 32 robots, 112 MB at 80
+    launcher: float = 100.0  # the launcher (with the router before it had its own process): 101 MB at 32 robots
     launcher_per_robot: float = 0.5
+    router: float = 30.0  # the router's own process (processes engine): 26 MB at 32 robots
     shm_per_robot: float = 40.0  # FLEET_ZENOH_SHM=1: each session's 16 MB pool, mapped by netem and router
     engine: float = 250.0  # the memory engine's one process (imports, world, netem, the fold): 191 MB at 8 robots
     brain_per_robot: float = 1.0  # one Brain in the memory engine: 237 MB at 64 robots, 0.8 MB a robot more
@@ -66,6 +67,7 @@ def estimate(robots: int, cells: int, engine: str = "processes", fork_server: bo
             "world": model.world + model.world_per_mcell * mcells,
             "netem": model.netem + model.netem_per_robot * robots,
             "launcher": model.launcher + model.launcher_per_robot * robots,
+            "router": model.router,
         }
         if fork_server:
             parts["fork server"] = model.fork_server

@@ -52,6 +52,7 @@ from fleet_emu.launch.hosts import (
     spawn_nodes,
 )
 from fleet_emu.launch.result import Result, write_json_atomic
+from fleet_emu.launch.router_process import RouterProcess, router_process
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import Supervisor
 from fleet_emu.launch.watch import STOP_GRACE, Consumer, Drain, wait_for_end
@@ -257,6 +258,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     hurry = signals.hurry if signals else threading.Event()
     interrupted = False
     error: str | None = None
+    router_child: RouterProcess | None = None
     with contextlib.ExitStack() as stack:
         if not opts.in_process and not requested.is_set() and fork_server_enabled(opts.fork_server):
             sup.start_fork_server(work / "scenario.json")  # before any session: it loads while the router opens
@@ -266,12 +268,17 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
             listen = listen_endpoints(opts.listen, opts.tls_cert, opts.tls_key)
             tls = (str(opts.tls_cert.absolute()), str(opts.tls_key.absolute())) \
                 if opts.tls_cert is not None and opts.tls_key is not None else None
-            try:
-                router = stack.enter_context(_closing(_open_router(run_id, creds, listen, tls)))
-            except zenoh.ZError as exc:
-                raise RunError(f"cannot open the embedded Zenoh router: {str(exc).splitlines()[0]}") from None
+            if opts.in_process:  # one process by design: the router too
+                try:
+                    router = stack.enter_context(_closing(_open_router(run_id, creds, listen, tls)))
+                except zenoh.ZError as exc:
+                    raise RunError(f"cannot open the embedded Zenoh router: {str(exc).splitlines()[0]}") from None
+                locators = router_locators(router)
+            else:  # its own process: the launcher's Python work never holds up the fleet's routing
+                router_child = stack.enter_context(router_process(run_id, creds, listen, tls, work))
+                locators = router_child.endpoints
             # this machine's processes: the router's first endpoint, or with tls/ or quic/ its loopback tcp/ one
-            endpoint = next(loc for loc in router_locators(router) if tls is None or loc.startswith("tcp/"))
+            endpoint = next(loc for loc in locators if tls is None or loc.startswith("tcp/"))
         login = creds or {}
         session = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(LAUNCHER)))))
         listener = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(RECORDER)))))
@@ -302,13 +309,14 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
                 pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
                 pids |= {BASE: p[BASE]} if BASE in p else {}
                 pids |= ({"fork_server": p["fork_server"]} if "fork_server" in p else {}) | \
+                    ({"router": router_child.proc.pid} if router_child is not None else {}) | \
                     ({"hosts": plan} if plan else {})
             if pids and opts.on_spawn is not None:
                 opts.on_spawn(pids)  # e.g. benchmarks/scale.py samples their /proc while the run goes
             error = wait_for_end(monitor, consumer, sup, nodes_thread, opts.on_progress, requested,
                           lambda r: session.put(keys.failed(r), Failed(
                               src="launcher", tick=monitor.tick, seq=0, robot=r, reason="process exited").encode(),
-                              congestion_control=zenoh.CongestionControl.BLOCK))
+                              congestion_control=zenoh.CongestionControl.BLOCK), router_child)
         except KeyboardInterrupt:
             requested.set()
         except HostsError as exc:  # too few hosts came: the run ends as an error, its files written

@@ -15,6 +15,7 @@ import zenoh
 
 from fleet_emu.core.keys import BASE, Keys
 from fleet_emu.core.messages import Ready
+from fleet_emu.launch.router_process import RouterProcess
 from fleet_emu.launch.supervisor import Supervisor
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.monitor import Monitor
@@ -25,10 +26,11 @@ STOP_GRACE = 5.0
 
 def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_thread: threading.Thread | None,
           on_progress: Callable[[Monitor], None] | None, requested: threading.Event,
-          notify_failed: Callable[[str], None]) -> str | None:
+          notify_failed: Callable[[str], None], router: RouterProcess | None = None) -> str | None:
     """Until the world's stop and every live agent's report; returns an error line, or None.
-    An agent process that exits early is announced to the world, which goes on without it. The world or
-    netem (or the base station) exiting with an error before the stop fails the run at once; exiting cleanly
+    An agent process that exits early is announced to the world, which goes on without it. The router's
+    process (``router``) exiting, or the world or netem (or the base station) exiting with an error before
+    the stop, fails the run at once; exiting cleanly
     (code 0) is a normal end whose stop message may still be on its way, so it fails the run only if no stop
     comes within :data:`STOP_GRACE` seconds of the launcher having folded every sample it received (with a
     hundred robots and more, their last belief snapshots can take the launcher longer than that)."""
@@ -47,6 +49,8 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
                                                           or BASE in sup.dead())
             if reported or time.monotonic() - stop_seen > STOP_GRACE:
                 return None if monitor.stop.reason != "startup" else "startup timed out: see the logs in --out"
+        if router is not None and (code := router.exited()) is not None:  # nothing can reach anyone now
+            return f"the router process exited with code {code} (see router.log)"
         dead = sup.dead()
         new = set(dead) - announced - {"world", "netem", BASE}
         announced |= new

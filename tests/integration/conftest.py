@@ -78,10 +78,10 @@ def pid_alive(pid: int) -> bool:
 
 
 def all_pids(res: dict) -> list[int]:
-    """Every process of the run: world, netem, the agents, the fork server and the base (when there were)."""
-    server = [res["pids"]["fork_server"]] if "fork_server" in res["pids"] else []
-    base = [res["pids"]["base"]] if "base" in res["pids"] else []  # the base station, in a run with one
-    return sorted({res["pids"]["world"], res["pids"]["netem"], *res["pids"]["agents"], *server, *base})
+    """Every process of the run: world, netem, the agents, and the fork server, the router and the base (when
+    there were)."""
+    more = [res["pids"][k] for k in ("fork_server", "router", "base") if k in res["pids"]]
+    return sorted({res["pids"]["world"], res["pids"]["netem"], *res["pids"]["agents"], *more})
 
 
 def children_of(pid: int) -> list[int]:
@@ -97,18 +97,28 @@ def children_of(pid: int) -> list[int]:
     return found
 
 
-def is_fork_server(pid: int) -> bool:
-    """Whether a launcher's child is the robots' fork server (the robots it forks share its command line)."""
+def _runs(pid: int, module: bytes) -> bool:
     try:
-        return b"fleet_emu.agents.forkserver" in Path(f"/proc/{pid}/cmdline").read_bytes()
+        return module in Path(f"/proc/{pid}/cmdline").read_bytes()
     except OSError:
         return False
 
 
+def is_fork_server(pid: int) -> bool:
+    """Whether a launcher's child is the robots' fork server (the robots it forks share its command line)."""
+    return _runs(pid, b"fleet_emu.agents.forkserver")
+
+
+def is_router(pid: int) -> bool:
+    """Whether a launcher's child is the run's router process."""
+    return _runs(pid, b"fleet_emu.launch.router_process")
+
+
 def fleet_processes(launcher: int) -> list[int]:
-    """The fleet's node processes under a launcher: its children but the fork server, and the robots the fork
-    server forked."""
+    """The fleet's node processes under a launcher: its children but the fork server and the router, and the
+    robots the fork server forked."""
     found = []
     for pid in children_of(launcher):
-        found += children_of(pid) if is_fork_server(pid) else [pid]
+        if not is_router(pid):
+            found += children_of(pid) if is_fork_server(pid) else [pid]
     return found

@@ -22,7 +22,7 @@ from fleet_emu.agents.protocol import PoseBeacon
 from fleet_emu.core.bus import client_config, router_config, router_locators
 from fleet_emu.core.messages import Command, RadioMsg, TxBundle, seal
 
-from .conftest import ROOT, all_pids, children_of, fleet, fleet_processes, pid_alive, result, wait_for
+from .conftest import ROOT, all_pids, children_of, fleet, fleet_processes, is_router, pid_alive, result, wait_for
 
 
 class Toml(str):
@@ -236,6 +236,28 @@ def test_children_exit_when_the_launcher_is_killed(tmp_path: Path) -> None:
     proc.kill()
     proc.wait(10)
     wait_for(lambda: not any(pid_alive(p) for p in children), 15)
+
+
+def test_a_killed_router_fails_the_run_keeps_the_recording_and_leaves_nothing_behind(tmp_path: Path) -> None:
+    """The router runs in its own process: when it dies nothing reaches anyone, so the run ends at once as an
+    error, with its files written and every process gone."""
+    out = tmp_path / "run"
+    proc = _start(out)
+    wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
+    routers = [p for p in children_of(proc.pid) if is_router(p)]
+    assert len(routers) == 1
+    os.kill(routers[0], signal.SIGKILL)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 1, err[-2000:]
+    assert err.strip().splitlines()[-1] == "fleet: error: the router process exited with code -9 (see router.log)"
+    assert "Traceback" not in err
+    res = result(out)
+    assert res["reason"] == "error" and res["pids"]["router"] == routers[0]
+    with open(out / "run.mcap", "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and sum(summary.statistics.channel_message_counts.values()) == \
+        res["recording"]["messages"] > 0
+    wait_for(lambda: not any(pid_alive(p) for p in all_pids(res)), 15)
 
 
 def test_a_killed_robot_is_failed_and_the_run_goes_on(small_map: Path, tmp_path: Path) -> None:

@@ -13,7 +13,7 @@ MAZE = 511 * 511  # benchmarks/scale.py's maze
 def test_the_estimate_adds_up_and_grows_with_the_fleet_and_the_map() -> None:
     forked = estimate(80, MAZE, "processes", fork_server=True)
     assert forked["total"] == pytest.approx(sum(v for k, v in forked.items() if k != "total"))
-    assert set(forked) == {"agents", "world", "netem", "launcher", "fork server", "total"}
+    assert set(forked) == {"agents", "world", "netem", "launcher", "router", "fork server", "total"}
     # measured at 80 robots on this maze (scale.py): agents 13 MB mean, world 80, netem 88, launcher 112
     assert 80 * 13 + 80 + 88 + 112 <= forked["total"] <= 2 * (80 * 13 + 80 + 88 + 112)
     fresh = estimate(80, MAZE, "processes", fork_server=False)
