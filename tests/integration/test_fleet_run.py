@@ -23,8 +23,8 @@ def test_three_robot_processes_explore_a_small_map(small_map: Path, tmp_path: Pa
     assert res["completed"] is True and res["coverage"] >= 0.99
     assert res["t99"] is not None and res["t90"] <= res["t99"] <= res["ticks"]
     assert len(res["path_length"]) == 3 and all(p > 0 for p in res["path_length"])
-    # world, netem, three agents and the fork server they were forked from, each its own process
-    assert len(set(all_pids(res))) == 6 and "fork_server" in res["pids"]
+    # world, netem, three agents, the fork server they were forked from and the router, each its own process
+    assert len(set(all_pids(res))) == 7 and "fork_server" in res["pids"] and "router" in res["pids"]
     assert not any(pid_alive(p) for p in all_pids(res)), "a child outlived the run"
     radio = res["radio"]
     assert radio["sent"] == radio["delivered"] + radio["dropped_loss"] + radio["dropped_signal"] > 0
