@@ -39,12 +39,11 @@ CLOSE_TIMEOUT = 10.0  # seconds for it to close once its standard input is close
 
 
 class RouterProcess:
-    """A running router child: ``endpoints`` as it printed them, ``proc`` the child, ``log`` its stderr file."""
+    """A running router child: ``endpoints`` as it printed them, ``proc`` the child."""
 
-    def __init__(self, proc: subprocess.Popen[bytes], endpoints: list[str], log: Path | None) -> None:
+    def __init__(self, proc: subprocess.Popen[bytes], endpoints: list[str]) -> None:
         self.proc = proc
         self.endpoints = endpoints
-        self.log = log
 
     def exited(self) -> int | None:
         """Its exit code once it has ended (it only ends when told, so any code during a run is a failure)."""
@@ -61,13 +60,8 @@ def router_process(run_id: str, creds: dict[str, Credential] | None, listen: lis
     the child's own one-line reason when it cannot open."""
     log = log_dir / "router.log" if log_dir is not None else None
     with tempfile.TemporaryDirectory(prefix="fleet-router-") as private:  # mode 0700
-        spec: dict[str, Any] = {"listen": listen, "tls": list(tls) if tls else None}
-        if creds is not None:
-            users = Path(private) / "users.txt"
-            _write_private(users, dictionary_text({n: c.password for n, c in creds.items()}))
-            spec |= {"dictionary_file": str(users), "acl": acl_config(run_id, creds)}
         spec_file = Path(private) / "router.json"
-        _write_private(spec_file, json.dumps(spec))
+        _write_private(spec_file, json.dumps(router_spec(Path(private), run_id, creds, listen, tls)))
         err = open(log, "wb") if log is not None else subprocess.DEVNULL  # noqa: SIM115 (closed below)
         try:
             proc = subprocess.Popen([sys.executable, "-m", MODULE, str(spec_file)],
@@ -82,9 +76,21 @@ def router_process(run_id: str, creds: dict[str, Credential] | None, listen: lis
             _close(proc)
             raise
     try:
-        yield RouterProcess(proc, endpoints, log)
+        yield RouterProcess(proc, endpoints)
     finally:
         _close(proc)
+
+
+def router_spec(private: Path, run_id: str, creds: dict[str, Credential] | None, listen: list[str],
+                tls: tuple[str, str] | None) -> dict[str, Any]:
+    """:func:`fleet_emu.core.bus.router_config`'s arguments for this run's router; with ``creds`` its users
+    file is written (mode 0600) into the ``private`` directory, which the caller deletes once Zenoh has read it."""
+    spec: dict[str, Any] = {"listen": listen, "tls": tls}
+    if creds is not None:
+        users = private / "users.txt"
+        _write_private(users, dictionary_text({n: c.password for n, c in creds.items()}))
+        spec |= {"dictionary_file": str(users), "acl": acl_config(run_id, creds)}
+    return spec
 
 
 def _write_private(path: Path, text: str) -> None:
@@ -143,12 +149,8 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, _terminate)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher decides when the router goes
     try:
-        spec = json.loads(Path(args[0]).read_text())
-        tls = tuple(spec["tls"]) if spec.get("tls") else None
-        conf = router_config(spec["listen"], dictionary_file=spec.get("dictionary_file"), acl=spec.get("acl"),
-                             tls=tls)  # type: ignore[arg-type]
-        session = zenoh.open(conf)
-    except (OSError, ValueError, KeyError, IndexError, zenoh.ZError) as exc:
+        session = zenoh.open(router_config(**json.loads(Path(args[0]).read_text())))
+    except (OSError, ValueError, TypeError, IndexError, zenoh.ZError) as exc:
         print(f"router: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}", file=sys.stderr)
         return 1
     try:

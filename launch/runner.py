@@ -26,8 +26,6 @@ from fleet_emu.core.access import (
     LAUNCHER,
     RECORDER,
     Credential,
-    acl_config,
-    dictionary_text,
     fleet_nodes,
     make_credentials,
     read_dictionary,
@@ -52,7 +50,7 @@ from fleet_emu.launch.hosts import (
     spawn_nodes,
 )
 from fleet_emu.launch.result import Result, write_json_atomic
-from fleet_emu.launch.router_process import RouterProcess, router_process
+from fleet_emu.launch.router_process import RouterProcess, router_process, router_spec
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import Supervisor
 from fleet_emu.launch.watch import STOP_GRACE, Consumer, Drain, wait_for_end
@@ -385,17 +383,11 @@ def _closing(session: zenoh.Session) -> Iterator[zenoh.Session]:
 
 def _open_router(run_id: str, creds: dict[str, Credential] | None, listen: list[str],
                  tls: tuple[str, str] | None = None) -> zenoh.Session:
-    """The embedded router: user/password authentication and access control for this run's users (and with
-    ``tls``, its certificate and key, for a ``tls/`` or ``quic/`` endpoint). The users file lives in a private
-    temporary directory only while the router opens (Zenoh reads it then)."""
-    if creds is None:
-        return zenoh.open(router_config(listen, tls=tls))
+    """The router embedded in this process (``--in-process``), set up as the router process's
+    (:func:`~fleet_emu.launch.router_process.router_spec`); its users file lives in a private temporary
+    directory only while it opens (Zenoh reads it then)."""
     with tempfile.TemporaryDirectory(prefix="fleet-auth-") as private:  # mode 0700
-        users = Path(private) / "users.txt"
-        fd = os.open(users, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-        with os.fdopen(fd, "w") as f:
-            f.write(dictionary_text({n: c.password for n, c in creds.items()}))
-        return zenoh.open(router_config(listen, dictionary_file=str(users), acl=acl_config(run_id, creds), tls=tls))
+        return zenoh.open(router_config(**router_spec(Path(private), run_id, creds, listen, tls)))
 
 
 def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoint: str,
