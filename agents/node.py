@@ -56,6 +56,8 @@ class AgentNode(NodeBase):
         self.realtime = bool(realtime_hz)
         self.timing = Timing()
         self.cpu0: float | None = None  # the process's CPU time when its first step began (AgentReport)
+        self.loop_cpu0 = 0.0  # the event loop thread's CPU time then
+        self.first_cpu_ms: dict[str, float] = {}  # the first step's CPU (AgentReport.first_cpu_ms)
 
     def next_seq(self) -> int:
         """The robot's one counter, shared with its brain."""
@@ -90,7 +92,9 @@ class AgentNode(NodeBase):
                 decision_ms_mean=float(ms.mean()), decision_ms_p95=float(np.percentile(ms, 95)),
                 dropped=self.dropped, peak_rss_kb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
                 decision_cpu_ms=self.brain.decision_cpu_ms, step_cpu_ms=self.brain.step_cpu_ms,
-                process_cpu_ms=(time.process_time() - self.cpu0) * 1000.0 if self.cpu0 is not None else 0.0
+                process_cpu_ms=(time.process_time() - self.cpu0) * 1000.0 if self.cpu0 is not None else 0.0,
+                loop_cpu_ms=(time.thread_time() - self.loop_cpu0) * 1000.0 if self.cpu0 is not None else 0.0,
+                stage_cpu_ms=dict(self.brain.cpu_ms), first_cpu_ms=self.first_cpu_ms,
             ).encode())
             await asyncio.sleep(0.05)
         finally:
@@ -131,8 +135,18 @@ class AgentNode(NodeBase):
     def _act(self, obs: Observation, bundle: RxBundle) -> None:
         """One tick: the brain's decision, then the tx bundle, the command and (every few ticks) the belief."""
         if self.cpu0 is None:
-            self.cpu0 = time.process_time()
+            self.cpu0, self.loop_cpu0 = time.process_time(), time.thread_time()
         self._send(obs, *self.brain.step(obs, bundle.msgs))
+        if not self.first_cpu_ms:
+            self._first_done()
+
+    def _first_done(self) -> None:
+        """Keep the CPU of the first step (sent, in the report, apart from the later ones)."""
+        assert self.cpu0 is not None
+        b = self.brain
+        self.first_cpu_ms = {"process": (time.process_time() - self.cpu0) * 1000.0,
+                             "loop": (time.thread_time() - self.loop_cpu0) * 1000.0,
+                             "step": b.step_cpu_ms, "decision": b.decision_cpu_ms, **b.cpu_ms}
 
     def _send(self, obs: Observation, cmd: Command, out: tuple[Envelope, ...]) -> None:
         self.pub_tx.put(TxBundle(src=self.robot, tick=obs.tick, seq=self.next_seq(), msgs=out).encode())
@@ -171,6 +185,8 @@ class AgentNode(NodeBase):
                     worker = None
                     self.timing.decided(wall_ms)
                     self._send(obs, cmd, out)
+                    if not self.first_cpu_ms:
+                        self._first_done()
                 if not getter.done():
                     continue
                 item, getter = getter.result(), asyncio.ensure_future(inbox.get())
@@ -213,11 +229,11 @@ class AgentNode(NodeBase):
     def _decide(self, obs: Observation, absorbed: list[Observation], received: list[Envelope]) -> asyncio.Future:
         """One decision in a worker thread: merge ``absorbed``, step on ``obs`` with ``received``. The future
         gives ``(obs, command, tx messages, wall ms)``."""
+        if self.cpu0 is None:
+            self.cpu0, self.loop_cpu0 = time.process_time(), time.thread_time()
 
         def work() -> tuple[Observation, Command, tuple[Envelope, ...], float]:
             t0 = time.perf_counter()
-            if self.cpu0 is None:
-                self.cpu0 = time.process_time()
             for o in absorbed:
                 self.brain.absorb(o)
             cmd, out = self.brain.step(obs, received)

@@ -20,20 +20,28 @@ One table row per map and robot count (stdout):
   of a tick reaches the launcher, from the first sampled tick to the last one before the stop (start-up and
   teardown excluded): ``world``, ``netem``, and each agent's split with the agents' own thread-CPU clocks
   (their ``ctl/report``): ``decide`` (the allocator's ``allocate``), ``brain`` (the rest of ``Brain.step``:
-  belief merge, frontier clusters, radio payload decode, navigation), ``a.bus`` (the agent process's CPU
-  outside ``Brain.step``: Zenoh's threads, message encode and decode, asyncio); all three are averaged over
-  every decision of the run, from the agents' own clocks (thread CPU of the step, process CPU from the first
-  step to the report: the same ticks, so ``a.bus`` is never negative; it was, when the process CPU came from
-  the /proc window, whose ticks under load are not the agents'); ``router`` is the run's launcher
-  process (the embedded Zenoh router and the launcher's fold); ``total`` their sum, and ``cores`` the CPU seconds
-  per wall second over the window (at most the machine's cores);
+  belief merge, frontier clusters, radio payload decode, navigation), ``a.py`` (the rest of the agent's event
+  loop thread: message encode and decode, asyncio, publishing) and ``a.zen`` (the agent process's other
+  threads: Zenoh's runtime, with its calls into Python that copy each sample out); all are averaged over every
+  decision of the run but each robot's first (tick 0: it merges every teammate's first map and clusters the
+  whole belief, a start-up cost shown apart, see below), from the agents' own clocks (thread CPU of the step
+  and of the loop, process CPU, from the end of the first step to the report: the same ticks, so none is
+  negative, which a /proc window is not: its ticks under load are not the agents'); ``outside`` is the
+  agent's CPU outside the allocator (``brain + a.py + a.zen``, issue 11 part 3's figure); ``router`` the
+  run's Zenoh router process (``pids.router``) and ``launch`` the launcher process (its fold and
+  subscriptions); ``total`` their sum, and ``cores`` the CPU seconds per wall second over the window (at
+  most the machine's cores);
 - PSS in MB (``/proc/PID/smaps_rollup``, shared pages divided among the processes mapping them), sampled a
-  couple of ticks before the end while every process is alive: agents' mean and max, world, netem, and the
-  launcher (``launch``, with the router);
+  couple of ticks before the end while every process is alive: agents' mean and max, world, netem, the
+  router and the launcher;
 - ``dec wall``: ``result.json``'s ``decision_ms.mean`` (perf_counter around ``allocate``: the wall time, which
   counts the waits for a core when the agents outnumber them);
 - ``load1``: the 1-minute load average at the end of the run (the fleet's own processes, and other jobs on
   the machine).
+
+A second table splits each run's ``brain`` by stage (``Brain.cpu_ms``: merge, clusters, decode, navigation,
+news, and the rest as ``other``; they add up to ``brain``) and gives ``tick0``, an agent's mean process CPU in
+its first step.
 
 A robot count above ``fleet_emu.core.scenario.MAX_ROBOTS`` is a ``cap`` row, not run; a fleet larger than the
 free area reachable from the start a ``start`` row, and one the launcher's memory check refuses
@@ -52,6 +60,7 @@ import platform
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -175,6 +184,7 @@ class Sampler:
     def spawned(self, pids: dict[str, Any]) -> None:
         agents = pids["agents"]
         self.pids = {"world": pids["world"], "netem": pids["netem"], "launcher": os.getpid(),
+                     **({"router": pids["router"]} if "router" in pids else {}),
                      **{f"r{i}": p for i, p in enumerate(agents)}}
 
     def _cpu(self) -> dict[str, float]:
@@ -218,13 +228,23 @@ def run_one(name: str, cs: float, robots: int, start: tuple[int, int], a: argpar
     window_ticks, wall = last[0] - first[0], last[1] - first[1]
     per = window_ticks * robots / 1000.0  # ms per robot-tick from CPU seconds
     cpu = {k: last[2][k] - first[2].get(k, 0.0) for k in last[2]}
-    reports = list(mon.reports.values())
-    decisions = sum(r.decisions for r in reports) or 1
-    decide = sum(r.decision_cpu_ms for r in reports) / decisions
-    step = sum(r.step_cpu_ms for r in reports) / decisions
-    # the agents' own clocks over the same steps: their process CPU from their first step to their report
-    # (the /proc window of the other processes is not the agents' ticks under load: a.bus came out negative)
-    agent_ms = sum(r.process_cpu_ms for r in reports) / decisions
+    # the agents' own clocks over the same steps, their first (tick 0: a start-up cost, reported apart) left out:
+    # the process CPU from the end of the first step to the report (the /proc window of the other processes is
+    # not the agents' ticks under load: a.bus came out negative)
+    reports = [r for r in mon.reports.values() if r.first_cpu_ms]
+    steps = sum(r.decisions - 1 for r in reports)
+    if steps <= 0:
+        raise RuntimeError(f"no agent reported a step after its first ({result['ticks']} ticks run)")
+
+    def later(total: Callable[[Any], float], key: str) -> float:
+        """ms per robot-tick of an agent clock after the first step."""
+        return sum(total(r) - r.first_cpu_ms.get(key, 0.0) for r in reports) / steps
+
+    decide = later(lambda r: r.decision_cpu_ms, "decision")
+    step = later(lambda r: r.step_cpu_ms, "step")
+    agent_ms = later(lambda r: r.process_cpu_ms, "process")
+    loop_ms = later(lambda r: r.loop_cpu_ms, "loop")
+    stages = {k: later(lambda r, k=k: r.stage_cpu_ms.get(k, 0.0), k) for k in STAGE_COLUMNS}
     agent_pss = [sampler.pss[k] / 1024 for k in sampler.pss if k.startswith("r")] or [0.0]
     row = {
         "start": ((mon.first_state_ns or t0) - t0) / 1e9,
@@ -234,17 +254,23 @@ def run_one(name: str, cs: float, robots: int, start: tuple[int, int], a: argpar
         "netem": cpu.get("netem", 0.0) / per,
         "decide": decide,
         "brain": step - decide,
-        "abus": agent_ms - step,
-        "router": cpu.get("launcher", 0.0) / per,
+        "apy": loop_ms - step,
+        "azen": agent_ms - loop_ms,
+        "outside": agent_ms - decide,
+        "router": cpu.get("router", 0.0) / per,
+        "launch": cpu.get("launcher", 0.0) / per,
         "cores": sum(cpu.values()) / wall if wall > 0 else 0.0,
         "pss_mean": sum(agent_pss) / len(agent_pss),
         "pss_max": max(agent_pss),
         "pss_world": sampler.pss.get("world", 0) / 1024,
         "pss_netem": sampler.pss.get("netem", 0) / 1024,
+        "pss_router": sampler.pss.get("router", 0) / 1024,
         "pss_launcher": sampler.pss.get("launcher", 0) / 1024,
         "dec_wall": result["decision_ms"]["mean"],
     }
-    row["total"] = row["world"] + row["netem"] + agent_ms + row["router"]
+    row["stages"] = stages | {"other": step - sum(stages.values()) - decide,
+                              "tick0": sum(r.first_cpu_ms["process"] for r in reports) / len(reports)}
+    row["total"] = row["world"] + row["netem"] + agent_ms + row["router"] + row["launch"]
     return row
 
 
@@ -252,15 +278,33 @@ def run_one(name: str, cs: float, robots: int, start: tuple[int, int], a: argpar
 
 COLUMNS = [("map", 10, "s"), ("cells", 9, "s"), ("robots", 6, "d"), ("start s", 7, ".1f"), ("ticks", 5, "d"),
            ("ticks/s", 7, ".2f"), ("world", 6, ".2f"), ("netem", 6, ".2f"), ("decide", 6, ".2f"),
-           ("brain", 6, ".2f"), ("a.bus", 6, ".2f"), ("router", 6, ".2f"), ("total", 6, ".2f"),
+           ("brain", 6, ".2f"), ("a.py", 6, ".2f"), ("a.zen", 6, ".2f"), ("outside", 7, ".2f"),
+           ("router", 6, ".2f"), ("launch", 6, ".2f"), ("total", 6, ".2f"),
            ("cores", 5, ".2f"), ("a.mean", 6, ".0f"), ("a.max", 6, ".0f"), ("world", 6, ".0f"),
-           ("netem", 6, ".0f"), ("launch", 6, ".0f"), ("dec wall", 8, ".2f"), ("load1", 5, ".2f")]
-KEYS = ["map", "cells", "robots", "start", "ticks", "tps", "world", "netem", "decide", "brain", "abus", "router",
-        "total", "cores", "pss_mean", "pss_max", "pss_world", "pss_netem", "pss_launcher", "dec_wall", "load1"]
+           ("netem", 6, ".0f"), ("router", 6, ".0f"), ("launch", 6, ".0f"), ("dec wall", 8, ".2f"), ("load1", 5, ".2f")]
+KEYS = ["map", "cells", "robots", "start", "ticks", "tps", "world", "netem", "decide", "brain", "apy", "azen",
+        "outside", "router", "launch", "total", "cores", "pss_mean", "pss_max", "pss_world", "pss_netem",
+        "pss_router", "pss_launcher", "dec_wall", "load1"]
+
+
+#: Brain.step's stages besides the allocator (agents/brain.py STAGES), the second table's columns.
+STAGE_COLUMNS = ("merge", "clusters", "decode", "navigation", "news")
+
+
+def stage_table(rows: list[dict[str, Any]]) -> str:
+    """The second table: each run's ``brain`` column split by stage (ms of thread CPU per robot-tick)."""
+    names = (*STAGE_COLUMNS, "other", "tick0")
+    lines = ["# brain by stage (Brain.cpu_ms), ms of thread CPU per robot-tick; tick0: an agent's process CPU in "
+             "its first step (mean), left out of every agent column",
+             f"{'map':>10} {'robots':>6} " + " ".join(f"{n:>10}" for n in names)]
+    for row in rows:
+        cells = " ".join(f"{row['stages'][n]:>10.3f}" for n in names)
+        lines.append(f"{row['map']:>10} {row['robots']:>6} {cells}")
+    return "\n".join(lines)
 
 
 def header() -> str:
-    groups = " " * 51 + "| CPU ms per robot-tick" + " " * 38 + "| PSS MB" + " " * 28 + "|"
+    groups = " " * 51 + "| CPU ms per robot-tick" + " " * 60 + "| PSS MB" + " " * 35 + "|"
     return groups + "\n" + " ".join(f"{name:>{w}}" for name, w, _ in COLUMNS)
 
 
@@ -354,6 +398,7 @@ def main(argv: list[str] | None = None) -> None:
           f"{a.sensor_cells:g} cells, comm {a.comm_cells:g} cells, seed {a.seed}, robot cap {MAX_ROBOTS}")
     print(header(), flush=True)
     total, failed, done = len(maps) * len(a.robots), 0, 0
+    measured: list[dict[str, Any]] = []
     for name, label, cs, shape, start in maps:
         for n in a.robots:
             done += 1
@@ -378,11 +423,14 @@ def main(argv: list[str] | None = None) -> None:
                           flush=True)
                 else:
                     row |= got
+                    measured.append(row)
                     row["load1"] = os.getloadavg()[0]
                     print(f"[{done}/{total}] {label} {n} robots: {row['ticks']} ticks, {row['tps']:.2f} ticks/s, "
                           f"start-up {row['start']:.1f} s, {time.monotonic() - t:.0f} s in all",
                           file=sys.stderr, flush=True)
             print(line(row), flush=True)
+    if measured:
+        print(stage_table(measured), flush=True)
     if failed:
         print(f"scale: {failed} of {total} runs failed (see the lines above)", file=sys.stderr)
         raise SystemExit(1)

@@ -63,6 +63,13 @@ class AgentReport(Message):
     # the agent process's CPU (every thread) from the start of its first step to this report: minus step_cpu_ms,
     # its bus work over the same ticks (benchmarks/scale.py's a.bus); 0 where not measured (the memory engine)
     process_cpu_ms: float = 0.0
+    # the event loop's thread CPU over the same span (lockstep: its steps included): process_cpu_ms minus this is
+    # Zenoh's own threads, this minus step_cpu_ms the Python shell's (decode, encode, asyncio) (scale.py)
+    loop_cpu_ms: float = 0.0
+    stage_cpu_ms: dict[str, float] = dataclasses.field(default_factory=dict)  # step_cpu_ms by stage (Brain.cpu_ms)
+    # the first step's share of the sums above (``process``, ``loop``, ``step``, ``decision`` and each stage): tick
+    # 0 merges every teammate's first map and clusters the whole belief, a start-up cost scale.py reports apart
+    first_cpu_ms: dict[str, float] = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -22,6 +22,7 @@ from fleet_emu.core.bus import Inbox, client_config, publisher
 from fleet_emu.core.codec import Context, DecodeError, Message, decode
 from fleet_emu.core.errors import FleetError
 from fleet_emu.core.grid import MapData
+from fleet_emu.core.heap import keep_heap
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import Hello, Ready
 from fleet_emu.core.scenario import Scenario
@@ -156,6 +157,7 @@ def node_main(prog: str, build: Callable[[argparse.Namespace], Any], argv: list[
         extra(parser)
     args = parse_child(parser, argv, map_file)
     setup_logging()
+    keep_heap()  # the same map-sized arrays every tick: no page faults for them (core/heap.py)
     node = build(args)
     with zenoh.open(client_config(args.connect, args.credential)) as session:
         asyncio.run(run_node(node.run(session)))

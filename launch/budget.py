@@ -32,7 +32,9 @@ class BudgetError(ConfigError):
 class MemoryModel:
     """PSS in MB of each process of a run; ``*_per_mcell`` grow with the map's cells (millions)."""
 
-    agent_forked: float = 20.0  # forked robot: 13 MB mean, 18 max at 80 robots, 512 x 512 maze (scale.py)
+    # forked robot: 13 MB mean, 18 max at 80 robots, 512 x 512 maze (scale.py); 23-27 MB mean at 16-100 robots
+    # once it keeps its heap (core/heap.py, 2026-11-24), with agent_per_mcell's 6 MB of that map in it
+    agent_forked: float = 22.0
     agent_fresh: float = 90.0  # started afresh: 81 MB mean, 83 max at 32 robots (scale.py, FLEET_FORK_SERVER=0)
     agent_per_mcell: float = 24.0  # belief (int8), wavefront distances and frontier masks over the map
     fork_server: float = 60.0  # the server's own share of the pages it holds for its robots

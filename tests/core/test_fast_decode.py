@@ -141,3 +141,30 @@ def test_a_beacons_requests_are_checked_as_one_sequence_as_list_by_list() -> Non
         assert _wants_of(want) == expected, want
         verdicts.add(expected is None)
     assert verdicts == {True, False}
+
+
+@pytest.mark.parametrize("cls", [TxBundle, RxBundle])
+def test_bundle_fast_decoders_agree_with_the_generic_decode(cls: type) -> None:
+    """Mutations of a bundle's header, of its list of envelopes (an envelope of another sender in a tx bundle,
+    an item that is no envelope) and of one of its envelopes: the fast decode and the generic one agree."""
+    def env(src: str, seq: int) -> Envelope:
+        return Envelope(src=src, tick=3, seq=seq, origin=src, dst="*", ttl=0, payload_kind="pose",
+                        payload=PoseBeacon(cell=(1, 2)).encode())
+
+    head = {"src": "r1", "tick": 3, "seq": 9} | ({"dst": "r0"} if cls is RxBundle else {})
+    good = cls(**head, msgs=(env("r1", 1), env("r1", 2))).to_obj()
+    samples = [good, cls(**head, msgs=()).to_obj()]
+    odd_lists = [[env("r1", 1).to_obj(), env("r2", 2).to_obj()], [env("r1", 1).to_obj(), 5], [{"kind": "pose"}],
+                 [env("r1", 1).to_obj() | {"kind": "tx"}], (env("r1", 1).to_obj(),)]
+    accepted = rejected = 0
+    objs = [*samples, *_mutations(good), *({**good, "msgs": m} for m in odd_lists),
+            *({**good, "msgs": [good["msgs"][0], m]} for m in _mutations(good["msgs"][1]))]
+    for obj in objs:
+        data = msgpack.packb(obj, use_bin_type=True)
+        for ctx in (CTX, None):
+            fast = _outcome(decode, data, ctx, cls)
+            slow = _outcome(generic_decode, data, ctx, cls)
+            assert _equal(fast, slow), (obj, ctx)
+            accepted += fast is not DecodeError
+            rejected += fast is DecodeError
+    assert accepted > 10 and rejected > 100

@@ -85,17 +85,28 @@ def test_scale_reports_a_row_per_map_and_fleet(small_map: Path) -> None:
     lines = proc.stdout.strip().splitlines()
     assert lines[0].startswith("# benchmarks/scale.py (issue 11): ") and " cores " in lines[0]
     assert lines[3].split()[:6] == ["map", "cells", "robots", "start", "s", "ticks"]
-    rows = [ln.split() for ln in lines[4:]]
+    stage_at = next(i for i, ln in enumerate(lines) if ln.startswith("# brain by stage"))
+    rows = [ln.split() for ln in lines[4:stage_at]]
     assert [(r[0], r[2]) for r in rows] == [(m, n) for m in ("maze", "two_rooms") for n in ("2", "250", "300")]
-    for r in (rows[0], rows[3]):
-        assert len(r) == 21 and int(r[4]) == 6, r
-        start, tps, total, cores = float(r[3]), float(r[5]), float(r[12]), float(r[13])
+    stage_rows = [ln.split() for ln in lines[stage_at + 2:]]
+    assert lines[stage_at + 1].split() == ["map", "robots", "merge", "clusters", "decode", "navigation", "news",
+                                           "other", "tick0"]
+    assert [(r[0], r[1]) for r in stage_rows] == [("maze", "2"), ("two_rooms", "2")]
+    for r, st in zip((rows[0], rows[3]), stage_rows, strict=True):
+        assert len(r) == 25 and int(r[4]) == 6, r
+        start, tps, total, cores = float(r[3]), float(r[5]), float(r[15]), float(r[16])
         assert start > 0 and tps > 0 and total > 0 and cores > 0, r
-        assert all(float(v) > 0 for v in r[14:19]), r  # PSS of agents, world, netem and the launcher
-        # decide, brain and a.bus come from the agents' own clocks over the same steps: a.bus (the process's
-        # CPU outside its steps) is never negative, as it was from the /proc window under load
-        assert float(r[8]) > 0 and float(r[9]) > 0 and float(r[10]) >= 0, r
-    assert [r[3] for r in rows if len(r) < 21] == ["start:", "cap:"] * 2
+        assert all(float(v) > 0 for v in r[17:23]), r  # PSS of agents, world, netem, the router and the launcher
+        # decide, brain, a.py and a.zen come from the agents' own clocks over the same steps, so none is negative
+        # (a.bus was, from the /proc window under load); outside is the three besides the allocator
+        decide, brain, apy, azen, outside = map(float, r[8:13])
+        assert decide > 0 and brain > 0 and apy >= 0 and azen >= 0, r
+        assert abs(brain + apy + azen - outside) < 0.02, r
+        assert float(r[13]) >= 0 and float(r[21]) > 0, r  # the router's own process: sampled (its PSS)
+        # the second table splits brain by stage; the stages add up to it
+        *stages, tick0 = map(float, st[2:])
+        assert all(v >= 0 for v in stages[:-1]) and abs(sum(stages) - brain) < 0.02, (r, st)
+        assert tick0 > 0, st  # the first step, left out of the agent columns
     assert rows[0][1].startswith(("19x", "20x", "21x"))  # the maze fitted to about 20 cells across
     assert len(proc.stderr.strip().splitlines()) == 8  # two map lines, six progress lines
 
