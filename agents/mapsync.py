@@ -146,7 +146,10 @@ class MapSync:
         self.resent_cells = 0
 
     def peer(self, robot: str) -> Peer:
-        return self.peers.setdefault(robot, Peer())
+        p = self.peers.get(robot)  # not setdefault: it would build a Peer for every call (issue 11, part 3)
+        if p is None:
+            p = self.peers[robot] = Peer()
+        return p
 
     def number(self, cells: np.ndarray) -> int:
         """Number the delta about to be broadcast, keeping its news ``cells`` to send them again on request

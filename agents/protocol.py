@@ -18,6 +18,7 @@ import numpy as np
 from fleet_emu.core.codec import Context, Payload, fast_decoder, packed_array
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
+from fleet_emu.core.kernels import cells_valid
 from fleet_emu.core.messages import check_cell, check_cells
 
 #: At most this many delta numbers in a request or a fill (a receiver missing more asks again next tick).
@@ -136,6 +137,7 @@ class MapFill(Payload):
 _POSE_KEYS = frozenset({"cell", "next", "maps", "want"})
 _MAP_KEYS = frozenset({"cells", "values", "n", "covers"})
 _FILL_KEYS = frozenset({"cells", "values", "seqs", "upto"})
+_KERNEL_CELLS = (np.dtype(np.int32), np.dtype(np.int64))  # cell index types cells_valid is warmed up for
 
 
 def _cell_of(value: Any, shape: tuple[int, int] | None) -> Cell | None:
@@ -164,6 +166,8 @@ def _wants_of(want: dict) -> dict[str, tuple[int, ...]] | None:
     every list at once: list ``i`` shifted by ``i * big`` (``big`` above every number) and led by that shift
     itself gives one sequence that is strictly ascending exactly when every list is, from at least 1. None for
     anything else."""
+    if not want:
+        return {}
     lists = list(want.values())
     if not set(map(type, lists)) <= {list} or max(map(len, lists), default=0) > MAX_SEQS:
         return None
@@ -216,6 +220,10 @@ def _fast_cells(cls: type[MapDelta] | type[MapFill], obj: dict, ctx: Context | N
     values = packed_array(obj.get("values"))
     if cells is None or values is None:
         return None
+    shape = ctx.shape if ctx is not None else None
+    if (shape is not None and cells.ndim == 1 and values.ndim == 1 and len(cells) == len(values)
+            and cells.dtype in _KERNEL_CELLS and values.dtype == np.int8):  # the common case, compiled
+        return (cells, values) if cells_valid(cells, values, shape[0] * shape[1]) else None
     try:
         check_cells(cells, values, ctx.shape if ctx is not None else None, cls.KIND)
     except DecodeError:

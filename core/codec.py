@@ -314,6 +314,12 @@ def generic_decode(data: bytes, ctx: Context | None = None, expected: type[M] | 
 def packed_array(value: Any) -> np.ndarray | None:
     """A packed array (:func:`_to_obj`'s form) as a read-only view of its bytes, or None when ``value`` is not
     a valid one (for fast decoders, which leave the error to the generic decode)."""
+    if type(value) is dict and len(value) == 3:  # a 1-D array, the common case, checked in one expression
+        dtype, shape, data = value.get("dtype"), value.get("shape"), value.get("data")
+        dt = _DTYPES.get(dtype) if type(dtype) is str else None
+        if (dt is not None and type(data) is bytes and type(shape) is list and len(shape) == 1
+                and type(shape[0]) is int and shape[0] * dt.itemsize == len(data) <= MAX_ARRAY_BYTES):
+            return np.frombuffer(data, dtype=dt)
     try:
         return _array(value, "")
     except DecodeError:
