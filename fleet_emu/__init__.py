@@ -101,7 +101,7 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
     ``tls_key`` the embedded router's endpoint and TLS identity, e.g. for hosts on other machines;
     ``host_timeout`` the seconds to wait for them.
     """
-    from fleet_emu.launch.runner import RunOptions, run_fleet
+    from fleet_emu.launch.runner import RunOptions, check_memory_engine, run_fleet
 
     out_dir = Path(out) if out is not None else None
     if record and out_dir is None:
@@ -117,16 +117,12 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
         from fleet_emu.core.errors import ConfigError
 
         raise ConfigError("realtime_hz needs the processes engine: the memory engine is lockstep only")
-    bus = {"credentials": credentials, "tls_ca": tls_ca, "listen": listen, "tls_cert": tls_cert, "tls_key": tls_key,
-           "host_timeout": host_timeout, "hosts (the scenario's [hosts])": scenario.hosts}
-    if engine == "memory" and any(v is not None for v in bus.values()):
-        from fleet_emu.core.errors import ConfigError
-
-        name = next(k for k, v in bus.items() if v is not None)
-        raise ConfigError(f"the memory engine runs without Zenoh nor processes: it takes no {name}")
     if engine == "memory":
         from fleet_emu.launch.memory import run_memory
 
+        bus = [("credentials", credentials), ("tls_ca", tls_ca), ("listen", listen), ("tls_cert", tls_cert),
+               ("tls_key", tls_key), ("host_timeout", host_timeout), ("hosts (the scenario's [hosts])", scenario.hosts)]
+        check_memory_engine("the memory engine", [(name, value is not None) for name, value in bus])
         return run_memory(scenario, out_dir, record=out_dir is not None and record is not False, run_id=run_id,
                           grid_every=grid_every)
     opts = RunOptions(out_dir=out_dir, in_process=in_process, record=out_dir is not None and record is not False,

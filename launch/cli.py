@@ -176,7 +176,14 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     from rich.console import Console
 
     from fleet_emu.launch.progress import Progress, summary_table
-    from fleet_emu.launch.runner import RunOptions, check_logins, check_options, new_run_id, run_fleet
+    from fleet_emu.launch.runner import (
+        RunOptions,
+        check_logins,
+        check_memory_engine,
+        check_options,
+        new_run_id,
+        run_fleet,
+    )
 
     console = Console(stderr=True)
     scenario = scenario_from_args(args)
@@ -187,12 +194,11 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     if args.engine == "memory" and args.realtime is not None:
         raise ConfigError("--realtime needs the processes engine: --engine memory is lockstep only")
     hosts = "--hosts" if args.hosts else "[hosts] (the scenario's; --hosts 0 runs every robot here)"
-    memory_flags = (("--in-process", args.in_process), ("--connect", args.connect), (hosts, scenario.hosts),
-                    ("--listen", args.listen), ("--tls-cert", args.tls_cert), ("--tls-key", args.tls_key),
-                    ("--[no-]fork-server", args.fork_server is not None))
-    if args.engine == "memory" and any(v for _, v in memory_flags):
-        flag = next(f for f, v in memory_flags if v)
-        raise ConfigError(f"--engine memory runs without Zenoh nor processes: it takes no {flag}")
+    if args.engine == "memory":
+        check_memory_engine("--engine memory", [
+            ("--in-process", args.in_process), ("--connect", args.connect), (hosts, scenario.hosts),
+            ("--listen", args.listen), ("--tls-cert", args.tls_cert), ("--tls-key", args.tls_key),
+            ("--[no-]fork-server", args.fork_server is not None)])
     check_logins(args.connect, args.credentials, args.tls_ca, scenario.hosts is not None)
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
         if args.engine == "memory":

@@ -197,6 +197,14 @@ def check_logins(connect: str | None, credentials: Path | None, tls_ca: Path | N
         raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
 
 
+def check_memory_engine(engine: str, options: list[tuple[str, Any]]) -> None:
+    """The memory engine (``engine`` names it as the caller's user knows it: ``--engine memory``, ``the memory
+    engine``) takes none of ``options`` (name, value: a bus or process option, set when truthy)."""
+    name = next((name for name, value in options if value), None)
+    if name is not None:
+        raise ConfigError(f"{engine} runs without Zenoh nor processes: it takes no {name}")
+
+
 def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     """Run one scenario to its end. ``result.json`` is written (atomically) when ``opts.out_dir`` is given,
     on every exit path; Ctrl-C re-raises KeyboardInterrupt after it, and a failed run raises RunError.
