@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from fleet_emu.core.grid import UNKNOWN
+from fleet_emu.core.kernels import merge_parts
 
 
 class Belief:
@@ -36,36 +37,21 @@ class Belief:
         return int(np.count_nonzero(old == UNKNOWN))
 
     def merge_many(self, parts: list[tuple[np.ndarray, np.ndarray]]) -> int:
-        """:meth:`merge` of each ``(cells, values)`` of ``parts`` in turn, in a few whole-array passes (a robot
-        merges every teammate's map delta each tick: issue 11, part 4). The grid, the news and the changed
-        cells are those of the merges in turn (a cell changed and changed back is news); a part that repeats a
-        cell is merged in turn (its values are compared with the grid as it was before that part)."""
+        """:meth:`merge` of each ``(cells, values)`` of ``parts`` in turn, in one compiled pass
+        (:func:`~fleet_emu.core.kernels.merge_parts`; a robot merges every teammate's map delta each tick:
+        issue 11, parts 3 and 4). The grid, the news, the changed cells (in the same order) and the count are
+        those of the merges in turn."""
         if len(parts) <= 1:
             return sum(self.merge(c, v) for c, v in parts)
         cells = np.concatenate([c for c, _ in parts])
         values = np.concatenate([v for _, v in parts])
-        part = np.repeat(np.arange(len(parts), dtype=np.int32), [len(c) for c, _ in parts])
-        known = values != UNKNOWN
-        if not known.all():
-            cells, values, part = cells[known], values[known], part[known]
-        if not len(cells):
-            return 0
-        order = np.argsort(cells, kind="stable")  # each cell's values in merge order
-        cs, vs, ps = cells[order], values[order], part[order]
-        same = cs[1:] == cs[:-1]  # an occurrence follows an earlier one of its cell
-        if (same & (ps[1:] == ps[:-1])).any():  # a part repeats a cell: merge in turn
-            return sum(self.merge(c, v) for c, v in parts)
-        flat = self.grid.reshape(-1)
-        prev = flat[cs]  # the value each occurrence overwrites: the grid's, or its cell's previous occurrence's
-        prev[1:][same] = vs[:-1][same]
-        changed = cs[prev != vs]
-        last = np.ones(len(cs), dtype=bool)
-        last[:-1] = ~same
-        flat[cs[last]] = vs[last]
+        bounds = np.zeros(len(parts) + 1, dtype=np.int64)
+        np.cumsum([len(c) for c, _ in parts], out=bounds[1:])
+        changed, unknowns = merge_parts(self.grid.reshape(-1), cells, values, bounds, UNKNOWN)
         if len(changed):
             self._news.append(changed)
             self._changed.append(changed)
-        return int(np.count_nonzero(prev == UNKNOWN))
+        return int(unknowns)
 
     def take_news(self) -> tuple[np.ndarray, np.ndarray]:
         """Flat indices (ascending) and values of every cell learned or changed since the last call."""

@@ -179,10 +179,39 @@ def cells_valid(cells: np.ndarray, values: np.ndarray, size: int) -> bool:
     return True
 
 
+@numba.njit(cache=True)
+def merge_parts(flat: np.ndarray, cells: np.ndarray, values: np.ndarray, bounds: np.ndarray,
+                unknown: int) -> tuple[np.ndarray, int]:
+    """Merge parts ``bounds[p]:bounds[p + 1]`` of ``cells`` and ``values`` into the grid ``flat`` in turn, as
+    :meth:`fleet_emu.agents.belief.Belief.merge` does each: an unknown value is skipped, a part's values are
+    compared with the grid as it was before that part, and its last value of a cell is the one written.
+    Returns the changed cells (in part order, then the parts' own order) and how many merged values found
+    their cell unknown."""
+    changed = np.empty(cells.shape[0], dtype=np.int64)
+    before = np.empty(cells.shape[0], dtype=np.int8)
+    n = 0
+    unknowns = 0
+    for p in range(bounds.shape[0] - 1):
+        for i in range(bounds[p], bounds[p + 1]):
+            before[i] = flat[cells[i]]
+        for i in range(bounds[p], bounds[p + 1]):
+            v = values[i]
+            if v == unknown:
+                continue
+            if before[i] == unknown:
+                unknowns += 1
+            if before[i] != v:
+                changed[n] = cells[i]
+                n += 1
+            flat[cells[i]] = v
+    return changed[:n], unknowns
+
+
 def warm_up() -> None:
     """Compile (or load from cache) every kernel once, so the first tick does not pay for it."""
     for dtype in (np.int32, np.int64):  # read-only, as decoded from a message's bytes
         cells_valid(np.frombuffer(np.zeros(1, dtype).tobytes(), dtype), np.frombuffer(b"\0", np.int8), 1)
+        merge_parts(np.zeros(1, np.int8), np.zeros(1, dtype), np.zeros(1, np.int8), np.array([0, 1]), -1)
     occ = np.zeros((3, 3), dtype=np.bool_)
     wavefront(~occ, np.array([0], dtype=np.int64), -1)
     visible_cells(occ, 1, 1, 1.5)
