@@ -123,6 +123,8 @@ class Peer:
                 return None
             self.whole_asked = t
             return ()
+        if not self.missing:  # the common case: nothing to ask for
+            return None
         due = sorted(n for n, at in self.missing.items() if at is None or t - at >= retry_after)[:MAX_SEQS]
         if not due:
             return None
