@@ -87,14 +87,14 @@ class AgentNode(NodeBase):
                     plan_steps=tm.plan_steps, waits=tm.waits, decision_ms=percentiles(tm.decision_ms),
                     allocator_ms=percentiles(self.brain.decision_ms[:tm.decisions])).encode())
             ms = np.array(self.brain.decision_ms or [0.0])
+            process_ms, loop_ms = self._clocks_ms()
             pub_report.put(AgentReport(
                 src=self.robot, tick=tick, seq=self.next_seq(), decisions=len(self.brain.decision_ms),
                 decision_ms_mean=float(ms.mean()), decision_ms_p95=float(np.percentile(ms, 95)),
                 dropped=self.dropped, peak_rss_kb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
                 decision_cpu_ms=self.brain.decision_cpu_ms, step_cpu_ms=self.brain.step_cpu_ms,
-                process_cpu_ms=(time.process_time() - self.cpu0) * 1000.0 if self.cpu0 is not None else 0.0,
-                loop_cpu_ms=(time.thread_time() - self.loop_cpu0) * 1000.0 if self.cpu0 is not None else 0.0,
-                stage_cpu_ms=dict(self.brain.cpu_ms), first_cpu_ms=self.first_cpu_ms,
+                process_cpu_ms=process_ms, loop_cpu_ms=loop_ms, stage_cpu_ms=dict(self.brain.cpu_ms),
+                first_cpu_ms=self.first_cpu_ms,
             ).encode())
             await asyncio.sleep(0.05)
         finally:
@@ -134,21 +134,22 @@ class AgentNode(NodeBase):
 
     def _act(self, obs: Observation, bundle: RxBundle) -> None:
         """One tick: the brain's decision, then the tx bundle, the command and (every few ticks) the belief."""
+        self._start_clocks()
+        self._send(obs, *self.brain.step(obs, bundle.msgs))
+
+    def _start_clocks(self) -> None:
+        """Start the report's CPU clocks when the first step begins."""
         if self.cpu0 is None:
             self.cpu0, self.loop_cpu0 = time.process_time(), time.thread_time()
-        self._send(obs, *self.brain.step(obs, bundle.msgs))
-        if not self.first_cpu_ms:
-            self._first_done()
 
-    def _first_done(self) -> None:
-        """Keep the CPU of the first step (sent, in the report, apart from the later ones)."""
-        assert self.cpu0 is not None
-        b = self.brain
-        self.first_cpu_ms = {"process": (time.process_time() - self.cpu0) * 1000.0,
-                             "loop": (time.thread_time() - self.loop_cpu0) * 1000.0,
-                             "step": b.step_cpu_ms, "decision": b.decision_cpu_ms, **b.cpu_ms}
+    def _clocks_ms(self) -> tuple[float, float]:
+        """The process's and the event loop thread's CPU in ms since the first step began (0 before it)."""
+        if self.cpu0 is None:
+            return 0.0, 0.0
+        return (time.process_time() - self.cpu0) * 1000.0, (time.thread_time() - self.loop_cpu0) * 1000.0
 
     def _send(self, obs: Observation, cmd: Command, out: tuple[Envelope, ...]) -> None:
+        """A decision's outputs, in either mode; after the first, its CPU is kept to be reported apart."""
         self.pub_tx.put(TxBundle(src=self.robot, tick=obs.tick, seq=self.next_seq(), msgs=out).encode())
         self.pub_cmd.put(cmd.encode())
         if self.pub_belief is not None and obs.tick % self.scenario.belief_every == 0 \
@@ -157,7 +158,10 @@ class AgentNode(NodeBase):
             if self._belief_heard():
                 self.pub_belief.put(BeliefSnapshot(src=self.robot, tick=obs.tick, seq=seq,
                                                    grid=self.brain.belief.grid).encode())
-
+        if not self.first_cpu_ms:
+            process_ms, loop_ms = self._clocks_ms()
+            b = self.brain
+            self.first_cpu_ms = {"process": process_ms, "loop": loop_ms, "step": b.step_cpu_ms, **b.cpu_ms}
 
     def _belief_heard(self) -> bool:
         """Whether a subscriber (the recorder) listens to the belief snapshots: they are for the recording
@@ -185,8 +189,6 @@ class AgentNode(NodeBase):
                     worker = None
                     self.timing.decided(wall_ms)
                     self._send(obs, cmd, out)
-                    if not self.first_cpu_ms:
-                        self._first_done()
                 if not getter.done():
                     continue
                 item, getter = getter.result(), asyncio.ensure_future(inbox.get())
@@ -229,8 +231,7 @@ class AgentNode(NodeBase):
     def _decide(self, obs: Observation, absorbed: list[Observation], received: list[Envelope]) -> asyncio.Future:
         """One decision in a worker thread: merge ``absorbed``, step on ``obs`` with ``received``. The future
         gives ``(obs, command, tx messages, wall ms)``."""
-        if self.cpu0 is None:
-            self.cpu0, self.loop_cpu0 = time.process_time(), time.thread_time()
+        self._start_clocks()
 
         def work() -> tuple[Observation, Command, tuple[Envelope, ...], float]:
             t0 = time.perf_counter()

@@ -225,7 +225,7 @@ def _fast_cells(cls: type[MapDelta] | type[MapFill], obj: dict, ctx: Context | N
             and cells.dtype in _KERNEL_CELLS and values.dtype == np.int8):  # the common case, compiled
         return (cells, values) if cells_valid(cells, values, shape[0] * shape[1]) else None
     try:
-        check_cells(cells, values, ctx.shape if ctx is not None else None, cls.KIND)
+        check_cells(cells, values, shape, cls.KIND)
     except DecodeError:
         return None
     return cells, values

@@ -215,6 +215,7 @@ def scenario_for(name: str, cs: float, robots: int, start: tuple[int, int], a: a
 
 def run_one(name: str, cs: float, robots: int, start: tuple[int, int], a: argparse.Namespace) -> dict[str, Any]:
     """One fleet run, in this process; the row's numbers (raises FleetError when the run failed)."""
+    from fleet_emu.agents.brain import STAGES
     from fleet_emu.launch.runner import RunOptions, run_fleet
 
     sampler = Sampler(a.ticks)
@@ -244,7 +245,7 @@ def run_one(name: str, cs: float, robots: int, start: tuple[int, int], a: argpar
     step = later(lambda r: r.step_cpu_ms, "step")
     agent_ms = later(lambda r: r.process_cpu_ms, "process")
     loop_ms = later(lambda r: r.loop_cpu_ms, "loop")
-    stages = {k: later(lambda r, k=k: r.stage_cpu_ms.get(k, 0.0), k) for k in STAGE_COLUMNS}
+    stages = {k: later(lambda r, k=k: r.stage_cpu_ms.get(k, 0.0), k) for k in STAGES if k != "decision"}
     agent_pss = [sampler.pss[k] / 1024 for k in sampler.pss if k.startswith("r")] or [0.0]
     row = {
         "start": ((mon.first_state_ns or t0) - t0) / 1e9,
@@ -287,13 +288,10 @@ KEYS = ["map", "cells", "robots", "start", "ticks", "tps", "world", "netem", "de
         "pss_router", "pss_launcher", "dec_wall", "load1"]
 
 
-#: Brain.step's stages besides the allocator (agents/brain.py STAGES), the second table's columns.
-STAGE_COLUMNS = ("merge", "clusters", "decode", "navigation", "news")
-
-
 def stage_table(rows: list[dict[str, Any]]) -> str:
-    """The second table: each run's ``brain`` column split by stage (ms of thread CPU per robot-tick)."""
-    names = (*STAGE_COLUMNS, "other", "tick0")
+    """The second table: each run's ``brain`` column split by stage (ms of thread CPU per robot-tick), in the
+    order :func:`run_one` gives them (``Brain.step``'s stages besides the allocator, ``other``, ``tick0``)."""
+    names = list(rows[0]["stages"])
     lines = ["# brain by stage (Brain.cpu_ms), ms of thread CPU per robot-tick; tick0: an agent's process CPU in "
              "its first step (mean), left out of every agent column",
              f"{'map':>10} {'robots':>6} " + " ".join(f"{n:>10}" for n in names)]
