@@ -17,6 +17,7 @@ class Belief:
         self.grid = np.full(shape, UNKNOWN, dtype=np.int8)
         self._news: list[np.ndarray] = []
         self._changed: list[np.ndarray] = []
+        self._known: tuple[np.ndarray, np.ndarray] | None = None  # known()'s answer until a merge changes a cell
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -32,6 +33,7 @@ class Belief:
         changed = cells[old != values]
         flat[cells] = values
         if len(changed):
+            self._known = None
             self._news.append(changed)
             self._changed.append(changed)
         return int(np.count_nonzero(old == UNKNOWN))
@@ -49,6 +51,7 @@ class Belief:
         np.cumsum([len(c) for c, _ in parts], out=bounds[1:])
         changed, unknowns = merge_parts(self.grid.reshape(-1), cells, values, bounds, UNKNOWN)
         if len(changed):
+            self._known = None
             self._news.append(changed)
             self._changed.append(changed)
         return int(unknowns)
@@ -66,10 +69,16 @@ class Belief:
         return out
 
     def known(self) -> tuple[np.ndarray, np.ndarray]:
-        """Every known cell (for a full-map sync to a teammate heard again after a silence)."""
-        flat = self.grid.reshape(-1)
-        idx = np.flatnonzero(flat != UNKNOWN)
-        return idx.astype(np.int32), flat[idx].copy()
+        """Every known cell, flat indices ascending and their values (for a full-map sync to a teammate heard
+        again after a silence), as read-only arrays. The answer is kept until a merge changes a cell: at 100
+        robots a robot sends several whole maps a tick, each a pass over the grid (issue 11, part 3)."""
+        if self._known is None:
+            flat = self.grid.reshape(-1)
+            idx = np.flatnonzero(flat != UNKNOWN)
+            cells, values = idx.astype(np.int32), flat[idx]
+            cells.flags.writeable = values.flags.writeable = False
+            self._known = cells, values
+        return self._known
 
 
 def _union(parts: list[np.ndarray]) -> np.ndarray:

@@ -142,7 +142,8 @@ class Brain:
         self.allocator.reset(rng)
         self.belief: Belief | None = None
         self.frontiers: FrontierClusters | None = None
-        self.teammates: dict[str, Teammate] = {}
+        self.teammates: dict[str, Teammate] = {}  # in id order after each step's beacons
+        self._new_teammate = False
         self.seq = 0
         self.last_cell: Cell | None = None
         self.last_move: Cell = STAY
@@ -266,8 +267,10 @@ class Brain:
             elif isinstance(body, MapDelta):
                 pending.append((body.cells, body.values))
                 if sync is not None and body.n is not None:
-                    sync.peer(msg.origin).received(body.n)
-                    sync.peer(msg.origin).filled(body.covers or (), 0)
+                    peer = sync.peer(msg.origin)
+                    peer.received(body.n)
+                    if body.covers:
+                        peer.filled(body.covers, 0)
             elif isinstance(body, MapFill):
                 pending.append((body.cells, body.values))
                 if sync is not None:
@@ -276,18 +279,21 @@ class Brain:
                 protocol.append(msg)
         flush()
         want = None
+        if self._new_teammate:  # teammates in id order, sorted again only when one joins
+            self.teammates = dict(sorted(self.teammates.items()))
+            self._new_teammate = False
+        heard = {r: tm.heard for r, tm in self.teammates.items()}
         if sync is not None:
             for r in rejoined:  # it sends us its whole map as we send it ours: ask only if that is lost
                 sync.peer(r).hold(t)
-            want = sync.requests(t, {r: tm.heard for r, tm in self.teammates.items()})
-        expected = {r: tm.expected(obs.cell) for r, tm in sorted(self.teammates.items())}
+            want = sync.requests(t, heard)
+        expected = {r: tm.expected(obs.cell) for r, tm in self.teammates.items()}
         poses = {self.me: obs.cell} | expected
         c_cl = time.thread_time()
         assert self.frontiers is not None
         clusters = list(self.frontiers.update(belief.grid, belief.take_changed()))
         cpu["clusters"] += (time.thread_time() - c_cl) * 1000.0
-        problem = Problem(me=self.me, poses=poses, belief=belief.grid, clusters=clusters, tick=t,
-                          heard={r: tm.heard for r, tm in self.teammates.items()},
+        problem = Problem(me=self.me, poses=poses, belief=belief.grid, clusters=clusters, tick=t, heard=heard,
                           previous_target=self.last_target)
         t0, c1 = self.clock(), time.thread_time()
         alloc = self.allocator.allocate(problem, protocol)
@@ -356,7 +362,11 @@ class Brain:
         elif rejoined:
             cells, values = self.belief.known()  # type: ignore[union-attr]
             outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=msg.origin))
-        self.teammates[msg.origin] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
+        if prev is None:
+            self.teammates[msg.origin] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
+            self._new_teammate = True
+        else:  # updated in place: a robot hears every teammate's beacon every tick (issue 11, part 3)
+            prev.cell, prev.heard, prev.next = beacon.cell, max(t, msg.tick), beacon.next
         return rejoined
 
     def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray, occupied: set[Cell],

@@ -164,14 +164,20 @@ def _seqs_of(value: Any) -> tuple[int, ...] | None:
 def _wants_of(want: dict) -> dict[str, tuple[int, ...]] | None:
     """A beacon's requests (robot -> a list of delta numbers) with each list checked as :func:`_seqs_of` does,
     every list at once: list ``i`` shifted by ``i * big`` (``big`` above every number) and led by that shift
-    itself gives one sequence that is strictly ascending exactly when every list is, from at least 1. None for
-    anything else."""
+    itself gives one sequence that is strictly ascending exactly when every list is, from at least 1; when every
+    list holds one number, it is enough that each is at least 1. None for anything else."""
     if not want:
         return {}
     lists = list(want.values())
-    if not set(map(type, lists)) <= {list} or max(map(len, lists), default=0) > MAX_SEQS:
+    if not set(map(type, lists)) <= {list}:
         return None
     flat = list(itertools.chain.from_iterable(lists))
+    if set(map(len, lists)) == {1}:  # one number per teammate, the common case
+        if not set(map(type, flat)) <= {int} or min(flat) < 1:
+            return None
+        return dict(zip(want, zip(flat), strict=True))  # {robot: (n,)}
+    if max(map(len, lists)) > MAX_SEQS:
+        return None
     if flat:
         if not set(map(type, flat)) <= {int}:
             return None
@@ -200,10 +206,11 @@ def _fast_pose(obj: dict, ctx: Context | None) -> PoseBeacon | None:
         return None
     want = obj.get("want")
     if want is not None:
-        if type(want) is not dict or not set(map(type, want)) <= {str}:
+        if type(want) is not dict:
             return None
         senders = ctx.senders if ctx is not None else None
-        if senders is not None and not want.keys() <= senders:
+        # msgpack's keys are str or bytes (strict_map_key), and senders are str: within them, each is a str
+        if not (want.keys() <= senders if senders is not None else set(map(type, want)) <= {str}):
             return None
         want = _wants_of(want)
         if want is None:

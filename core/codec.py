@@ -387,11 +387,11 @@ def _steps(cls: type[Record]) -> tuple[tuple[str, str, bool, Convert], ...]:
     return tuple((f.name, f.label, f.optional, f.convert) for f in _fields(cls)[0])
 
 
-def _guarded(build: Callable[[], R]) -> R:
-    """Run a decoder; anything but DecodeError (a constructor or validator tripped on odd but well-typed
-    data) becomes a DecodeError."""
+def _guarded(build: Callable[..., R], *args: Any) -> R:
+    """``build(*args)``, a decoder; anything but DecodeError (a constructor or validator tripped on odd but
+    well-typed data) becomes a DecodeError."""
     try:
-        return build()
+        return build(*args)
     except DecodeError:
         raise
     except Exception as exc:
@@ -408,7 +408,7 @@ def _unpack(data: bytes) -> Any:
 def decode(data: bytes, ctx: Context | None = None, expected: type[M] | None = None) -> M:
     """Decode bytes into a registered message, validating it; only ever raises DecodeError."""
     obj = _unpack(data)
-    return _guarded(lambda: _decode_obj(obj, ctx, expected))  # type: ignore[return-value]
+    return _guarded(_decode_obj, obj, ctx, expected)  # type: ignore[return-value]
 
 
 def decode_payload(kind: str, data: bytes, ctx: Context | None = None) -> Payload:
@@ -417,14 +417,14 @@ def decode_payload(kind: str, data: bytes, ctx: Context | None = None) -> Payloa
     if cls is None:
         raise DecodeError(f"unknown payload kind {kind!r}")
     obj = _unpack(data)
-    if not isinstance(obj, dict):
+    if type(obj) is not dict:
         raise DecodeError(f"{kind}: payload is not a map")
     fast = _FAST.get(cls)
     if fast is not None:
-        record = _guarded(lambda: fast(obj, ctx))
+        record = _guarded(fast, obj, ctx)
         if record is not None:
             return record  # type: ignore[return-value]
-    return _guarded(lambda: _build(cls, obj, ctx))  # type: ignore[return-value]
+    return _guarded(_build, cls, obj, ctx)  # type: ignore[return-value]
 
 
 def peek_tick(data: bytes) -> int | None:

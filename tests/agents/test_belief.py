@@ -52,3 +52,20 @@ def test_merge_many_is_the_merges_in_turn() -> None:
         assert many.take_changed().tolist() == one.take_changed().tolist()  # the same cells, in the same order
         got, want = many.take_news(), one.take_news()
         assert got[0].tolist() == want[0].tolist() and got[1].tolist() == want[1].tolist()
+
+
+def test_known_is_kept_until_a_merge_changes_a_cell() -> None:
+    """A robot may send its whole map to several teammates in one tick: ``known`` is computed once and kept
+    (read-only) until a merge, one at a time or many at once, changes a cell."""
+    b = Belief((3, 4))
+    b.merge(np.array([5, 1]), np.array([100, 0], np.int8))
+    first = b.known()
+    assert first[0].tolist() == [1, 5] and first[1].tolist() == [0, 100] and first[0].dtype == np.int32
+    assert not first[0].flags.writeable and not first[1].flags.writeable
+    b.merge(np.array([5, 7]), np.array([100, -1], np.int8))  # nothing changes
+    b.merge_many([(np.array([1]), np.array([0], np.int8)), (np.array([3]), np.array([-1], np.int8))])
+    assert b.known() is first
+    b.merge(np.array([5]), np.array([0], np.int8))  # a value changes
+    assert b.known()[1].tolist() == [0, 0]
+    b.merge_many([(np.array([0]), np.array([0], np.int8)), (np.array([11]), np.array([100], np.int8))])
+    assert b.known()[0].tolist() == [0, 1, 5, 11] and b.known()[1].tolist() == [0, 0, 0, 100]

@@ -19,6 +19,8 @@ from fleet_emu.core.messages import Envelope, RxBundle, TxBundle
 CTX = Context(senders=frozenset({"r0", "r1", "r2"}), shape=(4, 5))
 ODD = [None, True, False, -1, 0, 1, 3, 19, 20, 2**40, 1.5, "r1", "r9", "", b"x", [], [1], [1, 2], [2, 1], [0, 1],
        [3, 3], [True, 1], {}, {"r1": [1]}, {"r9": [1]}, {"r1": [2, 1]}, {"r1": "1"}, {1: [1]}, list(range(1, 70)),
+       {b"r1": [1]}, {"r1": [0]}, {"r1": [True]}, {"r1": [1.0]}, {"r1": [1], "r2": [7]}, {"r1": [1], "r2": []},
+       {"r1": [1], "r2": [0]}, {"r1": [2], "r2": [1, 2]},
        {"dtype": "int32", "shape": [1], "data": b"\0\0\0\0"}, {"dtype": "int8", "shape": [1], "data": b"\x64"},
        {"dtype": "int32", "shape": [1], "data": b"\xff\xff\xff\xff"}, {"dtype": "int8", "shape": [1], "data": b"\7"},
        {"dtype": "int32", "shape": [2], "data": b"\0\0\0\0"}]
@@ -124,15 +126,17 @@ def test_bundles_encode_as_msgpack_packs_them(n: int) -> None:
 
 def test_a_beacons_requests_are_checked_as_one_sequence_as_list_by_list() -> None:
     """The fast pose decoder checks every request list at once (``_wants_of``): the same verdict as checking
-    each list (``check_seqs``) on random lists, ascending or not, with zeros, negatives and large numbers."""
+    each list (``check_seqs``) on random lists, ascending or not, with zeros, negatives and large numbers, and
+    on requests of one number per teammate (its shortcut)."""
     from fleet_emu.agents.protocol import _wants_of, check_seqs
 
     rng = np.random.default_rng(11)
     verdicts = set()
     for _ in range(3000):
         want = {}
+        ones = rng.random() < 0.3
         for r in range(int(rng.integers(0, 4))):
-            n = int(rng.integers(0, 5))
+            n = 1 if ones else int(rng.integers(0, 5))
             pool = [0, -3, 1, 2, 3, 5, 8, 2**40] if rng.random() < 0.5 else list(range(1, 9))
             seqs = sorted(rng.choice(pool, n).tolist()) if rng.random() < 0.7 else rng.choice(pool, n).tolist()
             want[f"r{r}"] = [int(x) for x in seqs]
