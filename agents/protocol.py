@@ -163,29 +163,22 @@ def _seqs_of(value: Any) -> tuple[int, ...] | None:
 
 def _wants_of(want: dict) -> dict[str, tuple[int, ...]] | None:
     """A beacon's requests (robot -> a list of delta numbers) with each list checked as :func:`_seqs_of` does,
-    every list at once: list ``i`` shifted by ``i * big`` (``big`` above every number) and led by that shift
-    itself gives one sequence that is strictly ascending exactly when every list is, from at least 1; when every
-    list holds one number, it is enough that each is at least 1. None for anything else."""
+    in passes over all of them at once (every number an int >= 1) and, only for the lists of more than one
+    number (most hold one), each list's order. None for anything else."""
     if not want:
         return {}
     lists = list(want.values())
     if not set(map(type, lists)) <= {list}:
         return None
     flat = list(itertools.chain.from_iterable(lists))
-    if set(map(len, lists)) == {1}:  # one number per teammate, the common case
-        if not set(map(type, flat)) <= {int} or min(flat) < 1:
-            return None
-        return dict(zip(want, zip(flat), strict=True))  # {robot: (n,)}
-    if max(map(len, lists)) > MAX_SEQS:
+    if flat and (not set(map(type, flat)) <= {int} or min(flat) < 1):
         return None
-    if flat:
-        if not set(map(type, flat)) <= {int}:
-            return None
-        big = max(max(flat), 0) + 1
-        shifted = [big * i + x for i, seqs in enumerate(lists) for x in (0, *seqs)]
-        if not all(map(operator.lt, shifted, itertools.islice(shifted, 1, None))):
-            return None
-    return {r: tuple(seqs) for r, seqs in want.items()}
+    if max(map(len, lists)) > 1:
+        for seqs in lists:
+            if len(seqs) > 1 and (len(seqs) > MAX_SEQS
+                                  or not all(map(operator.lt, seqs, itertools.islice(seqs, 1, None)))):
+                return None
+    return dict(zip(want, map(tuple, lists), strict=True))
 
 
 @fast_decoder(PoseBeacon)
