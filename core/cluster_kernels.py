@@ -176,4 +176,6 @@ def warm_up() -> None:
     flips = update_mask(grid, 2, 2, mask, np.arange(4, dtype=np.int64))
     touched_labels(labels, 2, 2, flips)
     relabel(mask, labels, 2, 2, flips, 1, 1)
-    target(np.arange(3, dtype=np.int64), 2)
+    cells = np.arange(3, dtype=np.int64)
+    cells.flags.writeable = False  # as FrontierClusters keeps its pieces: numba compiles read-only arrays apart
+    target(cells, 2)

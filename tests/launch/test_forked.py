@@ -6,6 +6,7 @@ import json
 import os
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -14,6 +15,7 @@ import zenoh
 
 from fleet_emu.core.bus import router_config, router_locators
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.cli import DEFAULT_SCENARIO as DEFAULT
 from fleet_emu.launch.forked import NOT_STARTED, ForkServer, fork_server_enabled
 
 
@@ -104,3 +106,39 @@ def test_the_switch(monkeypatch: pytest.MonkeyPatch, flag: bool | None, env: str
     else:
         monkeypatch.setenv("FLEET_FORK_SERVER", env)
     assert fork_server_enabled(flag) is expected
+
+
+_NEW_SPECIALIZATIONS = """
+import json, sys
+import numba
+from fleet_emu.agents import forkserver
+from fleet_emu.core import cluster_kernels, kernels
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.memory import Fleet
+
+def signatures():
+    return {f"{m.__name__}.{n}": set(map(str, f.signatures)) for m in (kernels, cluster_kernels)
+            for n, f in vars(m).items() if isinstance(f, numba.core.registry.CPUDispatcher)}
+
+forkserver.preload(sys.argv[1])
+before = signatures()
+fleet = Fleet(Scenario.from_json(sys.argv[1]))
+fleet.reset()
+for _ in range(int(sys.argv[2])):
+    fleet.step()
+print(json.dumps({k: sorted(s - before[k]) for k, s in signatures().items() if s - before[k]}))
+"""
+
+
+@pytest.mark.parametrize("allocator", [{"type": "minpos", "wavefront": "parallel"}, {"type": "greedy"}])
+def test_the_fork_server_loads_every_kernel_specialization_a_robot_uses(tmp_path: Path, allocator: dict) -> None:
+    """What the server preloads covers what robots call in their ticks: a kernel's specialization compiled
+    after the fork (a read-only array is one of its own to numba) is compiled, or loaded from numba's cache,
+    by every robot on its own; with an empty cache and 100 robots that stalled the first ticks (issue 11).
+    The robots' ticks run here in one process (the memory engine), after the server's preload."""
+    scenario = Scenario.load(DEFAULT).override(robots=4, max_ticks=12)
+    (tmp_path / "scenario.json").write_text(json.dumps({**scenario.to_dict(), "allocator": allocator}))
+    out = subprocess.run([sys.executable, "-c", _NEW_SPECIALIZATIONS, str(tmp_path / "scenario.json"), "12"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert json.loads(out.stdout) == {}
