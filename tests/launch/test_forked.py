@@ -130,14 +130,17 @@ print(json.dumps({k: sorted(s - before[k]) for k, s in signatures().items() if s
 """
 
 
-@pytest.mark.parametrize("allocator", [{"type": "minpos", "wavefront": "parallel"}, {"type": "greedy"}])
+@pytest.mark.parametrize("allocator", [{"type": "minpos", "wavefront": "parallel"},
+                                       {"type": "minpos", "wavefront": "stop"}, {"type": "greedy"},
+                                       {"type": "connectivity"}, {"type": "mhm"}])
 def test_the_fork_server_loads_every_kernel_specialization_a_robot_uses(tmp_path: Path, allocator: dict) -> None:
     """What the server preloads covers what robots call in their ticks: a kernel's specialization compiled
     after the fork (a read-only array is one of its own to numba) is compiled, or loaded from numba's cache,
     by every robot on its own; with an empty cache and 100 robots that stalled the first ticks (issue 11).
     The robots' ticks run here in one process (the memory engine), after the server's preload."""
     scenario = Scenario.load(DEFAULT).override(robots=4, max_ticks=12)
-    (tmp_path / "scenario.json").write_text(json.dumps({**scenario.to_dict(), "allocator": allocator}))
+    base = {"base": True} if allocator["type"] == "mhm" else {}  # a base-station planner needs its base
+    (tmp_path / "scenario.json").write_text(json.dumps({**scenario.to_dict(), "allocator": allocator, **base}))
     out = subprocess.run([sys.executable, "-c", _NEW_SPECIALIZATIONS, str(tmp_path / "scenario.json"), "12"],
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
