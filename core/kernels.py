@@ -245,6 +245,18 @@ def _push(cell: np.ndarray, link: np.ndarray, head: np.ndarray, tail: np.ndarray
     tail[j] = slot
 
 
+@numba.njit(cache=True, inline="always")
+def _first_visit(seen: np.ndarray, key: int) -> bool:
+    """Mark bit ``key`` of the bitset ``seen`` (uint64 words); whether it was clear. One bit per (wavefront,
+    cell): eight times less memory to clear and walk than a byte each (m wavefronts on a 512 x 512 map)."""
+    word = key >> 6
+    bit = np.uint64(1) << np.uint64(key & 63)
+    if seen[word] & bit:
+        return False
+    seen[word] |= bit
+    return True
+
+
 @numba.njit(cache=True)
 def _expand_layer(flat_pass, rows, cols, seen, base, crowd, me, cell, link, spare, head, tail, j, count,
                   used, nspare):
@@ -265,8 +277,7 @@ def _expand_layer(flat_pass, rows, cols, seen, base, crowd, me, cell, link, spar
             nxt = _neighbour(cur, k, rows, cols)
             if nxt < 0:
                 continue
-            if flat_pass[nxt] and not seen[base + nxt]:
-                seen[base + nxt] = True
+            if flat_pass[nxt] and _first_visit(seen, base + nxt):
                 if nspare > 0:
                     nspare -= 1
                     slot = spare[nspare]
@@ -301,7 +312,7 @@ def minpos_parallel(passable: np.ndarray, sources: np.ndarray, offsets: np.ndarr
         if 0 <= r < n:
             crowd[r] += 1
     width = max(m, 1)
-    seen = np.zeros(width * n, dtype=np.bool_)
+    seen = np.zeros((width * n + 63) // 64, dtype=np.uint64)  # a bit per (wavefront, cell): _first_visit
     cap = 2 * len(sources) + 1024
     cell = np.empty(cap, dtype=np.int64)
     link = np.empty(cap, dtype=np.int64)
@@ -319,8 +330,7 @@ def minpos_parallel(passable: np.ndarray, sources: np.ndarray, offsets: np.ndarr
         base = j * n
         for t in range(offsets[j], offsets[j + 1]):
             s = sources[t]
-            if 0 <= s < n and not seen[base + s]:
-                seen[base + s] = True
+            if 0 <= s < n and _first_visit(seen, base + s):
                 _push(cell, link, head, tail, j, used, s)
                 used += 1
                 size[j] += 1
