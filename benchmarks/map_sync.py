@@ -36,8 +36,8 @@ from fleet_emu.core.errors import FleetError
 from fleet_emu.core.grid import UNKNOWN
 from fleet_emu.core.messages import TxBundle, open_envelope
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.checks import check
 from fleet_emu.launch.memory import Fleet
-from fleet_emu.launch.runner import check
 
 RECOVERY = ("mapfill", "resent_cells", "sync_fields")
 

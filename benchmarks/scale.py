@@ -196,8 +196,10 @@ class Sampler:
             return
         tick = monitor.state.tick
         if monitor.stop is None and (self.last is None or tick > self.last[0]):
-            self.last = (tick, time.monotonic(), self._cpu())
-            self.first = self.first or self.last
+            cpu = self._cpu()
+            if len(cpu) == len(self.pids):  # not once a process has exited: its CPU would drop out of ``cores``
+                self.last = (tick, time.monotonic(), cpu)
+                self.first = self.first or self.last
         if not self.pss and (tick >= self.ticks - 2 or monitor.stop is not None):
             self.pss = {k: v for k, p in self.pids.items() if (v := pss_kb(p)) is not None}
 

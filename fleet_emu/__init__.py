@@ -101,7 +101,8 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
     ``tls_key`` the embedded router's endpoint and TLS identity, e.g. for hosts on other machines;
     ``host_timeout`` the seconds to wait for them.
     """
-    from fleet_emu.launch.runner import RunOptions, check_memory_engine, run_fleet
+    from fleet_emu.launch.checks import check_memory_engine
+    from fleet_emu.launch.runner import RunOptions, run_fleet
 
     out_dir = Path(out) if out is not None else None
     if record and out_dir is None:

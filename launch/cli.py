@@ -175,15 +175,9 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
 def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     from rich.console import Console
 
+    from fleet_emu.launch.checks import check_logins, check_memory_engine, check_options, new_run_id
     from fleet_emu.launch.progress import Progress, summary_table
-    from fleet_emu.launch.runner import (
-        RunOptions,
-        check_logins,
-        check_memory_engine,
-        check_options,
-        new_run_id,
-        run_fleet,
-    )
+    from fleet_emu.launch.runner import RunOptions, run_fleet
 
     console = Console(stderr=True)
     scenario = scenario_from_args(args)

@@ -337,14 +337,14 @@ def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool 
     ``fleet report`` reads). Bad input raises ConfigError before anything is written. With ``interrupts``
     (the CLI's signal state) a signal ends the run after the current tick, as ``run_fleet`` does; without,
     Ctrl-C re-raises KeyboardInterrupt once the files are written."""
+    from fleet_emu.launch.checks import check, check_machine, make_out, new_run_id
     from fleet_emu.launch.result import write_json_atomic
-    from fleet_emu.launch.runner import _make_out, check, check_machine, new_run_id
 
     map_data = check(scenario)
     check_machine(scenario, map_data, "memory")
     run_id = run_id or new_run_id()
     if out_dir is not None:
-        _make_out(out_dir)
+        make_out(out_dir)
     with contextlib.ExitStack() as stack:
         recording = out_dir / "run.mcap" if record and out_dir is not None else None
         tap, finish = _recording_tap(stack, scenario, map_data, run_id, recording, grid_every)

@@ -9,8 +9,6 @@ import contextlib
 import dataclasses
 import os
 import queue
-import secrets
-import shutil
 import tempfile
 import threading
 import time
@@ -20,32 +18,32 @@ from typing import Any
 
 import zenoh
 
-from fleet_emu.agents.allocators import make_allocator
-from fleet_emu.agents.brain import allocator_config
 from fleet_emu.core.access import (
     LAUNCHER,
     RECORDER,
     Credential,
-    fleet_nodes,
-    make_credentials,
-    read_dictionary,
 )
-from fleet_emu.core.bus import client_config, publisher, router_config, router_locators, shm_enabled
-from fleet_emu.core.errors import ConfigError, RunError
+from fleet_emu.core.bus import client_config, publisher, router_config, router_locators
+from fleet_emu.core.errors import RunError
 from fleet_emu.core.grid import MapData
-from fleet_emu.core.keys import BASE, RUN_ID, Keys, robot_ids
-from fleet_emu.core.messages import MAX_REALTIME_HZ, Failed, Stop
+from fleet_emu.core.keys import BASE, Keys, robot_ids
+from fleet_emu.core.messages import Failed, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.launch import budget
+from fleet_emu.launch.checks import (
+    check,
+    check_logins,
+    check_machine,
+    check_options,
+    credentials,
+    make_out,
+    new_run_id,
+)
 from fleet_emu.launch.forked import fork_server_enabled
 from fleet_emu.launch.hosts import (
     HOST_TIMEOUT,
     Hosts,
     HostsError,
-    check_hosts,
-    check_reliable,
-    host_credentials,
     listen_endpoints,
     spawn_nodes,
 )
@@ -58,11 +56,7 @@ from fleet_emu.recording.foxglove import FoxgloveFold
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.monitor import Monitor
 from fleet_emu.recording.recorder import Recorder
-from fleet_emu.world.maps import load_map
-from fleet_emu.world.node import base_cell, build_world
-
-CONNECT_TIMEOUT = 5.0  # seconds ``--connect`` keeps trying an external router before giving up
-MAX_HZ = MAX_REALTIME_HZ  # the fastest real-time rate accepted
+from fleet_emu.world.node import base_cell
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,119 +86,6 @@ class RunOptions:
     realtime_hz: float | None = None  # real time: the world ticks at this rate on the wall clock (None: lockstep)
 
 
-def new_run_id() -> str:
-    return time.strftime("%Y%m%d-%H%M%S") + "-" + secrets.token_hex(2)
-
-
-def check(scenario: Scenario) -> MapData:
-    """Everything that can be wrong with the user's input, found before any process starts; the true map,
-    built once for the whole run."""
-    scenario.validate()
-    make_allocator(allocator_config(scenario))  # exactly what every agent will build; ConfigError if bad
-    md = load_map(scenario.map, scenario.cell_size, scenario.seed)
-    world = build_world(scenario, md)
-    world.reset()  # raises StartAreaError when the robots do not fit
-    base_cell(scenario, md, world)  # a ConfigError for a base cell off the map or on a wall
-    return md
-
-
-def check_machine(scenario: Scenario, map_data: MapData, engine: str, fork_server: bool = False) -> None:
-    """Whether the machine holds the run (``launch/budget.py``): its estimated memory against what is
-    available, and (over Zenoh) the launcher's open-file limit, raised to its hard limit when needed."""
-    budget.check_memory(scenario.robots, int(map_data.grid.size), engine, fork_server, shm_enabled(),
-                        budget.available_mb(), base=scenario.has_base)
-    if engine != "memory":
-        budget.ensure_fds(scenario.robots)
-
-
-def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] | None:
-    """Every process's login: fresh per-run passwords for the embedded router; with ``connect``, the users
-    file of ``fleet router-config`` (None without one: the external router is then not authenticated)."""
-    nodes = fleet_nodes(robot_ids(scenario.robots), scenario.has_base)
-    ca = str(opts.tls_ca.absolute()) if opts.tls_ca is not None else None
-    if opts.connect is None:
-        hosts = host_credentials(opts.credentials, scenario.hosts) if scenario.hosts else {}
-        return {n: Credential(n, p) for n, p in make_credentials(nodes).items()} | hosts
-    if opts.credentials is None:
-        return None
-    try:
-        users = read_dictionary(opts.credentials.read_text())
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise ConfigError(f"--credentials {opts.credentials}: cannot read it ({exc})") from None
-    missing = [n for n in nodes if n not in users]
-    if missing:
-        raise ConfigError(f"--credentials {opts.credentials} has no user {missing[0]!r}; make it with "
-                          f"`fleet router-config --robots {scenario.robots}` or more robots")
-    return {n: Credential(n, users[n], ca) for n in nodes}
-
-
-def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None, hosts: int = 0) -> None:
-    """The run's options that can be wrong before anything starts: the run id, the hosts' (``hosts``: the
-    scenario's number of hosts), the real-time rate, the TLS CA file, and
-    ``connect`` (its syntax, and a router answering there within :data:`CONNECT_TIMEOUT` and accepting the
-    launcher's credential)."""
-    if opts.run_id and not RUN_ID.fullmatch(opts.run_id):
-        raise ConfigError(f"--run-id must be letters, digits, '_', '-' or '.' (not first), at most 100 "
-                          f"(got {opts.run_id!r})")
-    check_hosts(hosts, opts.in_process, opts.connect, opts.listen)
-    if opts.connect is None:
-        listen_endpoints(opts.listen, opts.tls_cert, opts.tls_key)
-    elif opts.tls_cert is not None or opts.tls_key is not None:
-        raise ConfigError("--tls-cert and --tls-key go with a tls/ or quic/ --listen (the embedded router's)")
-    else:
-        check_reliable("--connect", opts.connect)
-    hz = opts.realtime_hz
-    if hz is not None and (isinstance(hz, bool) or not isinstance(hz, int | float) or not 0 < hz <= MAX_HZ):
-        raise ConfigError(f"--realtime must be a number of ticks per second > 0 and <= {MAX_HZ:g} (got {hz!r})")
-    if opts.tls_ca is not None and not opts.tls_ca.is_file():
-        raise ConfigError(f"--tls-ca {opts.tls_ca}: no such file")
-    if opts.connect is None:
-        return
-    try:
-        conf = client_config(opts.connect, creds[LAUNCHER] if creds else None)
-        timeout_ms = int(CONNECT_TIMEOUT * 1000)
-        conf.insert_json5("connect/timeout_ms", f'{{"router": -1, "peer": -1, "client": {timeout_ms}}}')
-    except zenoh.ZError:
-        raise ConfigError(f"--connect {opts.connect!r} is not a Zenoh endpoint (expected <protocol>/<address>, "
-                          f"e.g. tcp/127.0.0.1:7447)") from None
-    try:
-        zenoh.open(conf).close()
-    except zenoh.ZError:
-        refused = " or it refused the credentials" if creds else ""
-        hint = "" if creds else "; a router with authentication needs --credentials"
-        raise ConfigError(f"--connect {opts.connect}: no Zenoh router answered{refused} (gave up after "
-                          f"{CONNECT_TIMEOUT:g} s){hint}") from None
-
-
-def _make_out(out: Path) -> None:
-    """Create ``out`` (and its missing parents) and check it is writable; a ConfigError, and no directory left
-    behind, when it cannot be written."""
-    out = out.absolute()
-    top = next((p for p in (*reversed(out.parents), out) if not p.exists()), None)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=out):
-            pass
-    except OSError as exc:
-        if top is not None:
-            shutil.rmtree(top, ignore_errors=True)
-        raise ConfigError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
-
-
-def check_logins(connect: str | None, credentials: Path | None, tls_ca: Path | None, hosts: bool) -> None:
-    """A users file and a CA certificate are an external router's (or the users file the hosts' logins)."""
-    if connect is None and (tls_ca or (credentials and not hosts)):
-        raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
-
-
-def check_memory_engine(engine: str, options: list[tuple[str, Any]]) -> None:
-    """The memory engine (``engine`` names it as the caller's user knows it: ``--engine memory``, ``the memory
-    engine``) takes none of ``options`` (name, value: a bus or process option, set when truthy)."""
-    name = next((name for name, value in options if value), None)
-    if name is not None:
-        raise ConfigError(f"{engine} runs without Zenoh nor processes: it takes no {name}")
-
-
 def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     """Run one scenario to its end. ``result.json`` is written (atomically) when ``opts.out_dir`` is given,
     on every exit path; Ctrl-C re-raises KeyboardInterrupt after it, and a failed run raises RunError.
@@ -221,7 +102,7 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
                         "(see `fleet router-config`)")
     run_id = opts.run_id or new_run_id()
     if opts.out_dir is not None:
-        _make_out(opts.out_dir)
+        make_out(opts.out_dir)
     with contextlib.ExitStack() as files:
         work = opts.out_dir or Path(files.enter_context(tempfile.TemporaryDirectory(prefix="fleet-run-")))
         recording = work / "run.mcap" if opts.record and opts.out_dir is not None else None
