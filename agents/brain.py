@@ -142,8 +142,7 @@ class Brain:
         self.allocator.reset(rng)
         self.belief: Belief | None = None
         self.frontiers: FrontierClusters | None = None
-        self.teammates: dict[str, Teammate] = {}  # in id order after each step's beacons
-        self._new_teammate = False
+        self.teammates: dict[str, Teammate] = {}  # in id order (sorted again when one joins)
         self.seq = 0
         self.last_cell: Cell | None = None
         self.last_move: Cell = STAY
@@ -279,9 +278,6 @@ class Brain:
                 protocol.append(msg)
         flush()
         want = None
-        if self._new_teammate:  # teammates in id order, sorted again only when one joins
-            self.teammates = dict(sorted(self.teammates.items()))
-            self._new_teammate = False
         heard = {r: tm.heard for r, tm in self.teammates.items()}
         if sync is not None:
             for r in rejoined:  # it sends us its whole map as we send it ours: ask only if that is lost
@@ -362,9 +358,9 @@ class Brain:
         elif rejoined:
             cells, values = self.belief.known()  # type: ignore[union-attr]
             outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=msg.origin))
-        if prev is None:
+        if prev is None:  # a new teammate: the dict stays in id order
             self.teammates[msg.origin] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
-            self._new_teammate = True
+            self.teammates = dict(sorted(self.teammates.items()))
         else:  # updated in place: a robot hears every teammate's beacon every tick (issue 11, part 3)
             prev.cell, prev.heard, prev.next = beacon.cell, max(t, msg.tick), beacon.next
         return rejoined
