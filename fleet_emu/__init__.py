@@ -114,16 +114,13 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
 
         raise ConfigError(f"engine must be 'processes' or 'memory' (the latter without in_process or connect), "
                           f"got {engine!r}")
-    if engine == "memory" and realtime_hz is not None:
-        from fleet_emu.core.errors import ConfigError
-
-        raise ConfigError("realtime_hz needs the processes engine: the memory engine is lockstep only")
     if engine == "memory":
         from fleet_emu.launch.memory import run_memory
 
         bus = [("credentials", credentials), ("tls_ca", tls_ca), ("listen", listen), ("tls_cert", tls_cert),
                ("tls_key", tls_key), ("host_timeout", host_timeout), ("hosts (the scenario's [hosts])", scenario.hosts)]
-        check_memory_engine("the memory engine", [(name, value is not None) for name, value in bus])
+        check_memory_engine("the memory engine", [(name, value is not None) for name, value in bus],
+                            ("realtime_hz", realtime_hz is not None))
         return run_memory(scenario, out_dir, record=out_dir is not None and record is not False, run_id=run_id,
                           grid_every=grid_every)
     opts = RunOptions(out_dir=out_dir, in_process=in_process, record=out_dir is not None and record is not False,

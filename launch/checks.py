@@ -140,9 +140,12 @@ def check_logins(connect: str | None, credentials: Path | None, tls_ca: Path | N
         raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
 
 
-def check_memory_engine(engine: str, options: list[tuple[str, Any]]) -> None:
+def check_memory_engine(engine: str, options: list[tuple[str, Any]], realtime: tuple[str, bool]) -> None:
     """The memory engine (``engine`` names it as the caller's user knows it: ``--engine memory``, ``the memory
-    engine``) takes none of ``options`` (name, value: a bus or process option, set when truthy)."""
+    engine``) is lockstep only (``realtime``: the real-time option's name and whether it is set) and takes none
+    of ``options`` (name, value: a bus or process option, set when truthy)."""
+    if realtime[1]:
+        raise ConfigError(f"{realtime[0]} needs the processes engine: {engine} is lockstep only")
     name = next((name for name, value in options if value), None)
     if name is not None:
         raise ConfigError(f"{engine} runs without Zenoh nor processes: it takes no {name}")

@@ -185,14 +185,12 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     out = args.out or Path("runs") / run_id
     if args.grid_every is not None and args.grid_every < 1:
         raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
-    if args.engine == "memory" and args.realtime is not None:
-        raise ConfigError("--realtime needs the processes engine: --engine memory is lockstep only")
     hosts = "--hosts" if args.hosts else "[hosts] (the scenario's; --hosts 0 runs every robot here)"
     if args.engine == "memory":
         check_memory_engine("--engine memory", [
             ("--in-process", args.in_process), ("--connect", args.connect), (hosts, scenario.hosts),
             ("--listen", args.listen), ("--tls-cert", args.tls_cert), ("--tls-key", args.tls_key),
-            ("--[no-]fork-server", args.fork_server is not None)])
+            ("--[no-]fork-server", args.fork_server is not None)], ("--realtime", args.realtime is not None))
     check_logins(args.connect, args.credentials, args.tls_ca, scenario.hosts is not None)
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
         if args.engine == "memory":

@@ -18,11 +18,7 @@ from typing import Any
 
 import zenoh
 
-from fleet_emu.core.access import (
-    LAUNCHER,
-    RECORDER,
-    Credential,
-)
+from fleet_emu.core.access import LAUNCHER, RECORDER, Credential
 from fleet_emu.core.bus import client_config, publisher, router_config, router_locators
 from fleet_emu.core.errors import RunError
 from fleet_emu.core.grid import MapData

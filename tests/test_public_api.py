@@ -98,6 +98,9 @@ def test_run_takes_the_cli_s_bus_options_and_refuses_them_where_they_mean_nothin
         fe.run(hosted, engine="memory")
     with pytest.raises(fe.ConfigError, match=r"memory engine .* no listen"):
         fe.run(s, engine="memory", listen="tcp/127.0.0.1:0")
+    with pytest.raises(fe.ConfigError, match=r"^realtime_hz needs the processes engine: the memory engine is "
+                                             r"lockstep only$"):
+        fe.run(hosted, engine="memory", realtime_hz=10.0)  # real time is refused before the options
     users = tmp_path / "users.txt"
     users.write_text("launcher:x\n")
     with pytest.raises(fe.ConfigError, match="go with --connect"):
