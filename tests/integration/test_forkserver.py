@@ -11,7 +11,17 @@ import time
 from pathlib import Path
 
 from fleet_emu.launch.result import deterministic
-from tests.integration.conftest import ROOT, all_pids, children_of, fleet, is_fork_server, pid_alive, result, wait_for
+from tests.integration.conftest import (
+    ENDLESS,
+    ROOT,
+    all_pids,
+    children_of,
+    fleet,
+    is_fork_server,
+    pid_alive,
+    result,
+    wait_for,
+)
 
 
 def _stat(pid: int) -> list[str]:
@@ -20,10 +30,10 @@ def _stat(pid: int) -> list[str]:
 
 
 def _start(out: Path, robots: int = 3) -> subprocess.Popen[str]:
-    """A run that lasts minutes: one 1 m sensor per robot in a 10 cm maze."""
+    """A run that lasts minutes (``ENDLESS``)."""
     return subprocess.Popen(
-        [sys.executable, "-m", "fleet_emu.launch", "run", "--map", "maze", "--robots", str(robots), "--sensor-range",
-         "1", "--cell-size", "0.1", "--max-ticks", "100000", "--out", str(out), "--quiet", "--comm", "ideal"],
+        [sys.executable, "-m", "fleet_emu.launch", "run", *ENDLESS, "--robots", str(robots), "--out", str(out),
+         "--quiet", "--comm", "ideal"],
         cwd=ROOT, stderr=subprocess.PIPE, text=True)
 
 

@@ -22,7 +22,18 @@ from fleet_emu.agents.protocol import PoseBeacon
 from fleet_emu.core.bus import client_config, router_config, router_locators
 from fleet_emu.core.messages import Command, RadioMsg, TxBundle, seal
 
-from .conftest import ROOT, all_pids, children_of, fleet, fleet_processes, is_router, pid_alive, result, wait_for
+from .conftest import (
+    ENDLESS,
+    ROOT,
+    all_pids,
+    children_of,
+    fleet,
+    fleet_processes,
+    is_router,
+    pid_alive,
+    result,
+    wait_for,
+)
 
 
 class Toml(str):
@@ -198,8 +209,8 @@ def test_malformed_messages_are_dropped_and_counted(small_map: Path, tmp_path: P
 
 def _start(out: Path, *extra: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "fleet_emu.launch", "run", "--map", "office", "--robots", "3", "--max-ticks", "100000",
-         "--out", str(out), "--quiet", *extra],
+        [sys.executable, "-m", "fleet_emu.launch", "run", *ENDLESS, "--robots", "3", "--out", str(out), "--quiet",
+         *extra],
         cwd=ROOT, stderr=subprocess.PIPE, text=True)
 
 

@@ -22,7 +22,7 @@ from fleet_emu.core.bus import client_config, router_locators
 from fleet_emu.core.messages import Command, Failed, Links, RadioMsg, RxBundle, Stop, TxBundle, WorldState, seal
 from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
-from tests.integration.conftest import ROOT, all_pids, fleet, pid_alive, result
+from tests.integration.conftest import ENDLESS, ROOT, all_pids, fleet, pid_alive, result
 
 RUN = "sec"
 
@@ -160,8 +160,8 @@ def test_every_attack_leaves_the_seeded_result_unchanged(router, small_map: Path
 def test_the_embedded_router_refuses_outsiders_and_sigterm_keeps_the_files(small_map: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "fleet_emu.launch", "run", "--map", "office", "--robots", "3", "--max-ticks",
-         "100000", "--out", str(out), "--quiet"], cwd=ROOT, stderr=subprocess.PIPE, text=True)
+        [sys.executable, "-m", "fleet_emu.launch", "run", *ENDLESS, "--robots", "3", "--out", str(out), "--quiet"],
+        cwd=ROOT, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     cmdline: list[str] = []
     while time.monotonic() < deadline and not (out / "run.mcap").exists():

@@ -16,7 +16,7 @@ from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.runner import RunOptions, run_fleet
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.recording.monitor import Monitor
-from tests.integration.conftest import ROOT, all_pids, pid_alive, result
+from tests.integration.conftest import ENDLESS, ROOT, all_pids, pid_alive, result
 
 
 def _files_are_whole(out: Path, res: dict) -> None:
@@ -79,10 +79,9 @@ def test_a_signal_during_teardown_keeps_the_run_as_it_ended(small_map: Path, tmp
 def test_the_cli_exits_128_plus_the_signal_during_start_up(tmp_path: Path, sig: int, code: int,
                                                           delay: float) -> None:
     out = tmp_path / "run"
-    # one robot with a 1 m sensor in a 10 cm maze runs for minutes: the signal cannot come after a natural end
-    proc = subprocess.Popen([sys.executable, "-m", "fleet_emu.launch", "run", "--map", "maze", "--robots", "1",
-                             "--sensor-range", "1", "--cell-size", "0.1", "--max-ticks", "100000", "--out", str(out),
-                             "--quiet"], cwd=ROOT, stderr=subprocess.PIPE, text=True)
+    # one robot on ENDLESS runs for minutes: the signal cannot come after a natural end
+    proc = subprocess.Popen([sys.executable, "-m", "fleet_emu.launch", "run", *ENDLESS, "--robots", "1", "--out",
+                             str(out), "--quiet"], cwd=ROOT, stderr=subprocess.PIPE, text=True)
     time.sleep(delay)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=120)
