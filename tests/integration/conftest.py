@@ -13,14 +13,15 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from benchmarks.faults import RunSpec
+
 ROOT = Path(__file__).resolve().parents[2]
 
-#: The ``fleet run`` flags of a lockstep run that cannot end by itself while a test signals or kills it: a 1 m
-#: sensor on the maze at 10 cm cells. Three robots see a third of it in 2,000 ticks (17 s on this machine), and
-#: only the whole of it or 100,000 ticks end the run. The office ends in 5 s with 2 or 3 robots, start-up
-#: included, so a signal a few seconds in can come after the run's own end.
-ENDLESS_MAP = ("--map", "maze", "--cell-size", "0.1", "--sensor-range", "1")
-ENDLESS = (*ENDLESS_MAP, "--max-ticks", "100000", "--target-coverage", "1.0")
+#: A lockstep run that cannot end by itself while a test signals or kills it (``ENDLESS.args(robots=N)``: its
+#: ``fleet run`` flags): a 1 m sensor on the maze at 10 cm cells. Three robots see a third of it in 2,000 ticks
+#: (17 s on this machine), and only the whole of it or 100,000 ticks end the run. The office ends in 5 s with 2
+#: or 3 robots, start-up included, so a signal a few seconds in can come after the run's own end.
+ENDLESS = RunSpec("maze", max_ticks=100000, target_coverage=1.0, extra=("--cell-size", "0.1", "--sensor-range", "1"))
 
 # A small two-room map (white free, black walls), drawn like the tests' ASCII grids.
 SMALL = """

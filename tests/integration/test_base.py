@@ -4,6 +4,7 @@ exit path; and the access control around its keys, tried with real sessions agai
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import signal
 import subprocess
@@ -23,7 +24,7 @@ from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
 
-from .conftest import ENDLESS_MAP, ROOT, all_pids, children_of, fleet, pid_alive, result, wait_for
+from .conftest import ENDLESS, ROOT, all_pids, children_of, fleet, pid_alive, result, wait_for
 
 RUN = "basesec"
 
@@ -109,8 +110,7 @@ def test_a_killed_base_fails_the_run_and_leaves_nothing_behind(small_map: Path, 
 def test_sigint_at_a_random_moment_with_a_base_leaves_no_process(tmp_path: Path, i: int) -> None:
     """The fault trials' invariants (``benchmarks/faults.py``: no orphan among every descendant of the
     launcher, the base's process included; no death; result.json and run.mcap whole) with a base."""
-    long_run = RunSpec("maze", robots=2, max_ticks=100000, target_coverage=1.0, seed=7,
-                       extra=(*ENDLESS_MAP[2:], "--base"))
+    long_run = dataclasses.replace(ENDLESS, robots=2, seed=7, extra=(*ENDLESS.extra, "--base"))
     t = sigint_trial(long_run, tmp_path, np.random.default_rng([7, 10, i]), f"bsig{i}", window=5.0)
     assert t.failures == [], f"{t.label}: {t.failures} {t.notes}"
     assert t.exit_code == 130 and t.result["reason"] == "interrupted"

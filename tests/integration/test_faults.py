@@ -6,6 +6,7 @@ code); a failing trial lists what it broke."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ from benchmarks.fuzz import UNKNOWN, fuzz_messages
 from fleet_emu.core.access import allowed_src
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import Keys
-from tests.integration.conftest import ENDLESS_MAP
+from tests.integration.conftest import ENDLESS
 
 SEED = 12
 
@@ -60,7 +61,7 @@ def test_kill9_of_a_random_robot_at_a_random_tick(small_map: Path, tmp_path: Pat
 
 @pytest.mark.parametrize("i", range(2))
 def test_sigint_at_a_random_moment(tmp_path: Path, i: int) -> None:
-    long_run = RunSpec("maze", robots=2, max_ticks=100000, target_coverage=1.0, seed=SEED, extra=ENDLESS_MAP[2:])
+    long_run = dataclasses.replace(ENDLESS, robots=2, seed=SEED)
     t = sigint_trial(long_run, tmp_path, np.random.default_rng([SEED, 2, i]), f"sigint{i}", window=5.0)
     _ok(t)
     assert t.exit_code == 130 and t.result["reason"] == "interrupted"

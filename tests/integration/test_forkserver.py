@@ -32,7 +32,7 @@ def _stat(pid: int) -> list[str]:
 def _start(out: Path, robots: int = 3) -> subprocess.Popen[str]:
     """A run that lasts minutes (``ENDLESS``)."""
     return subprocess.Popen(
-        [sys.executable, "-m", "fleet_emu.launch", "run", *ENDLESS, "--robots", str(robots), "--out", str(out),
+        [sys.executable, "-m", "fleet_emu.launch", "run", *ENDLESS.args(robots=robots), "--out", str(out),
          "--quiet", "--comm", "ideal"],
         cwd=ROOT, stderr=subprocess.PIPE, text=True)
 

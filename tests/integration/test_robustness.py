@@ -209,7 +209,7 @@ def test_malformed_messages_are_dropped_and_counted(small_map: Path, tmp_path: P
 
 def _start(out: Path, *extra: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "fleet_emu.launch", "run", *ENDLESS, "--robots", "3", "--out", str(out), "--quiet",
+        [sys.executable, "-m", "fleet_emu.launch", "run", *ENDLESS.args(robots=3), "--out", str(out), "--quiet",
          *extra],
         cwd=ROOT, stderr=subprocess.PIPE, text=True)
 

@@ -80,7 +80,7 @@ def test_the_cli_exits_128_plus_the_signal_during_start_up(tmp_path: Path, sig: 
                                                           delay: float) -> None:
     out = tmp_path / "run"
     # one robot on ENDLESS runs for minutes: the signal cannot come after a natural end
-    proc = subprocess.Popen([sys.executable, "-m", "fleet_emu.launch", "run", *ENDLESS, "--robots", "1", "--out",
+    proc = subprocess.Popen([sys.executable, "-m", "fleet_emu.launch", "run", *ENDLESS.args(robots=1), "--out",
                              str(out), "--quiet"], cwd=ROOT, stderr=subprocess.PIPE, text=True)
     time.sleep(delay)
     proc.send_signal(sig)
