@@ -264,7 +264,7 @@ def cmd_allocators(_: argparse.Namespace) -> int:
         params = [f"{p}=<scenario {cls.scenario_fields[p]}>" if p in cls.scenario_fields else f"{p}={spec.default!r}"
                   for p, spec in cls.parameters.items()]
         source = "built-in" if cls.__module__.startswith("fleet_emu.") else f"plugin {cls.__module__}"
-        print(f"{name:14s} {source}: {', '.join(params) or 'no parameters'}")
+        print(f"{name:14s} {cls.summary() or '(no description)'} [{source}: {', '.join(params) or 'no parameters'}]")
     return 0
 
 

@@ -148,8 +148,10 @@ class Allocator:
     :meth:`to_dict` gives them back in the scenario's shape ``{"type": name, **params}``. ``scenario_fields``
     maps a parameter to the :class:`~core.scenario.Scenario` attribute it defaults to in a run (a dotted
     path: ``"radio.comm_range"``, ``"cell_size"``, ``"sensor_cells"``); a value the scenario's
-    ``[allocator]`` sets wins."""
+    ``[allocator]`` sets wins. ``DESCRIPTION`` is the one line ``fleet allocators`` prints (else the first line
+    of the class docstring)."""
 
+    DESCRIPTION: ClassVar[str] = ""
     plugin_name: ClassVar[str] = ""
     registry: ClassVar[dict[str, type[Allocator]]] = {}
     parameters: ClassVar[dict[str, Param]] = {}
@@ -181,6 +183,12 @@ class Allocator:
                 raise TypeError(f"allocator {name!r}: {field!r} is not a scenario field") from None
         cls.plugin_name = name
         Allocator.registry[name] = cls
+
+    @classmethod
+    def summary(cls) -> str:
+        """What the allocator does, in one line: ``DESCRIPTION``, or the first line of the class's own docstring."""
+        doc = (cls.__dict__.get("__doc__") or "").strip()
+        return cls.DESCRIPTION or (doc.splitlines()[0] if doc else "")
 
     def __init__(self, **params: Any) -> None:
         for name, value in check_params(self.plugin_name, self.parameters, params).items():

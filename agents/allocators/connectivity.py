@@ -195,6 +195,8 @@ def choose(problem: Problem, alpha: float, beta: float, lam: float, cell_size: f
 class Connectivity(Allocator, plugin_name="connectivity"):
     """Benavides et al. 2016: MinPos's criterion on the task utility of eq. 9 (see the module docstring)."""
 
+    DESCRIPTION = "Benavides et al. 2016: MinPos on a utility that weighs path cost against radio links to teammates"
+
     parameters = {"alpha": Param(0.6, ge=0), "beta": Param(0.4, ge=0), "lam": Param(0.5, ge=0, le=1),
                   "comm_range": Param(10.0, gt=0), "cell_size": Param(0.5, gt=0), "path_loss": Param(2.0, ge=0),
                   "waf": Param(3.1, ge=0), "max_walls": Param(4, ge=0), "unknown_walls": Param(False),

@@ -54,6 +54,8 @@ def greedy_choice(costs: np.ndarray, i: int) -> int | None:
 
 
 class Greedy(Allocator, plugin_name="greedy"):
+    DESCRIPTION = "greedy assignment: the closest robot-frontier pair first, then the next (Bautin et al. 2012, Alg. 2)"
+
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         if not problem.clusters:
             return Allocation.none()

@@ -73,6 +73,8 @@ class Hungarian(Allocator, plugin_name="hungarian"):
     """``timeout``: ticks of silence after which a robot (or an Assignment) counts as gone;
     ``period``: the coordinator broadcasts its assignment every ``period`` ticks."""
 
+    DESCRIPTION = "a coordinator robot assigns frontiers by the Hungarian method, over the radio (Yan et al. 2011)"
+
     parameters = {"timeout": Param(10, ge=1), "period": Param(1, ge=1)}
     timeout: int
     period: int

@@ -163,6 +163,8 @@ class MinPos(Allocator, plugin_name="minpos"):
     """``wavefront``: ``"full"`` (Algorithm 3 on the full cost matrix), ``"stop"`` or ``"parallel"``;
     ``replan``: ``"tick"`` or ``"observed"`` (module docstring)."""
 
+    DESCRIPTION = "MinPos (Bautin et al. 2012): the frontier with the fewest teammates closer to it, then the nearest"
+
     parameters = {"wavefront": Param("full", choices=WAVEFRONTS), "replan": Param("tick", choices=REPLANS)}
     wavefront: str
     replan: str

@@ -15,6 +15,8 @@ from fleet_emu.core.messages import RadioMsg
 
 
 class Nearest(Allocator, plugin_name="nearest"):
+    DESCRIPTION = "each robot goes to its nearest frontier, whatever its teammates do (Bautin et al. 2012, Alg. 1)"
+
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         if not problem.clusters:
             return Allocation.none()

@@ -162,6 +162,8 @@ def greedy_table(requests: dict[str, tuple[Cell, float]], radius: int) -> dict[s
 class Trade(Allocator, plugin_name="trade"):
     """Yan et al. 2011: role allocation by robot numbers, purchases, a greedy seller (module docstring)."""
 
+    DESCRIPTION = "Yan et al. 2011: robots trade frontier tasks over the radio, buyers bidding to a seller"
+
     parameters = {"time_max": Param(2, ge=0), "bid_period": Param(2, ge=0), "award_timeout": Param(5, ge=1),
                   "retries": Param(1, ge=0), "task_radius": Param(3, ge=0), "claim_ttl": Param(100, ge=0),
                   "task_timeout": Param(300, ge=1), "explore_in_round": Param(True)}  # ticks, but task_radius

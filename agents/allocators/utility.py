@@ -52,6 +52,8 @@ class Utility(Allocator, plugin_name="utility"):
     """``beta``: weight of the normalised cost against utility; ``sensor_range``: max_range of P(d), cells
     (in a run, the scenario's sensor range)."""
 
+    DESCRIPTION = "Burgard et al. 2005: utility minus path cost; a target taken lowers the utility of those near it"
+
     parameters = {"beta": Param(1.0, ge=0), "sensor_range": Param(8.0, gt=0)}
     scenario_fields = {"sensor_range": "sensor_cells"}
     beta: float

@@ -122,7 +122,7 @@ def test_fleet_allocators_lists_plugins_and_broken_ones(install: Install, capsys
     assert exc.value.code == 0
     lines = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()}
     assert set(lines) == set(allocator_names())
-    assert "plugin plug_cli: weight=0.0, reach=<scenario sensor_cells>" in lines["big"]
+    assert "(no description) [plugin plug_cli: weight=0.0, reach=<scenario sensor_cells>]" in lines["big"]
     assert "failed to load: ModuleNotFoundError" in lines["gone"]
     assert "built-in: wavefront='full'" in lines["minpos"]
 

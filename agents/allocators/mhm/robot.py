@@ -68,6 +68,8 @@ def _reaches(passable: np.ndarray, goal: Cell, me: Cell) -> bool:
 class Mhm(Allocator, plugin_name="mhm"):
     """Obeys the base station's MHM orders (module docstring)."""
 
+    DESCRIPTION = "Mukhija et al.: a base station plans; robots hold relay posts or explore in its reach (needs --base)"
+
     parameters = {
         "r_comm": Param(20.0, gt=0),
         "sensor_range": Param(8.0, gt=0),
