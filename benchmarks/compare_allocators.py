@@ -1,7 +1,7 @@
 """Mean ticks to 99 % coverage per allocator, fleet size and map, over several seeds (the real fleet).
 
     python benchmarks/compare_allocators.py [--allocators nearest greedy utility minpos hungarian]
-        [--robots 2 4 8] [--seeds 5] [--maps office ../shared/maps/stage/hospital_section.yaml]
+        [--robots 2 4 8] [--seeds 5] [--maps office hospital_section]
         [--loss 0] [--start random] [--jobs 2] [--in-process]
 
 Each cell runs ``fleet run`` as a subprocess (``--no-record --quiet``) and reads its ``result.json``. A run that
@@ -24,7 +24,8 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-HOSPITAL = ROOT.parent / "shared" / "maps" / "stage" / "hospital_section.yaml"
+#: A registry map (`fleet maps fetch hospital_section` once).
+HOSPITAL = "hospital_section"
 
 
 def run_one(allocator: str, robots: int, seed: int, map_name: str, loss: float, extra: list[str]) -> dict:
@@ -54,7 +55,7 @@ def main() -> None:
     p.add_argument("--allocators", nargs="+", default=["nearest", "greedy", "utility", "minpos", "hungarian"])
     p.add_argument("--robots", type=int, nargs="+", default=[2, 4, 8])
     p.add_argument("--seeds", type=int, default=5)
-    p.add_argument("--maps", nargs="+", default=["office", str(HOSPITAL)])
+    p.add_argument("--maps", nargs="+", default=["office", HOSPITAL])
     p.add_argument("--loss", type=float, default=0.0)
     p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--jobs", type=int, default=2)

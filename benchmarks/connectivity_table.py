@@ -1,6 +1,6 @@
 """Connectivity-aware exploration (Benavides et al. 2016, section IV) against MinPos: connected fraction and ticks.
 
-    python benchmarks/connectivity_table.py [--maps ../shared/maps/stage/hospital_section.yaml maze]
+    python benchmarks/connectivity_table.py [--maps hospital_section maze]
         [--configs minpos conn:0.6:0.4 conn:0.4:0.6 conn:0.6:0.4:literal] [--seeds 6] [--loss 0.1]
         [--max-ticks 3000] [--jobs 2] [--check]
 
@@ -47,9 +47,8 @@ def simulate(sc: Scenario) -> Outcome:
     return Outcome(r["ticks"], r["coverage"], r["reason"], r["connected_fraction"] or 0.0, r["path_length"])
 
 ROOT = Path(__file__).resolve().parents[1]
-MAPS = ROOT.parent / "shared" / "maps"
-DEFAULT_MAPS = [str(MAPS / "stage" / m) for m in ("hospital_section.yaml", "autolab.yaml", "mbicp.yaml", "cave.yaml")]
-DEFAULT_MAPS.append("maze")
+#: Registry maps (`fleet maps fetch hospital_section autolab mbicp cave` once) and a built-in one.
+DEFAULT_MAPS = ["hospital_section", "autolab", "mbicp", "cave", "maze"]
 SETTINGS = {"robots": 2, "sensor_range": 3.0, "comm_range": 6.0, "target_coverage": 0.95, "cell_size": 0.5,
             "comm": "wall", "start": "random"}
 

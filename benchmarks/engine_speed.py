@@ -14,17 +14,16 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-HOSPITAL = ROOT.parent / "shared" / "maps" / "stage" / "hospital_section.yaml"
+#: A registry map (`fleet maps fetch hospital_section` once; without it, only the office scenarios run).
+HOSPITAL = "hospital_section"
 
 SCENARIOS = [  # (label, overrides)
     ("office x3 minpos wall 0.1", {"robots": 3, "allocator": "minpos"}),
     ("office x4 trade full 0.3", {"robots": 4, "allocator": "trade", "comm": "full", "loss": 0.3}),
-    ("hospital x5 minpos ideal 100%", {"map": str(HOSPITAL), "robots": 5, "allocator": "minpos", "comm": "ideal",
+    ("hospital x5 minpos ideal 100%", {"map": HOSPITAL, "robots": 5, "allocator": "minpos", "comm": "ideal",
                                        "loss": 0.0, "target_coverage": 1.0, "max_ticks": 5000, "start": "random"}),
-    ("hospital x10 utility ideal 100%", {"map": str(HOSPITAL), "robots": 10, "allocator": "utility",
+    ("hospital x10 utility ideal 100%", {"map": HOSPITAL, "robots": 10, "allocator": "utility",
                                          "comm": "ideal", "loss": 0.0, "target_coverage": 1.0, "max_ticks": 5000,
                                          "start": "random"}),
 ]
@@ -40,7 +39,9 @@ def main() -> int:
     p.add_argument("--quick", action="store_true", help="the two office scenarios only")
     p.add_argument("--max-ticks", type=int, help="cut every run at this tick (a smoke test)")
     args = p.parse_args()
-    scenarios = SCENARIOS[:2] if args.quick or not HOSPITAL.exists() else SCENARIOS
+    from fleet_emu.world.registry import is_fetched
+
+    scenarios = SCENARIOS[:2] if args.quick or not is_fetched(HOSPITAL) else SCENARIOS
     engines = ["memory", "in-process"] + (["processes"] if args.processes else [])
     fe.Fleet(fe.Scenario().override(robots=2, max_ticks=5)).run()  # compile or load the kernels once
     rows = []

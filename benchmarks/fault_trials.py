@@ -31,7 +31,7 @@ from faults import RunSpec, Trial, fuzz_trial, kill_trial, loss_trial, plain_tri
 from fleet_emu.agents.allocators import allocator_names
 
 # 384 x 384 px at 0.05 m: 192 x 192 cells at 0.1 m
-MAP = str(Path(__file__).resolve().parents[2] / "shared" / "maps" / "ros" / "turtlebot3_world" / "map.yaml")
+MAP = "turtlebot3_world"  # a registry map: `fleet maps fetch turtlebot3_world` once
 PHASES = {"kill": 1, "sigint": 2, "fuzz": 3, "fuzz-auth": 4}
 COLUMNS = ("trials", "ended", "valid rec", "result.json", "orphans", "deaths", "wrong exit", "changed")
 
@@ -59,7 +59,7 @@ def main() -> None:
                    help="allocators to run at --loss (default all of `fleet allocators`; none: skip)")
     p.add_argument("--loss", type=float, default=0.9)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--map", default=MAP, help="a small map (default: the TurtleBot3 world of ../shared/maps)")
+    p.add_argument("--map", default=MAP, help="a small map (default: the registry's turtlebot3_world)")
     p.add_argument("--cell-size", default="0.1")
     p.add_argument("--sensor-range", default="1.5")
     p.add_argument("--robots", type=int, default=3)

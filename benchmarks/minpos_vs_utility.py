@@ -2,7 +2,7 @@
 paired difference to utility (issue 13; Bautin et al. 2012, Fig. 5(a), is the figure this approaches).
 
     python benchmarks/minpos_vs_utility.py [--robots 2 4] [--seeds 8] [--allocators nearest utility minpos]
-        [--map ../shared/maps/stage/hospital_section.yaml] [--jobs 2] [--in-process]
+        [--map hospital_section] [--jobs 2] [--in-process]
 
 Every run is ``fleet run --comm ideal --loss 0 --start random --target-coverage 1.0`` (a subprocess, as in
 compare_allocators.py), seeds ``0 .. seeds-1``; a seed draws the same start for every allocator, so the
@@ -47,7 +47,7 @@ def main() -> None:
     p.add_argument("--allocators", nargs="+", default=["nearest", "utility", "minpos"])
     p.add_argument("--robots", type=int, nargs="+", default=[2, 4])
     p.add_argument("--seeds", type=int, default=8)
-    p.add_argument("--map", default=str(HOSPITAL))
+    p.add_argument("--map", default=HOSPITAL)
     p.add_argument("--max-ticks", type=int, default=2000)
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--in-process", action="store_true", help="all nodes of a run in one process")

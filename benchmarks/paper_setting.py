@@ -13,8 +13,8 @@ AMD Turion of 2009).
 - **Maps.** Each map is drawn at the cell size that makes it about ``--cells`` cells across
   (``scale.fit_cell_size``), then cut (centred) or padded with walls to exactly ``--cells`` x ``--cells``, its
   border walled: a bounded map. Default: the built-in ``grid`` (30 x 30 m of 4 m blocks and 2 m streets: 514
-  cells at 0.0627 m, one cell cut off each side) and Stage's ``cave`` (``../shared/maps/stage/cave.yaml``,
-  512 x 512 at 0.0314 m), read where it lies.
+  cells at 0.0627 m, one cell cut off each side) and Stage's ``cave`` (the registry's: ``fleet maps
+  fetch cave``; 512 x 512 at 0.0314 m).
 - **Units.** One cell is one pixel and the unit of distance, as in the paper: every run uses ``--cell-size``
   metres per cell (1 by default) whatever resolution the map was drawn at, so the radio and sensor ranges are
   ``--r-comm`` and ``--sensor`` cells. The only rule that sees metres is ``connectivity``'s eq. 9 (its path
@@ -194,7 +194,7 @@ def line(map_name: str, allocator: str, robots: int, row: dict[str, Any], at: li
 def parse(argv: list[str] | None) -> Any:
     p = OneLineParser(prog="paper_setting", description=__doc__.split("\n\n")[0])
     p.add_argument("--maps", nargs="+", default=["grid", str(REAL_MAP)],
-                   help="built-in map names or map files (default: grid and ../shared/maps/stage/cave.yaml)")
+                   help="built-in map names or map files (default: grid and the registry's cave)")
     p.add_argument("--robots", type=int, nargs="+", default=[10, 20])
     p.add_argument("--allocators", nargs="+", default=["mhm", "minpos", "connectivity"])
     p.add_argument("--cells", type=int, default=512, help="the maps' side in cells (the paper: 512)")

@@ -8,8 +8,8 @@ stepping along its last plan, and a decision that ends after its tick is applied
 (MinPos paper Alg. 2: every robot computes the whole cost matrix, one BFS per frontier cluster, then the greedy
 assignment, O(n²m)) against ``minpos`` with parallel wavefronts (section 4.3: paused and resynchronised
 wavefronts, no cost matrix). Same map, start, seed and radio as ``benchmarks/scale.py``: a map fitted to about
-``--cells`` cells across (the built-in ``maze`` by default, or a file such as
-``../shared/maps/stage/cave.yaml``), sensor and comm ranges fixed in cells (8 and 20), the fleet around the map's
+``--cells`` cells across (the built-in ``maze`` by default, or a map such as the
+registry's ``cave``), sensor and comm ranges fixed in cells (8 and 20), the fleet around the map's
 most open start cell, the default radio (wall model, 10 % loss), no recording, target coverage 0.99.
 
 The world's stall rules count ticks, and a real-time tick may be shorter than one decision: a fleet whose first
@@ -70,7 +70,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--stall-seconds", type=float, default=60.0, help="no move and nothing sensed this long: a stall")
     p.add_argument("--cells", type=int, default=512, help="cells across the maps (their larger side)")
     p.add_argument("--maps", nargs="+", default=["maze"],
-                   help=f"built-in map names or map files (default: maze; the cave is {REAL_MAP})")
+                   help=f"built-in map names or map files (default: maze; or the registry's {REAL_MAP})")
     p.add_argument("--sensor-cells", type=float, default=8.0, help="sensor range in cells")
     p.add_argument("--comm-cells", type=float, default=20.0, help="comm range c in cells")
     p.add_argument("--seed", type=int, default=0)

@@ -6,11 +6,11 @@ For every map and robot count, one run of the default engine (one OS process per
 allocator ``minpos`` with parallel wavefronts, the default radio (wall model, 10 % loss), no recording, for a
 fixed number of ticks (``max_ticks``, target coverage 1.0 so that no run ends early). Each map is fitted to
 about ``--cells`` cells across through its cell size: a built-in generator (``maze`` by default) and a real map
-(``../shared/maps/stage/cave.yaml``) resampled. The sensor and comm ranges are fixed in cells (``--sensor-cells``,
-``--comm-cells``: 8 and 20, the default scenario's 4 m and 10 m at 0.5 m cells) so that only the map grows.
-The fleet starts, for every robot count, around the same cell of each map: the most open one (most free cells
-within the world's start radius) of the map's main free component, nearest the map's own start. Each run is a
-child process of its own (``--one``), so that the launcher's memory is that run's alone.
+(the registry's Stage ``cave``: ``fleet maps fetch cave``) resampled. The sensor and comm ranges are fixed
+in cells (``--sensor-cells``, ``--comm-cells``: 8 and 20, the default scenario's 4 m and 10 m at 0.5 m cells)
+so that only the map grows. The fleet starts, for every robot count, around the same cell of each map: the most
+open one (most free cells within the world's start radius) of the map's main free component, nearest the map's
+own start. Each run is a child process of its own (``--one``), so that the launcher's memory is that run's alone.
 
 One table row per map and robot count (stdout):
 
@@ -65,7 +65,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 ROOT = Path(__file__).resolve().parents[1]
-REAL_MAP = ROOT.parent / "shared" / "maps" / "stage" / "cave.yaml"
+REAL_MAP = "cave"  # a registry map: `fleet maps fetch cave` once
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 
 
@@ -323,8 +323,8 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--robots", type=int, nargs="+", default=[16, 32, 64, 100], help="fleet sizes")
     p.add_argument("--ticks", type=int, default=30, help="ticks per run (the scenario's max_ticks)")
     p.add_argument("--cells", type=int, default=512, help="cells across the maps (their larger side)")
-    p.add_argument("--maps", nargs="+", default=["maze", str(REAL_MAP)],
-                   help="built-in map names or map files (default: maze and ../shared/maps/stage/cave.yaml)")
+    p.add_argument("--maps", nargs="+", default=["maze", REAL_MAP],
+                   help="built-in map names or map files (default: maze and the registry's cave)")
     p.add_argument("--sensor-cells", type=float, default=8.0, help="sensor range in cells")
     p.add_argument("--comm-cells", type=float, default=20.0, help="comm range c in cells")
     p.add_argument("--seed", type=int, default=0)

@@ -1,7 +1,7 @@
 """Trade against Hungarian: ticks, total path and idle robot-ticks per map and loss (the real fleet).
 
     python benchmarks/trade_idle.py [--allocators hungarian trade trade:explore_in_round=false] [--robots 4]
-        [--seeds 5] [--maps office ../shared/maps/stage/hospital_section.yaml ../shared/maps/stage/autolab.yaml]
+        [--seeds 5] [--maps office hospital_section autolab]
         [--loss 0 0.1 0.3 0.5] [--comm wall] [--start random] [--jobs 2]
 
 Yan et al. 2011 compare their trade-based allocation with a Hungarian-method central planner (section 5,
@@ -29,9 +29,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from compare_allocators import run_one as fleet_run
 
-ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "maps" / "stage"
-MAPS = ["office", str(SHARED / "hospital_section.yaml"), str(SHARED / "autolab.yaml")]
+MAPS = ["office", "hospital_section", "autolab"]  # the latter two from the registry (`fleet maps fetch NAME`)
 
 
 def run_one(spec: str, robots: int, seed: int, map_name: str, loss: float,

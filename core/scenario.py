@@ -31,6 +31,20 @@ RELAY_POLICIES = ("none", "flood", "tree")
 BASE_PLANNERS = frozenset({"mhm"})
 DEFAULT_STALL = 30
 BASE_PLANNER_STALL = 200  # a base planner's runs: robots hold while the base waits (Scenario.__post_init__)
+#: Where the shipped scenarios are (``Scenario.load("default")``): ``launch/scenarios`` of the package, found by
+#: path, not imported (core imports nothing above it).
+SHIPPED_SCENARIOS = Path(__file__).resolve().parents[1] / "launch" / "scenarios"
+
+
+class _DefaultCellSize(float):
+    """The cell size of a scenario that names none: 0.5 m, equal to 0.5 in every use, but told apart from a cell
+    size the user gave (:attr:`Scenario.cell_size_given`): a bare bitmap map is read one pixel per cell, so it
+    needs the user's cell size (``world.maps.load_map``)."""
+
+    __slots__ = ()
+
+
+DEFAULT_CELL_SIZE: float = _DefaultCellSize(0.5)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,7 +111,7 @@ class Scenario:
 
     name: str = "default"
     map: str = "office"
-    cell_size: float = 0.5
+    cell_size: float = DEFAULT_CELL_SIZE
     robots: int = 4
     sensor_range: float = 4.0
     start: tuple[int, int] | str | None = None  # a cell, "random" (drawn from the seed), or the map's own
@@ -132,8 +146,11 @@ class Scenario:
 
     @classmethod
     def load(cls, path: str | Path) -> Scenario:
-        """A scenario file: TOML (``launch/scenarios/``), or the ``scenario.json`` a run wrote (by suffix)."""
+        """A scenario file: TOML, or the ``scenario.json`` a run wrote (by suffix); or the name of a shipped
+        scenario (:func:`shipped`: ``"default"``, ``"connectivity"``) when no such file exists."""
         p = Path(path)
+        if not p.exists() and str(path) in shipped():
+            p = SHIPPED_SCENARIOS / f"{path}.toml"
         return cls.from_json(p) if p.suffix.lower() == ".json" else cls.from_toml(p)
 
     @classmethod
@@ -248,6 +265,11 @@ class Scenario:
         return dataclasses.replace(self, **top).validate()
 
     @property
+    def cell_size_given(self) -> bool:
+        """Whether the cell size was given (a scenario file, a flag, an argument), not the default's."""
+        return not isinstance(self.cell_size, _DefaultCellSize)
+
+    @property
     def has_base(self) -> bool:
         """Whether the run has a base station (the ``base`` process, README "Base station")."""
         return self.base is not False
@@ -326,11 +348,17 @@ _TOP = {"name", "base", "seed", "max_ticks", "target_coverage", "stall_ticks", "
 _SECTIONS = ("map", "fleet", "radio", "allocator", "hosts")
 
 
+def shipped() -> list[str]:
+    """The names of the scenarios shipped in the package (``launch/scenarios/*.toml``)."""
+    return sorted(p.stem for p in SHIPPED_SCENARIOS.glob("*.toml"))
+
+
 def _read(p: Path) -> str:
     try:
         return p.read_text()
     except FileNotFoundError:
-        raise ConfigError(f"scenario file not found: {p}") from None
+        raise ConfigError(f"scenario file not found: {p} (a TOML file, a run's scenario.json, or a shipped "
+                          f"scenario: {', '.join(shipped())})") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"cannot read scenario {p}: {exc}") from None
 

@@ -4,7 +4,7 @@ The public API, for scripts and notebooks (the ``fleet`` CLI is built on it)::
 
     import fleet_emu as fe
 
-    scenario = fe.Scenario.load("launch/scenarios/default.toml").override(robots=3, allocator="greedy")
+    scenario = fe.Scenario.load("default").override(robots=3, allocator="greedy")  # a shipped scenario, by name
     result = fe.run(scenario, out="runs/greedy3")        # a real fleet: one process per robot, over Zenoh
     ticks, coverage = result.coverage_curve()
     run = fe.load_recording("runs/greedy3/run.mcap")     # the same fold as ``fleet report``

@@ -44,7 +44,7 @@ def check(scenario: Scenario) -> MapData:
     built once for the whole run."""
     scenario.validate()
     make_allocator(allocator_config(scenario))  # exactly what every agent will build; ConfigError if bad
-    md = load_map(scenario.map, scenario.cell_size, scenario.seed)
+    md = load_map(scenario.map, scenario.cell_size, scenario.seed, cell_size_given=scenario.cell_size_given)
     world = build_world(scenario, md)
     world.reset()  # raises StartAreaError when the robots do not fit
     base_cell(scenario, md, world)  # a ConfigError for a base cell off the map or on a wall

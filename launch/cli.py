@@ -62,21 +62,26 @@ def _hz(text: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from fleet_emu import __version__
     from fleet_emu.core.radio import COMM_MODELS
+    from fleet_emu.launch.maps_cli import add_parser as add_maps
 
     p = _Parser(prog="fleet", description="Multi-robot exploration under realistic radio, over Eclipse Zenoh.")
+    p.add_argument("--version", action="version", version=f"fleet-emu {__version__}")
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
     r = sub.add_parser("run", help="run one scenario (the default one with no arguments)")
     r.add_argument("scenario_file", nargs="?", type=Path, metavar="SCENARIO",
                    help="a scenario TOML or a run's scenario.json, as --scenario")
-    r.add_argument("--scenario", type=Path, help="scenario TOML (see launch/scenarios/) or a run's scenario.json")
-    r.add_argument("--map", help="built-in map name (see `fleet maps`) or a PNG/PGM/ROS YAML path")
+    r.add_argument("--scenario", type=Path, help="a scenario TOML, a run's scenario.json, or a shipped scenario's name "
+                                                 "(default, connectivity)")
+    r.add_argument("--map", help="a built-in or registry map's name (see `fleet maps`), or a ROS map YAML or a "
+                                 "PNG/PGM path (a bare bitmap needs --cell-size: one pixel per cell)")
     r.add_argument("--robots", type=int)
     r.add_argument("--allocator", help="allocator name (see `fleet allocators`)")
     r.add_argument("--loss", type=float, help="per-message loss probability on an existing link")
     r.add_argument("--comm-range", type=float, help="nominal range c in metres (P = 0 dB in free space)")
     r.add_argument("--sensor-range", type=float, help="sensor range in metres")
-    r.add_argument("--cell-size", type=float, help="metres per cell")
+    r.add_argument("--cell-size", type=float, help="metres per cell (default 0.5)")
     r.add_argument("--seed", type=int)
     r.add_argument("--start", type=_start, help="start cell ROW,COL, or 'random' (drawn from the seed)")
     r.add_argument("--base", action="store_const", const=True, default=None,
@@ -143,7 +148,7 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--once", action="store_true", help="exit after one run (default: serve runs until Ctrl-C)")
     h.add_argument("--fork-server", action=argparse.BooleanOptionalAction, default=None,
                    help="fork the robots from a fork server (default: as the launcher asks)")
-    sub.add_parser("maps", help="list the built-in maps")
+    add_maps(sub)
     sub.add_parser("allocators", help="list the allocators (built-in and installed plugins) and their parameters")
     rep = sub.add_parser("report", help="metrics.json, plots and a table from a recording (RUN_DIR or RUN.mcap)")
     rep.add_argument("paths", nargs="+", type=Path, metavar="RUN", help="a run directory or its run.mcap")
@@ -244,14 +249,6 @@ def exit_code(result: Mapping[str, Any], out: Path) -> int:
     return 0 if result["completed"] else 3
 
 
-def cmd_maps(_: argparse.Namespace) -> int:
-    from fleet_emu.world.maps import BUILTIN_MAPS
-
-    for name, desc in BUILTIN_MAPS.items():
-        print(f"{name:10s} {desc}")
-    return 0
-
-
 def cmd_allocators(_: argparse.Namespace) -> int:
     from fleet_emu.agents.allocators import allocator_class, allocator_names
 
@@ -301,6 +298,8 @@ def main(argv: list[str] | None = None) -> None:
             interrupts.restore()  # a listing or a report: Ctrl-C simply stops it
             if interrupts.requested.is_set():
                 raise KeyboardInterrupt
+            from fleet_emu.launch.maps_cli import cmd_maps
+
             handlers = {"maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report,
                         "router-config": cmd_router_config, "sweep": cmd_sweep}
             code = handlers[command](args)

@@ -59,15 +59,15 @@ Tap = Callable[[str, Message, int], None]
 
 
 @functools.lru_cache(maxsize=8)
-def _cached_map(name: str, cell_size: float, seed: int | None) -> MapData:
-    return load_map(name, cell_size, seed or 0)
+def _cached_map(name: str, cell_size: float, seed: int | None, cell_size_given: bool) -> MapData:
+    return load_map(name, cell_size, seed or 0, cell_size_given=cell_size_given)
 
 
 def fleet_map(scenario: Scenario) -> MapData:
     """The scenario's true map; a map file is read once per process (its seed plays no part), a built-in
     map is generated per seed."""
     seed = scenario.seed if scenario.map in BUILTIN_MAPS else None
-    return _cached_map(scenario.map, scenario.cell_size, seed)
+    return _cached_map(scenario.map, scenario.cell_size, seed, scenario.cell_size_given)
 
 
 class Fleet:

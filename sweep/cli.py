@@ -33,7 +33,8 @@ def add_parser(sub: Any) -> None:
     s.add_argument("--out", type=Path, help="the results directory (a second call resumes there)")
     s.add_argument("--jobs", type=int, help="parallel runs (default: the number of cores)")
     s.add_argument("--dask", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://192.0.2.10:8786")
-    s.add_argument("--maps", type=Path, help="where the study's map files are (default: $FLEET_MAPS, ../shared/maps)")
+    s.add_argument("--maps", type=Path, help="where the study's map files are, when it names them by path "
+                        "(default: $FLEET_MAPS); a registry map is found by name (`fleet maps`)")
     s.add_argument("--list", action="store_true", help="list the studies shipped with fleet-emu")
     s.add_argument("--limit", type=int, help="run only the first N points not yet done (a quick look)")
     s.add_argument("--seeds", type=int, metavar="N",

@@ -17,8 +17,9 @@ map = ["office"]
 max_ticks = 3000
 ```
 
-A map that is not built in is a path: relative to the study file, to ``--maps DIR`` (or ``$FLEET_MAPS``), to
-the current directory, or to ``../shared/maps``. The ``[paper]`` table (``source``, ``claims``, ``rows``) is
+A map is a built-in map's name, a registry map's name (``map = "hospital_section"``: fetched once with ``fleet
+maps fetch hospital_section``), or a path: relative to the study file, to ``--maps DIR`` (or ``$FLEET_MAPS``),
+or to the current directory. The ``[paper]`` table (``source``, ``claims``, ``rows``) is
 what ``fleet sweep report`` prints beside the study's numbers.
 """
 
@@ -118,14 +119,24 @@ class Study:
         return study
 
     def scenario(self, params: dict[str, Any], seed: int, maps_dir: Path | None = None,
-                 resolve: bool = True) -> Scenario:
-        """The scenario of one point: the defaults, ``[fleet]``, then the point's grid values."""
+                 resolve: bool = True, resolved: dict[str, str] | None = None) -> Scenario:
+        """The scenario of one point: the defaults, ``[fleet]``, then the point's grid values. ``resolved``
+        keeps the maps found so far (by name), so that a grid of many points looks each one up once."""
         flat = {**self.fleet, **params, "seed": seed}
         allocator = flat.pop("allocator", None)
         radio = {k: flat.pop(k) for k in list(flat) if k in _RADIO}
         if "map" in flat and resolve:
-            flat["map"] = resolve_map(str(flat["map"]), self, maps_dir)
+            memo = resolved if resolved is not None else {}
+            name = str(flat["map"])
+            if name not in memo:
+                memo[name] = resolve_map(name, self, maps_dir)
+            flat["map"] = memo[name]
         s = Scenario().override(**flat, **radio)
+        if resolve and not s.cell_size_given:
+            from fleet_emu.world.maps import is_bare_bitmap, no_scale_error
+
+            if is_bare_bitmap(s.map):
+                raise ConfigError(f"study {self.name}: {no_scale_error(s.map)}")
         if allocator is not None:
             config = {"type": allocator} if isinstance(allocator, str) else dict(allocator)
             if not isinstance(config.get("type"), str):
@@ -137,10 +148,11 @@ class Study:
         """Every point of the grid, seeds innermost; a missing map is one ConfigError before any run."""
         keys = list(self.grid)
         out = []
+        resolved: dict[str, str] = {}
         for values in itertools.product(*(self.grid[k] for k in keys)):
             params = dict(zip(keys, values, strict=True))
             for seed in self.seeds:
-                s = self.scenario(params, seed, maps_dir)
+                s = self.scenario(params, seed, maps_dir, resolved=resolved)
                 label = {k: _label(v) for k, v in params.items()} | {"seed": seed}
                 out.append(Point(point_id(params, seed), label, s.to_dict(), self.engine))
         return out
@@ -168,16 +180,22 @@ def map_roots(study: Study, maps_dir: Path | None) -> Iterator[Path]:
     if os.environ.get("FLEET_MAPS"):
         yield Path(os.environ["FLEET_MAPS"])
     yield Path.cwd()
-    yield Path.cwd().parent / "shared" / "maps"
-    yield Path(__file__).resolve().parents[1].parent / "shared" / "maps"
 
 
 def resolve_map(name: str, study: Study, maps_dir: Path | None) -> str:
-    """A built-in map name as is; a path found under one of :func:`map_roots`, made absolute; else one line
-    that says where to get it."""
+    """A built-in map's name as is; a registry map's name as is once it is fetched; a path found under one of
+    :func:`map_roots`, made absolute; else one line that says where to get it."""
+    from fleet_emu.core.errors import MapError
     from fleet_emu.world.maps import BUILTIN_MAPS
+    from fleet_emu.world.registry import local_map, registry
 
     if name in BUILTIN_MAPS:
+        return name
+    if name in registry():
+        try:
+            local_map(name)
+        except MapError as exc:
+            raise ConfigError(f"study {study.name}: {exc}") from None
         return name
     p = Path(name).expanduser()
     if p.is_absolute():

@@ -1,8 +1,18 @@
-"""Ground-truth maps: built-in generators, PNG/PGM bitmaps and ROS map_server YAML.
+"""Ground-truth maps: built-in generators, the registry's public maps by name, PNG/PGM bitmaps and ROS map_server
+YAML files.
 
 Every map becomes an ``int8`` grid of ``0`` (free) and ``100`` (occupied) at the scenario's cell size,
-bordered by walls, with a suggested start cell (see :func:`choose_start`). Bitmaps are resampled by
-max-pooling obstacles, so that walls drawn one pixel thick survive (DESIGN.md "Grids").
+bordered by walls, with a suggested start cell (see :func:`choose_start`).
+
+An image is read as ROS map_server reads it (:func:`classify`): with the default thresholds a pixel of gray
+level below 90 (of 255) is occupied, one above 205 is free, and the greys between are unknown; a transparent
+pixel is white. Pixels are then pooled into cells (:func:`resample`): a
+cell is occupied when any of its pixels is (max-pooling keeps walls drawn one pixel thick), and free only
+when at least half of its pixels are free, so unknown space (map_server's grey) becomes wall.
+
+A bitmap's scale comes from its ROS YAML (``resolution``, metres per pixel), from the registry (a map by
+name), or, for a bare PNG/PGM, from the cell size the user gives: it is then read one pixel per cell. A bare
+bitmap without a cell size given is refused (:func:`load_map`, ``cell_size_given``).
 """
 
 from __future__ import annotations
@@ -19,6 +29,7 @@ from scipy import ndimage
 
 from fleet_emu.core.errors import MapError
 from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell, MapData
+from fleet_emu.world.registry import local_map, registry
 
 BUILTIN_MAPS: dict[str, str] = {
     "office": "40 x 25 m office: two rows of rooms with doors off a corridor, crossed by a vertical corridor",
@@ -27,13 +38,11 @@ BUILTIN_MAPS: dict[str, str] = {
     "hall": "30 x 20 m open hall with scattered rectangular obstacles (placed from the seed)",
 }
 
-#: Pixel size assumed for a bitmap given without a YAML (m/px), and the map_server defaults.
-DEFAULT_RESOLUTION = 0.05
+#: The map_server defaults, for a bitmap without a YAML.
 DEFAULT_OCCUPIED_THRESH = 0.65
 DEFAULT_FREE_THRESH = 0.196
-#: A bare bitmap smaller than this (pixels, longer side) is taken as drawn one pixel per cell (a hand-drawn
-#: map): at 0.05 m/px it would be under 13 m wide, too small for a fleet.
-DRAWN_MAX_PIXELS = 256
+#: The file suffixes read as a YAML descriptor; any other file is read as an image.
+YAML_SUFFIXES = (".yaml", ".yml")
 #: The start cell's neighbourhood: cells within this BFS distance are counted as room for robots.
 START_RADIUS = 4
 #: How many of those cells (at most 41) a start needs, when some cell of the component has that many.
@@ -306,14 +315,11 @@ def _finish(name: str, grid: np.ndarray, cell_size: float) -> MapData:
 
 def load_bitmap(path: str | Path, cell_size: float, *, resolution: float | None = None,
                 name: str | None = None) -> MapData:
-    """A PNG/PGM bitmap (dark is occupied, map_server default thresholds) at ``resolution`` m/px.
-
-    ``resolution=None`` means 0.05 m/px, except for a small image (under DRAWN_MAX_PIXELS on its longer
-    side), which is taken as already drawn at the cell size, one pixel per cell.
-    """
+    """A PNG/PGM bitmap (dark is occupied, map_server default thresholds) at ``resolution`` m/px;
+    ``resolution=None``: drawn at the cell size, one pixel per cell."""
     gray = _read_gray(Path(path))
     if resolution is None:
-        resolution = cell_size if max(gray.shape) < DRAWN_MAX_PIXELS else DEFAULT_RESOLUTION
+        resolution = cell_size
     occ, fre = classify(gray)
     return _finish(name or str(path), resample(occ, fre, cell_size / resolution), cell_size)
 
@@ -353,19 +359,46 @@ def load_ros_yaml(path: str | Path, cell_size: float, *, name: str | None = None
     return _finish(name or str(path), resample(occ, fre, cell_size / resolution), cell_size)
 
 
-def load_map(name_or_path: str, cell_size: float, seed: int) -> MapData:
-    """A built-in map by name, or a PNG/PGM bitmap or ROS map_server YAML by path; raises :class:`MapError`."""
+def is_bare_bitmap(name_or_path: str) -> bool:
+    """Whether ``name_or_path`` is an image file given alone: not a built-in or registry name, not a YAML."""
+    if name_or_path in BUILTIN_MAPS or name_or_path in registry():
+        return False
+    path = Path(name_or_path).expanduser()
+    return path.suffix.lower() not in YAML_SUFFIXES and path.is_file()
+
+
+def no_scale_error(name_or_path: str) -> MapError:
+    """The refusal of a bare bitmap without a cell size: its scale is unknown."""
+    return MapError(f"map {name_or_path} is a bitmap without a scale: give the cell size it is drawn at "
+                    "(--cell-size M, or cell_size in a scenario: one pixel per cell of M metres), or a ROS map "
+                    "YAML beside it with its resolution in metres per pixel (image, resolution)")
+
+
+def load_map(name_or_path: str, cell_size: float, seed: int, *, cell_size_given: bool = True) -> MapData:
+    """A built-in map or a registry map by name, or a PNG/PGM bitmap or ROS map_server YAML by path; raises
+    :class:`MapError`. A registry map must have been fetched (``fleet maps fetch NAME``). A bare bitmap is
+    read one pixel per cell; with ``cell_size_given=False`` (the scenario's default cell size, not the
+    user's) it is refused, as its scale would be a guess."""
     if not (isinstance(cell_size, int | float) and math.isfinite(cell_size) and cell_size > 0):
         raise MapError(f"cell size must be a positive number of metres, not {cell_size!r}")
+    cell_size = float(cell_size)
     if name_or_path in BUILTIN_MAPS:
-        return generate(name_or_path, float(cell_size), seed)
+        return generate(name_or_path, cell_size, seed)
+    if name_or_path in registry():
+        entry, path = registry()[name_or_path], local_map(name_or_path)
+        if entry.yaml is not None:
+            return load_ros_yaml(path, cell_size, name=name_or_path)
+        return load_bitmap(path, cell_size, resolution=entry.resolution, name=name_or_path)
     path = Path(name_or_path).expanduser()
     if path.is_file():
-        if path.suffix.lower() in (".yaml", ".yml"):
+        if path.suffix.lower() in YAML_SUFFIXES:
             return load_ros_yaml(path, cell_size, name=name_or_path)
+        if not cell_size_given:
+            raise no_scale_error(name_or_path)
         return load_bitmap(path, cell_size, name=name_or_path)
     if path.exists():
         raise MapError(f"map path is not a file: {name_or_path}")
     if "/" in name_or_path or "\\" in name_or_path or path.suffix:
         raise MapError(f"map file not found: {name_or_path}")
-    raise MapError(f"unknown map {name_or_path!r} (built-in: {', '.join(BUILTIN_MAPS)}; or a PNG/PGM/YAML path)")
+    raise MapError(f"unknown map {name_or_path!r} (built-in: {', '.join(BUILTIN_MAPS)}; registry: "
+                   f"{', '.join(registry())} (`fleet maps`); or a PNG/PGM/YAML path)")

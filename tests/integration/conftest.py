@@ -41,11 +41,22 @@ SMALL = """
 
 
 @pytest.fixture(scope="session")
-def small_map(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def small_bitmap(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``two_rooms.png`` alone: a bare bitmap, read one pixel per cell at the cell size a run gives (the
+    benchmarks that fit a map to a number of cells give theirs)."""
     rows = [ln.strip() for ln in SMALL.strip().splitlines()]
     img = np.array([[0 if ch == "#" else 255 for ch in row] for row in rows], dtype=np.uint8)
     path = tmp_path_factory.mktemp("maps") / "two_rooms.png"
     Image.fromarray(img, mode="L").save(path)
+    return path
+
+
+@pytest.fixture(scope="session")
+def small_map(small_bitmap: Path) -> Path:
+    """``two_rooms.yaml``: the bitmap with its scale, 0.5 m per pixel (one pixel per cell at the default cell
+    size), so that a run needs no --cell-size."""
+    path = small_bitmap.with_suffix(".yaml")
+    path.write_text(f"image: {small_bitmap.name}\nresolution: 0.5\norigin: [0.0, 0.0, 0.0]\n")
     return path
 
 

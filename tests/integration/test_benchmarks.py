@@ -76,11 +76,11 @@ def test_engine_speed_compares_the_engines_on_equal_runs() -> None:
     assert "differs" not in proc.stderr
 
 
-def test_scale_reports_a_row_per_map_and_fleet(small_map: Path) -> None:
+def test_scale_reports_a_row_per_map_and_fleet(small_bitmap: Path) -> None:
     """Issue 11: a row per map and robot count, positive figures; a ``start`` row for a fleet larger than the
     map's free area (161 and 199 cells here), a ``cap`` row above the robot cap."""
     proc = _bench("scale.py", "--robots", "2", "250", "300", "--cells", "20", "--ticks", "6", "--sensor-cells", "2",
-                  "--maps", "maze", str(small_map))
+                  "--maps", "maze", str(small_bitmap))
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.strip().splitlines()
     assert lines[0].startswith("# benchmarks/scale.py (issue 11): ") and " cores " in lines[0]
@@ -125,9 +125,10 @@ def test_agent_memory_reports_each_run() -> None:
     assert row[:2] == ["2", "40"] and all(float(x) > 0 for x in row[2:])  # the fork server's share too
 
 
-def test_brain_step_reports_a_row_per_map(small_map: Path) -> None:
+def test_brain_step_reports_a_row_per_map(small_bitmap: Path) -> None:
     """Issue 11, part 3: a row per map of thread CPU per robot-tick by stage; the stages add up to the step."""
-    proc = _bench("brain_step.py", "--robots", "2", "--ticks", "5", "--cells", "40", "--maps", "maze", str(small_map))
+    proc = _bench("brain_step.py", "--robots", "2", "--ticks", "5", "--cells", "40", "--maps", "maze",
+                  str(small_bitmap))
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.strip().splitlines()
     assert lines[0].startswith("# benchmarks/brain_step.py (issue 11, part 3): ") and " cores " in lines[0]
@@ -148,11 +149,11 @@ def test_brain_step_bad_input_is_one_line() -> None:
     assert proc.returncode == 2 and proc.stderr.startswith("brain_step: error: ") and proc.stderr.count("\n") == 1
 
 
-def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_map: Path) -> None:
+def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_bitmap: Path) -> None:
     """Issue 11, part 5: greedy and minpos in real time, a row each with the real-time columns; a ``start`` row
     for a fleet larger than the map's free area (199 cells here)."""
     proc = _bench("realtime_study.py", "--robots", "2", "250", "--cells", "24", "--max-ticks", "20", "--hz", "20",
-                  "--maps", str(small_map))
+                  "--maps", str(small_bitmap))
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.strip().splitlines()
     assert lines[0].startswith("# benchmarks/realtime_study.py (issue 11, part 5): ")
@@ -210,11 +211,11 @@ def test_relay_prints_a_row_per_policy_and_ttl(small_map: Path) -> None:
     assert bad.returncode == 2 and bad.stderr.startswith("relay: error: ") and bad.stderr.count("\n") == 1
 
 
-def test_paper_setting_prints_fig7_rows_and_draws_them(small_map: Path, tmp_path: Path) -> None:
+def test_paper_setting_prints_fig7_rows_and_draws_them(small_bitmap: Path, tmp_path: Path) -> None:
     """Issue 10, part 6: a row per allocator and fleet size; MHM keeps every robot connected to the base (its
     constraint), the cells seen grow, and the PNG and the JSON are written; ``--from`` redraws from the JSON."""
     png, data = tmp_path / "fig7.png", tmp_path / "fig7.json"
-    proc = _bench("paper_setting.py", "--maps", str(small_map), "--cells", "24", "--r-comm", "6", "--sensor", "3",
+    proc = _bench("paper_setting.py", "--maps", str(small_bitmap), "--cells", "24", "--r-comm", "6", "--sensor", "3",
                   "--robots", "2", "3", "--allocators", "mhm", "minpos", "--max-ticks", "30", "--at", "10", "30",
                   "--out", str(png), "--json", str(data))
     assert proc.returncode == 0, proc.stderr[-2000:]

@@ -155,7 +155,9 @@ def test_bad_allocator_parameter_in_a_scenario(section: str, match: str, tmp_pat
 def test_unparseable_map_file(tmp_path: Path) -> None:
     bad = tmp_path / "garbage.png"
     bad.write_bytes(b"this is not a png")
-    proc = fleet("run", "--map", str(bad), "--quiet", "--out", str(tmp_path / "x"), check=False, timeout=60)
+    proc = fleet("run", "--map", str(bad), "--cell-size", "0.5", "--quiet", "--out", str(tmp_path / "x"), check=False,
+                 timeout=60)
+    assert "cannot read image" in proc.stderr
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
 

@@ -40,7 +40,8 @@ def rooms(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def scenario(rooms: Path, **over: object) -> fe.Scenario:
-    base = {"map": str(rooms), "robots": 3, "loss": 0.3, "sensor_range": 1.5, "max_ticks": 200, "start": (1, 1)}
+    base = {"map": str(rooms), "cell_size": 0.5, "robots": 3, "loss": 0.3, "sensor_range": 1.5, "max_ticks": 200,
+            "start": (1, 1)}
     return fe.Scenario().override(**(base | over))
 
 
@@ -124,7 +125,7 @@ def test_a_signal_ends_a_memory_run_after_the_tick_and_keeps_its_files(rooms: Pa
         if getattr(m, "tick", 0) == 5:
             irq._handle(signal.SIGTERM, None)
 
-    s = fe.Scenario().override(map=str(rooms), robots=2, max_ticks=10000, seed=2)
+    s = fe.Scenario().override(map=str(rooms), cell_size=0.5, robots=2, max_ticks=10000, seed=2)
     res = run_memory(s, tmp_path / "run", on_progress=progress, interrupts=irq).data
     assert res["reason"] == "interrupted" and res["signal"] == "SIGTERM" and 5 <= res["ticks"] <= 6
     assert res["completed"] is False and (tmp_path / "run" / "result.json").exists()

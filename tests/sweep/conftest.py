@@ -47,6 +47,7 @@ loss = [0.0]
 comm = ["ideal"]
 map = ["rooms.png"]
 [fleet]
+cell_size = 0.5
 sensor_range = 1.5
 start = [1, 1]
 max_ticks = 300

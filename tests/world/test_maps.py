@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +12,6 @@ from scipy import ndimage
 from fleet_emu.core.grid import FREE, OCCUPIED, from_ascii
 from fleet_emu.world.maps import BUILTIN_MAPS, START_RADIUS, MapData, MapError, _ball, load_bitmap, load_map
 
-SHARED_MAPS = Path(__file__).resolve().parents[3] / "shared" / "maps"
 FOUR = ndimage.generate_binary_structure(2, 1)
 
 
@@ -126,10 +124,24 @@ def test_png_at_cell_size_round_trips(tmp_path: Path) -> None:
     check_map(md)
 
 
-def test_small_bare_bitmap_is_one_pixel_per_cell(tmp_path: Path) -> None:
+def test_a_bare_bitmap_is_one_pixel_per_cell_whatever_its_size(tmp_path: Path) -> None:
     grid = write_png(tmp_path / "a.png", ART)
     md = load_map(str(tmp_path / "a.png"), 0.5, 0)
     assert np.array_equal(md.grid, grid) and md.name == str(tmp_path / "a.png")
+    big = np.full((300, 260), 255, dtype=np.uint8)
+    big[[0, -1], :] = big[:, [0, -1]] = 0
+    Image.fromarray(big, mode="L").save(tmp_path / "big.pgm")
+    assert load_map(str(tmp_path / "big.pgm"), 0.1, 0).grid.shape == (300, 260)
+
+
+def test_a_bare_bitmap_without_a_cell_size_is_refused(tmp_path: Path) -> None:
+    write_png(tmp_path / "a.png", ART)
+    with pytest.raises(MapError) as exc:
+        load_map(str(tmp_path / "a.png"), 0.5, 0, cell_size_given=False)
+    assert_one_line(exc, "a.png", "without a scale", "--cell-size", "YAML")
+    yaml_map = write_yaml(tmp_path / "a.yaml", "a.png")  # the same image with its scale: no cell size needed
+    assert np.array_equal(load_map(str(yaml_map), 0.5, 0, cell_size_given=False).grid, from_ascii(ART)[0])
+    assert load_map("office", 0.5, 0, cell_size_given=False).grid.size > 0
 
 
 def test_open_edges_get_a_wall_border(tmp_path: Path) -> None:
@@ -245,7 +257,9 @@ def assert_one_line(exc: pytest.ExceptionInfo[MapError], *words: str) -> None:
 def test_unknown_name() -> None:
     with pytest.raises(MapError) as exc:
         load_map("nowhere", 0.5, 0)
-    assert str(exc.value) == "unknown map 'nowhere' (built-in: office, maze, grid, hall; or a PNG/PGM/YAML path)"
+    assert str(exc.value).startswith("unknown map 'nowhere' (built-in: office, maze, grid, hall; registry: "
+                                     "hospital_section, hospital, cave, ")
+    assert_one_line(exc, "`fleet maps`", "or a PNG/PGM/YAML path")
 
 
 def test_missing_file(tmp_path: Path) -> None:
@@ -297,39 +311,3 @@ def test_all_wall_image_and_bad_cell_size(tmp_path: Path) -> None:
     assert_one_line(exc, "no free cell")
     with pytest.raises(MapError):
         load_map("office", 0.0, 0)
-
-
-# --------------------------------------------------------------------------------------------- real maps
-
-
-def shared(rel: str) -> Path:
-    path = SHARED_MAPS / rel
-    if not path.exists():
-        pytest.skip(f"shared maps folder absent ({path} not found); real-map tests need ../shared/maps")
-    return path
-
-
-@pytest.mark.parametrize(("rel", "size_m", "pixel_free_m2"), [
-    ("stage/hospital_section.yaml", (443 * 0.036832, 1086 * 0.036832), 600.0),
-    ("ros/turtlebot3_world/map.yaml", (384 * 0.05, 384 * 0.05), 19.0),
-])
-@pytest.mark.parametrize("cell_size", [0.5, 0.25])
-def test_real_maps(rel: str, size_m: tuple[float, float], pixel_free_m2: float, cell_size: float) -> None:
-    path = shared(rel)
-    t = time.perf_counter()
-    md = load_map(str(path), cell_size, 0)
-    assert time.perf_counter() - t < 1.0
-    check_map(md)
-    for n, metres in zip(md.grid.shape, size_m, strict=True):
-        assert metres / cell_size <= n <= metres / cell_size + 3
-    # max-pooling walls costs some free area, but most survives (more at the finer cell size)
-    free_m2 = (md.grid == FREE).sum() * cell_size**2
-    assert free_m2 >= (0.45 if cell_size == 0.5 else 0.7) * pixel_free_m2
-    labels = components(md.grid)
-    assert (labels == labels[md.start]).sum() >= 30
-
-
-def test_hospital_start_has_room_for_a_fleet() -> None:
-    md = load_map(str(shared("stage/hospital_section.yaml")), 0.5, 0)
-    assert _ball(md.grid == FREE, md.start, START_RADIUS) >= 20
-    assert (md.grid == FREE).sum() > 1000
