@@ -20,7 +20,7 @@ import importlib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.2.0"
+from fleet_emu.core.version import __version__
 
 __all__ = [
     "__version__",
