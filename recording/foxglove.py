@@ -173,7 +173,7 @@ class FoxgloveFold:
     def __init__(self, scenario: dict[str, Any], truth: np.ndarray | None = None, grid_every: int | None = None,
                  run_id: str = "", base_cell: tuple[int, int] | None = None) -> None:
         self.scenario = scenario
-        self.base_cell = base_cell  # the base station's cell (``world.node.base_cell``), in a run with one
+        self.base_cell = base_cell  # the base station's cell (``world.build.base_cell``), in a run with one
         self.run_id = run_id
         self.robots = tuple(robot_ids(scenario["robots"]))
         self.cell_size = float(scenario["cell_size"])
