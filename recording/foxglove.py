@@ -274,7 +274,9 @@ class FoxgloveFold:
             if self.ended:
                 return []
             self.ended = True
-            out = self._flush(max(self.states, default=s.tick), final=True)
+            # the last tick's scene waits for finish(): netem's links of that tick travel apart from the stop and
+            # may reach the launcher after it
+            out = self._flush(max(self.states, default=s.tick) - 1)
             cov = self.states[max(self.states)].coverage if self.states else 0.0
             level = INFO if s.reason == "coverage" else WARNING
             out.append(self._log(s.tick, level, "world", f"run ended at tick {s.tick}: {s.reason} "
