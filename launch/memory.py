@@ -144,7 +144,8 @@ class Fleet:
                 raise RunError(f"robot {r} failed at tick {t}: {type(exc).__name__}: {exc}") from exc
             bundles[r] = out
             tx, belief = robot_outputs(brain, t, out, self.scenario.belief_every)
-            self._first_cpu.setdefault(r, first_cpu_ms(brain, 0.0, 0.0))  # one process: no process or loop CPU
+            if r not in self._first_cpu:  # one process for every robot: no process or event-loop CPU of its own
+                self._first_cpu[r] = first_cpu_ms(brain, 0.0, 0.0)
             self._emit(self.keys.tx(r), tx)
             self._emit(self.keys.cmd(r), cmd)
             if belief is not None and self.tap is not None:  # for the recording only, as the node's
