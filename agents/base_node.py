@@ -27,13 +27,14 @@ import zenoh
 
 from fleet_emu.agents.allocators.mhm.station import station_planner
 from fleet_emu.agents.base import BaseStation
+from fleet_emu.agents.outputs import base_report, base_tx
 from fleet_emu.core.bus import Inbox, publisher
-from fleet_emu.core.grid import MapData
+from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
-from fleet_emu.core.messages import BaseReport, RxBundle, Stop, TxBundle
-from fleet_emu.core.node import NodeBase, node_main, undeclare
+from fleet_emu.core.messages import RxBundle, Stop
+from fleet_emu.core.node import NodeBase, add_base_cell, node_main, undeclare
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.world.node import base_cell
 
 FINAL_GRACE = 2.0  # seconds to wait, after the world's stop, for the last rx bundles
 
@@ -41,10 +42,11 @@ FINAL_GRACE = 2.0  # seconds to wait, after the world's stop, for the last rx bu
 class BaseNode(NodeBase):
     role = BASE
 
-    def __init__(self, scenario: Scenario, run: str, map_data: MapData) -> None:
+    def __init__(self, scenario: Scenario, run: str, map_data: MapData, cell: Cell) -> None:
+        """``cell``: the base's cell, resolved by the launcher (``world.build.base_cell``)."""
         super().__init__(Keys(run), BASE)
-        cell = base_cell(scenario, map_data)
-        assert cell is not None, "a base process for a scenario without a base"
+        if not scenario.has_base:
+            raise ConfigError("a base station's process for a scenario without a base")
         self.station = BaseStation(cell, map_data.grid.shape, frozenset(robot_ids(scenario.robots)),
                                    planner=station_planner(scenario), on_drop=self.drop)
         self.sends = scenario.plans_at_base
@@ -68,11 +70,8 @@ class BaseNode(NodeBase):
             stop = await self._until_stop(inbox)
             if stop.src == "world":
                 await self._final(inbox, stop.tick)
-            st = self.station
-            pub_report.put(BaseReport(
-                src=BASE, tick=stop.tick, seq=self.next_seq(), cell=st.cell, known_cells=st.known_cells,
-                cells=int(st.belief.grid.size), merged=st.merged, ticks=st.ticks, dropped=self.dropped,
-                peak_rss_kb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss).encode())
+            pub_report.put(base_report(self.station, stop.tick, self.dropped,
+                                       resource.getrusage(resource.RUSAGE_SELF).ru_maxrss).encode())
             await asyncio.sleep(0.05)
         finally:
             undeclare(handles)
@@ -105,7 +104,7 @@ class BaseNode(NodeBase):
             if b is not None and b.dst == BASE and b.tick >= self.next_tick:  # one key, one publisher: in order
                 out = self.station.step(b.tick, b.msgs)
                 if self.pub_tx is not None:
-                    self.pub_tx.put(TxBundle(src=BASE, tick=b.tick, seq=self.next_seq(), msgs=out).encode())
+                    self.pub_tx.put(base_tx(self.station, b.tick, out).encode())
                 self.next_tick = b.tick + 1
             elif b is not None:
                 self.drop(key, "rx bundle for another node or a past tick")
@@ -114,8 +113,9 @@ class BaseNode(NodeBase):
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m fleet_emu.agents.base_node --run RUN --connect ENDPOINT --scenario FILE.json
-    --map-file MAP.npz``."""
-    node_main("base", lambda a: BaseNode(a.scenario, a.run, a.map_file), argv, map_file=True)
+    --map-file MAP.npz --base-cell ROW,COL``."""
+    node_main("base", lambda a: BaseNode(a.scenario, a.run, a.map_file, a.base_cell), argv,
+              lambda p: add_base_cell(p, required=True), map_file=True)
 
 
 if __name__ == "__main__":

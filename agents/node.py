@@ -15,27 +15,17 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
 import zenoh
 
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import Brain, allocator_config, brain_config, radio_team
+from fleet_emu.agents.outputs import agent_report, first_cpu_ms, robot_outputs
 from fleet_emu.agents.realtime import Timing, percentiles
 from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.codec import Context
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import Keys
-from fleet_emu.core.messages import (
-    AgentReport,
-    AgentTiming,
-    BeliefSnapshot,
-    Command,
-    Envelope,
-    Observation,
-    RxBundle,
-    Stop,
-    TxBundle,
-)
+from fleet_emu.core.messages import AgentTiming, Command, Envelope, Observation, RxBundle, Stop
 from fleet_emu.core.node import NodeBase, node_main, undeclare
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
@@ -86,16 +76,10 @@ class AgentNode(NodeBase):
                     src=self.robot, tick=tick, seq=self.next_seq(), decisions=tm.decisions,
                     plan_steps=tm.plan_steps, waits=tm.waits, decision_ms=percentiles(tm.decision_ms),
                     allocator_ms=percentiles(self.brain.decision_ms[:tm.decisions])).encode())
-            ms = np.array(self.brain.decision_ms or [0.0])
             process_ms, loop_ms = self._clocks_ms()
-            pub_report.put(AgentReport(
-                src=self.robot, tick=tick, seq=self.next_seq(), decisions=len(self.brain.decision_ms),
-                decision_ms_mean=float(ms.mean()), decision_ms_p95=float(np.percentile(ms, 95)),
-                dropped=self.dropped, peak_rss_kb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
-                decision_cpu_ms=self.brain.decision_cpu_ms, step_cpu_ms=self.brain.step_cpu_ms,
-                process_cpu_ms=process_ms, loop_cpu_ms=loop_ms, stage_cpu_ms=dict(self.brain.cpu_ms),
-                first_cpu_ms=self.first_cpu_ms,
-            ).encode())
+            pub_report.put(agent_report(
+                self.brain, tick, self.dropped, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+                process_cpu_ms=process_ms, loop_cpu_ms=loop_ms, first=self.first_cpu_ms).encode())
             await asyncio.sleep(0.05)
         finally:
             undeclare(handles)
@@ -150,18 +134,13 @@ class AgentNode(NodeBase):
 
     def _send(self, obs: Observation, cmd: Command, out: tuple[Envelope, ...]) -> None:
         """A decision's outputs, in either mode; after the first, its CPU is kept to be reported apart."""
-        self.pub_tx.put(TxBundle(src=self.robot, tick=obs.tick, seq=self.next_seq(), msgs=out).encode())
+        tx, belief = robot_outputs(self.brain, obs.tick, out, self.scenario.belief_every)
+        self.pub_tx.put(tx.encode())
         self.pub_cmd.put(cmd.encode())
-        if self.pub_belief is not None and obs.tick % self.scenario.belief_every == 0 \
-                and self.brain.belief is not None:
-            seq = self.next_seq()  # drawn even when not sent: the counter (and so the radio's bytes) stays the same
-            if self._belief_heard():
-                self.pub_belief.put(BeliefSnapshot(src=self.robot, tick=obs.tick, seq=seq,
-                                                   grid=self.brain.belief.grid).encode())
+        if belief is not None and self.pub_belief is not None and self._belief_heard():
+            self.pub_belief.put(belief.encode())
         if not self.first_cpu_ms:
-            process_ms, loop_ms = self._clocks_ms()
-            b = self.brain
-            self.first_cpu_ms = {"process": process_ms, "loop": loop_ms, "step": b.step_cpu_ms, **b.cpu_ms}
+            self.first_cpu_ms = first_cpu_ms(self.brain, *self._clocks_ms())
 
     def _belief_heard(self) -> bool:
         """Whether a subscriber (the recorder) listens to the belief snapshots: they are for the recording

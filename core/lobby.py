@@ -30,6 +30,12 @@ class Ready(Message):
     pid: int
 
 
+def ready(node_id: str, role: str, pid: int) -> Ready:
+    """Node ``node_id``'s answer to the hello, as every engine builds it: tick 0 and seq 0 like the hello (the
+    handshake repeats as timing goes, so it draws from no sequence counter)."""
+    return Ready(src=node_id, tick=0, seq=0, role=role, pid=pid)
+
+
 @dataclasses.dataclass(frozen=True)
 class Failed(Message):
     """The launcher saw a robot's process exit (ctl/failed/<robot>): the world fails it at once, even

@@ -37,13 +37,14 @@ from fleet_emu.core.lobby import (
     HostStatus,
     Ready,
     Stop,
+    ready,
 )
 
 __all__ = [
     "Context", "DecodeError", "Message", "Payload", "decode", "decode_payload", "peek_tick",
     "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope", "MAX_TTL",
     "MAX_PAYLOAD_BYTES", "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links",
-    "Hello", "Ready", "Failed", "Stop", "AgentReport", "BaseReport", "BeliefSnapshot", "HostAssign",
+    "Hello", "Ready", "ready", "Failed", "Stop", "AgentReport", "BaseReport", "BeliefSnapshot", "HostAssign",
     "HostStatus", "HOST_EVENTS", "MAX_REALTIME_HZ", "WorldClock", "AgentTiming", "STALE",
 ]
 

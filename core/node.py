@@ -24,7 +24,7 @@ from fleet_emu.core.errors import FleetError
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.heap import keep_heap
 from fleet_emu.core.keys import Keys
-from fleet_emu.core.messages import Hello, Ready
+from fleet_emu.core.messages import Hello, ready
 from fleet_emu.core.scenario import Scenario
 
 M = TypeVar("M", bound=Message)
@@ -78,7 +78,7 @@ class NodeBase:
 
     def answer_hello(self, key: str, data: bytes) -> None:
         if self.decode(key, data, Hello) is not None:
-            self._ready_pub.put(Ready(src=self.node_id, tick=0, seq=0, role=self.role, pid=os.getpid()).encode())
+            self._ready_pub.put(ready(self.node_id, self.role, os.getpid()).encode())
 
 
 class Declared(Protocol):
@@ -148,6 +148,23 @@ def parse_child(parser: argparse.ArgumentParser, argv: list[str] | None, map_fil
     return args
 
 
+def add_base_cell(parser: argparse.ArgumentParser, required: bool) -> None:
+    """``--base-cell ROW,COL``: the base station's cell, for netem (a radio endpoint there; none without the
+    flag) and the base station's process. The launcher resolves it once (``world.build.base_cell``: with
+    ``base = true`` it is the world's start cell, a ``random`` one drawn by the world) and passes it on, since
+    these processes do not import the world's code."""
+    parser.add_argument("--base-cell", type=_cell, required=required, default=None, metavar="ROW,COL",
+                        help="the base station's cell (resolved by fleet run)")
+
+
+def _cell(text: str) -> tuple[int, int]:
+    try:
+        row, col = (int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected ROW,COL, got {text!r}") from None
+    return (row, col)
+
+
 def node_main(prog: str, build: Callable[[argparse.Namespace], Any], argv: list[str] | None,
               extra: Callable[[argparse.ArgumentParser], None] | None = None, map_file: bool = False) -> None:
     """The ``__main__`` of a node process: parse the child command line, build the node, open one client
@@ -158,6 +175,10 @@ def node_main(prog: str, build: Callable[[argparse.Namespace], Any], argv: list[
     args = parse_child(parser, argv, map_file)
     setup_logging()
     keep_heap()  # the same map-sized arrays every tick: no page faults for them (core/heap.py)
-    node = build(args)
+    try:
+        node = build(args)
+    except FleetError as exc:  # arguments that do not fit together (the launcher's, or a hand-made run's)
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
     with zenoh.open(client_config(args.connect, args.credential)) as session:
         asyncio.run(run_node(node.run(session)))

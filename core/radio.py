@@ -59,6 +59,13 @@ class RadioConfig:
         return math.inf
 
 
+def radio_label(comm: str, loss: float) -> str:
+    """The radio model and the loss the channel actually applies (none on ``ideal``, whatever was asked), as
+    ``fleet run``'s summary and ``fleet report``'s tables show it."""
+    applied = RadioConfig(comm=comm, loss=loss).applied_loss
+    return f"{comm}, no loss" if applied == 0 else f"{comm}, loss {applied:g}"
+
+
 def signal_db(distance_m: float, walls: int, p: RadioConfig) -> float:
     """Benavides eq. 4 for one pair; ``distance_m`` is clamped to a millimetre (same-cell pairs)."""
     d = max(distance_m, 1e-3)

@@ -20,8 +20,6 @@ import importlib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.2.0"
-
 __all__ = [
     "__version__",
     # scenarios and runs
@@ -54,6 +52,7 @@ _LAZY = {
     "ReportError": "fleet_emu.core.errors",
     "RunError": "fleet_emu.core.errors",
     "SCHEMA_VERSION": "fleet_emu.core.version",
+    "__version__": "fleet_emu.core.version",
 }
 
 if TYPE_CHECKING:
@@ -61,7 +60,7 @@ if TYPE_CHECKING:
     from fleet_emu.core.errors import ConfigError, DecodeError, FleetError, MapError, ReportError, RunError
     from fleet_emu.core.radio import RadioConfig
     from fleet_emu.core.scenario import Scenario
-    from fleet_emu.core.version import SCHEMA_VERSION
+    from fleet_emu.core.version import SCHEMA_VERSION, __version__
     from fleet_emu.launch.memory import Fleet
     from fleet_emu.launch.result import Result
     from fleet_emu.recording import load_recording

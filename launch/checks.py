@@ -25,8 +25,8 @@ from fleet_emu.core.messages import MAX_REALTIME_HZ
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch import budget
 from fleet_emu.launch.hosts import check_hosts, check_reliable, host_credentials, listen_endpoints
+from fleet_emu.world.build import base_cell, build_world
 from fleet_emu.world.maps import load_map
-from fleet_emu.world.node import base_cell, build_world
 
 if TYPE_CHECKING:
     from fleet_emu.launch.runner import RunOptions

@@ -1,4 +1,7 @@
-"""``fleet``: the user's entry point (DESIGN.md "CLI and the result contract").
+"""``fleet``'s commands that run and inspect fleets: ``run``, ``router-config``, ``host``, ``maps``,
+``allocators``, ``report``, and the dispatch every command goes through (DESIGN.md "CLI and the result
+contract"). The ``fleet`` console script, :mod:`fleet_emu.cli`, adds ``sweep`` on top (sweep runs fleets through
+this package, so this package does not import it); ``python -m fleet_emu.launch`` serves the commands here.
 
 Bad input gets one line on stderr (``fleet: error: ...``) and exit code 2; a run in which a process of the
 fleet failed exits 1 (a robot too, when the others finished); SIGINT (Ctrl-C) exits 130 and SIGTERM 143,
@@ -10,11 +13,14 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from fleet_emu.core.errors import ConfigError, FleetError
+from fleet_emu.core.version import __version__
+from fleet_emu.launch.maps_cli import add_parser as add_maps
+from fleet_emu.launch.maps_cli import cmd_maps
 
 if TYPE_CHECKING:
     from fleet_emu.core.scenario import Scenario
@@ -61,15 +67,35 @@ def _hz(text: str) -> float:
     return hz
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from fleet_emu import __version__
-    from fleet_emu.core.radio import COMM_MODELS
-    from fleet_emu.launch.maps_cli import add_parser as add_maps
+#: A subcommand's handler: its parsed arguments to the exit code.
+Handler = Callable[[argparse.Namespace], int]
+#: Adds a subcommand (or several) to the ``fleet`` parser's subparsers.
+Adder = Callable[[Any], None]
 
+
+def build_parser(extra: Sequence[Adder] = ()) -> argparse.ArgumentParser:
+    """The ``fleet`` parser with this package's commands (``run``, ``router-config``, ``host``, ``maps``,
+    ``allocators``, ``report``) and those ``extra`` adds (``fleet_emu.cli`` adds ``sweep``)."""
     p = _Parser(prog="fleet", description="Multi-robot exploration under realistic radio, over Eclipse Zenoh.")
     p.add_argument("--version", action="version", version=f"fleet-emu {__version__}")
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
+    for add in (_add_run, _add_router_config, _add_host, _add_listings, _add_report, *extra):
+        add(sub)
+    return p
+
+
+def _add_run(sub: Any) -> None:
     r = sub.add_parser("run", help="run one scenario (the default one with no arguments)")
+    _add_scenario_flags(r)
+    _add_engine_flags(r)
+    _add_bus_flags(r)
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--grid-every", type=int, metavar="K",
+                   help="Foxglove map/coverage/belief grids in run.mcap every K ticks (default: belief_every)")
+
+
+def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
+    """``fleet run``'s scenario and its overrides."""
     r.add_argument("scenario_file", nargs="?", type=Path, metavar="SCENARIO",
                    help="a scenario TOML or a run's scenario.json, as --scenario")
     r.add_argument("--scenario", type=Path, help="a scenario TOML, a run's scenario.json, or a shipped scenario's name "
@@ -93,8 +119,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="hops left after the first on the messages a robot makes (default 0: one hop)")
     r.add_argument("--max-ticks", type=int)
     r.add_argument("--target-coverage", type=float)
+    from fleet_emu.core.radio import COMM_MODELS
+
     r.add_argument("--comm", choices=COMM_MODELS,
                    help="radio: wall (eq. 4), disk (within --comm-range), full (all pairs), ideal (full, no loss)")
+
+
+def _add_engine_flags(r: argparse.ArgumentParser) -> None:
+    """``fleet run``'s output, engine and process options."""
     r.add_argument("--out", type=Path, help="output directory (default runs/<run id>)")
     r.add_argument("--engine", choices=("processes", "memory"), default="processes",
                    help="processes: one OS process per node over Zenoh; memory: the same objects stepped in this "
@@ -107,11 +139,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="fork the robot processes from one fork server that loaded the agent code once (default: "
                         "on, unless FLEET_FORK_SERVER=0); --no-fork-server starts each robot afresh")
     r.add_argument("--no-record", action="store_true", help="do not write run.mcap")
+    r.add_argument("--run-id", help="the <run> of the key expressions (default: a timestamp)")
+
+
+def _add_bus_flags(r: argparse.ArgumentParser) -> None:
+    """``fleet run``'s bus: an external router and its logins, the embedded router's endpoint, the hosts."""
     r.add_argument("--connect", help="use an external Zenoh router, e.g. tcp/192.0.2.1:7447")
     r.add_argument("--credentials", type=Path, metavar="USERS",
                    help="with --connect: the users file written by `fleet router-config`")
     r.add_argument("--tls-ca", type=Path, metavar="CA.pem", help="with a tls/ --connect: the CA that signed the router")
-    r.add_argument("--run-id", help="the <run> of the key expressions (default: a timestamp)")
     r.add_argument("--hosts", type=int, metavar="N",
                    help="deal the robots round-robin between this machine and N `fleet host`s, waiting for them "
                         "(replaces the scenario's [hosts]; 0: every robot here)")
@@ -122,9 +158,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--tls-key", type=Path, metavar="KEY.pem", help="with --tls-cert: its private key")
     r.add_argument("--host-timeout", type=float, default=None, metavar="S",
                    help="seconds to wait for the --hosts (default 60)")
-    r.add_argument("--quiet", action="store_true", help="no progress bar")
-    r.add_argument("--grid-every", type=int, metavar="K",
-                   help="Foxglove map/coverage/belief grids in run.mcap every K ticks (default: belief_every)")
+
+
+def _add_router_config(sub: Any) -> None:
     rc = sub.add_parser("router-config", help="print a zenohd configuration with the fleet's authentication and "
                                               "access control, and write its users file")
     rc.add_argument("--robots", type=int, required=True, help="robots r0..r<N-1> that may join")
@@ -136,6 +172,9 @@ def build_parser() -> argparse.ArgumentParser:
     rc.add_argument("--hosts", type=int, default=0, help="hosts host0..host<N-1> that may join (`fleet host`)")
     rc.add_argument("--tls-cert", type=Path, help="the router's TLS certificate (PEM)")
     rc.add_argument("--tls-key", type=Path, help="its private key (PEM)")
+
+
+def _add_host(sub: Any) -> None:
     h = sub.add_parser("host", help="start the robots a `fleet run --hosts N` on another machine assigns here")
     h.add_argument("--connect", required=True, help="the run's Zenoh router, e.g. tcp/192.0.2.1:7447")
     h.add_argument("--credentials", type=Path, metavar="FILE",
@@ -148,17 +187,19 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--once", action="store_true", help="exit after one run (default: serve runs until Ctrl-C)")
     h.add_argument("--fork-server", action=argparse.BooleanOptionalAction, default=None,
                    help="fork the robots from a fork server (default: as the launcher asks)")
+
+
+def _add_listings(sub: Any) -> None:
     add_maps(sub)
     sub.add_parser("allocators", help="list the allocators (built-in and installed plugins) and their parameters")
+
+
+def _add_report(sub: Any) -> None:
     rep = sub.add_parser("report", help="metrics.json, plots and a table from a recording (RUN_DIR or RUN.mcap)")
     rep.add_argument("paths", nargs="+", type=Path, metavar="RUN", help="a run directory or its run.mcap")
     rep.add_argument("--compare", action="store_true", help="one table and overlaid coverage curves of the runs")
     rep.add_argument("--out", type=Path, help="where --compare writes its PNG (default ./compare.png)")
     rep.add_argument("--no-plots", action="store_true", help="metrics.json and the table only")
-    from fleet_emu.sweep.cli import add_parser as add_sweep
-
-    add_sweep(sub)
-    return p
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
@@ -272,22 +313,31 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_sweep(args: argparse.Namespace) -> int:
-    from fleet_emu.sweep.cli import cmd_sweep as sweep
-
-    return sweep(args)
+#: The handlers of this package's commands other than ``run`` and ``host`` (which handle signals themselves).
+HANDLERS: dict[str, Handler] = {"maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report,
+                                "router-config": cmd_router_config}
 
 
 def main(argv: list[str] | None = None) -> None:
+    """``python -m fleet_emu.launch``: this package's commands, every one but ``sweep`` (the ``fleet`` console
+    script, :func:`fleet_emu.cli.main`, has them all)."""
+    serve(argv, build_parser, HANDLERS)
+
+
+def serve(argv: list[str] | None, parser: Callable[[], argparse.ArgumentParser],
+          handlers: Mapping[str, Handler]) -> NoReturn:
+    """Parse ``argv`` with ``parser()`` (no command: ``run``), run the command and exit with its code: ``run``
+    and ``host`` with SIGINT and SIGTERM turned into requests, the others (``handlers``) with Ctrl-C simply
+    stopping them; an error meant for the user is one line."""
     from fleet_emu.launch.signals import Interrupts
 
     interrupts = Interrupts().install()  # first: a signal while parsing or importing is a request too
     command = "run"
     try:
-        args = build_parser().parse_args(argv)
+        args = parser().parse_args(argv)
         command = args.command or "run"
         if args.command is None:
-            args = build_parser().parse_args(["run", *(argv or [])])
+            args = parser().parse_args(["run", *(argv or [])])
         if command == "run":
             code = _run_with_signals(args, interrupts)
         elif command == "host":
@@ -298,10 +348,6 @@ def main(argv: list[str] | None = None) -> None:
             interrupts.restore()  # a listing or a report: Ctrl-C simply stops it
             if interrupts.requested.is_set():
                 raise KeyboardInterrupt
-            from fleet_emu.launch.maps_cli import cmd_maps
-
-            handlers = {"maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report,
-                        "router-config": cmd_router_config, "sweep": cmd_sweep}
             code = handlers[command](args)
     except FleetError as exc:  # every error meant for the user, caught once: one line, its exit code
         interrupts.restore()

@@ -45,6 +45,7 @@ from fleet_emu.core.access import Credential, read_dictionary, role_of
 from fleet_emu.core.bus import publisher
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.errors import ConfigError, RunError
+from fleet_emu.core.grid import Cell
 from fleet_emu.core.keys import BASE, HostKeys, robot_ids
 from fleet_emu.core.messages import HostAssign, HostStatus
 from fleet_emu.core.node import undeclare
@@ -165,8 +166,10 @@ def agent_argv(robot: str, run_id: str, endpoint: str, scenario_file: Path, auth
 
 def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str, work: Path,
                 creds: dict[str, Credential] | None, remote: Hosts | None = None,
-                requested: threading.Event | None = None, realtime_hz: float | None = None) -> dict[str, list[str]]:
-    """world, netem, the base station (when the scenario has one) and one process per robot, each with its
+                requested: threading.Event | None = None, realtime_hz: float | None = None,
+                base: Cell | None = None) -> dict[str, list[str]]:
+    """world, netem, the base station (when the scenario has one: at ``base``, its cell as
+    ``world.build.base_cell`` resolved it) and one process per robot, each with its
     own credential on standard input; with
     ``remote``, first wait for its hosts and start their robots there. The hosts and their robots."""
     robots = robot_ids(scenario.robots)
@@ -183,9 +186,10 @@ def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str,
         return creds[node].to_json() if creds else None
 
     sup.spawn("world", "fleet_emu.world", [*common, *truth, *auth], secret("world"))
-    sup.spawn("netem", "fleet_emu.netem", [*common, *truth, *auth], secret("netem"))
+    at_base = ["--base-cell", f"{base[0]},{base[1]}"] if base is not None else []
+    sup.spawn("netem", "fleet_emu.netem", [*common, *truth, *at_base, *auth], secret("netem"))
     if scenario.has_base:  # the base station: on this machine, like world and netem
-        sup.spawn(BASE, "fleet_emu.agents.base_node", [*common, *truth, *auth], secret(BASE))
+        sup.spawn(BASE, "fleet_emu.agents.base_node", [*common, *truth, *at_base, *auth], secret(BASE))
     for r in robots:
         if where[r] is None:
             sup.spawn(r, "fleet_emu.agents", agent_argv(r, run_id, endpoint, work / "scenario.json", bool(creds),

@@ -23,35 +23,24 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.allocators.mhm.station import station_planner
 from fleet_emu.agents.base import BaseStation
 from fleet_emu.agents.brain import Brain, allocator_config, brain_config, radio_team
+from fleet_emu.agents.outputs import agent_report, base_report, base_tx, first_cpu_ms, robot_outputs
 from fleet_emu.core.errors import RunError
 from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
-from fleet_emu.core.messages import (
-    AgentReport,
-    BaseReport,
-    BeliefSnapshot,
-    Envelope,
-    Message,
-    Observation,
-    RxBundle,
-    Stop,
-    TxBundle,
-    WorldState,
-)
+from fleet_emu.core.messages import Envelope, Message, Observation, WorldState, ready
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.result import Result
 from fleet_emu.launch.signals import Interrupts
-from fleet_emu.netem.channel import Channel, endpoint_links, links_message
+from fleet_emu.netem.channel import Channel, radio_tick
 from fleet_emu.recording.monitor import Monitor
+from fleet_emu.world.build import base_cell, build_world
 from fleet_emu.world.maps import BUILTIN_MAPS, load_map
-from fleet_emu.world.node import base_cell, build_world
+from fleet_emu.world.messages import hello, stop, tick_messages
 from fleet_emu.world.sim import Reading, StartAreaError
 
 #: Called with (key expression, message, wall-clock ns) for every message the bus would carry (a recorder).
@@ -124,6 +113,7 @@ class Fleet:
                        for r in self.possible_agents}
         self.monitor = Monitor(tuple(self.possible_agents), base=s.has_base, relay=s.relay != "none")
         self._world_seq = self._netem_seq = 0
+        self._first_cpu: dict[str, dict[str, float]] = {}  # each robot's first step's CPU (AgentReport)
         self._started = time.perf_counter()
         self.done = False
         self.reason: str | None = None
@@ -133,6 +123,7 @@ class Fleet:
             self.base = BaseStation(cell, self.map.grid.shape, frozenset(self.possible_agents),
                                     planner=station_planner(s), on_drop=self._on_base_drop)
         self._base_tx: tuple[Envelope, ...] | None = None  # the base's tx bundle of the tick, when it sends
+        self._handshake()
         self._publish(readings)
         return dict(self.obs), {r: {} for r in self.agents}
 
@@ -152,13 +143,13 @@ class Fleet:
             except Exception as exc:
                 raise RunError(f"robot {r} failed at tick {t}: {type(exc).__name__}: {exc}") from exc
             bundles[r] = out
-            self._emit(self.keys.tx(r), TxBundle(src=r, tick=t, seq=brain.next_seq(), msgs=out))
+            tx, belief = robot_outputs(brain, t, out, self.scenario.belief_every)
+            if r not in self._first_cpu:  # one process for every robot: no process or event-loop CPU of its own
+                self._first_cpu[r] = first_cpu_ms(brain, 0.0, 0.0)
+            self._emit(self.keys.tx(r), tx)
             self._emit(self.keys.cmd(r), cmd)
-            every = self.scenario.belief_every
-            if every and t % every == 0 and brain.belief is not None:
-                seq = brain.next_seq()  # drawn as the node does, recorded or not
-                if self.tap is not None:
-                    self._emit(self.keys.belief(r), BeliefSnapshot(src=r, tick=t, seq=seq, grid=brain.belief.grid))
+            if belief is not None and self.tap is not None:  # for the recording only, as the node's
+                self._emit(self.keys.belief(r), belief)
             moves[r] = cmd.move
         if actions:
             moves |= {r: tuple(m) for r, m in actions.items() if r in moves}  # type: ignore[misc]
@@ -229,38 +220,41 @@ class Fleet:
         self._netem_seq += 1
         return self._netem_seq
 
+    def _handshake(self) -> None:
+        """The start handshake as the processes engine records it: the world's hello, then every node's ready
+        (the launcher, netem, the base station, each robot), once each: nothing here can miss one."""
+        self._emit(self.keys.hello, hello())
+        pid = os.getpid()
+        nodes = [("launcher", "launcher"), ("netem", "netem"), *([(BASE, BASE)] if self.scenario.has_base else []),
+                 *((r, "agent") for r in self.possible_agents)]  # (id, role) as the node shells declare them
+        for node, role in nodes:
+            self._emit(self.keys.ready(node), ready(node, role, pid))
+
     def _publish(self, readings: dict[str, Reading]) -> None:
-        """World then netem for the current tick (``WorldNode._publish``, ``NetemNode._publish_tick``)."""
+        """World then netem for the current tick (``WorldNode._publish``, ``NetemNode._publish_tick``), and
+        the base station's step on its rx bundle (``BaseNode``)."""
         w, s = self.world, self.scenario
-        t = w.tick
-        self.obs = {r: Observation(src="world", tick=t, seq=self._wseq(), robot=r, cell=readings[r].cell,
-                                   shape=w.shape, cell_size=s.cell_size, cells=readings[r].cells,
-                                   values=readings[r].values)
-                    for r in (() if w.done else w.live)}
+        self.obs, state = tick_messages(w, readings, s.cell_size, self._wseq, 0)  # no bus: nothing malformed
         for r, o in self.obs.items():
             self._emit(self.keys.obs(r), o)
-        self._emit(self.keys.state, WorldState(
-            src="world", tick=t, seq=self._wseq(), poses=dict(w.poses), live=tuple(w.live),
-            coverage=float(w.coverage), path_length=dict(w.path_length), done=w.done, reason=w.reason))
-        live = tuple(r for r in self.possible_agents if r in w.live)
+        self._emit(self.keys.state, state)
         base = self.base.cell if self.base is not None else None
-        self.nodes, strength, self.link = endpoint_links(self.occupied, live, [w.poses[r] for r in live], base,
-                                                         s.cell_size, s.radio)
-        self._emit(self.keys.links, links_message(t, self._nseq(), self.nodes, strength, self.link,
-                                                  self.channel.counters))
-        self.agents = list(live)
+        radio = radio_tick(self.channel, self.occupied, self.possible_agents, base, s.cell_size, s.radio, state,
+                           self._nseq, 0)
+        self.nodes, self.link = radio.nodes, radio.link
+        self._emit(self.keys.links, radio.links)
+        self.agents = [r for r in radio.nodes if r != BASE]
         if w.done:
             self._finish()
             return
-        arriving = self.channel.deliver(t)
-        self.rx = {r: tuple(arriving.get(r, ())) for r in self.nodes}
-        for r in self.nodes:
-            self._emit(self.keys.rx(r), RxBundle(src="netem", tick=t, seq=self._nseq(), dst=r, msgs=self.rx[r]))
+        self.rx = {b.dst: b.msgs for b in radio.rx}
+        for b in radio.rx:
+            self._emit(self.keys.rx(b.dst), b)
         if self.base is not None:  # the base process, driven by its rx bundle (agents/base_node.py)
-            out = self.base.step(t, self.rx[BASE])
+            out = self.base.step(w.tick, self.rx[BASE])
             if self.scenario.plans_at_base:
                 self._base_tx = out
-                self._emit(self.keys.tx(BASE), TxBundle(src=BASE, tick=t, seq=self.base.next_seq(), msgs=out))
+                self._emit(self.keys.tx(BASE), base_tx(self.base, w.tick, out))
 
     def _on_base_drop(self, _key: str, _why: str) -> None:
         self._base_dropped += 1
@@ -269,23 +263,15 @@ class Fleet:
         """The world's stop, every live robot's report (``AgentNode.run`` after its lockstep) and the base's
         (``BaseNode.run``)."""
         w = self.world
-        self.done, self.reason = True, w.reason or "done"
-        self._emit(self.keys.stop, Stop(src="world", tick=w.tick, seq=self._wseq(), reason=self.reason))
+        end = stop(w, self._wseq())
+        self.done, self.reason = True, end.reason
+        self._emit(self.keys.stop, end)
         rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
         if self.base is not None:
-            st = self.base
-            self._emit(self.keys.report(BASE), BaseReport(
-                src=BASE, tick=w.tick, seq=st.next_seq(), cell=st.cell, known_cells=st.known_cells,
-                cells=int(st.belief.grid.size), merged=st.merged, ticks=st.ticks, dropped=self._base_dropped,
-                peak_rss_kb=rss))
+            self._emit(self.keys.report(BASE), base_report(self.base, w.tick, self._base_dropped, rss))
         for r in w.live:
-            brain = self.brains[r]
-            ms = np.array(brain.decision_ms or [0.0])
-            self._emit(self.keys.report(r), AgentReport(
-                src=r, tick=w.tick, seq=brain.next_seq(), decisions=len(brain.decision_ms),
-                decision_ms_mean=float(ms.mean()), decision_ms_p95=float(np.percentile(ms, 95)),
-                dropped=self.dropped[r], peak_rss_kb=rss, decision_cpu_ms=brain.decision_cpu_ms,
-                step_cpu_ms=brain.step_cpu_ms))
+            self._emit(self.keys.report(r), agent_report(self.brains[r], w.tick, self.dropped[r], rss,
+                                                         first=self._first_cpu.get(r)))
         self.agents = []
 
 

@@ -10,7 +10,7 @@ from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
 from rich.progress import Progress as RichProgress
 from rich.table import Table
 
-from fleet_emu.core.radio import RadioConfig
+from fleet_emu.core.radio import radio_label
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.recording.monitor import Monitor
 from fleet_emu.recording.relaystats import relay_line
@@ -49,12 +49,6 @@ class Progress:
             self._bar.start()
         self._bar.update(self._task, completed=min(monitor.coverage, self.scenario.target_coverage),
                          cov=monitor.coverage, tick=monitor.tick)
-
-
-def radio_label(comm: str, loss: float) -> str:
-    """The radio model and the loss the channel actually applies (none on ``ideal``, whatever was asked)."""
-    applied = RadioConfig(comm=comm, loss=loss).applied_loss
-    return f"{comm}, no loss" if applied == 0 else f"{comm}, loss {applied:g}"
 
 
 def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:

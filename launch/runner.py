@@ -21,7 +21,7 @@ import zenoh
 from fleet_emu.core.access import LAUNCHER, RECORDER, Credential
 from fleet_emu.core.bus import client_config, publisher, router_config, router_locators
 from fleet_emu.core.errors import RunError
-from fleet_emu.core.grid import MapData
+from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import Failed, Stop
 from fleet_emu.core.node import Declared, undeclare
@@ -52,7 +52,7 @@ from fleet_emu.recording.foxglove import FoxgloveFold
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.monitor import Monitor
 from fleet_emu.recording.recorder import Recorder
-from fleet_emu.world.node import base_cell
+from fleet_emu.world.build import base_cell
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,8 +131,9 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     if opts.realtime_hz:
         meta["realtime_hz"] = opts.realtime_hz
     recorder = Recorder(recording, meta) if recording is not None else None
+    base = base_cell(scenario, map_data)  # resolved once here: netem and the base process take it as given
     viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id,
-                                                base_cell(scenario, map_data)), keys) if recorder else None
+                                                base), keys) if recorder else None
     sup = Supervisor(log_dir=work)
     pids: dict[str, Any] = {}
     t_start = time.monotonic()
@@ -182,12 +183,12 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
             if requested.is_set():
                 pass  # interrupted while starting: nothing more is started
             elif opts.in_process:
-                nodes_thread = _start_in_process(scenario, map_data, run_id, endpoint, creds, opts.realtime_hz)
+                nodes_thread = _start_in_process(scenario, map_data, run_id, endpoint, creds, base, opts.realtime_hz)
                 pids = {"world": os.getpid(), "netem": os.getpid(), "agents": [os.getpid()] * len(robots)}
                 pids |= {BASE: os.getpid()} if scenario.has_base else {}
             else:
                 plan = spawn_nodes(sup, scenario, run_id, endpoint, work, creds, remote, requested,
-                                   opts.realtime_hz)
+                                   opts.realtime_hz, base)
                 p = sup.pids()
                 pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
                 pids |= {BASE: p[BASE]} if BASE in p else {}
@@ -276,19 +277,21 @@ def _open_router(run_id: str, creds: dict[str, Credential] | None, listen: list[
 
 
 def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoint: str,
-                      creds: dict[str, Credential] | None, realtime_hz: float | None = None) -> threading.Thread:
-    """Every node in this process, each with its own Zenoh session (and its own login) to the same router."""
+                      creds: dict[str, Credential] | None, base: Cell | None,
+                      realtime_hz: float | None = None) -> threading.Thread:
+    """Every node in this process, each with its own Zenoh session (and its own login) to the same router;
+    ``base``: the base station's cell (``world.build.base_cell``), in a run with one."""
     from fleet_emu.agents.node import AgentNode
     from fleet_emu.netem.node import NetemNode
     from fleet_emu.world.node import WorldNode
 
     nodes = [WorldNode(scenario, run_id, map_data, realtime_hz=realtime_hz),
-             NetemNode(scenario, run_id, map_data, realtime_hz=realtime_hz)]
+             NetemNode(scenario, run_id, map_data, base, realtime_hz=realtime_hz)]
     nodes += [AgentNode(scenario, run_id, r, realtime_hz=realtime_hz) for r in robot_ids(scenario.robots)]
-    if scenario.has_base:
+    if base is not None:
         from fleet_emu.agents.base_node import BaseNode
 
-        nodes.append(BaseNode(scenario, run_id, map_data))
+        nodes.append(BaseNode(scenario, run_id, map_data, base))
 
     async def main() -> None:
         with contextlib.ExitStack() as stack:

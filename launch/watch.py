@@ -14,7 +14,7 @@ from collections.abc import Callable
 import zenoh
 
 from fleet_emu.core.keys import BASE, Keys
-from fleet_emu.core.messages import Ready
+from fleet_emu.core.messages import ready
 from fleet_emu.launch.router_process import RouterProcess
 from fleet_emu.launch.supervisor import Supervisor
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
@@ -98,7 +98,7 @@ class Consumer(threading.Thread):
                 self.recorder.record(key, data, wall_ns)
             parsed = self.keys.parse(key)
             if parsed is not None and parsed.channel == "hello":
-                self.pub_ready.put(Ready(src="launcher", tick=0, seq=0, role="launcher", pid=os.getpid()).encode())
+                self.pub_ready.put(ready("launcher", "launcher", os.getpid()).encode())
                 continue
             msg = self.monitor.feed(key, data, wall_ns)
             if self.viz is not None:

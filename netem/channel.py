@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import dataclasses
 from collections import defaultdict
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from fleet_emu.core.grid import Cell
 from fleet_emu.core.keys import BASE
-from fleet_emu.core.messages import Envelope, Links
+from fleet_emu.core.messages import Envelope, Links, RxBundle, WorldState
 from fleet_emu.core.radio import RadioConfig, connected, link_matrix
 
 
@@ -112,3 +114,31 @@ class Channel:
     def deliver(self, tick: int) -> dict[str, list[Envelope]]:
         """What arrives at ``tick``, per receiver (and forget it)."""
         return dict(self._pending.pop(tick, {}))
+
+
+@dataclasses.dataclass(frozen=True)
+class RadioTick:
+    """netem's start of a tick: the radio endpoints and their link matrix (which the tick's sends go over), and
+    the messages it publishes, built once for both engines (``netem/node.py``, ``launch/memory.py``): the
+    links, then each endpoint's rx bundle in endpoint order (none once the run is over)."""
+
+    nodes: tuple[str, ...]
+    link: np.ndarray
+    links: Links
+    rx: tuple[RxBundle, ...]
+
+
+def radio_tick(channel: Channel, occupied: np.ndarray, robots: Sequence[str], base: Cell | None, cell_size: float,
+               radio: RadioConfig, state: WorldState, seq: Callable[[], int], dropped: int) -> RadioTick:
+    """The links of the world's ``state`` (its live ``robots``, in robot order, at their true cells, and the
+    base station at ``base``), and the deliveries due at its tick; ``seq`` draws netem's sequence numbers
+    (the links first); ``dropped``: the messages netem has dropped so far as malformed or spoofed."""
+    live = tuple(r for r in robots if r in state.live)
+    nodes, strength, link = endpoint_links(occupied, live, [state.poses[r] for r in live], base, cell_size, radio)
+    t = state.tick
+    links = links_message(t, seq(), nodes, strength, link, channel.counters, dropped)
+    if state.done:
+        return RadioTick(nodes, link, links, ())
+    arriving = channel.deliver(t)
+    rx = tuple(RxBundle(src="netem", tick=t, seq=seq(), dst=r, msgs=tuple(arriving.get(r, ()))) for r in nodes)
+    return RadioTick(nodes, link, links, rx)

@@ -22,15 +22,15 @@ import zenoh
 
 from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.codec import Context
-from fleet_emu.core.grid import MapData
+from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import BASE, Keys, robot_ids
-from fleet_emu.core.messages import RxBundle, Stop, TxBundle, WorldState
-from fleet_emu.core.node import NodeBase, node_main, undeclare
+from fleet_emu.core.messages import Stop, TxBundle, WorldState
+from fleet_emu.core.node import NodeBase, add_base_cell, node_main, undeclare
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.netem.channel import Channel, endpoint_links, links_message
-from fleet_emu.world.node import base_cell
+from fleet_emu.netem.channel import Channel, radio_tick
 
 STATE_GRACE = 2.0  # seconds to wait, after a stop, for the states it announced
 
@@ -38,13 +38,19 @@ STATE_GRACE = 2.0  # seconds to wait, after a stop, for the states it announced
 class NetemNode(NodeBase):
     role = "netem"
 
-    def __init__(self, scenario: Scenario, run: str, map_data: MapData, realtime_hz: float | None = None) -> None:
+    def __init__(self, scenario: Scenario, run: str, map_data: MapData, base: Cell | None = None,
+                 realtime_hz: float | None = None) -> None:
+        """``base``: the base station's cell in a run with one, resolved by the launcher
+        (``world.build.base_cell``)."""
         super().__init__(Keys(run), "netem")
+        if scenario.has_base != (base is not None):
+            raise ConfigError("netem takes the base station's cell (--base-cell) exactly when the scenario has a "
+                              "base")
         warm_up()  # compile (or load) the kernels before the first tick, not inside it
         self.scenario = scenario
         self.robots = robot_ids(scenario.robots)
         self.occupied = map_data.grid > 0
-        self.base = base_cell(scenario, map_data)  # a fixed radio endpoint, in a run with a base station
+        self.base = base  # a fixed radio endpoint, in a run with a base station
         self.channel = Channel(scenario.radio.applied_loss, generator(scenario.seed, "netem"), scenario.radio.latency,
                                generator(scenario.seed, "netem", BASE))
         self.base_sends = self.base is not None and scenario.plans_at_base  # the base's orders (mhm)
@@ -81,10 +87,10 @@ class NetemNode(NodeBase):
             state = await self._await_state(inbox, tick)
             if state is None:
                 break
-            live = tuple(r for r in self.robots if r in state.live)
-            nodes, link = self._publish_tick(state, live)
+            nodes, link = self._publish_tick(state)
             if state.done:
                 break
+            live = tuple(r for r in self.robots if r in state.live)
             bundles = await self._await_tx(inbox, tick, live)
             if bundles is None:
                 break
@@ -101,8 +107,7 @@ class NetemNode(NodeBase):
                 break
             if sent is not None:
                 self._send_arrived(*sent)
-            live = tuple(r for r in self.robots if r in state.live)
-            sent = (state.tick, *self._publish_tick(state, live))
+            sent = (state.tick, *self._publish_tick(state))
             if state.done:
                 break
             tick = state.tick + 1
@@ -176,24 +181,19 @@ class NetemNode(NodeBase):
         got = self.tx.pop(tick, {})
         return {r: got[r].msgs for r in (*live, *base) if r in got}
 
-    def _publish_tick(self, state: WorldState, live: tuple[str, ...]) -> tuple[tuple[str, ...], np.ndarray]:
+    def _publish_tick(self, state: WorldState) -> tuple[tuple[str, ...], np.ndarray]:
         """The links and rx bundles of the state's tick; the tick's radio endpoints and their link matrix."""
         s = self.scenario
-        nodes, strength, link = endpoint_links(self.occupied, live, [state.poses[r] for r in live], self.base,
-                                               s.cell_size, s.radio)
-        t = state.tick
-        self.pub_links.put(links_message(t, self.next_seq(), nodes, strength, link, self.channel.counters,
-                                         self.dropped).encode())
-        if state.done:
-            return nodes, link
-        arriving = self.channel.deliver(t)
-        for r in nodes:
-            self.pub_rx[r].put(RxBundle(src="netem", tick=t, seq=self.next_seq(), dst=r,
-                                        msgs=tuple(arriving.get(r, ()))).encode())
-        return nodes, link
+        tick = radio_tick(self.channel, self.occupied, self.robots, self.base, s.cell_size, s.radio, state,
+                          self.next_seq, self.dropped)
+        self.pub_links.put(tick.links.encode())
+        for bundle in tick.rx:
+            self.pub_rx[bundle.dst].put(bundle.encode())
+        return tick.nodes, tick.link
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m fleet_emu.netem --run RUN --connect ENDPOINT --scenario FILE.json --map-file MAP.npz``."""
-    node_main("netem", lambda a: NetemNode(a.scenario, a.run, a.map_file, realtime_hz=a.realtime), argv,
-              map_file=True)
+    """``python -m fleet_emu.netem --run RUN --connect ENDPOINT --scenario FILE.json --map-file MAP.npz``
+    (and ``--base-cell ROW,COL`` in a run with a base station)."""
+    node_main("netem", lambda a: NetemNode(a.scenario, a.run, a.map_file, a.base_cell, realtime_hz=a.realtime),
+              argv, lambda p: add_base_cell(p, required=False), map_file=True)

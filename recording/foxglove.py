@@ -173,7 +173,7 @@ class FoxgloveFold:
     def __init__(self, scenario: dict[str, Any], truth: np.ndarray | None = None, grid_every: int | None = None,
                  run_id: str = "", base_cell: tuple[int, int] | None = None) -> None:
         self.scenario = scenario
-        self.base_cell = base_cell  # the base station's cell (``world.node.base_cell``), in a run with one
+        self.base_cell = base_cell  # the base station's cell (``world.build.base_cell``), in a run with one
         self.run_id = run_id
         self.robots = tuple(robot_ids(scenario["robots"]))
         self.cell_size = float(scenario["cell_size"])
@@ -274,7 +274,9 @@ class FoxgloveFold:
             if self.ended:
                 return []
             self.ended = True
-            out = self._flush(max(self.states, default=s.tick), final=True)
+            # the last tick's scene waits for finish(): netem's links of that tick travel apart from the stop and
+            # may reach the launcher after it
+            out = self._flush(max(self.states, default=s.tick) - 1)
             cov = self.states[max(self.states)].coverage if self.states else 0.0
             level = INFO if s.reason == "coverage" else WARNING
             out.append(self._log(s.tick, level, "world", f"run ended at tick {s.tick}: {s.reason} "

@@ -11,7 +11,6 @@ from typing import Any
 
 import numpy as np
 
-from fleet_emu import __version__
 from fleet_emu.core.access import allowed_src
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.grid import Cell
@@ -32,7 +31,7 @@ from fleet_emu.core.messages import (
 )
 from fleet_emu.core.radio import RadioConfig
 from fleet_emu.core.reach import BaseConnectivity
-from fleet_emu.core.version import SCHEMA_VERSION
+from fleet_emu.core.version import SCHEMA_VERSION, __version__
 from fleet_emu.recording.relaystats import RelayStats
 
 #: The channels the monitor folds (``ParsedKey.channel``); the rest is not even decoded.

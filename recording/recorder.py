@@ -4,7 +4,7 @@ Messages keep their msgpack bytes (message encoding ``msgpack``, no schema). Log
 (``tick * TICK_NS``), so scrubbing a viewer's timeline moves through ticks; publish times are wall-clock.
 The ``scenario`` metadata record holds what the launcher passes (``run_id``, the scenario as JSON) and the
 versions it was written with: ``schema_version`` (:data:`fleet_emu.core.version.SCHEMA_VERSION`) and
-``fleet_emu_version`` (the package's).
+``fleet_emu_version`` (:data:`fleet_emu.core.version.__version__`).
 The writer closes a chunk and flushes at least once a second, so a recording cut by a crash still reads up
 to the last flush.
 """
@@ -19,10 +19,9 @@ from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
-import fleet_emu
 from fleet_emu.core.codec import peek_tick
 from fleet_emu.core.radio import RadioConfig
-from fleet_emu.core.version import SCHEMA_VERSION
+from fleet_emu.core.version import SCHEMA_VERSION, __version__
 
 TICK_NS = 100_000_000  # one tick is shown as 100 ms of log time
 MAX_LOG_TICK = (2**64 - 1) // TICK_NS  # MCAP log times are unsigned 64-bit nanoseconds
@@ -38,7 +37,7 @@ class Recorder:
         self._file = open(path, "wb")  # noqa: SIM115 (closed in close())
         self._writer = Writer(self._file, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library="fleet-emu")
-        versions = {"schema_version": str(SCHEMA_VERSION), "fleet_emu_version": fleet_emu.__version__}
+        versions = {"schema_version": str(SCHEMA_VERSION), "fleet_emu_version": __version__}
         self._writer.add_metadata(SCENARIO_METADATA,
                                   {k: _text(v) for k, v in metadata.items()} | _radio(metadata) | versions)
         self._channels: dict[str, int] = {}

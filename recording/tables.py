@@ -6,7 +6,7 @@ from typing import Any
 
 from rich.table import Table
 
-from fleet_emu.launch.progress import radio_label
+from fleet_emu.core.radio import radio_label
 from fleet_emu.recording.read import Run
 from fleet_emu.recording.relaystats import relay_line
 

@@ -2,7 +2,8 @@
 
 Each tick t (DESIGN.md "Time"): publish every live robot's observation and the state, wait for every live
 robot's command for t (a robot silent past the barrier timeout, or whose liveliness token goes, is failed),
-apply the moves, advance. All the simulation is :class:`world.sim.World`; this module only does I/O.
+apply the moves, advance. All the simulation is :class:`world.sim.World` and the lockstep's messages are built
+in :mod:`world.messages` (as the memory engine builds them); this module only does I/O.
 
 Real time (``realtime_hz``, ``fleet run --realtime HZ``): the world does not wait for the robots. It publishes
 tick k, collects commands until tick k + 1 is due on its wall clock (:class:`world.realtime.TickClock`), applies
@@ -21,16 +22,16 @@ import zenoh
 
 from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.codec import Context
-from fleet_emu.core.errors import ConfigError
-from fleet_emu.core.grid import Cell, MapData
+from fleet_emu.core.grid import MapData
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import BASE, Keys, robot_ids
-from fleet_emu.core.messages import STALE, Command, Failed, Hello, Observation, Ready, Stop, WorldClock, WorldState
+from fleet_emu.core.messages import STALE, Command, Failed, Ready, Stop, WorldClock
 from fleet_emu.core.node import NodeBase, node_main, undeclare
-from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.world.build import build_world
+from fleet_emu.world.messages import hello, stop, tick_messages
 from fleet_emu.world.realtime import CommandLatch, TickClock
-from fleet_emu.world.sim import Reading, World, WorldConfig
+from fleet_emu.world.sim import Reading
 
 HELLO_PERIOD = 0.1  # seconds between the first hellos; each wait is 1.5 times the last, up to HELLO_MAX
 HELLO_MAX = 0.5  # (every node answers every hello: at 256 robots a fixed 0.1 s gave ~80 rounds of 256 readies)
@@ -38,42 +39,6 @@ HELLO_MAX = 0.5  # (every node answers every hello: at 256 robots a fixed 0.1 s 
 # import numpy, numba and scipy: 28 s for 32 of them on 2 loaded cores; 256 forked robots took 47 s).
 STARTUP_TIMEOUT = 120.0
 STARTUP_PER_ROBOT = 1.0
-
-
-def build_world(scenario: Scenario, map_data: MapData, placement: tuple[Cell, ...] | None = None) -> World:
-    """The world of a scenario on its map (built once per run by the launcher); ``placement``: explicit start
-    cells, one per robot (the memory engine's :class:`~fleet_emu.launch.memory.Fleet` takes them)."""
-    config = WorldConfig(
-        sensor_range=scenario.sensor_cells,
-        target_coverage=scenario.target_coverage,
-        max_ticks=scenario.max_ticks,
-        stall_ticks=scenario.stall_ticks,
-        coverage_stall_ticks=scenario.coverage_stall_ticks,
-        start=scenario.start,
-        placement=placement,
-    )
-    return World(map_data, robot_ids(scenario.robots), config, generator(scenario.seed, "world"))
-
-
-def base_cell(scenario: Scenario, map_data: MapData, world: World | None = None) -> Cell | None:
-    """The base station's cell (None without one): the scenario's ``base`` cell, or with ``base = true`` the
-    start cell the world places the fleet around (``world``: one already reset, whose start it takes; else a
-    world is built and reset here, so that a ``random`` start is drawn as the world draws it). A cell off the
-    map or not free is a one-line ConfigError. The base has no body: robots may drive over its cell."""
-    if not scenario.has_base:
-        return None
-    if isinstance(scenario.base, tuple):
-        cell = (int(scenario.base[0]), int(scenario.base[1]))
-        rows, cols = map_data.grid.shape
-        if not (0 <= cell[0] < rows and 0 <= cell[1] < cols):
-            raise ConfigError(f"base cell {cell} is off the map ({rows} x {cols} cells)")
-        if map_data.grid[cell] != 0:
-            raise ConfigError(f"base cell {cell} is not a free cell of the map")
-        return cell
-    if world is None:
-        world = build_world(scenario, map_data)
-        world.reset()
-    return (int(world.start[0]), int(world.start[1]))
 
 
 class WorldNode(NodeBase):
@@ -130,10 +95,10 @@ class WorldNode(NodeBase):
             await self._realtime(inbox, readings, self.realtime_hz)
         else:
             await self._lockstep(inbox, readings)
-        reason = "interrupted" if self.interrupted else (self.world.reason or "done")
-        pub_stop.put(Stop(src="world", tick=self.world.tick, seq=self.next_seq(), reason=reason).encode())
+        end = stop(self.world, self.next_seq(), self.interrupted)
+        pub_stop.put(end.encode())
         await asyncio.sleep(0.05)
-        return reason
+        return end.reason
 
     async def _handshake(self, inbox: Inbox, pub_hello: zenoh.Publisher) -> bool:
         """Repeat the hello, less and less often, until the launcher (its recorder), netem and every agent
@@ -147,7 +112,7 @@ class WorldNode(NodeBase):
                 self.drop("ctl/ready", f"startup timed out waiting for {sorted(waiting)}")
                 return False
             if now >= next_hello:
-                pub_hello.put(Hello(src="world", tick=0, seq=0).encode())
+                pub_hello.put(hello().encode())
                 next_hello = now + period
                 period = min(HELLO_MAX, period * 1.5)
             item = await inbox.get(timeout=max(0.0, next_hello - time.monotonic()))
@@ -188,17 +153,10 @@ class WorldNode(NodeBase):
         return stop is not None and stop.src == "launcher"
 
     def _publish(self, readings: dict[str, Reading]) -> None:
-        w = self.world
-        t = w.tick
-        for r in () if w.done else w.live:  # no observations once the run is over: nobody acts again
-            rd = readings[r]
-            self.pub_obs[r].put(Observation(
-                src="world", tick=t, seq=self.next_seq(), robot=r, cell=rd.cell, shape=w.shape,
-                cell_size=self.scenario.cell_size, cells=rd.cells, values=rd.values).encode())
-        self.pub_state.put(WorldState(
-            src="world", tick=t, seq=self.next_seq(), poses=dict(w.poses), live=tuple(w.live),
-            coverage=float(w.coverage), path_length=dict(w.path_length), done=w.done, reason=w.reason,
-            dropped=self.dropped).encode())
+        obs, state = tick_messages(self.world, readings, self.scenario.cell_size, self.next_seq, self.dropped)
+        for r, o in obs.items():
+            self.pub_obs[r].put(o.encode())
+        self.pub_state.put(state.encode())
 
     async def _lockstep(self, inbox: Inbox, readings: dict[str, Reading]) -> None:
         """Tick when every live robot has answered, until the run is done (or the launcher stops it)."""

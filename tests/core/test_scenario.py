@@ -92,7 +92,7 @@ def test_a_bad_base_is_one_line(base: object) -> None:
 
 def test_a_base_cell_off_the_map_or_on_a_wall_is_one_line() -> None:
     from fleet_emu.core.grid import MapData, from_ascii
-    from fleet_emu.world.node import base_cell
+    from fleet_emu.world.build import base_cell
 
     grid, _ = from_ascii("""
         #####

@@ -62,9 +62,9 @@ def small_map(small_bitmap: Path) -> Path:
 
 def fleet(*args: str, timeout: float = 240, check: bool = True,
           env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
-    """Run the ``fleet`` CLI as a user would (``python -m fleet_emu.launch`` is the console script's module);
+    """Run the ``fleet`` CLI as a user would (``python -m fleet_emu`` is the console script's module);
     ``env``: variables set on top of this process's environment."""
-    proc = subprocess.run([sys.executable, "-m", "fleet_emu.launch", *args], capture_output=True, text=True,
+    proc = subprocess.run([sys.executable, "-m", "fleet_emu", *args], capture_output=True, text=True,
                           timeout=timeout, cwd=ROOT, env={**os.environ, **env} if env else None)
     if check and proc.returncode not in (0, 3):
         raise AssertionError(f"fleet {' '.join(args)} exited {proc.returncode}:\n{proc.stderr[-3000:]}")

@@ -2,14 +2,23 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
+import pytest
 
 from fleet_emu.agents.protocol import PoseBeacon
-from fleet_emu.core.messages import Envelope, RadioMsg, seal
-from fleet_emu.netem.channel import Channel
+from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.grid import MapData
+from fleet_emu.core.messages import Envelope, RadioMsg, WorldState, seal
+from fleet_emu.core.radio import RadioConfig
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.netem.channel import Channel, radio_tick
+from fleet_emu.netem.node import NetemNode
 
 ROBOTS = ("r0", "r1", "r2")
 
@@ -102,3 +111,41 @@ def test_the_base_station_hears_broadcasts_and_leaves_the_robots_deliveries_as_t
         heard += len(b.get("base", []))
     assert 15 < heard < 40  # r0's 40 broadcasts, about 30 % lost
     assert based.counters.sent == plain.counters.sent + 3 * 40  # the base is an intended receiver of 3 broadcasts
+
+
+def test_a_radio_tick_publishes_the_links_then_each_endpoint_s_rx_bundle() -> None:
+    """netem's messages of a tick (both engines build them with ``radio_tick``): the links of the live robots in
+    robot order and the base, drawn first from netem's counter, then one rx bundle per endpoint with what is due;
+    none once the run is over."""
+    occupied = np.zeros((6, 6), dtype=bool)
+    ch = Channel(loss=0.0, rng=np.random.default_rng(0), base_rng=np.random.default_rng(1))
+    ch.transmit(0, ("r0", "r2", "base"), np.ones((3, 3), dtype=bool), {"r0": (_beacon("r0"),)})
+    counter = iter(range(1, 100))
+    state = WorldState(src="world", tick=1, seq=0, poses={"r0": (0, 0), "r1": (5, 5), "r2": (1, 1)},
+                       live=("r2", "r0"), coverage=0.1, path_length={})
+    tick = radio_tick(ch, occupied, ROBOTS, (2, 2), 0.5, RadioConfig(comm="full"), state, lambda: next(counter), 4)
+    assert tick.nodes == ("r0", "r2", "base") and tick.link.shape == (3, 3)
+    assert (tick.links.tick, tick.links.seq, tick.links.robots, tick.links.dropped) == (1, 1, ("r0", "r2"), 4)
+    assert tick.links.base_link is not None and tick.links.sent == 2
+    assert [(b.dst, b.seq, b.tick, [m.src for m in b.msgs]) for b in tick.rx] == \
+        [("r0", 2, 1, []), ("r2", 3, 1, ["r0"]), ("base", 4, 1, ["r0"])]
+    over = radio_tick(ch, occupied, ROBOTS, None, 0.5, RadioConfig(comm="full"),
+                      dataclasses.replace(state, tick=2, done=True), lambda: next(counter), 0)
+    assert over.rx == () and over.nodes == ("r0", "r2") and over.links.seq == 5
+
+
+def test_netem_takes_the_base_cell_exactly_when_the_scenario_has_a_base(tmp_path: Path) -> None:
+    """The launcher resolves the base station's cell and passes it on (``--base-cell``): a netem given none for
+    a scenario with a base, or one for a scenario without, refuses to start, in one line."""
+    md = MapData("open", np.zeros((6, 6), dtype=np.int8), 0.5, (1, 1))
+    with_base = Scenario().override(robots=1, base=True)
+    with pytest.raises(ConfigError, match="--base-cell"):
+        NetemNode(with_base, "run", md)
+    with pytest.raises(ConfigError, match="--base-cell"):
+        NetemNode(Scenario().override(robots=1), "run", md, base=(1, 1))
+    (tmp_path / "s.json").write_text(json.dumps(with_base.to_dict()))
+    md.save(tmp_path / "map.npz")
+    proc = subprocess.run([sys.executable, "-m", "fleet_emu.netem", "--run", "x", "--connect", "tcp/127.0.0.1:9",
+                           "--scenario", str(tmp_path / "s.json"), "--map-file", str(tmp_path / "map.npz")],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "--base-cell" in proc.stderr

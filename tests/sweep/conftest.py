@@ -56,5 +56,5 @@ max_ticks = 300
 
 
 def fleet(*args: str, cwd: Path = ROOT, timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "fleet_emu.launch", *args], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "fleet_emu", *args], capture_output=True, text=True,
                           timeout=timeout, cwd=cwd)

@@ -155,7 +155,7 @@ def test_sigterm_stops_a_sweep_keeps_its_rows_and_leaves_no_worker(tmp_path: Pat
     (tmp_path / "long.toml").write_text('[study]\nname = "long"\nengine = "memory"\nseeds = 40\n[grid]\n'
                                         'allocator = ["nearest"]\nrobots = [2]\nmap = ["office"]\n')
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "fleet_emu.launch", "sweep", str(tmp_path / "long.toml"), "--out",
+    proc = subprocess.Popen([sys.executable, "-m", "fleet_emu", "sweep", str(tmp_path / "long.toml"), "--out",
                              str(out), "--jobs", "2", "--quiet"], cwd=ROOT, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 240
     while not (out / "rows.jsonl").exists() or not read_rows(out):
