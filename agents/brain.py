@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from fleet_emu.agents.allocators import Allocator, AllocStatus, Problem, allocator_class
+from fleet_emu.agents.allocators import Allocation, Allocator, AllocStatus, Problem, allocator_class
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.clusters import FrontierClusters
 from fleet_emu.agents.mapsync import MapSync, SyncConfig
@@ -126,6 +126,46 @@ def allocator_config(scenario: Scenario) -> dict[str, Any]:
     return config
 
 
+class _Stage:
+    """A stage of :meth:`Brain.step`: the thread CPU of its ``with`` block, in ms (``ms``), added to the brain's
+    ``cpu_ms[name]`` on the way out (looked up then: a benchmark may replace the dict between steps)."""
+
+    __slots__ = ("brain", "ms", "name", "start")
+
+    def __init__(self, brain: Brain, name: str) -> None:
+        self.brain, self.name = brain, name
+        self.start = self.ms = 0.0
+
+    def __enter__(self) -> _Stage:
+        self.start = time.thread_time()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.ms = (time.thread_time() - self.start) * 1000.0
+        self.brain.cpu_ms[self.name] += self.ms
+
+
+class _Merges:
+    """Teammates' map deltas and fills of one step, merged together (:meth:`Belief.merge_many`, the ``merge``
+    stage) in the order they came, once every message is read or before anything reads the belief (a whole
+    map for a teammate): the same belief as merging each as it comes."""
+
+    __slots__ = ("belief", "brain", "pending")
+
+    def __init__(self, brain: Brain, belief: Belief) -> None:
+        self.brain, self.belief = brain, belief
+        self.pending: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def add(self, cells: np.ndarray, values: np.ndarray) -> None:
+        self.pending.append((cells, values))
+
+    def flush(self) -> None:
+        if self.pending:
+            with self.brain._stage("merge"):
+                self.belief.merge_many(self.pending)
+                self.pending.clear()
+
+
 class Brain:
     """The functional core of one agent; ``step`` is called once per tick."""
 
@@ -149,7 +189,7 @@ class Brain:
         self.last_target: Cell | None = None  # the previous decision's target, passed to the allocator
         self.stuck = 0
         self.decision_ms: list[float] = []
-        self.decision_cpu_ms = 0.0  # this thread's CPU in the allocator, summed over decisions (issue 11)
+        self.decision_cpu_ms = 0.0  # this thread's CPU in the allocator, summed over decisions
         self.step_cpu_ms = 0.0  # and in the whole of step (decision, belief, clusters, radio decode, navigation)
         self.cpu_ms = dict.fromkeys(STAGES, 0.0)  # thread CPU of step by stage, summed (benchmarks/brain_step.py)
         self.ctx: Context | None = None
@@ -214,89 +254,115 @@ class Brain:
 
     def step(self, obs: Observation, inbox: Sequence[Envelope]) -> tuple[Command, tuple[Envelope, ...]]:
         """Decide the move for ``obs.tick`` and the radio messages to send (with relaying on, the copies it
-        forwards go out after its own)."""
-        t = obs.tick
+        forwards go out after its own). Each stage's thread CPU is added to ``cpu_ms`` (:data:`STAGES`), the
+        whole step's to ``step_cpu_ms``."""
         c0 = time.thread_time()
+        t = obs.tick
         belief = self._belief(obs)
-        cpu = self.cpu_ms
-        c_merge = time.thread_time()
-        belief.merge(obs.cells, obs.values)
+        with self._stage("merge"):
+            belief.merge(obs.cells, obs.values)
+        with self._stage("decode"):
+            delivered, forwards = self.relay_inbox(inbox)
+            opened = self.open(delivered)
         outbox: list[RadioMsg] = []
-        protocol: list[RadioMsg] = []
-        c_decode = time.thread_time()
-        cpu["merge"] += (c_decode - c_merge) * 1000.0
-        delivered, forwards = self.relay_inbox(inbox)
-        opened = self.open(delivered)
-        c_rest = time.thread_time()
-        cpu["decode"] += (c_rest - c_decode) * 1000.0
+        protocol, rejoined = self._read(opened, t, belief, outbox)
+        heard = {r: tm.heard for r, tm in self.teammates.items()}
+        want = self._requests(t, heard, rejoined)
+        expected = {r: tm.expected(obs.cell) for r, tm in self.teammates.items()}
+        with self._stage("clusters"):
+            assert self.frontiers is not None
+            clusters = list(self.frontiers.update(belief.grid, belief.take_changed()))
+        problem = Problem(me=self.me, poses={self.me: obs.cell} | expected, belief=belief.grid, clusters=clusters,
+                          tick=t, heard=heard, previous_target=self.last_target)
+        alloc = self._decide(problem, protocol)
+        with self._stage("navigation"):
+            move = self._navigate(obs.cell, t, alloc, problem, expected)
+        with self._stage("news"):
+            outbox.extend(alloc.outbox)
+            sealed = self._news(obs, move, want, outbox, forwards)
+        cmd = Command(src=self.me, tick=t, seq=self.next_seq(), move=move, target=alloc.target,
+                      status=alloc.status.name, decision_ms=round(self.decision_ms[-1], 4))
+        self.step_cpu_ms += (time.thread_time() - c0) * 1000.0
+        return cmd, sealed
+
+    def _stage(self, name: str) -> _Stage:
+        """A ``with`` block whose thread CPU counts to the stage ``name`` of ``cpu_ms``."""
+        return _Stage(self, name)
+
+    def _read(self, opened: list[RadioMsg], t: int, belief: Belief, outbox: list[RadioMsg]
+              ) -> tuple[list[RadioMsg], list[str]]:
+        """Teammates' messages of the tick, in the order they came: beacons (:meth:`_beacon`), map deltas and
+        fills (merged into the belief: the ``merge`` stage), and the rest, the allocator's protocol. Returns
+        the protocol messages and the teammates heard again after a silence."""
         sync = self.sync
+        merges = _Merges(self, belief)
+        protocol: list[RadioMsg] = []
         rejoined: list[str] = []
-        # Teammates' map deltas and fills are merged together (Belief.merge_many), in the order they came, once
-        # the loop is done, or before anything reads the belief (a whole map for a teammate): the same belief
-        # as merging each as it comes (issue 11, part 4).
-        pending: list[tuple[np.ndarray, np.ndarray]] = []
-
-        def flush() -> None:
-            if pending:
-                c_m = time.thread_time()
-                belief.merge_many(pending)
-                pending.clear()
-                cpu["merge"] += (time.thread_time() - c_m) * 1000.0
-
-        resync = self.config.resync_after
         for msg in opened:
             if msg.origin == self.me:
                 continue
             body = msg.body
             if isinstance(body, PoseBeacon):
-                prev = self.teammates.get(msg.origin)
-                if prev is None or t - prev.heard > resync:  # it may get our whole map
-                    flush()
-                if self._heard(msg, body, t, outbox):
+                if self._beacon(msg, body, t, outbox, merges):
                     rejoined.append(msg.origin)
-                if sync is not None and body.maps is not None:
-                    sync.peer(msg.origin).exists(body.maps)
-                if sync is not None and body.want is not None and self.me in body.want:
-                    seqs = body.want[self.me]
-                    if sync.sends_whole(seqs):
-                        flush()
-                    fill = sync.answer(seqs, belief)
-                    if fill is not None:
-                        outbox.append(RadioMsg(fill, dst=msg.origin))
             elif isinstance(body, MapDelta):
-                pending.append((body.cells, body.values))
+                merges.add(body.cells, body.values)
                 if sync is not None and body.n is not None:
                     peer = sync.peer(msg.origin)
                     peer.received(body.n)
                     if body.covers:
                         peer.filled(body.covers, 0)
             elif isinstance(body, MapFill):
-                pending.append((body.cells, body.values))
+                merges.add(body.cells, body.values)
                 if sync is not None:
                     sync.peer(msg.origin).filled(body.seqs, body.upto)
             else:
                 protocol.append(msg)
-        flush()
-        want = None
-        heard = {r: tm.heard for r, tm in self.teammates.items()}
-        if sync is not None:
-            for r in rejoined:  # it sends us its whole map as we send it ours: ask only if that is lost
-                sync.peer(r).hold(t)
-            want = sync.requests(t, heard)
-        expected = {r: tm.expected(obs.cell) for r, tm in self.teammates.items()}
-        poses = {self.me: obs.cell} | expected
-        c_cl = time.thread_time()
-        assert self.frontiers is not None
-        clusters = list(self.frontiers.update(belief.grid, belief.take_changed()))
-        cpu["clusters"] += (time.thread_time() - c_cl) * 1000.0
-        problem = Problem(me=self.me, poses=poses, belief=belief.grid, clusters=clusters, tick=t, heard=heard,
-                          previous_target=self.last_target)
-        t0, c1 = self.clock(), time.thread_time()
-        alloc = self.allocator.allocate(problem, protocol)
-        self.decision_ms.append((self.clock() - t0) * 1000.0)
-        c_nav = time.thread_time()
-        self.decision_cpu_ms += (c_nav - c1) * 1000.0
-        cpu["decision"] += (c_nav - c1) * 1000.0
+        merges.flush()
+        return protocol, rejoined
+
+    def _beacon(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg], merges: _Merges) -> bool:
+        """A teammate's beacon: its pose (:meth:`_heard`; True when it rejoined), and with map sync the deltas
+        it numbered so far and those it asks this robot for again. The pending merges go in first whenever
+        the belief is about to be sent."""
+        prev = self.teammates.get(msg.origin)
+        if prev is None or t - prev.heard > self.config.resync_after:  # it may get our whole map
+            merges.flush()
+        rejoined = self._heard(msg, beacon, t, outbox)
+        sync = self.sync
+        if sync is not None and beacon.maps is not None:
+            sync.peer(msg.origin).exists(beacon.maps)
+        if sync is not None and beacon.want is not None and self.me in beacon.want:
+            seqs = beacon.want[self.me]
+            if sync.sends_whole(seqs):
+                merges.flush()
+            fill = sync.answer(seqs, merges.belief)
+            if fill is not None:
+                outbox.append(RadioMsg(fill, dst=msg.origin))
+        return rejoined
+
+    def _requests(self, t: int, heard: dict[str, int], rejoined: list[str]) -> dict[str, tuple[int, ...]] | None:
+        """With map sync, the deltas to ask teammates for again (:attr:`PoseBeacon.want`); None without."""
+        if self.sync is None:
+            return None
+        for r in rejoined:  # it sends us its whole map as we send it ours: ask only if that is lost
+            self.sync.peer(r).hold(t)
+        return self.sync.requests(t, heard)
+
+    def _decide(self, problem: Problem, protocol: list[RadioMsg]) -> Allocation:
+        """The allocator's decision: its wall time (``clock``) goes to ``decision_ms`` and the command, its
+        thread CPU to ``decision_cpu_ms`` and the ``decision`` stage."""
+        with self._stage("decision") as stage:
+            t0 = self.clock()
+            alloc = self.allocator.allocate(problem, protocol)
+            self.decision_ms.append((self.clock() - t0) * 1000.0)
+        self.decision_cpu_ms += stage.ms
+        return alloc
+
+    def _navigate(self, cell: Cell, t: int, alloc: Allocation, problem: Problem, expected: dict[str, Cell]) -> Cell:
+        """The move down the wavefront of the assigned cluster (or a planner's goal cell), around teammates
+        heard last tick that stand still, then unstuck (:meth:`_unstick`); the decision kept as ``plan``, its
+        target as ``last_target``."""
         self.last_target = alloc.target
         move = STAY
         wants = False  # the robot wants to move but a teammate stands on every way down the wavefront
@@ -310,16 +376,22 @@ class Brain:
                 dist = goal_wavefront(mask, alloc.target)  # type: ignore[arg-type]
             else:
                 dist = problem.wavefront_to(alloc.cluster)  # type: ignore[arg-type]
-            move = next_move(dist, obs.cell, blocked)
-            wants = move == STAY and dist[obs.cell] > 0
+            move = next_move(dist, cell, blocked)
+            wants = move == STAY and dist[cell] > 0
         if alloc.routes is not None and self.relay is not None:
             self.relay.set_routes(alloc.routes)  # a base planner's tree (mhm), for the next ticks' forwarding
         self.plan = Plan(dist, alloc.target, alloc.status.name, frozenset(blocked))
-        move = self._unstick(obs.cell, move, wants, belief.grid, set(expected.values()),
+        assert self.belief is not None
+        return self._unstick(cell, move, wants, self.belief.grid, set(expected.values()),
                              alloc.passable if going else None)
-        c_news = time.thread_time()
-        cpu["navigation"] += (c_news - c_nav) * 1000.0
-        outbox.extend(alloc.outbox)
+
+    def _news(self, obs: Observation, move: Cell, want: dict[str, tuple[int, ...]] | None,
+              outbox: list[RadioMsg], forwards: list[Envelope]) -> tuple[Envelope, ...]:
+        """The tick's envelopes: the pose beacon, the map delta of what the robot newly learned (with map sync
+        numbered, and with the cells of deltas asked for again), then ``outbox``, then with relaying on the
+        copies it forwards."""
+        assert self.belief is not None
+        belief, sync = self.belief, self.sync
         cells, values = belief.take_news()
         n = covers = None
         if sync is not None:
@@ -333,18 +405,14 @@ class Brain:
                                     maps=sync.sent if sync is not None else None, want=want))]
         if len(cells):
             news.append(RadioMsg(delta))
-        sealed = tuple(seal(m, self.me, t, self.next_seq()) for m in news + outbox)
+        sealed = tuple(seal(m, self.me, obs.tick, self.next_seq()) for m in news + outbox)
         if self.relay is not None:
             ttl = self.config.relay_ttl
             sealed = tuple(e if e.ttl >= ttl else dataclasses.replace(e, ttl=ttl) for e in sealed)
             for e in sealed:
                 self.relay.sent(e)
             sealed += tuple(forwards)
-        cpu["news"] += (time.thread_time() - c_news) * 1000.0
-        cmd = Command(src=self.me, tick=t, seq=self.next_seq(), move=move, target=alloc.target,
-                      status=alloc.status.name, decision_ms=round(self.decision_ms[-1], 4))
-        self.step_cpu_ms += (time.thread_time() - c0) * 1000.0
-        return cmd, sealed
+        return sealed
 
     def _heard(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> bool:
         """A teammate's pose; one heard for the first time, or again after a silence, gets our whole map
@@ -361,7 +429,7 @@ class Brain:
         if prev is None:  # a new teammate: the dict stays in id order
             self.teammates[msg.origin] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
             self.teammates = dict(sorted(self.teammates.items()))
-        else:  # updated in place: a robot hears every teammate's beacon every tick (issue 11, part 3)
+        else:  # updated in place: a robot hears every teammate's beacon every tick
             prev.cell, prev.heard, prev.next = beacon.cell, max(t, msg.tick), beacon.next
         return rejoined
 

@@ -290,6 +290,25 @@ def _expand_layer(flat_pass, rows, cols, seen, base, crowd, me, cell, link, spar
 
 
 @numba.njit(cache=True)
+def _seed_wavefronts(sources: np.ndarray, offsets: np.ndarray, n: int, seen: np.ndarray, cell: np.ndarray,
+                     link: np.ndarray, head: np.ndarray, tail: np.ndarray, size: np.ndarray, key: np.ndarray) -> int:
+    """Queue each wavefront's layer 0 (:func:`minpos_parallel`): cluster j's cells, each once and on the map,
+    from pool slot 0 on; key 0 for every wavefront with a cell. Returns the pool slots used."""
+    used = 0
+    for j in range(len(offsets) - 1):
+        base = j * n
+        for t in range(offsets[j], offsets[j + 1]):
+            s = sources[t]
+            if 0 <= s < n and _first_visit(seen, base + s):
+                _push(cell, link, head, tail, j, used, s)
+                used += 1
+                size[j] += 1
+        if size[j] > 0:
+            key[j] = 0
+    return used
+
+
+@numba.njit(cache=True)
 def minpos_parallel(passable: np.ndarray, sources: np.ndarray, offsets: np.ndarray, me: int,
                     robots: np.ndarray) -> tuple[int, int, int]:
     """MinPos with parallel wavefronts (Bautin et al. 2012, section 4.3, "Parallel computation of wavefronts").
@@ -318,7 +337,6 @@ def minpos_parallel(passable: np.ndarray, sources: np.ndarray, offsets: np.ndarr
     link = np.empty(cap, dtype=np.int64)
     spare = np.empty(cap, dtype=np.int64)
     nspare = 0
-    used = 0
     head = np.full(width, -1, dtype=np.int64)
     tail = np.full(width, -1, dtype=np.int64)
     size = np.zeros(width, dtype=np.int64)
@@ -326,16 +344,7 @@ def minpos_parallel(passable: np.ndarray, sources: np.ndarray, offsets: np.ndarr
     depth = np.zeros(width, dtype=np.int64)
     key = np.full(width, _NO_KEY, dtype=np.int64)
     stride = np.int64(n + 1)
-    for j in range(m):
-        base = j * n
-        for t in range(offsets[j], offsets[j + 1]):
-            s = sources[t]
-            if 0 <= s < n and _first_visit(seen, base + s):
-                _push(cell, link, head, tail, j, used, s)
-                used += 1
-                size[j] += 1
-        if size[j] > 0:
-            key[j] = 0
+    used = _seed_wavefronts(sources, offsets, n, seen, cell, link, head, tail, size, key)
     while m > 0:
         j = np.argmin(key)
         if key[j] >= _NO_KEY:

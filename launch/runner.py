@@ -105,7 +105,7 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
         try:
             write_json_atomic(work / "scenario.json", scenario.to_dict())
             map_data.save(work / "map.npz")
-            result, failure = _run(scenario, map_data, run_id, work, recording, opts, creds)
+            result, failure = _Run(scenario, map_data, run_id, work, recording, opts, creds).execute()
             if opts.out_dir is not None:
                 write_json_atomic(work / "result.json", result.data)
             elif failure == "error":
@@ -119,132 +119,195 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     return result
 
 
-def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recording: Path | None,
-         opts: RunOptions, creds: dict[str, Credential] | None) -> tuple[Result, str | None]:
-    """The run itself: router, recorder, nodes, the wait, the teardown; the result and how it failed.
-    A signal (``opts.interrupts``) is only ever a request: the teardown and the files are never cut short."""
-    keys = Keys(run_id)
-    robots = tuple(robot_ids(scenario.robots))
-    monitor = Monitor(robots, base=scenario.has_base, relay=scenario.relay != "none")
-    engine = "in-process" if opts.in_process else "processes"
-    meta = {"run_id": run_id, "scenario": scenario.to_dict(), "engine": engine}
-    if opts.realtime_hz:
-        meta["realtime_hz"] = opts.realtime_hz
-    recorder = Recorder(recording, meta) if recording is not None else None
-    base = base_cell(scenario, map_data)  # resolved once here: netem and the base process take it as given
-    viz = FoxgloveWriter(recorder, FoxgloveFold(scenario.to_dict(), map_data.grid, opts.grid_every, run_id,
-                                                base), keys) if recorder else None
-    sup = Supervisor(log_dir=work)
-    pids: dict[str, Any] = {}
-    t_start = time.monotonic()
-    signals = opts.interrupts
-    requested = signals.requested if signals else threading.Event()
-    hurry = signals.hurry if signals else threading.Event()
-    interrupted = False
-    error: str | None = None
-    router_child: RouterProcess | None = None
-    with contextlib.ExitStack() as stack:
-        if not opts.in_process and not requested.is_set() and fork_server_enabled(opts.fork_server):
-            sup.start_fork_server(work / "scenario.json")  # before any session: it loads while the router opens
-        if opts.connect:
-            endpoint = opts.connect
-        else:
-            listen = listen_endpoints(opts.listen, opts.tls_cert, opts.tls_key)
-            tls = (str(opts.tls_cert.absolute()), str(opts.tls_key.absolute())) \
-                if opts.tls_cert is not None and opts.tls_key is not None else None
-            if opts.in_process:  # one process by design: the router too
-                try:
-                    router = stack.enter_context(_closing(_open_router(run_id, creds, listen, tls)))
-                except zenoh.ZError as exc:
-                    raise RunError(f"cannot open the embedded Zenoh router: {str(exc).splitlines()[0]}") from None
-                locators = router_locators(router)
-            else:  # its own process: the launcher's Python work never holds up the fleet's routing
-                router_child = stack.enter_context(router_process(run_id, creds, listen, tls, work))
-                locators = router_child.endpoints
-            # this machine's processes: the router's first endpoint, or with tls/ or quic/ its loopback tcp/ one
-            endpoint = next(loc for loc in locators if tls is None or loc.startswith("tcp/"))
-        login = creds or {}
-        session = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(LAUNCHER)))))
+class _Run:
+    """The run itself, in phases: :meth:`open` (the fork server, the router, the sessions and subscriptions, the
+    consumer thread), :meth:`start` (the nodes), :meth:`wait` (until the run ends), :meth:`teardown` (stop and
+    reap the nodes, drain the bus); then :meth:`result`, and how the run failed. A signal
+    (``opts.interrupts``) is only ever a request: the teardown and the files are never cut short. A failure
+    while opening closes what was opened and propagates."""
+
+    # set by open
+    endpoint: str
+    session: zenoh.Session
+    pub_stop: zenoh.Publisher
+    handles: list[Declared]
+    samples: queue.Queue[tuple[str, bytes, int] | None]
+    drains: list[Drain]
+    remote: Hosts | None
+    consumer: Consumer
+
+    def __init__(self, scenario: Scenario, map_data: MapData, run_id: str, work: Path, recording: Path | None,
+                 opts: RunOptions, creds: dict[str, Credential] | None) -> None:
+        self.scenario, self.map_data, self.run_id, self.work = scenario, map_data, run_id, work
+        self.recording, self.opts, self.creds = recording, opts, creds
+        self.keys = Keys(run_id)
+        self.robots = tuple(robot_ids(scenario.robots))
+        self.monitor = Monitor(self.robots, base=scenario.has_base, relay=scenario.relay != "none")
+        self.engine = "in-process" if opts.in_process else "processes"
+        meta: dict[str, Any] = {"run_id": run_id, "scenario": scenario.to_dict(), "engine": self.engine}
+        if opts.realtime_hz:
+            meta["realtime_hz"] = opts.realtime_hz
+        self.recorder = Recorder(recording, meta) if recording is not None else None
+        self.base = base_cell(scenario, map_data)  # resolved once here: netem and the base process take it as given
+        self.viz = FoxgloveWriter(self.recorder, FoxgloveFold(
+            scenario.to_dict(), map_data.grid, opts.grid_every, run_id, self.base), self.keys) \
+            if self.recorder else None
+        self.sup = Supervisor(log_dir=work)
+        self.pids: dict[str, Any] = {}
+        self.t_start = time.monotonic()
+        signals = opts.interrupts
+        self.requested = signals.requested if signals else threading.Event()
+        self.hurry = signals.hurry if signals else threading.Event()
+        self.interrupted = False
+        self.error: str | None = None
+        self.router_child: RouterProcess | None = None
+        self.nodes_thread: threading.Thread | None = None
+
+    def execute(self) -> tuple[Result, str | None]:
+        """Every phase in turn; the result and how the run failed (``interrupted``, ``error`` or None)."""
+        with contextlib.ExitStack() as stack:
+            self.open(stack)
+            try:
+                self.start()
+                self.wait()
+            except KeyboardInterrupt:
+                self.requested.set()
+            except HostsError as exc:  # too few hosts came: the run ends as an error, its files written
+                self.error = str(exc)
+            finally:
+                self.teardown()
+        return self.result()
+
+    def open(self, stack: contextlib.ExitStack) -> None:
+        """The fork server (it loads while the router opens), the router (unless ``connect``), the launcher's
+        and the listener's sessions, the subscriptions feeding the consumer thread, the hosts; each closed by
+        ``stack``."""
+        opts, keys = self.opts, self.keys
+        if not opts.in_process and not self.requested.is_set() and fork_server_enabled(opts.fork_server):
+            self.sup.start_fork_server(self.work / "scenario.json")  # before any session
+        self.endpoint = endpoint = opts.connect if opts.connect else self._router(stack)
+        login = self.creds or {}
+        self.session = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(LAUNCHER)))))
         listener = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(RECORDER)))))
-        samples: queue.Queue[tuple[str, bytes, int] | None] = queue.Queue()
+        self.samples = queue.Queue()
         # everything when recording; else only what the fold reads (Keys.folded): at 256 robots the rest (obs,
         # the radio bundles with every first contact's whole maps, belief snapshots) was most of the bus
-        drains = [Drain(listener, k, samples)
-                  for k in ((keys.all,) if recorder is not None else keys.folded(radio=scenario.relay != "none"))]
-        pub_ready = publisher(session, keys.ready("launcher"))
-        pub_stop = publisher(session, keys.stop)
-        handles: list[Declared] = [pub_ready, pub_stop,
-                                   session.liveliness().declare_token(keys.alive("launcher", "launcher"))]
-        remote = stack.enter_context(Hosts(session, scenario.hosts, opts.host_timeout)) if scenario.hosts else None
-        consumer = Consumer(keys, samples, monitor, recorder, pub_ready, viz)
-        consumer.start()
-        nodes_thread: threading.Thread | None = None
-        try:
-            if requested.is_set():
-                pass  # interrupted while starting: nothing more is started
-            elif opts.in_process:
-                nodes_thread = _start_in_process(scenario, map_data, run_id, endpoint, creds, base, opts.realtime_hz)
-                pids = {"world": os.getpid(), "netem": os.getpid(), "agents": [os.getpid()] * len(robots)}
-                pids |= {BASE: os.getpid()} if scenario.has_base else {}
-            else:
-                plan = spawn_nodes(sup, scenario, run_id, endpoint, work, creds, remote, requested,
-                                   opts.realtime_hz, base)
-                p = sup.pids()
-                pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
-                pids |= {BASE: p[BASE]} if BASE in p else {}
-                pids |= ({"fork_server": p["fork_server"]} if "fork_server" in p else {}) | \
-                    ({"router": router_child.proc.pid} if router_child is not None else {}) | \
-                    ({"hosts": plan} if plan else {})
-            if pids and opts.on_spawn is not None:
-                opts.on_spawn(pids)  # e.g. benchmarks/scale.py samples their /proc while the run goes
-            error = wait_for_end(monitor, consumer, sup, nodes_thread, opts.on_progress, requested,
-                          lambda r: session.put(keys.failed(r), Failed(
-                              src="launcher", tick=monitor.tick, seq=0, robot=r, reason="process exited").encode(),
-                              congestion_control=zenoh.CongestionControl.BLOCK), router_child)
-        except KeyboardInterrupt:
-            requested.set()
-        except HostsError as exc:  # too few hosts came: the run ends as an error, its files written
-            error = str(exc)
-        finally:
-            interrupted = requested.is_set() and monitor.stop is None  # a signal after the stop is teardown's
-            if monitor.stop is None or interrupted:
-                with contextlib.suppress(zenoh.ZError):
-                    pub_stop.put(Stop(src="launcher", tick=monitor.tick, seq=1,
-                                      reason="interrupted" if interrupted else "aborted").encode())
-            if not sup.wait_all(STOP_GRACE, hurry):
-                sup.kill_all(grace=0.5 if hurry.is_set() else 2.0)
-            sup.kill_all()
-            if nodes_thread is not None:
-                nodes_thread.join(STOP_GRACE)
-            time.sleep(0.1)  # let the last samples reach the subscriber
-            for drain in drains:
-                drain.undeclare()
-            samples.put(None)
-            consumer.join()  # it may still answer a hello on pub_ready: undeclare that only after it ends
-            undeclare(handles)
-    if viz is not None:
-        viz.finish()
-    messages = recorder.close() if recorder else 0
-    data = monitor.result(scenario.to_dict(), run_id, scenario.target_coverage)
-    if opts.realtime_hz:
-        data.setdefault("realtime_hz", opts.realtime_hz)  # also when stopped before tick 0
-    if interrupted:
-        data["reason"] = "interrupted"
-        data.pop("error", None)
-    elif error:
-        data["reason"] = "error"
-        data["error"] = error
-    data |= {
-        "engine": engine,
-        "pids": pids,
-        "recording": {"path": str(recording) if recording else None, "messages": messages},
-        "wall_seconds": round(time.monotonic() - t_start, 3),
-        "scenario": scenario.to_dict(),
-        "signal": signals.name if signals else ("SIGINT" if interrupted else None),
-        "authenticated": creds is not None,
-    }
-    failure = "interrupted" if interrupted else ("error" if error else None)
-    return Result(data, tuple(monitor.coverage_curve), recording.parent if recording else None), failure
+        self.drains = [Drain(listener, k, self.samples) for k in (
+            (keys.all,) if self.recorder is not None else keys.folded(radio=self.scenario.relay != "none"))]
+        pub_ready = publisher(self.session, keys.ready("launcher"))
+        self.pub_stop = publisher(self.session, keys.stop)
+        self.handles = [pub_ready, self.pub_stop,
+                        self.session.liveliness().declare_token(keys.alive("launcher", "launcher"))]
+        hosts = self.scenario.hosts
+        self.remote = stack.enter_context(Hosts(self.session, hosts, opts.host_timeout)) if hosts else None
+        self.consumer = Consumer(keys, self.samples, self.monitor, self.recorder, pub_ready, self.viz)
+        self.consumer.start()
+
+    def _router(self, stack: contextlib.ExitStack) -> str:
+        """The embedded router (in this process with ``in_process``, else its own process: the launcher's Python
+        work never holds up the fleet's routing); the endpoint this machine's processes connect to."""
+        opts = self.opts
+        listen = listen_endpoints(opts.listen, opts.tls_cert, opts.tls_key)
+        tls = (str(opts.tls_cert.absolute()), str(opts.tls_key.absolute())) \
+            if opts.tls_cert is not None and opts.tls_key is not None else None
+        if opts.in_process:  # one process by design: the router too
+            try:
+                router = stack.enter_context(_closing(_open_router(self.run_id, self.creds, listen, tls)))
+            except zenoh.ZError as exc:
+                raise RunError(f"cannot open the embedded Zenoh router: {str(exc).splitlines()[0]}") from None
+            locators = router_locators(router)
+        else:
+            self.router_child = stack.enter_context(router_process(self.run_id, self.creds, listen, tls, self.work))
+            locators = self.router_child.endpoints
+        # the router's first endpoint, or with tls/ or quic/ its loopback tcp/ one
+        return next(loc for loc in locators if tls is None or loc.startswith("tcp/"))
+
+    def start(self) -> None:
+        """The nodes, in this process or as processes (here and on the hosts), and their pids told to
+        ``opts.on_spawn``; nothing once a stop was requested (a signal while opening)."""
+        if self.requested.is_set():
+            return
+        scenario, opts, robots = self.scenario, self.opts, self.robots
+        if opts.in_process:
+            self.nodes_thread = _start_in_process(scenario, self.map_data, self.run_id, self.endpoint, self.creds,
+                                                  self.base, opts.realtime_hz)
+            self.pids = {"world": os.getpid(), "netem": os.getpid(), "agents": [os.getpid()] * len(robots)}
+            self.pids |= {BASE: os.getpid()} if scenario.has_base else {}
+        else:
+            plan = spawn_nodes(self.sup, scenario, self.run_id, self.endpoint, self.work, self.creds, self.remote,
+                               self.requested, opts.realtime_hz, self.base)
+            p = self.sup.pids()
+            pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
+            pids |= {BASE: p[BASE]} if BASE in p else {}
+            pids |= ({"fork_server": p["fork_server"]} if "fork_server" in p else {}) | \
+                ({"router": self.router_child.proc.pid} if self.router_child is not None else {}) | \
+                ({"hosts": plan} if plan else {})
+            self.pids = pids
+        if self.pids and opts.on_spawn is not None:
+            opts.on_spawn(self.pids)  # e.g. benchmarks/scale.py samples their /proc while the run goes
+
+    def wait(self) -> None:
+        """Until the run ends (:func:`~fleet_emu.launch.watch.wait_for_end`); an agent process that exits early
+        is announced to the world as failed. A failed run's error line is kept."""
+        keys, monitor, session = self.keys, self.monitor, self.session
+
+        def failed(robot: str) -> None:
+            session.put(keys.failed(robot), Failed(src="launcher", tick=monitor.tick, seq=0, robot=robot,
+                                                   reason="process exited").encode(),
+                        congestion_control=zenoh.CongestionControl.BLOCK)
+
+        self.error = wait_for_end(monitor, self.consumer, self.sup, self.nodes_thread, self.opts.on_progress,
+                                  self.requested, failed, self.router_child)
+
+    def teardown(self) -> None:
+        """The stop (unless the world stopped the run by itself: a signal after its stop is the teardown's), the
+        nodes reaped (killed after the grace, sooner once hurried), then the last samples in and the consumer
+        ended, and the launcher's declarations undone."""
+        monitor, sup, hurry = self.monitor, self.sup, self.hurry
+        self.interrupted = self.requested.is_set() and monitor.stop is None
+        if monitor.stop is None or self.interrupted:
+            with contextlib.suppress(zenoh.ZError):
+                self.pub_stop.put(Stop(src="launcher", tick=monitor.tick, seq=1,
+                                       reason="interrupted" if self.interrupted else "aborted").encode())
+        if not sup.wait_all(STOP_GRACE, hurry):
+            sup.kill_all(grace=0.5 if hurry.is_set() else 2.0)
+        sup.kill_all()
+        if self.nodes_thread is not None:
+            self.nodes_thread.join(STOP_GRACE)
+        time.sleep(0.1)  # let the last samples reach the subscriber
+        for drain in self.drains:
+            drain.undeclare()
+        self.samples.put(None)
+        self.consumer.join()  # it may still answer a hello on pub_ready: undeclare that only after it ends
+        undeclare(self.handles)
+
+    def result(self) -> tuple[Result, str | None]:
+        """The recording closed, and the result (``result.json``'s data) with how the run ended."""
+        if self.viz is not None:
+            self.viz.finish()
+        messages = self.recorder.close() if self.recorder else 0
+        scenario, opts, recording, interrupted = self.scenario, self.opts, self.recording, self.interrupted
+        data = self.monitor.result(scenario.to_dict(), self.run_id, scenario.target_coverage)
+        if opts.realtime_hz:
+            data.setdefault("realtime_hz", opts.realtime_hz)  # also when stopped before tick 0
+        if interrupted:
+            data["reason"] = "interrupted"
+            data.pop("error", None)
+        elif self.error:
+            data["reason"] = "error"
+            data["error"] = self.error
+        signals = opts.interrupts
+        data |= {
+            "engine": self.engine,
+            "pids": self.pids,
+            "recording": {"path": str(recording) if recording else None, "messages": messages},
+            "wall_seconds": round(time.monotonic() - self.t_start, 3),
+            "scenario": scenario.to_dict(),
+            "signal": signals.name if signals else ("SIGINT" if interrupted else None),
+            "authenticated": self.creds is not None,
+        }
+        failure = "interrupted" if interrupted else ("error" if self.error else None)
+        return Result(data, tuple(self.monitor.coverage_curve), recording.parent if recording else None), failure
 
 
 def _last_log_line(work: Path, error: str) -> str:

@@ -313,17 +313,34 @@ class FoxgloveFold:
         return (cell[1] + 0.5) * self.cell_size, (rows - cell[0] - 0.5) * self.cell_size
 
     def _scene(self, t: int) -> list[Derived]:
+        """The tick's scene: the robots and their targets, the radio links, the base; entities shown before and
+        not now are deleted."""
         st = self.states[t]
+        lk = self.links.get(t)
+        entities = self._robots(t, st)
+        entities.append(self._links(t, st, lk))
+        if self.base_cell is not None:
+            entities.append(self._base(t, st, lk))
+        shown = {e["id"] for e in entities}
+        gone = sorted(self.emitted - shown)
+        self.emitted = shown
+        msg = {"deletions": [{"timestamp": stamp(t), "type": DELETE_MATCHING_ID, "id": g} for g in gone],
+               "entities": entities}
+        return [_derived(TOPIC_SCENE, "foxglove.SceneUpdate", msg, t)]
+
+    def _robots(self, t: int, st: WorldState) -> list[dict[str, Any]]:
+        """Each robot at its true pose (a cube in its colour, grey once failed, and its name), and a live
+        robot's target (a sphere, and a line to it) as its last command set it."""
         cs = self.cell_size
+        cmds = self.cmds.get(t, {})
         entities: list[dict[str, Any]] = []
-        shown: set[str] = set()
         for r in self.robots:
             if r not in st.poses:
                 continue
             x, y = self._xy(st.poses[r])
             live = r in st.live
             rgb = robot_rgb(r, self.robots) if live else (0.5, 0.5, 0.5)
-            cmd = self.cmds.get(t, {}).get(r)
+            cmd = cmds.get(r)
             if cmd is not None:
                 self.targets[r] = cmd.target
             meta = [{"key": "cell", "value": str(tuple(st.poses[r]))}, {"key": "live", "value": str(live)},
@@ -337,7 +354,6 @@ class FoxgloveFold:
                 texts=[{"pose": _pose(x, y, 1.2 * cs), "billboard": True, "font_size": 14.0,
                         "scale_invariant": True, "color": _color((1.0, 1.0, 1.0)),
                         "text": r if live else f"{r} (failed)"}]))
-            shown.add(f"robot/{r}")
             target = self.targets.get(r)
             if live and target is not None:
                 tx, ty = self._xy(target)
@@ -346,10 +362,12 @@ class FoxgloveFold:
                     spheres=[{"pose": _pose(tx, ty, 0.3 * cs), "size": _vec(0.6 * cs, 0.6 * cs, 0.6 * cs),
                               "color": _color(rgb, 0.8)}],
                     lines=[_line([_vec(x, y, 0.4 * cs), _vec(tx, ty, 0.3 * cs)], rgb, 0.8, 2.0)]))
-                shown.add(f"target/{r}")
-        lk = self.links.get(t)
-        lines = []
-        meta = []
+        return entities
+
+    def _links(self, t: int, st: WorldState, lk: Links | None) -> dict[str, Any]:
+        """The radio links between robots (either way) at the tick, coloured by signal strength, and whether
+        the team's radio graph is connected."""
+        lines, meta = [], []
         if lk is not None:
             link = np.asarray(lk.link, dtype=bool)
             strength = np.asarray(lk.strength, dtype=float)
@@ -358,24 +376,21 @@ class FoxgloveFold:
                     b = lk.robots[j]
                     if not (link[i, j] or link[j, i]) or a not in st.poses or b not in st.poses:
                         continue
-                    p = max(strength[i, j], strength[j, i])
-                    p = p if np.isfinite(p) else self.threshold
-                    s = float(np.clip((p - self.threshold) / 20.0, 0.0, 1.0))
-                    (ax, ay), (bx, by) = self._xy(st.poses[a]), self._xy(st.poses[b])
-                    lines.append(_line([_vec(ax, ay, 0.5 * cs), _vec(bx, by, 0.5 * cs)], (1.0 - s, s, 0.2), 0.9,
-                                       3.0, LINE_LIST))
-                    meta.append({"key": f"{a}-{b}", "value": f"{p:.1f} dB"})
+                    line, label = self._signal(self._xy(st.poses[a]), self._xy(st.poses[b]),
+                                               max(strength[i, j], strength[j, i]))
+                    lines.append(line)
+                    meta.append({"key": f"{a}-{b}", "value": label})
             meta.append({"key": "connected", "value": str(bool(lk.connected))})
-        entities.append(_entity("links", t, lines=lines, metadata=meta))
-        shown.add("links")
-        if self.base_cell is not None:
-            entities.append(self._base(t, st, lk))
-            shown.add("base")
-        gone = sorted(self.emitted - shown)
-        self.emitted = shown
-        msg = {"deletions": [{"timestamp": stamp(t), "type": DELETE_MATCHING_ID, "id": g} for g in gone],
-               "entities": entities}
-        return [_derived(TOPIC_SCENE, "foxglove.SceneUpdate", msg, t)]
+        return _entity("links", t, lines=lines, metadata=meta)
+
+    def _signal(self, a: tuple[float, float], b: tuple[float, float], p: float) -> tuple[dict[str, Any], str]:
+        """A radio link from ``a`` to ``b`` (map coordinates) of strength ``p`` dB (not finite: the threshold):
+        a line from red at the threshold to green 20 dB above it, and its label."""
+        p = float(p) if np.isfinite(p) else self.threshold
+        s = float(np.clip((p - self.threshold) / 20.0, 0.0, 1.0))
+        z = 0.5 * self.cell_size
+        return _line([_vec(a[0], a[1], z), _vec(b[0], b[1], z)], (1.0 - s, s, 0.2), 0.9, 3.0, LINE_LIST), \
+            f"{p:.1f} dB"
 
     def _base(self, t: int, st: WorldState, lk: Links | None) -> dict[str, Any]:
         """The base station: a white cylinder at its cell, and a line to each robot linked to it (coloured by
@@ -388,12 +403,9 @@ class FoxgloveFold:
             for r, linked, p in zip(lk.robots, lk.base_link, lk.base_strength, strict=True):
                 if not linked or r not in st.poses:
                     continue
-                p = float(p) if np.isfinite(p) else self.threshold
-                s = float(np.clip((p - self.threshold) / 20.0, 0.0, 1.0))
-                x, y = self._xy(st.poses[r])
-                lines.append(_line([_vec(bx, by, 0.5 * cs), _vec(x, y, 0.5 * cs)], (1.0 - s, s, 0.2), 0.9, 3.0,
-                                   LINE_LIST))
-                meta.append({"key": f"base-{r}", "value": f"{p:.1f} dB"})
+                line, label = self._signal((bx, by), self._xy(st.poses[r]), p)
+                lines.append(line)
+                meta.append({"key": f"base-{r}", "value": label})
         return _entity(
             "base", t, metadata=meta, lines=lines,
             cylinders=[{"pose": _pose(bx, by, 0.6 * cs), "size": _vec(0.9 * cs, 0.9 * cs, 1.2 * cs),

@@ -276,15 +276,6 @@ class RunMetrics:
         cov = self.coverage_stats()
         path = res["path_length"]
         total_path = int(sum(path))
-        link_ticks = self.monitor.link_ticks
-        pairs = {}
-        for i, a in enumerate(self.robots):
-            for b in self.robots[i + 1:]:
-                n = self.pair_ticks.get((a, b), 0)
-                pairs[f"{a}-{b}"] = _r(n / link_ticks) if link_ticks else None
-        all_ms = np.array([m for r in self.robots for m in self.decisions[r]], dtype=float)
-        lk = self.monitor.links
-        sent = lk.sent if lk else 0
         return {
             "exploration_time": {"t90": self.first_tick_at(0.90), "t99": self.first_tick_at(0.99),
                                  "t100": self.first_tick_at(1.0)},
@@ -302,38 +293,60 @@ class RunMetrics:
                               "evenness by Jain's fairness index (1 = even, 1/n = one robot), and Gini (0 = even)",
                 "credit": cov["credit"], "share": cov["share"], "jain": cov["jain"], "gini": cov["gini"],
             },
-            "connectivity": {
-                "connected_fraction": res["connected_fraction"],
-                "ticks": link_ticks,
-                "pair_link_fraction": pairs,
-                "mean_links": _r(np.mean(list(self.series.links.values()))) if self.series.links else None,
-                "mean_signal_db": _r(np.mean(list(self.series.strength.values())), 3)
-                if self.series.strength else None,
-            },
-            "radio_detail": {
-                "sent": sent,
-                "delivered": lk.delivered if lk else 0,
-                "dropped": {"loss": lk.dropped_loss if lk else 0, "signal": lk.dropped_signal if lk else 0},
-                "delivered_fraction": _r(lk.delivered / sent) if lk and sent else None,
-                "by_kind": dict(sorted(self.kinds.items())),
-                "per_robot": {r: {
-                    "msgs_sent": self.tx_msgs[r],
-                    "bytes_sent": self.tx_bytes[r],
-                    "bytes_per_tick": _r(self.tx_bytes[r] / self.tx_bundles[r], 2) if self.tx_bundles[r] else None,
-                    "msgs_received": self.rx_msgs[r],
-                } for r in self.robots},
-                "bytes_per_robot_per_tick": _r(sum(self.tx_bytes.values()) / sum(self.tx_bundles.values()), 2)
-                if sum(self.tx_bundles.values()) else None,
-            },
-            "decision_time": {
-                "calls": len(all_ms),
-                "mean_ms": _r(all_ms.mean(), 4) if len(all_ms) else None,
-                "p50_ms": _r(np.percentile(all_ms, 50), 4) if len(all_ms) else None,
-                "p95_ms": _r(np.percentile(all_ms, 95), 4) if len(all_ms) else None,
-                "max_ms": _r(all_ms.max(), 4) if len(all_ms) else None,
-                "per_robot_mean_ms": {r: _r(np.mean(v), 4) if v else None for r, v in self.decisions.items()},
-            },
+            "connectivity": self._connectivity(res),
+            "radio_detail": self._radio_detail(),
+            "decision_time": self._decision_time(),
             "undecodable": self.undecodable,
         } | ({"base_connectivity": {
             "definition": "per tick, the share of live robots with a path of links to the base station",
             "fraction_by_tick": [[t, _r(f)] for t, f in self.monitor.base_curve]}} if self.monitor.base else {})
+
+    def _connectivity(self, res: dict[str, Any]) -> dict[str, Any]:
+        """metrics.json's ``connectivity``: the team's connected share of ticks, each pair's linked share, the
+        mean number of links and signal strength."""
+        link_ticks = self.monitor.link_ticks
+        pairs = {}
+        for i, a in enumerate(self.robots):
+            for b in self.robots[i + 1:]:
+                n = self.pair_ticks.get((a, b), 0)
+                pairs[f"{a}-{b}"] = _r(n / link_ticks) if link_ticks else None
+        return {
+            "connected_fraction": res["connected_fraction"],
+            "ticks": link_ticks,
+            "pair_link_fraction": pairs,
+            "mean_links": _r(np.mean(list(self.series.links.values()))) if self.series.links else None,
+            "mean_signal_db": _r(np.mean(list(self.series.strength.values())), 3) if self.series.strength else None,
+        }
+
+    def _radio_detail(self) -> dict[str, Any]:
+        """metrics.json's ``radio_detail``: messages sent, delivered and dropped, by kind and per robot."""
+        lk = self.monitor.links
+        sent = lk.sent if lk else 0
+        bundles = sum(self.tx_bundles.values())
+        return {
+            "sent": sent,
+            "delivered": lk.delivered if lk else 0,
+            "dropped": {"loss": lk.dropped_loss if lk else 0, "signal": lk.dropped_signal if lk else 0},
+            "delivered_fraction": _r(lk.delivered / sent) if lk and sent else None,
+            "by_kind": dict(sorted(self.kinds.items())),
+            "per_robot": {r: {
+                "msgs_sent": self.tx_msgs[r],
+                "bytes_sent": self.tx_bytes[r],
+                "bytes_per_tick": _r(self.tx_bytes[r] / self.tx_bundles[r], 2) if self.tx_bundles[r] else None,
+                "msgs_received": self.rx_msgs[r],
+            } for r in self.robots},
+            "bytes_per_robot_per_tick": _r(sum(self.tx_bytes.values()) / bundles, 2) if bundles else None,
+        }
+
+    def _decision_time(self) -> dict[str, Any]:
+        """metrics.json's ``decision_time``: the decisions' wall time, over the team and per robot."""
+        all_ms = np.array([m for r in self.robots for m in self.decisions[r]], dtype=float)
+        some = len(all_ms) > 0
+        return {
+            "calls": len(all_ms),
+            "mean_ms": _r(all_ms.mean(), 4) if some else None,
+            "p50_ms": _r(np.percentile(all_ms, 50), 4) if some else None,
+            "p95_ms": _r(np.percentile(all_ms, 95), 4) if some else None,
+            "max_ms": _r(all_ms.max(), 4) if some else None,
+            "per_robot_mean_ms": {r: _r(np.mean(v), 4) if v else None for r, v in self.decisions.items()},
+        }
