@@ -355,12 +355,23 @@ def serve(argv: list[str] | None, parser: Callable[[], argparse.ArgumentParser],
     except KeyboardInterrupt:
         print("fleet: interrupted", file=sys.stderr)
         code = 130
+    except BrokenPipeError:  # a listing piped into `head`: the reader left, nothing is wrong
+        _quiet_stdout()
+        code = 0
     finally:
         if command != "run":
             interrupts.restore()
     if command == "run":
         _ignore_signals_while_exiting()
     raise SystemExit(code)
+
+
+def _quiet_stdout() -> None:
+    """Point stdout at /dev/null, so that the interpreter's final flush into a closed pipe raises nothing
+    (the recipe of Python's ``signal`` documentation)."""
+    import os
+
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
 def _ignore_signals_while_exiting() -> None:

@@ -185,3 +185,16 @@ def test_bautin_fig5_sweeps_after_fetching_its_map(tmp_path: Path, mirror: Path)
         rows = list(csv.DictReader(f))
     assert [(r["map"], r["allocator"], r["robots"], r["status"]) for r in rows] == [
         ("hospital_section", "nearest", "1", "ok")]
+
+
+def test_a_listing_piped_into_a_reader_that_left_is_no_traceback() -> None:
+    """``fleet allocators | head -1`` once head has left: every write meets a closed pipe; exit 0, quietly."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # the reader is gone before the listing writes its first line
+    try:
+        proc = subprocess.run([sys.executable, "-m", "fleet_emu", "allocators"], stdout=write_end,
+                              stderr=subprocess.PIPE, text=True, timeout=60)
+    finally:
+        os.close(write_end)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
