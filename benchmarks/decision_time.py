@@ -1,6 +1,6 @@
 """Decision time of the allocators against fleet size n and number of frontier clusters m.
 
-    python benchmarks/decision_time.py [--quick] [--size 256] [--repeat 5] [--seed 0]
+    python -m benchmarks.decision_time [--quick] [--size 256] [--repeat 5] [--seed 0]
 
 On a size x size grid (mostly free, random wall segments) with m clusters of 2-6 frontier cells spread over
 it and n robots on random free cells, times ``allocate()`` (ms per call, median of ``--repeat`` calls after a
@@ -18,13 +18,13 @@ least-squares fit ``t ~ n^a m^b``, against the paper's O(m) nearest, O(n^2 m) gr
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import time
 from collections.abc import Callable
 
 import numpy as np
 
+from benchmarks._common import parser
 from fleet_emu.agents.allocators import Problem, make_allocator
 from fleet_emu.agents.frontiers import Cluster
 from fleet_emu.core.grid import FREE, OCCUPIED
@@ -100,13 +100,13 @@ def fit(rows: dict[tuple[int, int], float]) -> tuple[float, float]:
     return float(a), float(b)
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> None:
+    p = parser("benchmarks.decision_time", __doc__)
     p.add_argument("--quick", action="store_true", help="n in (2, 10), m in (5, 50), 3 calls each")
     p.add_argument("--size", type=int, default=256)
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--seed", type=int, default=0)
-    a = p.parse_args()
+    a = p.parse_args(argv)
     ns, ms = ((2, 10), (5, 50)) if a.quick else ((2, 5, 10, 20, 50), (5, 10, 20, 50, 100))
     repeat = 3 if a.quick else a.repeat
     rng = np.random.default_rng(a.seed)

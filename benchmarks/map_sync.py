@@ -1,7 +1,7 @@
 """Map consistency under loss: ticks to the target, how far the robots' beliefs disagree, and what the map
 recovery (``agents/mapsync.py``) spends on the radio, on the memory engine.
 
-    python benchmarks/map_sync.py [--map office] [--robots 3] [--allocator minpos] [--loss 0.3]
+    python -m benchmarks.map_sync [--map office] [--robots 3] [--allocator minpos] [--loss 0.3]
         [--comm full] [--seeds 8] [--start random|map|ROW,COL] [--json out.json]
 
 Per seed: one run of the memory engine (``fe.Fleet``), its ``ticks`` (to the target coverage, or the last
@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 import fleet_emu.agents.protocol as proto
+from benchmarks._common import parser
 from fleet_emu.core.errors import FleetError
 from fleet_emu.core.grid import UNKNOWN
 from fleet_emu.core.messages import TxBundle, open_envelope
@@ -100,8 +101,8 @@ def run_seed(scenario: Scenario, seed: int) -> dict:
             "conflict": conflict, "count": dict(count), "bytes": dict(size)}
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> None:
+    p = parser("benchmarks.map_sync", __doc__)
     p.add_argument("--map", default="office")
     p.add_argument("--robots", type=int, default=3)
     p.add_argument("--allocator", default="minpos")
@@ -111,7 +112,7 @@ def main() -> None:
     p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--max-ticks", type=int, default=3000)
     p.add_argument("--json", type=Path, help="write the per-seed rows here")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     start = None if a.start == "map" else a.start
     if isinstance(start, str) and "," in start:
         with contextlib.suppress(ValueError):  # else the scenario's check says what is wrong

@@ -1,7 +1,7 @@
 """MHM in the whole fleet (issue 10, part 5): the base plans, its orders cross the lossy radio hop by hop, the
 robots obey. Memory engine (the same objects as the processes, one process, no Zenoh), disk radio.
 
-    python benchmarks/mhm_fleet.py [--map office] [--robots 10 20] [--loss 0 0.1 0.3] [--seeds 0]
+    python -m benchmarks.mhm_fleet [--map office] [--robots 10 20] [--loss 0 0.1 0.3] [--seeds 0]
                                    [--comm-range 5] [--sensor-range 2] [--max-ticks 1500] [--hinges 0]
 
 Prints one row per (robots, loss, seed): ticks, why the run ended, coverage, the base-connected fraction
@@ -13,11 +13,11 @@ wall seconds (noisy under load: a count, not a timing, is the result).
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import time
 
 import fleet_emu as fe
+from benchmarks._common import parser
 from fleet_emu.launch.memory import Fleet
 
 
@@ -44,7 +44,7 @@ def run(scenario: fe.Scenario) -> dict[str, object]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser("benchmarks.mhm_fleet", __doc__, full=False)
     ap.add_argument("--map", default="office")
     ap.add_argument("--robots", type=int, nargs="+", default=[10, 20])
     ap.add_argument("--loss", type=float, nargs="+", default=[0.0, 0.1, 0.3])
