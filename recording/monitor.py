@@ -38,6 +38,8 @@ from fleet_emu.recording.relaystats import RelayStats
 #: The channels the monitor folds (``ParsedKey.channel``); the rest is not even decoded.
 _FOLDED = frozenset({"state", "links", "stop", "report", "cmd", "clock", "timing"})
 _RADIO = frozenset({"tx", "rx"})  # folded too in a relaying run (recording/relaystats.py)
+#: The channels whose key names the node that sends on it: only the run's robots (and its base) do.
+_BY_NODE = frozenset({"cmd", "timing", "report", "tx"})
 
 
 def base_graph(lk: Links) -> tuple[tuple[str, ...], np.ndarray]:
@@ -84,11 +86,15 @@ class Monitor:
     def __post_init__(self) -> None:
         if self.relay and self.relay_stats is None:
             self.relay_stats = RelayStats(len(self.robots) + int(self.base))
+        self._nodes = frozenset(self.robots) | ({BASE} if self.base else frozenset())
 
     def feed(self, key: str, data: bytes, wall_ns: int | None = None) -> Message | None:
         """Decode and fold one sample; returns the message (None if it is not one the monitor uses)."""
         got = parse_key(key)
         if got is None or not (got[1].channel in _FOLDED or (self.relay and got[1].channel in _RADIO)):
+            return None
+        if got[1].channel in _BY_NODE and got[1].node not in self._nodes:  # a node this run does not have
+            self.malformed += 1
             return None
         try:
             msg = decode(data)
