@@ -31,7 +31,7 @@ from fleet_emu.core.bus import Inbox, publisher
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import BaseReport, RxBundle, Stop, TxBundle
-from fleet_emu.core.node import NodeBase, node_main, undeclare
+from fleet_emu.core.node import Declared, NodeBase, node_main, undeclare
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.world.node import base_cell
 
@@ -57,7 +57,7 @@ class BaseNode(NodeBase):
     async def run(self, session: zenoh.Session) -> None:
         keys = self.keys
         inbox = Inbox()
-        handles = [inbox.subscribe(session, keys.rx(BASE)), inbox.subscribe(session, keys.stop)]
+        handles: list[Declared] = [inbox.subscribe(session, keys.rx(BASE)), inbox.subscribe(session, keys.stop)]
         pub_report = publisher(session, keys.report(BASE))
         handles.append(pub_report)
         if self.sends:

@@ -18,6 +18,7 @@ least-squares fit ``t ~ n^a m^b``, against the paper's O(m) nearest, O(n^2 m) gr
 
 from __future__ import annotations
 
+import functools
 import statistics
 import time
 from collections.abc import Callable
@@ -25,9 +26,9 @@ from collections.abc import Callable
 import numpy as np
 
 from benchmarks._common import parser
-from fleet_emu.agents.allocators import Problem, make_allocator
+from fleet_emu.agents.allocators import Allocator, Problem, make_allocator
 from fleet_emu.agents.frontiers import Cluster
-from fleet_emu.core.grid import FREE, OCCUPIED
+from fleet_emu.core.grid import FREE, OCCUPIED, Cell
 
 ALLOCATORS: dict[str, dict] = {
     "nearest": {"type": "nearest"},
@@ -76,6 +77,11 @@ def median_ms(call: Callable[[], object], repeat: int) -> float:
     return statistics.median(times)
 
 
+def _fresh(alloc: Allocator, me: str, poses: dict[str, Cell], grid: np.ndarray, clusters: list[Cluster]) -> object:
+    """One decision on a new Problem (built inside the timed call)."""
+    return alloc.allocate(Problem(me, poses, grid, clusters))
+
+
 def measure(name: str, grid: np.ndarray, poses: dict, clusters: list[Cluster], cached: Problem,
             repeat: int) -> tuple[float, float]:
     """(fresh, cached) ms: the median of ``repeat`` calls for each deciding robot, averaged over them."""
@@ -85,7 +91,7 @@ def measure(name: str, grid: np.ndarray, poses: dict, clusters: list[Cluster], c
     mes = ["r0"] if name == "hungarian" else sorted({robots[0], robots[len(robots) // 2], robots[-1]})
     fresh, warm = [], []
     for me in mes:
-        fresh.append(median_ms(lambda me=me: alloc.allocate(Problem(me, poses, grid, clusters)), repeat))
+        fresh.append(median_ms(functools.partial(_fresh, alloc, me, poses, grid, clusters), repeat))
         cached.me = me
         warm.append(median_ms(lambda: alloc.allocate(cached), repeat))
     return statistics.fmean(fresh), statistics.fmean(warm)

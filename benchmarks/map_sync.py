@@ -35,7 +35,7 @@ import fleet_emu.agents.protocol as proto
 from benchmarks._common import parser
 from fleet_emu.core.errors import FleetError
 from fleet_emu.core.grid import UNKNOWN
-from fleet_emu.core.messages import TxBundle, open_envelope
+from fleet_emu.core.messages import Envelope, TxBundle, open_envelope
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.checks import check
 from fleet_emu.launch.memory import Fleet
@@ -43,17 +43,18 @@ from fleet_emu.launch.memory import Fleet
 RECOVERY = ("mapfill", "resent_cells", "sync_fields")
 
 
-def sync_overhead(env: object) -> tuple[int, bool]:
+def sync_overhead(env: Envelope) -> tuple[int, bool]:
     """The bytes map sync adds to a beacon or a delta (its fields), and whether a beacon carries a request."""
-    kind = env.payload_kind  # type: ignore[attr-defined]
-    if kind not in ("pose", "map"):
+    if env.payload_kind not in ("pose", "map"):
         return 0, False
-    body = open_envelope(env).body  # type: ignore[arg-type]
-    if kind == "pose":
-        bare = proto.PoseBeacon(cell=body.cell, next=body.next)
-        return len(env.payload) - len(bare.encode()), getattr(body, "want", None) is not None  # type: ignore
-    bare = proto.MapDelta(cells=body.cells, values=body.values)
-    return len(env.payload) - len(bare.encode()), False  # type: ignore[attr-defined]
+    body = open_envelope(env).body
+    if isinstance(body, proto.PoseBeacon):
+        beacon = proto.PoseBeacon(cell=body.cell, next=body.next)
+        return len(env.payload) - len(beacon.encode()), getattr(body, "want", None) is not None
+    if isinstance(body, proto.MapDelta):
+        delta = proto.MapDelta(cells=body.cells, values=body.values)
+        return len(env.payload) - len(delta.encode()), False
+    return 0, False
 
 
 def gaps(grids: list[np.ndarray]) -> tuple[float, int]:

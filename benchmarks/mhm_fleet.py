@@ -15,27 +15,36 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from typing import Any
 
 import fleet_emu as fe
 from benchmarks._common import parser
+from fleet_emu.agents.allocators.mhm.planner import MhmPlanner
+from fleet_emu.agents.allocators.mhm.station import MhmStation
 from fleet_emu.launch.memory import Fleet
 
 
-def run(scenario: fe.Scenario) -> dict[str, object]:
+def _planner(fleet: Fleet) -> MhmPlanner | None:
+    """The base's MHM planner (None before the base made it)."""
+    station = fleet.base.planner if fleet.base is not None else None
+    return station.planner if isinstance(station, MhmStation) else None
+
+
+def run(scenario: fe.Scenario) -> dict[str, Any]:
     fleet = Fleet(scenario)
     fleet.reset()
     nodes = 0
     t0 = time.perf_counter()
     while not fleet.done:
         fleet.step()
-        planner = fleet.base.planner.planner if fleet.base is not None else None  # type: ignore[union-attr]
+        planner = _planner(fleet)
         if planner is not None:
             nodes = max(nodes, len(planner.node_of))
     res = fleet.result()
     series = fleet.monitor.base_reach.series
     frac = res["base_connected_fraction"]
     orders = res["relay"]["kinds"].get("mhm", {})
-    planner = fleet.base.planner.planner  # type: ignore[union-attr]
+    planner = _planner(fleet)
     return {"ticks": res["ticks"], "reason": res["reason"], "coverage": res["coverage"],
             "overall": frac["overall"], "worst": min(series, default=float("nan")), "all": frac["all_ticks"],
             "orders": orders.get("delivery_ratio", 0.0), "latency": orders.get("latency_ticks", {}).get("mean"),

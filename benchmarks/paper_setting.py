@@ -270,25 +270,30 @@ def draw(rows: list[dict[str, Any]], a: Any) -> None:
                       f"sensor {a.sensor:g}, base at the start")
 
 
+def replay(a: Any) -> None:
+    """``--from``: the table and ``--out`` of earlier ``--json`` files, sorted by map, allocator and fleet size."""
+    rows = saved_rows(a.from_json, a)
+    maps = {m: i for i, m in enumerate(dict.fromkeys(r["map"] for r in rows))}
+    allocators = {x: i for i, x in enumerate(dict.fromkeys(r["allocator"] for r in rows))}
+    rows.sort(key=lambda r: (maps[r["map"]], allocators[r["allocator"]], r["robots"]))
+    print(header(a.at))
+    for r in rows:
+        if "seen" in r:
+            print(line(r["map"], r["allocator"], r["robots"], r, a.at))
+    if a.out is not None:
+        draw(rows, a)
+
+
 def main(argv: list[str] | None = None) -> None:
     a = parse(argv)
     if a.from_json:
-        rows = saved_rows(a.from_json, a)
-        maps = {m: i for i, m in enumerate(dict.fromkeys(r["map"] for r in rows))}
-        allocators = {x: i for i, x in enumerate(dict.fromkeys(r["allocator"] for r in rows))}
-        rows.sort(key=lambda r: (maps[r["map"]], allocators[r["allocator"]], r["robots"]))
-        print(header(a.at))
-        for r in rows:
-            if "seen" in r:
-                print(line(r["map"], r["allocator"], r["robots"], r, a.at))
-        if a.out is not None:
-            draw(rows, a)
+        replay(a)
         return
     from fleet_emu.core.errors import MapError
     from fleet_emu.core.grid import FREE
     from fleet_emu.core.kernels import warm_up
 
-    maps = {}
+    maps: dict[str, tuple[np.ndarray, Cell, float]] = {}
     for name in a.maps:
         try:
             maps[name] = paper_map(name, a.cells, a.seed)

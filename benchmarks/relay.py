@@ -55,8 +55,8 @@ def table(argv: list[str] | None) -> None:
                                     comm_range=a.comm_range, loss=a.loss, seed=seed, max_ticks=a.max_ticks,
                                     relay=policy, relay_ttl=ttl)
             runs.append(Fleet(s).run().data)
-        pose = [r["relay"]["kinds"].get("pose") if "relay" in r else None for r in runs]
-        if all(k is not None for k in pose):
+        pose = [r["relay"]["kinds"]["pose"] for r in runs if "pose" in r.get("relay", {}).get("kinds", {})]
+        if pose and len(pose) == len(runs):
             ratio = mean_sd([k["delivery_ratio"] for k in pose])
             tpd = mean_sd([k["tx_per_delivered"] for k in pose], 2)
             multi = mean_sd([sum(v for h, v in k["hops"].items() if int(h) > 1) / max(1, k["delivered"])

@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 import os
 import subprocess
@@ -132,6 +133,10 @@ def scenario_for(m: FittedMap, robots: int, a: argparse.Namespace) -> Any:
                            max_ticks=a.ticks, target_coverage=1.0)
 
 
+def _stage_ms(stage: str, report: Any) -> float:
+    return float(report.stage_cpu_ms.get(stage, 0.0))
+
+
 def run_one(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, Any]:
     """One fleet run, in this process; the row's numbers (raises FleetError when the run failed)."""
     from fleet_emu.agents.brain import STAGES
@@ -164,7 +169,7 @@ def run_one(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, Any]:
     step = later(lambda r: r.step_cpu_ms, "step")
     agent_ms = later(lambda r: r.process_cpu_ms, "process")
     loop_ms = later(lambda r: r.loop_cpu_ms, "loop")
-    stages = {k: later(lambda r, k=k: r.stage_cpu_ms.get(k, 0.0), k) for k in STAGES if k != "decision"}
+    stages = {k: later(functools.partial(_stage_ms, k), k) for k in STAGES if k != "decision"}
     agent_pss = [sampler.pss[k] / 1024 for k in sampler.pss if k.startswith("r")] or [0.0]
     row = {
         "start": ((mon.first_state_ns or t0) - t0) / 1e9,

@@ -127,7 +127,7 @@ def _run(scenario: Scenario, map_data: MapData, run_id: str, work: Path, recordi
     robots = tuple(robot_ids(scenario.robots))
     monitor = Monitor(robots, base=scenario.has_base, relay=scenario.relay != "none")
     engine = "in-process" if opts.in_process else "processes"
-    meta = {"run_id": run_id, "scenario": scenario.to_dict(), "engine": engine}
+    meta: dict[str, Any] = {"run_id": run_id, "scenario": scenario.to_dict(), "engine": engine}
     if opts.realtime_hz:
         meta["realtime_hz"] = opts.realtime_hz
     recorder = Recorder(recording, meta) if recording is not None else None

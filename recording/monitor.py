@@ -97,7 +97,7 @@ class Monitor:
             self.malformed += 1
             return None
         try:
-            msg = decode(data)
+            msg: Message = decode(data)
         except DecodeError:
             self.malformed += 1
             return None
@@ -116,7 +116,7 @@ class Monitor:
             if self.state is None or msg.tick >= self.state.tick:
                 self.state = msg
             self.coverage_curve.append((msg.tick, msg.coverage))
-            self.cells[msg.tick] = {r: tuple(msg.poses[r]) for r in msg.live if r in msg.poses}
+            self.cells[msg.tick] = {r: msg.poses[r] for r in msg.live if r in msg.poses}
             if self.t90 is None and msg.coverage >= 0.90:
                 self.t90 = msg.tick
             if self.t99 is None and msg.coverage >= 0.99:
@@ -159,7 +159,7 @@ class Monitor:
         (the base's report; null values when it sent none: interrupted, or its process died)."""
         frac = self.base_reach.summary()
         rounded = {k: (round(v, 6) if isinstance(v, float) else v) for k, v in frac.items() if k != "per_robot"}
-        rounded["per_robot"] = {r: round(v, 6) for r, v in frac["per_robot"].items()}  # type: ignore[union-attr]
+        rounded["per_robot"] = {r: round(v, 6) for r, v in frac["per_robot"].items()}
         rep = self.base_report
         base: dict[str, Any] = {
             "cell": list(rep.cell) if rep else None, "known_cells": rep.known_cells if rep else None,
@@ -270,6 +270,6 @@ class Monitor:
 
     def ticks_per_second(self) -> float | None:
         """Lockstep speed from the first state to the last (start-up excluded)."""
-        if self.state is None or not self.first_state_ns or self.last_state_ns == self.first_state_ns:
+        if self.state is None or not self.first_state_ns or self.last_state_ns in (None, self.first_state_ns):
             return None
         return round(self.state.tick / ((self.last_state_ns - self.first_state_ns) / 1e9), 3)
