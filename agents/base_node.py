@@ -33,7 +33,7 @@ from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import RxBundle, Stop
-from fleet_emu.core.node import NodeBase, add_base_cell, node_main, undeclare
+from fleet_emu.core.node import Declared, NodeBase, add_base_cell, node_main, undeclare
 from fleet_emu.core.scenario import Scenario
 
 FINAL_GRACE = 2.0  # seconds to wait, after the world's stop, for the last rx bundles
@@ -59,7 +59,7 @@ class BaseNode(NodeBase):
     async def run(self, session: zenoh.Session) -> None:
         keys = self.keys
         inbox = Inbox()
-        handles = [inbox.subscribe(session, keys.rx(BASE)), inbox.subscribe(session, keys.stop)]
+        handles: list[Declared] = [inbox.subscribe(session, keys.rx(BASE)), inbox.subscribe(session, keys.stop)]
         pub_report = publisher(session, keys.report(BASE))
         handles.append(pub_report)
         if self.sends:

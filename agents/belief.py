@@ -21,7 +21,7 @@ class Belief:
 
     @property
     def shape(self) -> tuple[int, int]:
-        return self.grid.shape  # type: ignore[return-value]
+        return self.grid.shape
 
     def merge(self, cells: np.ndarray, values: np.ndarray) -> int:
         """Write known values into the grid (later observations win); returns how many cells were unknown."""

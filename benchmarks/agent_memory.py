@@ -1,6 +1,6 @@
 """Memory of the robot processes: PSS and RSS per agent, sampled from ``/proc/PID/smaps_rollup`` while a run goes.
 
-    python benchmarks/agent_memory.py [--robots 16 32] [--ticks 40] [--map office] [-- FLEET RUN FLAGS...]
+    python -m benchmarks.agent_memory [--robots 16 32] [--ticks 40] [--map office] [-- FLEET RUN FLAGS...]
 
 Starts ``fleet run`` and, every ``--period`` seconds until it ends, reads ``smaps_rollup`` of every process
 under the launcher. Once the run has ended, ``result.json``'s pids say which were the agents; the rest but the
@@ -13,7 +13,6 @@ PSS at one sample. Flags after ``--`` go to ``fleet run`` (e.g. ``-- --no-fork-s
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import subprocess
@@ -21,8 +20,9 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
+from benchmarks._common import ROOT, fleet_command, parser, smaps_rollup
 
 
 def children_map() -> dict[int, list[int]]:
@@ -51,38 +51,24 @@ def descendants(root: int) -> list[int]:
     return out
 
 
-def rollup(pid: int) -> tuple[int, int] | None:
-    """(PSS, RSS) in kB, or None once the process is gone."""
-    pss = rss = 0
-    try:
-        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
-            if line.startswith("Pss:"):
-                pss = int(line.split()[1])
-            elif line.startswith("Rss:"):
-                rss = int(line.split()[1])
-    except OSError:
-        return None
-    return pss, rss
-
-
-def measure(robots: int, ticks: int, map_name: str, period: float, extra: list[str]) -> dict | None:
+def measure(robots: int, ticks: int, map_name: str, period: float, extra: list[str]) -> dict[str, Any] | None:
     """One run: per-pid peak PSS and RSS, the peak summed PSS per sample, and result.json's pids."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
-        cmd = [sys.executable, "-m", "fleet_emu.launch", "run", "--map", map_name, "--robots", str(robots),
-               "--max-ticks", str(ticks), "--target-coverage", "1.0", "--quiet", "--no-record",
-               "--out", str(out), *extra]
+        cmd = fleet_command(["--map", map_name, "--robots", str(robots), "--max-ticks", str(ticks),
+                             "--target-coverage", "1.0", *extra], out)
         proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         peak: dict[int, tuple[int, int]] = {}
         samples: list[dict[int, int]] = []
         while proc.poll() is None:
             sample: dict[int, int] = {}
             for pid in descendants(proc.pid):
-                got = rollup(pid)
+                got = smaps_rollup(pid)
                 if got is not None:
-                    sample[pid] = got[0]
+                    pss, rss = got.get("Pss", 0), got.get("Rss", 0)
+                    sample[pid] = pss
                     old = peak.get(pid, (0, 0))
-                    peak[pid] = (max(old[0], got[0]), max(old[1], got[1]))
+                    peak[pid] = (max(old[0], pss), max(old[1], rss))
             samples.append(sample)
             time.sleep(period)
         err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
@@ -99,13 +85,13 @@ def measure(robots: int, ticks: int, map_name: str, period: float, extra: list[s
             "server": sum(at.get(p, 0) for p in server), "summed": summed}
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> None:
+    p = parser("benchmarks.agent_memory", __doc__)
     p.add_argument("--robots", type=int, nargs="+", default=[16, 32])
     p.add_argument("--ticks", type=int, default=40)
     p.add_argument("--map", default="office")
     p.add_argument("--period", type=float, default=0.5, help="seconds between samples")
-    argv = sys.argv[1:]
+    argv = sys.argv[1:] if argv is None else argv
     extra = argv[argv.index("--") + 1:] if "--" in argv else []
     a = p.parse_args(argv[:argv.index("--")] if "--" in argv else argv)
     print(f"{'robots':>6} {'ticks':>5} {'agent PSS mean MB':>17} {'max MB':>7} {'agent RSS mean MB':>17} "

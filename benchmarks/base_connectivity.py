@@ -1,6 +1,6 @@
 """Base connectivity for every allocator (issue 10, part 3): how often the robots have a path to a base station.
 
-    python benchmarks/base_connectivity.py [--map office] [--robots 4] [--seeds 3] [--comm wall]
+    python -m benchmarks.base_connectivity [--map office] [--robots 4] [--seeds 3] [--comm wall]
         [--comm-range 10] [--loss 0.1] [--max-ticks 400] [--allocators nearest minpos ...]
 
 Each run has a base station at the start cell (``base = true``) and is stepped on the memory engine
@@ -13,21 +13,16 @@ known fraction of the map's cells at the end, the coverage and the ticks.
 
 from __future__ import annotations
 
-import argparse
 import statistics
 
+from benchmarks._common import mean_sd, parser
 from fleet_emu.agents.allocators import allocator_names
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
 
 
-def _ms(values: list[float]) -> str:
-    sd = statistics.stdev(values) if len(values) > 1 else 0.0
-    return f"{statistics.mean(values):.3f} ± {sd:.3f}"
-
-
 def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = parser("benchmarks.base_connectivity", __doc__, full=False)
     p.add_argument("--map", default="office")
     p.add_argument("--robots", type=int, default=4)
     p.add_argument("--seeds", type=int, default=3)
@@ -49,8 +44,8 @@ def main(argv: list[str] | None = None) -> None:
                                     loss=a.loss, seed=seed, max_ticks=a.max_ticks, base=True)
             rows.append(Fleet(s).run().data)
         frac = [r["base_connected_fraction"] for r in rows]
-        print(f"| {name} | {_ms([f['overall'] for f in frac])} | {_ms([f['all_ticks'] for f in frac])} | "
-              f"{_ms([r['base']['known_fraction'] for r in rows])} | {_ms([r['coverage'] for r in rows])} | "
+        print(f"| {name} | {mean_sd([f['overall'] for f in frac])} | {mean_sd([f['all_ticks'] for f in frac])} | "
+              f"{mean_sd([r['base']['known_fraction'] for r in rows])} | {mean_sd([r['coverage'] for r in rows])} | "
               f"{statistics.mean(r['ticks'] for r in rows):.0f} |", flush=True)
 
 

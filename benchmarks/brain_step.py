@@ -1,6 +1,6 @@
 """Thread CPU of one robot-tick of the brain on a 512 x 512 map, split by stage (issue 11, part 3).
 
-    python benchmarks/brain_step.py [--robots 16] [--ticks 60] [--cells 512] [--maps maze PATH ...]
+    python -m benchmarks.brain_step [--robots 16] [--ticks 60] [--cells 512] [--maps maze PATH ...]
 
 The memory engine (:class:`fleet_emu.launch.memory.Fleet`: the real World, Channel and Brain objects, no Zenoh)
 steps each map's fleet for ``--ticks`` ticks with ``benchmarks/scale.py``'s scenario (minpos with parallel
@@ -27,19 +27,20 @@ The last column is the 1-minute load average at the end of the row. Progress goe
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
-from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+from benchmarks import scale  # the maps, the start and the scenario
+from benchmarks._common import REAL_MAP, FittedMap, fail, fitted_maps, machine, parser
 
-import scale  # benchmarks/scale.py: the maps, the start and the scenario
+PROG = "brain_step"
 
 COLUMNS = ["decide", "clusters", "merge", "decode", "nav", "news", "other", "outside", "step", "rx codec"]
 
 
-def run(name: str, robots: int, a: argparse.Namespace) -> dict[str, float]:
+def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
     """One map's fleet stepped ``a.ticks`` ticks; ms of thread CPU per robot-tick by stage."""
     from fleet_emu.agents.brain import STAGES
     from fleet_emu.core.codec import decode
@@ -47,9 +48,7 @@ def run(name: str, robots: int, a: argparse.Namespace) -> dict[str, float]:
     from fleet_emu.core.messages import RxBundle
     from fleet_emu.launch.memory import Fleet
 
-    cs, _shape = scale.fit_cell_size(name, a.cells, a.seed)
-    start = scale.open_start(name, cs, a.seed)
-    fleet = Fleet(scale.scenario_for(name, cs, robots, start, a))
+    fleet = Fleet(scale.scenario_for(m, robots, a))
     fleet.reset()
     for brain in fleet.brains.values():
         brain.open = _own_copy(brain.open)  # type: ignore[method-assign]
@@ -87,39 +86,34 @@ def _own_copy(open_: Any) -> Any:
     return opened
 
 
-def _fail(message: str) -> NoReturn:
-    scale.fail("brain_step", message)
-
-
 def main(argv: list[str] | None = None) -> None:
     from fleet_emu.core.errors import FleetError
 
-    p = scale.OneLineParser(prog="brain_step.py", description=__doc__,
-                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = parser("benchmarks.brain_step", __doc__)
     p.add_argument("--robots", type=int, default=16)
     p.add_argument("--ticks", type=int, default=60)
     p.add_argument("--cells", type=int, default=512)
-    p.add_argument("--maps", nargs="+", default=["maze", str(scale.REAL_MAP)])
+    p.add_argument("--maps", nargs="+", default=["maze", REAL_MAP])
     p.add_argument("--sensor-cells", type=float, default=8.0)
     p.add_argument("--comm-cells", type=float, default=20.0)
     p.add_argument("--seed", type=int, default=0)
     a = p.parse_args(argv)
     if a.robots < 1 or a.ticks < 2 or a.cells < 8:
-        _fail("--robots must be at least 1, --ticks at least 2, --cells at least 8")
-    print(f"# benchmarks/brain_step.py (issue 11, part 3): {scale.machine()}")
+        fail(PROG, "--robots must be at least 1, --ticks at least 2, --cells at least 8")
+    print(f"# benchmarks/brain_step.py (issue 11, part 3): {machine()}")
     print(f"# memory engine, minpos (parallel wavefronts), wall radio, loss 0.1, {a.robots} robots, {a.ticks} ticks, "
           f"sensor {a.sensor_cells:g} cells, comm {a.comm_cells:g} cells, seed {a.seed}; "
           "thread CPU in ms per robot-tick")
     print(f"{'map':>10} " + " ".join(f"{c:>8}" for c in COLUMNS) + f" {'load1':>6}", flush=True)
-    for name in a.maps:
+    for m in fitted_maps(PROG, a.maps, a.cells, a.seed):
         t = time.monotonic()
         try:
-            row = run(name, a.robots, a)
+            row = run(m, a.robots, a)
         except FleetError as exc:
-            _fail(f"map {name}: {str(exc).splitlines()[0]}")
-        print(f"{Path(name).stem[:10]:>10} " + " ".join(f"{row[c]:>8.3f}" for c in COLUMNS)
-              + f" {scale.os.getloadavg()[0]:>6.2f}", flush=True)
-        print(f"{name}: {row['robot_ticks']} robot-ticks in {time.monotonic() - t:.0f} s", file=sys.stderr,
+            fail(PROG, f"map {m.name}: {str(exc).splitlines()[0]}")
+        print(f"{m.label[:10]:>10} " + " ".join(f"{row[c]:>8.3f}" for c in COLUMNS)
+              + f" {os.getloadavg()[0]:>6.2f}", flush=True)
+        print(f"{m.name}: {row['robot_ticks']} robot-ticks in {time.monotonic() - t:.0f} s", file=sys.stderr,
               flush=True)
 
 

@@ -1,6 +1,6 @@
 """Mean ticks to 99 % coverage per allocator, fleet size and map, over several seeds (the real fleet).
 
-    python benchmarks/compare_allocators.py [--allocators nearest greedy utility minpos hungarian]
+    python -m benchmarks.compare_allocators [--allocators nearest greedy utility minpos hungarian]
         [--robots 2 4 8] [--seeds 5] [--maps office hospital_section]
         [--loss 0] [--start random] [--jobs 2] [--in-process]
 
@@ -14,44 +14,31 @@ at loss 0 on a fixed map; ``--start map`` keeps the map's own start.
 
 from __future__ import annotations
 
-import argparse
-import json
 import statistics
-import subprocess
 import sys
-import tempfile
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
+from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
-#: A registry map (`fleet maps fetch hospital_section` once).
-HOSPITAL = "hospital_section"
-
-
-def run_one(allocator: str, robots: int, seed: int, map_name: str, loss: float, extra: list[str]) -> dict:
-    """One ``fleet run``; its result.json, or ``{"error": ..., "code": ...}`` when it did not end normally (exit
-    code other than 0 or 3: bad input, a process of the fleet failed, a robot among them)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "run"
-        cmd = [sys.executable, "-m", "fleet_emu.launch", "run", "--map", map_name, "--robots", str(robots),
-               "--allocator", allocator, "--seed", str(seed), "--loss", str(loss), "--quiet", "--no-record",
-               "--out", str(out), *extra]
-        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
-        if proc.returncode not in (0, 3) or not (out / "result.json").exists():
-            lines = proc.stderr.strip().splitlines()
-            return {"error": lines[-1][:300] if lines else "no output", "code": proc.returncode}
-        return json.loads((out / "result.json").read_text())
+from benchmarks._common import HOSPITAL, fleet_run, parser
 
 
-def describe(result: dict) -> str:
+def run_one(allocator: str, robots: int, seed: int, map_name: str, loss: float, extra: list[str]) -> dict[str, Any]:
+    """One ``fleet run`` (``_common.fleet_run``): its result.json, or ``{"error": ..., "code": ...}`` when it did
+    not end normally."""
+    return fleet_run(["--map", map_name, "--robots", str(robots), "--allocator", allocator, "--seed", str(seed),
+                      "--loss", str(loss), *extra])
+
+
+def describe(result: dict[str, Any]) -> str:
     """A finished run in a few words, for the progress line."""
     if "error" in result:
         return f"FAILED (exit {result['code']}): {result['error']}"
     return f"t99 {result['t99']}, coverage {result['coverage']:.1%} at tick {result['ticks']}"
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> None:
+    p = parser("benchmarks.compare_allocators", __doc__)
     p.add_argument("--allocators", nargs="+", default=["nearest", "greedy", "utility", "minpos", "hungarian"])
     p.add_argument("--robots", type=int, nargs="+", default=[2, 4, 8])
     p.add_argument("--seeds", type=int, default=5)
@@ -60,12 +47,12 @@ def main() -> None:
     p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--in-process", action="store_true", help="all nodes of a run in one process")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     extra = ["--in-process"] if a.in_process else []
     if a.start != "map":
         extra += ["--start", a.start]
     jobs = [(al, n, s, m) for m in a.maps for n in a.robots for al in a.allocators for s in range(a.seeds)]
-    results: list[dict] = [{}] * len(jobs)
+    results: list[dict[str, Any]] = [{}] * len(jobs)
     with ThreadPoolExecutor(a.jobs) as pool:
         futures = {pool.submit(run_one, al, n, s, m, a.loss, extra): i for i, (al, n, s, m) in enumerate(jobs)}
         for done, future in enumerate(as_completed(futures), start=1):
@@ -74,7 +61,7 @@ def main() -> None:
             al, n, s, m = jobs[i]
             print(f"[{done}/{len(jobs)}] {al} x{n} seed {s} on {Path(m).stem}: {describe(results[i])}",
                   file=sys.stderr, flush=True)
-    table: dict[tuple[str, int, str], list[dict]] = {}
+    table: dict[tuple[str, int, str], list[dict[str, Any]]] = {}
     for (al, n, _, m), r in zip(jobs, results, strict=True):
         table.setdefault((m, n, al), []).append(r)
     print(f"mean±sd ticks to 99% coverage (t99), loss {a.loss}, start {a.start}, seeds 0..{a.seeds - 1}; "

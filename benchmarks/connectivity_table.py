@@ -1,6 +1,6 @@
 """Connectivity-aware exploration (Benavides et al. 2016, section IV) against MinPos: connected fraction and ticks.
 
-    python benchmarks/connectivity_table.py [--maps hospital_section maze]
+    python -m benchmarks.connectivity_table [--maps hospital_section maze]
         [--configs minpos conn:0.6:0.4 conn:0.4:0.6 conn:0.6:0.4:literal] [--seeds 6] [--loss 0.1]
         [--max-ticks 3000] [--jobs 2] [--check]
 
@@ -17,18 +17,23 @@ Per cell: mean connected fraction, mean ticks (a run that did not reach the targ
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import statistics
-import subprocess
 import sys
 import tempfile
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
+from typing import Any
 
+from benchmarks._common import fleet_run, parser
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
+
+#: Registry maps (`fleet maps fetch hospital_section autolab mbicp cave` once) and a built-in one.
+DEFAULT_MAPS = ["hospital_section", "autolab", "mbicp", "cave", "maze"]
+SETTINGS = {"robots": 2, "sensor_range": 3.0, "comm_range": 6.0, "target_coverage": 0.95, "cell_size": 0.5,
+            "comm": "wall", "start": "random"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,12 +51,6 @@ def simulate(sc: Scenario) -> Outcome:
     r = Fleet(sc).run().data
     return Outcome(r["ticks"], r["coverage"], r["reason"], r["connected_fraction"] or 0.0, r["path_length"])
 
-ROOT = Path(__file__).resolve().parents[1]
-#: Registry maps (`fleet maps fetch hospital_section autolab mbicp cave` once) and a built-in one.
-DEFAULT_MAPS = ["hospital_section", "autolab", "mbicp", "cave", "maze"]
-SETTINGS = {"robots": 2, "sensor_range": 3.0, "comm_range": 6.0, "target_coverage": 0.95, "cell_size": 0.5,
-            "comm": "wall", "start": "random"}
-
 
 def _value(text: str) -> bool | int | float | str:
     """A ``NAME=VALUE`` item's value: true/false, a number, else the string."""
@@ -65,7 +64,7 @@ def _value(text: str) -> bool | int | float | str:
     return text
 
 
-def allocator(config: str) -> dict:
+def allocator(config: str) -> dict[str, Any]:
     """``minpos`` or ``conn:ALPHA:BETA[:POSITION[:PREDICT]]``, then any ``:NAME=VALUE``, as an allocator table
     (strings; the allocator checks and converts them: a bad value is a one-line ConfigError)."""
     name, *parts = config.split(":")
@@ -73,7 +72,7 @@ def allocator(config: str) -> dict:
     parts = [p for p in parts if "=" not in p]
     if name != "conn":
         return {"type": name, **named}
-    out: dict = {"type": "connectivity", "alpha": float(parts[0]), "beta": float(parts[1])}
+    out: dict[str, Any] = {"type": "connectivity", "alpha": float(parts[0]), "beta": float(parts[1])}
     out.update(zip(("position", "predict"), parts[2:], strict=False))
     return out | named
 
@@ -93,9 +92,11 @@ def check(map_name: str, loss: float) -> None:
     mine = simulate(sc)
     with tempfile.TemporaryDirectory() as tmp:
         (Path(tmp) / "s.json").write_text(json.dumps(sc.to_dict()))
-        subprocess.run([sys.executable, "-m", "fleet_emu.launch", "run", "--scenario", f"{tmp}/s.json", "--quiet",
-                        "--no-record", "--out", f"{tmp}/run"], cwd=ROOT, check=False, capture_output=True)
-        real = json.loads((Path(tmp) / "run" / "result.json").read_text())
+        real = fleet_run(["--scenario", f"{tmp}/s.json"])
+    if "error" in real:
+        print(f"check on {Path(map_name).stem}: fleet run failed (exit {real['code']}): {real['error']}",
+              file=sys.stderr)
+        raise SystemExit(1)
     same = (real["ticks"], real["path_length"], round(real["connected_fraction"], 6)) == (
         mine.ticks, mine.path_length, round(mine.connected_fraction, 6))
     print(f"check on {Path(map_name).stem}: fleet run ticks {real['ticks']}, connected "
@@ -114,8 +115,8 @@ def cell(outcomes: list[Outcome]) -> str:
     return f"{conn:.0%}, {ticks:.0f}{flags}"
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> None:
+    p = parser("benchmarks.connectivity_table", __doc__)
     p.add_argument("--maps", nargs="+", default=DEFAULT_MAPS)
     p.add_argument("--configs", nargs="+", default=["minpos", "conn:0.6:0.4", "conn:0.4:0.6"])
     p.add_argument("--seeds", type=int, default=6)
@@ -123,7 +124,7 @@ def main() -> None:
     p.add_argument("--max-ticks", type=int, default=3000)
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--check", action="store_true", help="first compare one stepped run with a real fleet run")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     if a.check:
         check(a.maps[0], a.loss)
     jobs = [(m, c, s) for m in a.maps for c in a.configs for s in range(a.seeds)]

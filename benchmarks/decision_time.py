@@ -1,6 +1,6 @@
 """Decision time of the allocators against fleet size n and number of frontier clusters m.
 
-    python benchmarks/decision_time.py [--quick] [--size 256] [--repeat 5] [--seed 0]
+    python -m benchmarks.decision_time [--quick] [--size 256] [--repeat 5] [--seed 0]
 
 On a size x size grid (mostly free, random wall segments) with m clusters of 2-6 frontier cells spread over
 it and n robots on random free cells, times ``allocate()`` (ms per call, median of ``--repeat`` calls after a
@@ -18,16 +18,17 @@ least-squares fit ``t ~ n^a m^b``, against the paper's O(m) nearest, O(n^2 m) gr
 
 from __future__ import annotations
 
-import argparse
+import functools
 import statistics
 import time
 from collections.abc import Callable
 
 import numpy as np
 
-from fleet_emu.agents.allocators import Problem, make_allocator
+from benchmarks._common import parser
+from fleet_emu.agents.allocators import Allocator, Problem, make_allocator
 from fleet_emu.agents.frontiers import Cluster
-from fleet_emu.core.grid import FREE, OCCUPIED
+from fleet_emu.core.grid import FREE, OCCUPIED, Cell
 
 ALLOCATORS: dict[str, dict] = {
     "nearest": {"type": "nearest"},
@@ -76,6 +77,11 @@ def median_ms(call: Callable[[], object], repeat: int) -> float:
     return statistics.median(times)
 
 
+def _fresh(alloc: Allocator, me: str, poses: dict[str, Cell], grid: np.ndarray, clusters: list[Cluster]) -> object:
+    """One decision on a new Problem (built inside the timed call)."""
+    return alloc.allocate(Problem(me, poses, grid, clusters))
+
+
 def measure(name: str, grid: np.ndarray, poses: dict, clusters: list[Cluster], cached: Problem,
             repeat: int) -> tuple[float, float]:
     """(fresh, cached) ms: the median of ``repeat`` calls for each deciding robot, averaged over them."""
@@ -85,7 +91,7 @@ def measure(name: str, grid: np.ndarray, poses: dict, clusters: list[Cluster], c
     mes = ["r0"] if name == "hungarian" else sorted({robots[0], robots[len(robots) // 2], robots[-1]})
     fresh, warm = [], []
     for me in mes:
-        fresh.append(median_ms(lambda me=me: alloc.allocate(Problem(me, poses, grid, clusters)), repeat))
+        fresh.append(median_ms(functools.partial(_fresh, alloc, me, poses, grid, clusters), repeat))
         cached.me = me
         warm.append(median_ms(lambda: alloc.allocate(cached), repeat))
     return statistics.fmean(fresh), statistics.fmean(warm)
@@ -100,13 +106,13 @@ def fit(rows: dict[tuple[int, int], float]) -> tuple[float, float]:
     return float(a), float(b)
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> None:
+    p = parser("benchmarks.decision_time", __doc__)
     p.add_argument("--quick", action="store_true", help="n in (2, 10), m in (5, 50), 3 calls each")
     p.add_argument("--size", type=int, default=256)
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--seed", type=int, default=0)
-    a = p.parse_args()
+    a = p.parse_args(argv)
     ns, ms = ((2, 10), (5, 50)) if a.quick else ((2, 5, 10, 20, 50), (5, 10, 20, 50, 100))
     repeat = 3 if a.quick else a.repeat
     rng = np.random.default_rng(a.seed)

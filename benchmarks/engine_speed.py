@@ -1,6 +1,6 @@
 """Time per run of the memory engine against the Zenoh engines on the same scenarios, as a ratio.
 
-    python3 benchmarks/engine_speed.py [--seeds 2] [--processes] [--quick]
+    python -m benchmarks.engine_speed [--seeds 2] [--processes] [--quick]
 
 Each scenario runs with every seed on the memory engine (``fleet_emu.Fleet``, in this process, after one
 warm-up run), on the in-process Zenoh engine (``fe.run(in_process=True)``: every node in this process, a
@@ -11,12 +11,11 @@ node). Every run's deterministic keys are checked equal across engines. Prints o
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
+from typing import Any
 
-#: A registry map (`fleet maps fetch hospital_section` once; without it, only the office scenarios run).
-HOSPITAL = "hospital_section"
+from benchmarks._common import HOSPITAL, parser
 
 SCENARIOS = [  # (label, overrides)
     ("office x3 minpos wall 0.1", {"robots": 3, "allocator": "minpos"}),
@@ -29,29 +28,30 @@ SCENARIOS = [  # (label, overrides)
 ]
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> None:
+    """The table; exit 1 when a run's deterministic keys differ between engines."""
     import fleet_emu as fe
     from fleet_emu.launch.result import deterministic
 
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = parser("benchmarks.engine_speed", __doc__, full=False)
     p.add_argument("--seeds", type=int, default=2)
     p.add_argument("--processes", action="store_true", help="also the default engine (one process per node)")
     p.add_argument("--quick", action="store_true", help="the two office scenarios only")
     p.add_argument("--max-ticks", type=int, help="cut every run at this tick (a smoke test)")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     from fleet_emu.world.registry import is_fetched
 
     scenarios = SCENARIOS[:2] if args.quick or not is_fetched(HOSPITAL) else SCENARIOS
     engines = ["memory", "in-process"] + (["processes"] if args.processes else [])
     fe.Fleet(fe.Scenario().override(robots=2, max_ticks=5)).run()  # compile or load the kernels once
-    rows = []
+    rows: list[tuple[str, dict[str, float]]] = []
     differ = 0
     for label, over in scenarios:
         times: dict[str, list[float]] = {e: [] for e in engines}
         for seed in range(args.seeds):
             s = fe.Scenario().override(seed=seed, **over)
             s = s.override(max_ticks=min(args.max_ticks, s.max_ticks)) if args.max_ticks else s
-            seen = None
+            seen: dict[str, Any] | None = None
             for engine in engines:
                 t0 = time.perf_counter()
                 res = fe.Fleet(s).run() if engine == "memory" else fe.run(s, in_process=engine == "in-process")
@@ -75,8 +75,8 @@ def main() -> int:
           + "".join(f"{total[e] / total['memory']:22.1f}" for e in engines[1:]))
     if differ:
         print(f"engine_speed: {differ} run(s) differ between engines (see above)", file=sys.stderr)
-    return 1 if differ else 0
+        raise SystemExit(1)
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    main()

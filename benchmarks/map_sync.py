@@ -1,7 +1,7 @@
 """Map consistency under loss: ticks to the target, how far the robots' beliefs disagree, and what the map
 recovery (``agents/mapsync.py``) spends on the radio, on the memory engine.
 
-    python benchmarks/map_sync.py [--map office] [--robots 3] [--allocator minpos] [--loss 0.3]
+    python -m benchmarks.map_sync [--map office] [--robots 3] [--allocator minpos] [--loss 0.3]
         [--comm full] [--seeds 8] [--start random|map|ROW,COL] [--json out.json]
 
 Per seed: one run of the memory engine (``fe.Fleet``), its ``ticks`` (to the target coverage, or the last
@@ -32,9 +32,10 @@ from pathlib import Path
 import numpy as np
 
 import fleet_emu.agents.protocol as proto
+from benchmarks._common import parser
 from fleet_emu.core.errors import FleetError
 from fleet_emu.core.grid import UNKNOWN
-from fleet_emu.core.messages import TxBundle, open_envelope
+from fleet_emu.core.messages import Envelope, TxBundle, open_envelope
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.checks import check
 from fleet_emu.launch.memory import Fleet
@@ -42,17 +43,18 @@ from fleet_emu.launch.memory import Fleet
 RECOVERY = ("mapfill", "resent_cells", "sync_fields")
 
 
-def sync_overhead(env: object) -> tuple[int, bool]:
+def sync_overhead(env: Envelope) -> tuple[int, bool]:
     """The bytes map sync adds to a beacon or a delta (its fields), and whether a beacon carries a request."""
-    kind = env.payload_kind  # type: ignore[attr-defined]
-    if kind not in ("pose", "map"):
+    if env.payload_kind not in ("pose", "map"):
         return 0, False
-    body = open_envelope(env).body  # type: ignore[arg-type]
-    if kind == "pose":
-        bare = proto.PoseBeacon(cell=body.cell, next=body.next)
-        return len(env.payload) - len(bare.encode()), getattr(body, "want", None) is not None  # type: ignore
-    bare = proto.MapDelta(cells=body.cells, values=body.values)
-    return len(env.payload) - len(bare.encode()), False  # type: ignore[attr-defined]
+    body = open_envelope(env).body
+    if isinstance(body, proto.PoseBeacon):
+        beacon = proto.PoseBeacon(cell=body.cell, next=body.next)
+        return len(env.payload) - len(beacon.encode()), getattr(body, "want", None) is not None
+    if isinstance(body, proto.MapDelta):
+        delta = proto.MapDelta(cells=body.cells, values=body.values)
+        return len(env.payload) - len(delta.encode()), False
+    return 0, False
 
 
 def gaps(grids: list[np.ndarray]) -> tuple[float, int]:
@@ -100,8 +102,8 @@ def run_seed(scenario: Scenario, seed: int) -> dict:
             "conflict": conflict, "count": dict(count), "bytes": dict(size)}
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> None:
+    p = parser("benchmarks.map_sync", __doc__)
     p.add_argument("--map", default="office")
     p.add_argument("--robots", type=int, default=3)
     p.add_argument("--allocator", default="minpos")
@@ -111,7 +113,7 @@ def main() -> None:
     p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--max-ticks", type=int, default=3000)
     p.add_argument("--json", type=Path, help="write the per-seed rows here")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     start = None if a.start == "map" else a.start
     if isinstance(start, str) and "," in start:
         with contextlib.suppress(ValueError):  # else the scenario's check says what is wrong

@@ -1,7 +1,7 @@
 """MHM in the whole fleet (issue 10, part 5): the base plans, its orders cross the lossy radio hop by hop, the
 robots obey. Memory engine (the same objects as the processes, one process, no Zenoh), disk radio.
 
-    python benchmarks/mhm_fleet.py [--map office] [--robots 10 20] [--loss 0 0.1 0.3] [--seeds 0]
+    python -m benchmarks.mhm_fleet [--map office] [--robots 10 20] [--loss 0 0.1 0.3] [--seeds 0]
                                    [--comm-range 5] [--sensor-range 2] [--max-ticks 1500] [--hinges 0]
 
 Prints one row per (robots, loss, seed): ticks, why the run ended, coverage, the base-connected fraction
@@ -13,29 +13,38 @@ wall seconds (noisy under load: a count, not a timing, is the result).
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import time
+from typing import Any
 
 import fleet_emu as fe
+from benchmarks._common import parser
+from fleet_emu.agents.allocators.mhm.planner import MhmPlanner
+from fleet_emu.agents.allocators.mhm.station import MhmStation
 from fleet_emu.launch.memory import Fleet
 
 
-def run(scenario: fe.Scenario) -> dict[str, object]:
+def _planner(fleet: Fleet) -> MhmPlanner | None:
+    """The base's MHM planner (None before the base made it)."""
+    station = fleet.base.planner if fleet.base is not None else None
+    return station.planner if isinstance(station, MhmStation) else None
+
+
+def run(scenario: fe.Scenario) -> dict[str, Any]:
     fleet = Fleet(scenario)
     fleet.reset()
     nodes = 0
     t0 = time.perf_counter()
     while not fleet.done:
         fleet.step()
-        planner = fleet.base.planner.planner if fleet.base is not None else None  # type: ignore[union-attr]
+        planner = _planner(fleet)
         if planner is not None:
             nodes = max(nodes, len(planner.node_of))
     res = fleet.result()
     series = fleet.monitor.base_reach.series
     frac = res["base_connected_fraction"]
     orders = res["relay"]["kinds"].get("mhm", {})
-    planner = fleet.base.planner.planner  # type: ignore[union-attr]
+    planner = _planner(fleet)
     return {"ticks": res["ticks"], "reason": res["reason"], "coverage": res["coverage"],
             "overall": frac["overall"], "worst": min(series, default=float("nan")), "all": frac["all_ticks"],
             "orders": orders.get("delivery_ratio", 0.0), "latency": orders.get("latency_ticks", {}).get("mean"),
@@ -44,7 +53,7 @@ def run(scenario: fe.Scenario) -> dict[str, object]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser("benchmarks.mhm_fleet", __doc__, full=False)
     ap.add_argument("--map", default="office")
     ap.add_argument("--robots", type=int, nargs="+", default=[10, 20])
     ap.add_argument("--loss", type=float, nargs="+", default=[0.0, 0.1, 0.3])

@@ -1,6 +1,6 @@
 """MHM's base-station planner on the paper's setting, without processes (Mukhija et al., section IV).
 
-    python benchmarks/mhm_planner.py [--map office] [--cell-size 0.05] [--size 512] [--robots 10 20]
+    python -m benchmarks.mhm_planner [--map office] [--cell-size 0.05] [--size 512] [--robots 10 20]
                                      [--r-comm 40] [--sensor 15] [--max-ticks 4000] [--seed 0] [--quick]
 
 Crops a built-in map (or a PNG/PGM/ROS YAML map, resampled) to ``--size`` x ``--size`` cells (one cell = one
@@ -15,13 +15,13 @@ run for 10-17 robots on 2009 hardware), and the planner's stall count.
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import sys
 import time
 
 import numpy as np
 
+from benchmarks._common import parser
 from fleet_emu.agents.allocators.mhm.planner import MhmConfig
 from fleet_emu.agents.allocators.mhm.sim import fraction_at, simulate, worst
 from fleet_emu.core.grid import FREE, OCCUPIED, Cell
@@ -45,7 +45,7 @@ def crop(grid: np.ndarray, start: Cell, size: int) -> tuple[np.ndarray, Cell]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser("benchmarks.mhm_planner", __doc__, full=False)
     ap.add_argument("--map", default="office")
     ap.add_argument("--cell-size", type=float, default=0.05)
     ap.add_argument("--size", type=int, default=512)

@@ -1,7 +1,7 @@
 """Ticks to full coverage per allocator and fleet size on hospital_section with a perfect radio, and MinPos's
 paired difference to utility (issue 13; Bautin et al. 2012, Fig. 5(a), is the figure this approaches).
 
-    python benchmarks/minpos_vs_utility.py [--robots 2 4] [--seeds 8] [--allocators nearest utility minpos]
+    python -m benchmarks.minpos_vs_utility [--robots 2 4] [--seeds 8] [--allocators nearest utility minpos]
         [--map hospital_section] [--jobs 2] [--in-process]
 
 Every run is ``fleet run --comm ideal --loss 0 --start random --target-coverage 1.0`` (a subprocess, as in
@@ -13,22 +13,14 @@ flagged ``*``; a failed run is left out (``E``), and its seed leaves the paired 
 
 from __future__ import annotations
 
-import argparse
 import math
 import statistics
 import sys
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from compare_allocators import HOSPITAL, describe, run_one
-
-
-def mean_sd(xs: list[float]) -> str:
-    if not xs:
-        return "-"
-    sd = statistics.stdev(xs) if len(xs) > 1 else 0.0
-    return f"{statistics.fmean(xs):.1f} ± {sd:.1f}"
+from benchmarks._common import HOSPITAL, mean_sd, parser
+from benchmarks.compare_allocators import describe, run_one
 
 
 def paired(a: dict[int, float], b: dict[int, float]) -> str:
@@ -42,8 +34,8 @@ def paired(a: dict[int, float], b: dict[int, float]) -> str:
     return f"{statistics.fmean(d):+.1f} ± {se:.1f} ({rel:+.1f} %)"
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> None:
+    p = parser("benchmarks.minpos_vs_utility", __doc__)
     p.add_argument("--allocators", nargs="+", default=["nearest", "utility", "minpos"])
     p.add_argument("--robots", type=int, nargs="+", default=[2, 4])
     p.add_argument("--seeds", type=int, default=8)
@@ -51,7 +43,7 @@ def main() -> None:
     p.add_argument("--max-ticks", type=int, default=2000)
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--in-process", action="store_true", help="all nodes of a run in one process")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     extra = ["--comm", "ideal", "--start", "random", "--target-coverage", "1.0", "--max-ticks", str(a.max_ticks)]
     extra += ["--in-process"] if a.in_process else []
     jobs = [(al, n, s) for n in a.robots for al in a.allocators for s in range(a.seeds)]
@@ -80,7 +72,7 @@ def main() -> None:
         for al in a.allocators:
             flags = (f" *{short[(n, al)]}" if short.get((n, al)) else "") + \
                     (f" E{errors[(n, al)]}" if errors.get((n, al)) else "")
-            cells.append(mean_sd(list(ticks.get((n, al), {}).values())) + flags)
+            cells.append(mean_sd(list(ticks.get((n, al), {}).values()), 1) + flags)
         if len(cols) > len(a.allocators):
             cells.append(paired(ticks.get((n, "minpos"), {}), ticks.get((n, "utility"), {})))
         print(f"| {n} | " + " | ".join(cells) + " |")

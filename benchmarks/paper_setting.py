@@ -1,9 +1,9 @@
 """Mukhija et al.'s setting for the base-station constraint (issue 10, part 6): their Fig. 7 and Table I.
 
-    python benchmarks/paper_setting.py [--maps grid PATH ...] [--robots 10 20] [--allocators mhm minpos connectivity]
+    python -m benchmarks.paper_setting [--maps grid PATH ...] [--robots 10 20] [--allocators mhm minpos connectivity]
         [--cells 512] [--r-comm 40] [--sensor 15] [--max-ticks 2000] [--at 250 500 1000 2000] [--cell-size 1]
         [--loss 0] [--seed 0] [--out fig7.png] [--json runs.json]
-    python benchmarks/paper_setting.py --from runs.json more.json [--max-ticks 3000 | --at ...] [--out fig7.png]
+    python -m benchmarks.paper_setting --from runs.json more.json [--max-ticks 3000 | --at ...] [--out fig7.png]
 
 The paper (section IV): 512 x 512-pixel bounded maps, one grid cell = one pixel, r_comm = 40 pixels, a sensor
 range of 15 pixels, 10 to 50 robots; Fig. 7 plots MHM's total visibility (grid cells seen) against ticks, a
@@ -61,15 +61,10 @@ from typing import Any
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from scale import REAL_MAP, OneLineParser, fail, fit_cell_size, machine
+from benchmarks._common import REAL_MAP, Cell, fail, fit_cell_size, machine, parser
 
+PROG = "paper_setting"
 AT = (250, 500, 1000, 1500, 2000, 3000, 4000)
-Cell = tuple[int, int]
-
-
-def _fail(message: str) -> None:
-    fail("paper_setting", message)
 
 
 # --- maps ------------------------------------------------------------------------------------------------
@@ -192,8 +187,8 @@ def line(map_name: str, allocator: str, robots: int, row: dict[str, Any], at: li
 
 
 def parse(argv: list[str] | None) -> Any:
-    p = OneLineParser(prog="paper_setting", description=__doc__.split("\n\n")[0])
-    p.add_argument("--maps", nargs="+", default=["grid", str(REAL_MAP)],
+    p = parser("benchmarks.paper_setting", __doc__, full=False)
+    p.add_argument("--maps", nargs="+", default=["grid", REAL_MAP],
                    help="built-in map names or map files (default: grid and the registry's cave)")
     p.add_argument("--robots", type=int, nargs="+", default=[10, 20])
     p.add_argument("--allocators", nargs="+", default=["mhm", "minpos", "connectivity"])
@@ -211,29 +206,29 @@ def parse(argv: list[str] | None) -> Any:
                    help="run nothing: the table and --out of these --json files' rows, joined")
     a = p.parse_args(argv)
     if min(a.robots) < 1:
-        _fail(f"--robots must be at least 1 (got {min(a.robots)})")
+        fail(PROG, f"--robots must be at least 1 (got {min(a.robots)})")
     if a.cells < 8:
-        _fail(f"--cells must be at least 8 (got {a.cells})")
+        fail(PROG, f"--cells must be at least 8 (got {a.cells})")
     for flag, v in (("--r-comm", a.r_comm), ("--sensor", a.sensor), ("--cell-size", a.cell_size)):
         if not (np.isfinite(v) and v > 0):
-            _fail(f"{flag} must be a positive number (got {v})")
+            fail(PROG, f"{flag} must be a positive number (got {v})")
     if a.max_ticks < 1:
-        _fail(f"--max-ticks must be at least 1 (got {a.max_ticks})")
+        fail(PROG, f"--max-ticks must be at least 1 (got {a.max_ticks})")
     if not 0.0 <= a.loss <= 1.0:
-        _fail(f"--loss must be in [0, 1] (got {a.loss})")
+        fail(PROG, f"--loss must be in [0, 1] (got {a.loss})")
     from fleet_emu.agents.allocators import allocator_names
 
     known = set(allocator_names()) | {"mhm"}
     for name in a.allocators:
         if name not in known:
-            _fail(f"unknown allocator {name!r} (one of {', '.join(sorted(known))})")
+            fail(PROG, f"unknown allocator {name!r} (one of {', '.join(sorted(known))})")
     a.at = sorted({t for t in (a.at or AT) if t <= a.max_ticks} | ({a.max_ticks} if a.at is None else set()))
     for path in (a.out, a.json):
         if path is not None and not path.parent.is_dir():
-            _fail(f"no such directory for {path}: {path.parent}")
+            fail(PROG, f"no such directory for {path}: {path.parent}")
     for path in a.from_json or ():
         if not path.is_file():
-            _fail(f"no such file: {path}")
+            fail(PROG, f"no such file: {path}")
     return a
 
 
@@ -257,7 +252,7 @@ def saved_rows(paths: list[Path], a: Any) -> list[dict[str, Any]]:
             rows += saved["rows"]
             setting = saved["setting"]
         except (OSError, ValueError, KeyError, TypeError) as exc:
-            _fail(f"{path} is not a --json file of this script: {exc}")
+            fail(PROG, f"{path} is not a --json file of this script: {exc}")
         if path == paths[0]:
             a.cells, a.r_comm, a.sensor = setting["cells"], setting["r_comm"], setting["sensor"]
     return rows
@@ -275,30 +270,35 @@ def draw(rows: list[dict[str, Any]], a: Any) -> None:
                       f"sensor {a.sensor:g}, base at the start")
 
 
+def replay(a: Any) -> None:
+    """``--from``: the table and ``--out`` of earlier ``--json`` files, sorted by map, allocator and fleet size."""
+    rows = saved_rows(a.from_json, a)
+    maps = {m: i for i, m in enumerate(dict.fromkeys(r["map"] for r in rows))}
+    allocators = {x: i for i, x in enumerate(dict.fromkeys(r["allocator"] for r in rows))}
+    rows.sort(key=lambda r: (maps[r["map"]], allocators[r["allocator"]], r["robots"]))
+    print(header(a.at))
+    for r in rows:
+        if "seen" in r:
+            print(line(r["map"], r["allocator"], r["robots"], r, a.at))
+    if a.out is not None:
+        draw(rows, a)
+
+
 def main(argv: list[str] | None = None) -> None:
     a = parse(argv)
     if a.from_json:
-        rows = saved_rows(a.from_json, a)
-        maps = {m: i for i, m in enumerate(dict.fromkeys(r["map"] for r in rows))}
-        allocators = {x: i for i, x in enumerate(dict.fromkeys(r["allocator"] for r in rows))}
-        rows.sort(key=lambda r: (maps[r["map"]], allocators[r["allocator"]], r["robots"]))
-        print(header(a.at))
-        for r in rows:
-            if "seen" in r:
-                print(line(r["map"], r["allocator"], r["robots"], r, a.at))
-        if a.out is not None:
-            draw(rows, a)
+        replay(a)
         return
     from fleet_emu.core.errors import MapError
     from fleet_emu.core.grid import FREE
     from fleet_emu.core.kernels import warm_up
 
-    maps = {}
+    maps: dict[str, tuple[np.ndarray, Cell, float]] = {}
     for name in a.maps:
         try:
             maps[name] = paper_map(name, a.cells, a.seed)
         except MapError as exc:
-            _fail(f"map {name}: {exc}")
+            fail(PROG, f"map {name}: {exc}")
     warm_up()
     print(f"# benchmarks/paper_setting.py (issue 10, part 6): {machine()}")
     print(f"# {a.cells} x {a.cells} cells, r_comm {a.r_comm:g} cells, sensor {a.sensor:g} cells, "

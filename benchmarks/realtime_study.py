@@ -1,6 +1,6 @@
 """Real time: does an allocator's computing time cost exploration time? (issue 11, part 5)
 
-    python benchmarks/realtime_study.py [--hz 10] [--robots 8 32 64] [--max-ticks 6000] [--maps maze PATH ...]
+    python -m benchmarks.realtime_study [--hz 10] [--robots 8 32 64] [--max-ticks 6000] [--maps maze PATH ...]
 
 For every map and robot count, two real-time runs (``fleet run --realtime HZ``: the world ticks HZ times a
 second on the wall clock, whether or not every robot has answered; a robot whose decision is not ready keeps
@@ -47,22 +47,16 @@ import os
 import statistics
 import sys
 import time
-from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from scale import REAL_MAP, OneLineParser, fail, fit_cell_size, machine, open_start
+from benchmarks._common import REAL_MAP, FittedMap, fail, fitted_maps, fitted_scenario, machine, parser
 
+PROG = "realtime_study"
 ALLOCATORS = {"greedy": {"type": "greedy"}, "minpos-par": {"type": "minpos", "wavefront": "parallel"}}
 
 
-def _fail(message: str) -> NoReturn:
-    fail("realtime_study", message)
-
-
 def parse(argv: list[str] | None) -> argparse.Namespace:
-    p = OneLineParser(prog="realtime_study.py", description=__doc__,
-                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = parser("benchmarks.realtime_study", __doc__)
     p.add_argument("--hz", type=float, default=10.0, help="world ticks per second")
     p.add_argument("--robots", type=int, nargs="+", default=[8, 32, 64], help="fleet sizes")
     p.add_argument("--allocators", nargs="+", default=list(ALLOCATORS), choices=list(ALLOCATORS))
@@ -77,24 +71,16 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--lockstep", action="store_true", help="the lockstep reference on the memory engine instead")
     a = p.parse_args(argv)
     if not 0 < a.hz <= 1000:
-        _fail(f"--hz must be > 0 and <= 1000 (got {a.hz})")
+        fail(PROG, f"--hz must be > 0 and <= 1000 (got {a.hz})")
     if min(a.robots) < 1 or a.max_ticks < 1 or a.stall_seconds <= 0 or a.cells < 8:
-        _fail("--robots and --max-ticks must be at least 1, --stall-seconds positive, --cells at least 8")
+        fail(PROG, "--robots and --max-ticks must be at least 1, --stall-seconds positive, --cells at least 8")
     return a
 
 
-def scenario_for(name: str, cs: float, robots: int, start: tuple[int, int], allocator: dict[str, Any],
-                 a: argparse.Namespace) -> Any:
-    import dataclasses
-
-    from fleet_emu.core.scenario import Scenario
-    from fleet_emu.launch.cli import DEFAULT_SCENARIO
-
-    sc = Scenario.load(DEFAULT_SCENARIO).override(
-        map=name, cell_size=cs, robots=robots, start=start, seed=a.seed, max_ticks=a.max_ticks,
-        target_coverage=0.99, sensor_range=a.sensor_cells * cs, comm_range=a.comm_cells * cs,
-        stall_ticks=max(1, round(a.stall_seconds * a.hz)))
-    return dataclasses.replace(sc, allocator=dict(allocator)).validate()
+def scenario_for(m: FittedMap, robots: int, allocator: dict[str, Any], a: argparse.Namespace) -> Any:
+    """``benchmarks.scale``'s scenario with ``allocator``, to 99 %, the stall window in seconds at ``a.hz``."""
+    return fitted_scenario(m, robots, a.seed, a.sensor_cells, a.comm_cells, allocator, max_ticks=a.max_ticks,
+                           target_coverage=0.99, stall_ticks=max(1, round(a.stall_seconds * a.hz)))
 
 
 def run_one(scenario: Any, hz: float) -> dict[str, Any]:
@@ -163,15 +149,7 @@ def main(argv: list[str] | None = None) -> None:
     from fleet_emu.core.errors import FleetError
     from fleet_emu.world.sim import StartAreaError
 
-    maps = []
-    for name in a.maps:
-        try:
-            cs, shape = fit_cell_size(name, a.cells, a.seed)
-            start = open_start(name, cs, a.seed)
-        except FleetError as exc:
-            _fail(f"map {name}: {exc}")
-        maps.append((name, Path(name).stem, cs, shape, start))
-        print(f"map {name}: {shape[0]} x {shape[1]} cells at {cs:.5g} m, start {start}", file=sys.stderr, flush=True)
+    maps = fitted_maps(PROG, a.maps, a.cells, a.seed)
     print(f"# benchmarks/realtime_study.py (issue 11, part 5): {machine()}")
     mode = "lockstep, memory engine" if a.lockstep else f"real time at {a.hz:g} Hz, processes engine"
     print(f"# {mode}, wall radio, loss 0.1, target 0.99, cap {a.max_ticks} ticks, "
@@ -180,14 +158,14 @@ def main(argv: list[str] | None = None) -> None:
           "# decision ms: the brain's whole step in the robot's worker thread (wall clock)")
     print(" ".join(f"{name:>{w}}" for name, w, _ in COLUMNS), flush=True)
     failed = 0
-    for name, label, cs, shape, start in maps:
+    for m in maps:
+        label = m.label
         for n in a.robots:
             for alloc in a.allocators:
-                row: dict[str, Any] = {"map": label[:8], "cells": f"{shape[0]}x{shape[1]}", "robots": n,
-                                       "allocator": alloc}
+                row: dict[str, Any] = {"map": label[:8], "cells": m.cells, "robots": n, "allocator": alloc}
                 t = time.monotonic()
                 try:
-                    sc = scenario_for(name, cs, n, start, ALLOCATORS[alloc], a)
+                    sc = scenario_for(m, n, ALLOCATORS[alloc], a)
                     row |= run_lockstep(sc) if a.lockstep else run_one(sc, a.hz)
                     row["load1"] = os.getloadavg()[0]
                     failed += bool(row["failed"])

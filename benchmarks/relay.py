@@ -1,6 +1,6 @@
 """Multi-hop relaying (issue 10, part 2): what each policy and hop limit delivers, and at what radio cost.
 
-    python benchmarks/relay.py [--map office] [--robots 4] [--seeds 3] [--comm disk] [--comm-range 8]
+    python -m benchmarks.relay [--map office] [--robots 4] [--seeds 3] [--comm disk] [--comm-range 8]
         [--loss 0.1] [--max-ticks 300] [--allocator minpos] [--ttls 0 2 4]
 
 Runs on the memory engine (``fleet_emu.Fleet``: the same objects and result as ``fleet run``). Rows: no
@@ -13,20 +13,13 @@ Counts, not timings: the numbers do not depend on the machine's load.
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import sys
 
+from benchmarks._common import mean_sd, parser
 from fleet_emu.core.errors import FleetError
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
-
-
-def _ms(values: list[float], digits: int = 3) -> str:
-    if any(v is None for v in values):
-        return "-"
-    sd = statistics.stdev(values) if len(values) > 1 else 0.0
-    return f"{statistics.mean(values):.{digits}f} ± {sd:.{digits}f}"
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -39,7 +32,7 @@ def main(argv: list[str] | None = None) -> None:
 
 def table(argv: list[str] | None) -> None:
     """Parse the arguments and print the table."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = parser("benchmarks.relay", __doc__, full=False)
     p.add_argument("--map", default="office")
     p.add_argument("--robots", type=int, default=4)
     p.add_argument("--seeds", type=int, default=3)
@@ -62,15 +55,17 @@ def table(argv: list[str] | None) -> None:
                                     comm_range=a.comm_range, loss=a.loss, seed=seed, max_ticks=a.max_ticks,
                                     relay=policy, relay_ttl=ttl)
             runs.append(Fleet(s).run().data)
-        pose = [r["relay"]["kinds"].get("pose") if "relay" in r else None for r in runs]
-        if all(k is not None for k in pose):
-            ratio = _ms([k["delivery_ratio"] for k in pose])
-            tpd = _ms([k["tx_per_delivered"] for k in pose], 2)
-            multi = _ms([sum(v for h, v in k["hops"].items() if int(h) > 1) / max(1, k["delivered"]) for k in pose])
+        pose = [r["relay"]["kinds"]["pose"] for r in runs if "pose" in r.get("relay", {}).get("kinds", {})]
+        if pose and len(pose) == len(runs):
+            ratio = mean_sd([k["delivery_ratio"] for k in pose])
+            tpd = mean_sd([k["tx_per_delivered"] for k in pose], 2)
+            multi = mean_sd([sum(v for h, v in k["hops"].items() if int(h) > 1) / max(1, k["delivered"])
+                             for k in pose])
         else:
             ratio = tpd = multi = "-"
-        print(f"| {policy} | {ttl} | {ratio} | {tpd} | {multi} | {_ms([r['radio']['sent'] for r in runs], 0)} | "
-              f"{_ms([r['coverage'] for r in runs])} | {statistics.mean(r['ticks'] for r in runs):.0f} |", flush=True)
+        sent = mean_sd([r["radio"]["sent"] for r in runs], 0)
+        print(f"| {policy} | {ttl} | {ratio} | {tpd} | {multi} | {sent} | {mean_sd([r['coverage'] for r in runs])} | "
+              f"{statistics.mean(r['ticks'] for r in runs):.0f} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -1,16 +1,16 @@
 """How the multi-process fleet scales with robots on a 512 x 512-cell map (issue 11, part 1: the "before" table).
 
-    python benchmarks/scale.py [--robots 16 32 64 100] [--ticks 30] [--cells 512] [--maps maze PATH ...]
+    python -m benchmarks.scale [--robots 16 32 64 100] [--ticks 30] [--cells 512] [--maps maze PATH ...]
 
 For every map and robot count, one run of the default engine (one OS process per node over Zenoh, lockstep),
 allocator ``minpos`` with parallel wavefronts, the default radio (wall model, 10 % loss), no recording, for a
 fixed number of ticks (``max_ticks``, target coverage 1.0 so that no run ends early). Each map is fitted to
 about ``--cells`` cells across through its cell size: a built-in generator (``maze`` by default) and a real map
-(the registry's Stage ``cave``: ``fleet maps fetch cave``) resampled. The sensor and comm ranges are fixed
-in cells (``--sensor-cells``, ``--comm-cells``: 8 and 20, the default scenario's 4 m and 10 m at 0.5 m cells)
-so that only the map grows. The fleet starts, for every robot count, around the same cell of each map: the most
-open one (most free cells within the world's start radius) of the map's main free component, nearest the map's
-own start. Each run is a child process of its own (``--one``), so that the launcher's memory is that run's alone.
+(the registry's ``cave``: ``fleet maps fetch cave``) resampled. The sensor and comm ranges are fixed in cells
+(``--sensor-cells``, ``--comm-cells``: 8 and 20, the default scenario's 4 m and 10 m at 0.5 m cells) so that only the map grows.
+The fleet starts, for every robot count, around the same cell of each map: the most open one (most free cells
+within the world's start radius) of the map's main free component, nearest the map's own start. Each run is a
+child process of its own (``--one``), so that the launcher's memory is that run's alone.
 
 One table row per map and robot count (stdout):
 
@@ -54,38 +54,31 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 import os
-import platform
 import subprocess
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
-REAL_MAP = "cave"  # a registry map: `fleet maps fetch cave` once
+from benchmarks._common import (
+    REAL_MAP,
+    ROOT,
+    FittedMap,
+    fail,
+    fitted_maps,
+    fitted_scenario,
+    machine,
+    parser,
+    smaps_rollup,
+)
+
 CLK_TCK = os.sysconf("SC_CLK_TCK")
+PROG = "scale"
 
-
-class OneLineParser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line, ``PROG: error: ...``, and exit 2 (the benchmarks')."""
-
-    def error(self, message: str) -> NoReturn:
-        fail(Path(self.prog).stem, message)
-
-
-def fail(prog: str, message: str) -> NoReturn:
-    print(f"{prog}: error: {message}", file=sys.stderr)
-    raise SystemExit(2)
-
-
-def _fail(message: str) -> NoReturn:
-    fail("scale", message)
-
-
-# --- /proc -----------------------------------------------------------------------------------------------
 
 def cpu_seconds(pid: int) -> float | None:
     """utime + stime of a process (every thread, live or ended), None when it is gone."""
@@ -95,76 +88,6 @@ def cpu_seconds(pid: int) -> float | None:
         return None
     fields = stat.rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / CLK_TCK  # fields 14 and 15 of proc(5), after pid and comm
-
-
-def pss_kb(pid: int) -> int | None:
-    """Proportional set size of a process (kB), None when it is gone."""
-    try:
-        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
-            if line.startswith("Pss:"):
-                return int(line.split()[1])
-    except OSError:
-        return None
-    return None
-
-
-def machine() -> str:
-    """Cores, memory, CPU model and load: the header line of the table."""
-    model = next((ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()
-                  if ln.startswith("model name")), platform.machine())
-    mem_kb = next(int(ln.split()[1]) for ln in Path("/proc/meminfo").read_text().splitlines()
-                  if ln.startswith("MemTotal:"))
-    load = " ".join(f"{v:.2f}" for v in os.getloadavg())
-    return (f"{os.cpu_count()} cores ({model}), {mem_kb / 2**20:.1f} GiB memory, load average {load} at start, "
-            f"Python {platform.python_version()}, {platform.system()} {platform.release()}")
-
-
-# --- maps ------------------------------------------------------------------------------------------------
-
-def fit_cell_size(name: str, cells: int, seed: int) -> tuple[float, tuple[int, int]]:
-    """The cell size that makes ``name`` (a built-in map or a file) about ``cells`` cells across (its larger
-    side), and the map's shape there: a few rescaling steps, then a scan of +-5 % around the best."""
-    from fleet_emu.world.maps import load_map
-
-    def shape(cs: float) -> tuple[int, int]:
-        g = load_map(name, cs, seed).grid
-        return int(g.shape[0]), int(g.shape[1])
-
-    tried: dict[float, tuple[int, int]] = {}
-    cs = 0.5
-    for _ in range(4):
-        tried[cs] = shape(cs)
-        cs = cs * max(tried[cs]) / cells
-    best = min(tried, key=lambda c: abs(max(tried[c]) - cells))
-    for k in range(-5, 6):
-        c = round(best * (1 + k / 100), 6)
-        if c not in tried:
-            tried[c] = shape(c)
-    best = min(tried, key=lambda c: (abs(max(tried[c]) - cells), abs(c - best)))
-    return best, tried[best]
-
-
-def open_start(name: str, cs: float, seed: int) -> tuple[int, int]:
-    """The start cell of every run on this map: in the main free component (the map's own start's), the cell
-    with the most free cells within the world's start radius (Manhattan), the nearest the map's start first."""
-    import numpy as np
-    from scipy import ndimage
-
-    from fleet_emu.core.grid import FREE
-    from fleet_emu.world.maps import load_map
-    from fleet_emu.world.sim import WorldConfig
-
-    md = load_map(name, cs, seed)
-    free = md.grid == FREE
-    labels, _ = ndimage.label(free)
-    main = labels == labels[md.start]
-    r = WorldConfig().start_radius
-    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
-    diamond = (np.abs(yy) + np.abs(xx) <= r).astype(np.int32)
-    room = np.where(main, ndimage.correlate(free.astype(np.int32), diamond, mode="constant"), -1)
-    rows, cols = np.nonzero(room == room.max())
-    k = int(np.argmin((rows - md.start[0]) ** 2 + (cols - md.start[1]) ** 2))
-    return int(rows[k]), int(cols[k])
 
 
 # --- one run ---------------------------------------------------------------------------------------------
@@ -201,28 +124,27 @@ class Sampler:
                 self.last = (tick, time.monotonic(), cpu)
                 self.first = self.first or self.last
         if not self.pss and (tick >= self.ticks - 2 or monitor.stop is not None):
-            self.pss = {k: v for k, p in self.pids.items() if (v := pss_kb(p)) is not None}
+            self.pss = {k: v for k, p in self.pids.items() if (v := (smaps_rollup(p) or {}).get("Pss")) is not None}
 
 
-def scenario_for(name: str, cs: float, robots: int, start: tuple[int, int], a: argparse.Namespace) -> Any:
-    """The default scenario on this map, cell size and fleet, minpos with parallel wavefronts."""
-    from fleet_emu.core.scenario import Scenario
-    from fleet_emu.launch.cli import DEFAULT_SCENARIO
-
-    base = Scenario.load(DEFAULT_SCENARIO)
-    sc = base.override(map=name, cell_size=cs, robots=robots, start=start, seed=a.seed, max_ticks=a.ticks,
-                       target_coverage=1.0, sensor_range=a.sensor_cells * cs, comm_range=a.comm_cells * cs)
-    return dataclasses.replace(sc, allocator={"type": "minpos", "wavefront": "parallel"}).validate()
+def scenario_for(m: FittedMap, robots: int, a: argparse.Namespace) -> Any:
+    """The default scenario on this map and fleet for ``a.ticks`` ticks, minpos with parallel wavefronts."""
+    return fitted_scenario(m, robots, a.seed, a.sensor_cells, a.comm_cells, {"type": "minpos", "wavefront": "parallel"},
+                           max_ticks=a.ticks, target_coverage=1.0)
 
 
-def run_one(name: str, cs: float, robots: int, start: tuple[int, int], a: argparse.Namespace) -> dict[str, Any]:
+def _stage_ms(stage: str, report: Any) -> float:
+    return float(report.stage_cpu_ms.get(stage, 0.0))
+
+
+def run_one(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, Any]:
     """One fleet run, in this process; the row's numbers (raises FleetError when the run failed)."""
     from fleet_emu.agents.brain import STAGES
     from fleet_emu.launch.runner import RunOptions, run_fleet
 
     sampler = Sampler(a.ticks)
     t0 = time.time_ns()
-    result = run_fleet(scenario_for(name, cs, robots, start, a),
+    result = run_fleet(scenario_for(m, robots, a),
                        RunOptions(record=False, on_progress=sampler.progress, on_spawn=sampler.spawned))
     mon = sampler.monitor
     first, last = sampler.first, sampler.last
@@ -247,7 +169,7 @@ def run_one(name: str, cs: float, robots: int, start: tuple[int, int], a: argpar
     step = later(lambda r: r.step_cpu_ms, "step")
     agent_ms = later(lambda r: r.process_cpu_ms, "process")
     loop_ms = later(lambda r: r.loop_cpu_ms, "loop")
-    stages = {k: later(lambda r, k=k: r.stage_cpu_ms.get(k, 0.0), k) for k in STAGES if k != "decision"}
+    stages = {k: later(functools.partial(_stage_ms, k), k) for k in STAGES if k != "decision"}
     agent_pss = [sampler.pss[k] / 1024 for k in sampler.pss if k.startswith("r")] or [0.0]
     row = {
         "start": ((mon.first_state_ns or t0) - t0) / 1e9,
@@ -319,12 +241,12 @@ def line(row: dict[str, Any]) -> str:
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
-    p = OneLineParser(prog="scale.py", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = parser("benchmarks.scale", __doc__)
     p.add_argument("--robots", type=int, nargs="+", default=[16, 32, 64, 100], help="fleet sizes")
     p.add_argument("--ticks", type=int, default=30, help="ticks per run (the scenario's max_ticks)")
     p.add_argument("--cells", type=int, default=512, help="cells across the maps (their larger side)")
     p.add_argument("--maps", nargs="+", default=["maze", REAL_MAP],
-                   help="built-in map names or map files (default: maze and the registry's cave)")
+                   help=f"built-in map names or map files (default: maze and {REAL_MAP})")
     p.add_argument("--sensor-cells", type=float, default=8.0, help="sensor range in cells")
     p.add_argument("--comm-cells", type=float, default=20.0, help="comm range c in cells")
     p.add_argument("--seed", type=int, default=0)
@@ -332,13 +254,13 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
                    help=argparse.SUPPRESS)  # one run in this process: its row as one JSON line on stdout
     a = p.parse_args(argv)
     if min(a.robots) < 1:
-        _fail(f"--robots must be at least 1 (got {min(a.robots)})")
+        fail(PROG, f"--robots must be at least 1 (got {min(a.robots)})")
     if a.ticks < 4:
-        _fail(f"--ticks must be at least 4 (got {a.ticks})")
+        fail(PROG, f"--ticks must be at least 4 (got {a.ticks})")
     if a.cells < 8:
-        _fail(f"--cells must be at least 8 (got {a.cells})")
+        fail(PROG, f"--cells must be at least 8 (got {a.cells})")
     if a.sensor_cells < 1 or a.comm_cells <= 0:
-        _fail("--sensor-cells must be at least 1 and --comm-cells positive")
+        fail(PROG, "--sensor-cells must be at least 1 and --comm-cells positive")
     return a
 
 
@@ -350,8 +272,9 @@ def child(a: argparse.Namespace) -> None:
     from fleet_emu.world.sim import StartAreaError
 
     name, cs, robots, row, col = a.one
+    m = FittedMap(name, Path(name).stem, float(cs), (0, 0), (int(row), int(col)))  # the shape is the parent's
     try:
-        out = run_one(name, float(cs), int(robots), (int(row), int(col)), a)
+        out: dict[str, Any] = run_one(m, int(robots), a)
     except StartAreaError as exc:
         out = {"start_area": str(exc)}
     except BudgetError as exc:
@@ -361,12 +284,12 @@ def child(a: argparse.Namespace) -> None:
     print(json.dumps(out), flush=True)
 
 
-def spawn_one(name: str, cs: float, robots: int, start: tuple[int, int], a: argparse.Namespace) -> dict[str, Any]:
+def spawn_one(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, Any]:
     """One run in a child process (``--one``): its JSON line, or an ``error``."""
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--one", name, repr(cs), str(robots), *map(str, start),
-           "--ticks", str(a.ticks), "--sensor-cells", str(a.sensor_cells), "--comm-cells", str(a.comm_cells),
-           "--seed", str(a.seed)]
-    proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    cmd = [sys.executable, "-m", "benchmarks.scale", "--one", m.name, repr(m.cell_size), str(robots),
+           *map(str, m.start), "--ticks", str(a.ticks), "--sensor-cells", str(a.sensor_cells),
+           "--comm-cells", str(a.comm_cells), "--seed", str(a.seed)]
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
     lines = proc.stdout.strip().splitlines()
     try:
         return dict(json.loads(lines[-1]))
@@ -380,36 +303,27 @@ def main(argv: list[str] | None = None) -> None:
     if a.one:
         child(a)
         return
-    from fleet_emu.core.errors import FleetError
     from fleet_emu.core.scenario import MAX_ROBOTS
 
-    maps = []
-    for name in a.maps:
-        try:
-            cs, shape = fit_cell_size(name, a.cells, a.seed)
-            start = open_start(name, cs, a.seed)
-        except FleetError as exc:
-            _fail(f"map {name}: {exc}")
-        maps.append((name, Path(name).stem, cs, shape, start))
-        print(f"map {name}: {shape[0]} x {shape[1]} cells at {cs:.5g} m, start {start}", file=sys.stderr,
-              flush=True)
+    maps = fitted_maps(PROG, a.maps, a.cells, a.seed)
     print(f"# benchmarks/scale.py (issue 11): {machine()}")
     print(f"# minpos (parallel wavefronts), processes engine, wall radio, loss 0.1, {a.ticks} ticks, sensor "
           f"{a.sensor_cells:g} cells, comm {a.comm_cells:g} cells, seed {a.seed}, robot cap {MAX_ROBOTS}")
     print(header(), flush=True)
     total, failed, done = len(maps) * len(a.robots), 0, 0
     measured: list[dict[str, Any]] = []
-    for name, label, cs, shape, start in maps:
+    for m in maps:
+        label = m.label
         for n in a.robots:
             done += 1
-            row: dict[str, Any] = {"map": label[:10], "cells": f"{shape[0]}x{shape[1]}", "robots": n}
+            row: dict[str, Any] = {"map": label[:10], "cells": m.cells, "robots": n}
             if n > MAX_ROBOTS:
                 row["note"] = f"cap: more than {MAX_ROBOTS} robots is refused (core/scenario.py)"
                 print(f"[{done}/{total}] {label} {n} robots: over the cap of {MAX_ROBOTS}, not run",
                       file=sys.stderr, flush=True)
             else:
                 t = time.monotonic()
-                got = spawn_one(name, cs, n, start, a)
+                got = spawn_one(m, n, a)
                 if "start_area" in got or "memory" in got:
                     why = "start" if "start_area" in got else "memory"
                     row["note"] = ("start: the map's free area holds fewer robots" if why == "start" else

@@ -1,6 +1,6 @@
 """Lockstep speed and agent memory, multi-process, on the office map.
 
-    python benchmarks/ticks_per_second.py [--robots 4 16] [--ticks 300] [--repeat 1]
+    python -m benchmarks.ticks_per_second [--robots 4 16] [--ticks 300] [--repeat 1]
 
 Prints a table: robots, ticks run, wall seconds, ticks per second, and the peak RSS of the agent processes
 (max and mean over agents, from getrusage in each agent). Timings are of the whole system (world, netem and N
@@ -10,39 +10,27 @@ per finished run goes to stderr; a run that failed is a ``failed`` row, and the 
 
 from __future__ import annotations
 
-import argparse
-import json
-import subprocess
 import sys
-import tempfile
-from pathlib import Path
+from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def run_once(robots: int, ticks: int, allocator: str, extra: list[str]) -> tuple[dict | None, str]:
-    """One run: its result.json, or None and the reason when it did not end normally (exit code other than 0
-    or 3: bad input, or a process of the fleet, a robot too, failed)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "run"
-        cmd = [sys.executable, "-m", "fleet_emu.launch", "run", "--map", "office", "--robots", str(robots),
-               "--max-ticks", str(ticks), "--target-coverage", "1.0", "--allocator", allocator,
-               "--quiet", "--no-record", "--out", str(out), *extra]
-        proc = subprocess.run(cmd, cwd=ROOT, check=False, capture_output=True, text=True)
-        if proc.returncode not in (0, 3) or not (out / "result.json").exists():
-            lines = proc.stderr.strip().splitlines()
-            return None, f"exit {proc.returncode}: {lines[-1][:300] if lines else 'no output'}"
-        return json.loads((out / "result.json").read_text()), "ok"
+from benchmarks._common import fleet_run, parser
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def run_once(robots: int, ticks: int, allocator: str, extra: list[str]) -> tuple[dict[str, Any] | None, str]:
+    """One run: its result.json, or None and the reason when it did not end normally (``_common.fleet_run``)."""
+    res = fleet_run(["--map", "office", "--robots", str(robots), "--max-ticks", str(ticks), "--target-coverage",
+                     "1.0", "--allocator", allocator, *extra])
+    return (None, f"exit {res['code']}: {res['error']}") if "error" in res else (res, "ok")
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = parser("benchmarks.ticks_per_second", __doc__)
     p.add_argument("--robots", type=int, nargs="+", default=[4, 16])
     p.add_argument("--ticks", type=int, default=300)
     p.add_argument("--allocator", default="minpos")
     p.add_argument("--repeat", type=int, default=1)
     p.add_argument("--in-process", action="store_true")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     extra = ["--in-process"] if a.in_process else []
     print(f"{'robots':>6} {'ticks':>6} {'wall s':>8} {'ticks/s':>8} {'coverage':>9} "
           f"{'agent RSS max MB':>17} {'mean MB':>8} {'decision ms':>12}")

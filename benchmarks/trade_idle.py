@@ -1,6 +1,6 @@
 """Trade against Hungarian: ticks, total path and idle robot-ticks per map and loss (the real fleet).
 
-    python benchmarks/trade_idle.py [--allocators hungarian trade trade:explore_in_round=false] [--robots 4]
+    python -m benchmarks.trade_idle [--allocators hungarian trade trade:explore_in_round=false] [--robots 4]
         [--seeds 5] [--maps office hospital_section autolab]
         [--loss 0 0.1 0.3 0.5] [--comm wall] [--start random] [--jobs 2]
 
@@ -19,21 +19,21 @@ is 1 when a run failed (exit other than 0 or 3; left out of the table, counted a
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import sys
 import tempfile
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
+from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from compare_allocators import run_one as fleet_run
+from benchmarks._common import HOSPITAL, parser
+from benchmarks.compare_allocators import run_one as fleet_run
 
-MAPS = ["office", "hospital_section", "autolab"]  # the latter two from the registry (`fleet maps fetch NAME`)
+MAPS = ["office", HOSPITAL, "autolab"]  # the latter two from the registry (`fleet maps fetch NAME`)
 
 
 def run_one(spec: str, robots: int, seed: int, map_name: str, loss: float,
-            extra: list[str]) -> dict:
+            extra: list[str]) -> dict[str, Any]:
     """One ``fleet run`` (``compare_allocators.run_one``) with the spec's parameters in a scenario file."""
     allocator, params = _spec(spec)
     with tempfile.TemporaryDirectory() as tmp:
@@ -45,11 +45,11 @@ def run_one(spec: str, robots: int, seed: int, map_name: str, loss: float,
         return fleet_run(allocator, robots, seed, map_name, loss, extra)
 
 
-def ticks(result: dict) -> int:
-    return result["t99"] if result["t99"] is not None else result["ticks"]
+def ticks(result: dict[str, Any]) -> int:
+    return int(result["t99"] if result["t99"] is not None else result["ticks"])
 
 
-def describe(result: dict) -> str:
+def describe(result: dict[str, Any]) -> str:
     if "error" in result:
         return f"FAILED (exit {result['code']}): {result['error']}"
     return (f"t99 {result['t99']}, ticks {result['ticks']}, path {sum(result['path_length'])}, "
@@ -72,8 +72,8 @@ def _ms(values: list[float]) -> str:
     return f"{statistics.mean(values):.0f}±{statistics.pstdev(values):.0f}" if values else "-"
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> None:
+    p = parser("benchmarks.trade_idle", __doc__)
     p.add_argument("--allocators", nargs="+", default=["hungarian", "trade", "trade:explore_in_round=false"])
     p.add_argument("--robots", type=int, default=4)
     p.add_argument("--seeds", type=int, default=5)
@@ -82,7 +82,7 @@ def main() -> None:
     p.add_argument("--comm", default="wall")
     p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--jobs", type=int, default=2)
-    a = p.parse_args()
+    a = p.parse_args(argv)
     extra = ["--comm", a.comm] + (["--start", a.start] if a.start != "map" else [])
     for al in a.allocators:
         try:
@@ -90,7 +90,7 @@ def main() -> None:
         except ValueError as exc:
             p.error(str(exc))
     jobs = [(m, loss, al, s) for m in a.maps for loss in a.loss for al in a.allocators for s in range(a.seeds)]
-    results: dict[tuple[str, float, str, int], dict] = {}
+    results: dict[tuple[str, float, str, int], dict[str, Any]] = {}
     with ThreadPoolExecutor(a.jobs) as pool:
         futures = {pool.submit(run_one, al, a.robots, s, m, loss, extra): (m, loss, al, s)
                    for m, loss, al, s in jobs}

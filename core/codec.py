@@ -14,7 +14,7 @@ import functools
 import types
 import typing
 from collections.abc import Callable
-from typing import Any, ClassVar, TypeVar
+from typing import Any, ClassVar, TypeVar, cast
 
 import msgpack
 import numpy as np
@@ -36,6 +36,7 @@ class Record:
 
     KIND: ClassVar[str] = ""
     REGISTRY: ClassVar[dict[str, type[Record]]] = {}
+    __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]  # every record class is a dataclass
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -55,7 +56,8 @@ class Record:
 
     def fields_obj(self) -> dict[str, Any]:
         """The msgpack-ready map of this record's fields (nested records become maps)."""
-        return {name: _to_obj(getattr(self, name)) for name in _names(type(self))}
+        names = _names(type(self))  # type: ignore[arg-type]  # mypy#11470: to it a type[X] variable is unhashable
+        return {name: _to_obj(getattr(self, name)) for name in names}
 
     def to_obj(self) -> dict[str, Any]:
         """:meth:`fields_obj` with the record's ``kind``."""
@@ -109,7 +111,7 @@ class Context:
 @functools.cache
 def _names(cls: type[Record]) -> tuple[str, ...]:
     """A record class's field names, in order."""
-    return tuple(f.name for f in dataclasses.fields(cls))  # type: ignore[arg-type]
+    return tuple(f.name for f in dataclasses.fields(cls))
 
 
 def _to_obj(value: Any) -> Any:
@@ -291,9 +293,12 @@ FastDecoder = Callable[[dict, "Context | None"], "Record | None"]
 _FAST: dict[type, FastDecoder] = {}
 
 
-def fast_decoder(cls: type[Record]) -> Callable[[FastDecoder], FastDecoder]:
+F = TypeVar("F", bound=FastDecoder)
+
+
+def fast_decoder(cls: type[Record]) -> Callable[[F], F]:
     """Register the decorated function as ``cls``'s fast decoder (see :data:`_FAST`)."""
-    def register(fn: FastDecoder) -> FastDecoder:
+    def register(fn: F) -> F:
         _FAST[cls] = fn
         return fn
     return register
@@ -326,7 +331,7 @@ def packed_array(value: Any) -> np.ndarray | None:
         return None
 
 
-def _decode_obj(obj: Any, ctx: Context | None, expected: type[Message] | None = None) -> Message:
+def _decode_obj(obj: Any, ctx: Context | None, expected: type[Message] | None = None) -> Record:
     if not isinstance(obj, dict):
         raise DecodeError("message is not a map")
     kind = obj.get("kind")
@@ -337,13 +342,13 @@ def _decode_obj(obj: Any, ctx: Context | None, expected: type[Message] | None = 
     if fast is not None and (expected is None or issubclass(cls, expected)):
         record = fast(obj, ctx)
         if record is not None:
-            return record  # type: ignore[return-value]
+            return record
     if expected is not None and not issubclass(cls, expected):
         raise DecodeError(f"expected {expected.KIND or expected.__name__}, got {kind!r}")
     version = obj.get("v", 1)
     if not isinstance(version, int) or isinstance(version, bool) or version > SCHEMA_VERSION:
         raise DecodeError(f"{kind}: schema version {version!r} is newer than this fleet_emu's {SCHEMA_VERSION}")
-    return _build(cls, {k: v for k, v in obj.items() if k not in ("kind", "v")}, ctx)  # type: ignore[return-value]
+    return _build(cls, {k: v for k, v in obj.items() if k not in ("kind", "v")}, ctx)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -360,18 +365,18 @@ def _fields(cls: type[Record]) -> tuple[tuple[_Field, ...], frozenset[str]]:
     hints = typing.get_type_hints(cls)
     plan = tuple(_Field(f.name, f"{cls.KIND}.{f.name}", f.default is not dataclasses.MISSING
                         or f.default_factory is not dataclasses.MISSING, _converter(hints[f.name]))
-                 for f in dataclasses.fields(cls))  # type: ignore[arg-type]
+                 for f in dataclasses.fields(cls))
     return plan, frozenset(f.name for f in plan)
 
 
 def _build(cls: type[Record], fields: dict[Any, Any], ctx: Context | None) -> Record:
     """A record of ``cls`` from its decoded field map, every field checked against its type, then validated."""
-    names = _fields(cls)[1]
+    names = _fields(cls)[1]  # type: ignore[arg-type]  # mypy#11470
     if not names.issuperset(fields):
         extra = set(fields) - names
         raise DecodeError(f"{cls.KIND}: unexpected fields {sorted(map(str, extra))}")
     values = {}
-    for name, label, optional, convert in _steps(cls):
+    for name, label, optional, convert in _steps(cls):  # type: ignore[arg-type]  # mypy#11470
         if name in fields:
             values[name] = convert(fields[name], label, ctx)
         elif not optional:
@@ -384,7 +389,8 @@ def _build(cls: type[Record], fields: dict[Any, Any], ctx: Context | None) -> Re
 @functools.cache
 def _steps(cls: type[Record]) -> tuple[tuple[str, str, bool, Convert], ...]:
     """:func:`_fields`'s plan as plain tuples (the decoding loop unpacks them rather than read attributes)."""
-    return tuple((f.name, f.label, f.optional, f.convert) for f in _fields(cls)[0])
+    plan = _fields(cls)[0]  # type: ignore[arg-type]  # mypy#11470
+    return tuple((f.name, f.label, f.optional, f.convert) for f in plan)
 
 
 def _guarded(build: Callable[..., R], *args: Any) -> R:
@@ -408,7 +414,8 @@ def _unpack(data: bytes) -> Any:
 def decode(data: bytes, ctx: Context | None = None, expected: type[M] | None = None) -> M:
     """Decode bytes into a registered message, validating it; only ever raises DecodeError."""
     obj = _unpack(data)
-    return _guarded(_decode_obj, obj, ctx, expected)  # type: ignore[return-value]
+    # a Message: Message.REGISTRY holds only message classes, and _decode_obj checks ``expected``
+    return cast(M, _guarded(_decode_obj, obj, ctx, expected))
 
 
 def decode_payload(kind: str, data: bytes, ctx: Context | None = None) -> Payload:
@@ -420,11 +427,10 @@ def decode_payload(kind: str, data: bytes, ctx: Context | None = None) -> Payloa
     if type(obj) is not dict:
         raise DecodeError(f"{kind}: payload is not a map")
     fast = _FAST.get(cls)
-    if fast is not None:
-        record = _guarded(fast, obj, ctx)
-        if record is not None:
-            return record  # type: ignore[return-value]
-    return _guarded(_build, cls, obj, ctx)  # type: ignore[return-value]
+    record = _guarded(fast, obj, ctx) if fast is not None else None
+    if record is None:
+        record = _guarded(_build, cls, obj, ctx)
+    return cast(Payload, record)  # Payload.REGISTRY holds only payload classes
 
 
 def peek_tick(data: bytes) -> int | None:

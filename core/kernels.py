@@ -68,7 +68,8 @@ def wavefront(passable: np.ndarray, sources: np.ndarray, stop: int = -1) -> np.n
 
 
 @numba.njit(cache=True)
-def _trace(occupied, r0, c0, r1, c1, radius2, mark, out, count):
+def _trace(occupied: np.ndarray, r0: int, c0: int, r1: int, c1: int, radius2: float, mark: np.ndarray,
+           out: np.ndarray, count: int) -> int:
     """Bresenham from (r0, c0) toward (r1, c1); marks cells until the first occupied one (included)."""
     dr = abs(r1 - r0)
     dc = abs(c1 - c0)
@@ -258,8 +259,9 @@ def _first_visit(seen: np.ndarray, key: int) -> bool:
 
 
 @numba.njit(cache=True)
-def _expand_layer(flat_pass, rows, cols, seen, base, crowd, me, cell, link, spare, head, tail, j, count,
-                  used, nspare):
+def _expand_layer(flat_pass: np.ndarray, rows: int, cols: int, seen: np.ndarray, base: int, crowd: np.ndarray,
+                  me: int, cell: np.ndarray, link: np.ndarray, spare: np.ndarray, head: np.ndarray, tail: np.ndarray,
+                  j: int, count: int, used: int, nspare: int) -> tuple[bool, int, int, int, int]:
     """Pop the ``count`` cells of wavefront j's current layer and queue their unseen passable neighbours.
     Returns (me found, robots met in the layer, cells queued, used, nspare)."""
     found = 0
@@ -346,7 +348,7 @@ def minpos_parallel(passable: np.ndarray, sources: np.ndarray, offsets: np.ndarr
     stride = np.int64(n + 1)
     used = _seed_wavefronts(sources, offsets, n, seen, cell, link, head, tail, size, key)
     while m > 0:
-        j = np.argmin(key)
+        j = int(np.argmin(key))
         if key[j] >= _NO_KEY:
             break
         need = used + 4 * size[j]

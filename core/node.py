@@ -11,7 +11,7 @@ import contextlib
 import logging
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any, Protocol, TypeVar
 
@@ -43,6 +43,10 @@ class NodeBase:
         self.dropped = 0
         self._seq = 0
 
+    async def run(self, session: zenoh.Session) -> object:
+        """The node's whole run on ``session`` (each shell's own)."""
+        raise NotImplementedError
+
     def next_seq(self) -> int:
         """The node's one sequence counter (deterministic for a seed). The start handshake (hello, ready),
         repeated until answered as timing goes, carries seq 0 and does not draw from it."""
@@ -62,7 +66,7 @@ class NodeBase:
         if allowed is not None and msg.src not in allowed:
             self.drop(key, f"{msg.src!r} may not write on this key")
             return None
-        return msg  # type: ignore[return-value]
+        return msg
 
     def drop(self, key: str, why: str) -> None:
         self.dropped += 1
@@ -87,7 +91,10 @@ class Declared(Protocol):
     def undeclare(self) -> None: ...
 
 
-def undeclare(handles: list[Declared]) -> None:
+D = TypeVar("D", bound=Declared)
+
+
+def undeclare(handles: list[D]) -> None:
     """Undeclare explicitly, newest first (dropping the Python object does not undeclare a callback subscriber
     in zenoh-python 1.10); a session already closing is not an error."""
     for handle in reversed(handles):
@@ -111,7 +118,7 @@ async def watch_parent(period: float = 0.5) -> None:
             os._exit(3)
 
 
-async def run_node(node_coro, watch: bool = True) -> None:  # type: ignore[no-untyped-def]
+async def run_node(node_coro: Awaitable[object], watch: bool = True) -> None:
     """Run a node's coroutine with the parent watchdog beside it."""
     watchdog = asyncio.create_task(watch_parent()) if watch else None
     try:
@@ -166,7 +173,7 @@ def _cell(text: str) -> tuple[int, int]:
 
 
 def node_main(prog: str, build: Callable[[argparse.Namespace], Any], argv: list[str] | None,
-              extra: Callable[[argparse.ArgumentParser], None] | None = None, map_file: bool = False) -> None:
+              extra: Callable[[argparse.ArgumentParser], object] | None = None, map_file: bool = False) -> None:
     """The ``__main__`` of a node process: parse the child command line, build the node, open one client
     session to the router, and run the node with the parent watchdog beside it."""
     parser = argparse.ArgumentParser(prog=prog)

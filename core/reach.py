@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 from collections import deque
 from collections.abc import Sequence
+from typing import TypedDict
 
 import numpy as np
 
@@ -47,6 +48,14 @@ def base_connected(names: Sequence[str], link: np.ndarray, base: str = BASE) -> 
     return {name: bool(seen[k]) for k, name in enumerate(names) if name != base}
 
 
+class ReachSummary(TypedDict):
+    """:meth:`BaseConnectivity.summary`: result.json's ``base_connected_fraction`` before rounding."""
+
+    overall: float | None
+    all_ticks: float | None
+    per_robot: dict[str, float]
+
+
 @dataclasses.dataclass
 class BaseConnectivity:
     """A fold of :func:`base_connected` over ticks (see the module docstring for the fractions)."""
@@ -71,7 +80,7 @@ class BaseConnectivity:
         self.series.append(fraction)
         return fraction
 
-    def summary(self) -> dict[str, object]:
+    def summary(self) -> ReachSummary:
         """``{"overall", "all_ticks", "per_robot"}``; None fractions before any tick."""
         per_robot = {r: self.connected[r] / self.live[r] for r in sorted(self.live, key=_robot_key)}
         if not self.ticks:

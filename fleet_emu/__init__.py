@@ -125,8 +125,11 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
     opts = RunOptions(out_dir=out_dir, in_process=in_process, record=out_dir is not None and record is not False,
                       connect=connect, run_id=run_id, grid_every=grid_every, realtime_hz=realtime_hz,
                       credentials=_path(credentials), tls_ca=_path(tls_ca), listen=listen,
-                      tls_cert=_path(tls_cert), tls_key=_path(tls_key),
-                      **({"host_timeout": host_timeout} if host_timeout is not None else {}))
+                      tls_cert=_path(tls_cert), tls_key=_path(tls_key))
+    if host_timeout is not None:  # else RunOptions' own default
+        import dataclasses
+
+        opts = dataclasses.replace(opts, host_timeout=host_timeout)
     return run_fleet(scenario, opts)
 
 

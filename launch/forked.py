@@ -67,7 +67,7 @@ class ForkServer:
         self._sock, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         try:
             self.proc = subprocess.Popen([sys.executable, "-m", "fleet_emu.agents.forkserver", *preload],
-                                         stdin=theirs, stdout=subprocess.PIPE, stderr=stderr,
+                                         stdin=theirs.fileno(), stdout=subprocess.PIPE, stderr=stderr,
                                          start_new_session=True)
         finally:
             theirs.close()
@@ -154,9 +154,9 @@ class ForkServer:
                 print(f"fleet: the fork server could not start {handle.name}: {event.get('error')}", file=sys.stderr)
                 self._fail(handle)
         elif "exited" in event:
-            handle = self._by_pid.get(int(event["exited"]))
-            if handle is not None:
-                handle.returncode = int(event["code"])
+            exited = self._by_pid.get(int(event["exited"]))
+            if exited is not None:
+                exited.returncode = int(event["code"])
 
     def close(self, grace: float = 2.0) -> None:
         """End the server (it ends the robots it has left, reaps and reports them), SIGKILL its process group

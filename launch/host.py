@@ -32,7 +32,7 @@ from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.keys import HOST_ID, HostKeys, Keys
 from fleet_emu.core.messages import HostAssign, HostStatus
-from fleet_emu.core.node import undeclare
+from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.launch.forked import fork_server_enabled
 from fleet_emu.launch.hosts import agent_argv, check_reliable
 from fleet_emu.launch.signals import Interrupts
@@ -84,16 +84,17 @@ class Host:
         self.reported: set[str] = set()  # the current run's robots whose exit was reported
         self._seq = 0
         self._status = publisher(session, self.keys.status)
-        self._handles = [self._status, session.declare_subscriber(
+        self._handles: list[Declared] = [self._status, session.declare_subscriber(
             self.keys.spawn, lambda s: self.requests.put(s.payload.to_bytes()))]
         self._handles.append(session.liveliness().declare_token(self.keys.alive))  # last: subscriptions are in
 
     def close(self) -> None:
-        undeclare(self._handles)  # type: ignore[arg-type]
+        undeclare(self._handles)
 
-    def report(self, run: str, event: str, **fields: object) -> None:
+    def report(self, run: str, event: str, *, robot: str = "", pid: int = 0, code: int = 0, error: str = "") -> None:
         self._seq += 1
-        msg = HostStatus(src=self.name, tick=0, seq=self._seq, run=run, event=event, **fields)  # type: ignore[arg-type]
+        msg = HostStatus(src=self.name, tick=0, seq=self._seq, run=run, event=event, robot=robot, pid=pid, code=code,
+                         error=error)
         with contextlib.suppress(zenoh.ZError):
             self._status.put(msg.encode())
 
@@ -106,9 +107,11 @@ class Host:
         try:
             msg = decode(data, expected=HostAssign)
         except DecodeError as exc:
-            return self._drop(str(exc))
+            self._drop(str(exc))
+            return None
         if msg.src != "launcher" or msg.host != self.name:
-            return self._drop(f"a request from {msg.src!r} for {msg.host!r}")
+            self._drop(f"a request from {msg.src!r} for {msg.host!r}")
+            return None
         return msg
 
     def _drop(self, why: str) -> None:

@@ -33,6 +33,7 @@ host's machine holds its robots' credentials while they run, which let it write 
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import threading
 import time
@@ -48,7 +49,7 @@ from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.grid import Cell
 from fleet_emu.core.keys import BASE, HostKeys, robot_ids
 from fleet_emu.core.messages import HostAssign, HostStatus
-from fleet_emu.core.node import undeclare
+from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import HostPlan, Scenario
 from fleet_emu.launch.forked import FORK_TIMEOUT, NOT_STARTED
 
@@ -252,7 +253,8 @@ class Hosts:
         self.robots: dict[str, RemoteRobot] = {}
         self._pubs: dict[str, zenoh.Publisher] = {}
         self._ended: set[str] = set()
-        self._handles = [session.liveliness().declare_subscriber(HostKeys.ALL_ALIVE, self._on_alive, history=True)]
+        self._handles: list[Declared] = [
+            session.liveliness().declare_subscriber(HostKeys.ALL_ALIVE, self._on_alive, history=True)]
 
     def __enter__(self) -> Hosts:
         return self
@@ -260,7 +262,8 @@ class Hosts:
     def __exit__(self, *_: object) -> None:
         for host in list(self.answers):  # a host whose robots were never adopted (an error while starting)
             self.end(host)
-        undeclare([*self._handles, *self._pubs.values()])  # type: ignore[list-item]
+        self._handles += self._pubs.values()
+        undeclare(self._handles)
         self._pubs.clear()
 
     # --- zenoh callbacks: update the state and return ---------------------------------------------------------
@@ -337,9 +340,9 @@ class Hosts:
             self._handles.append(self.session.declare_subscriber(HostKeys(host).status, self._on_status))
         with self.changed:
             self.run = run
-            for host, robots in plan.items():
-                for r in robots:
-                    self.robots[r] = RemoteRobot(r, host, self)
+            for host, names in plan.items():
+                for name in names:
+                    self.robots[name] = RemoteRobot(name, host, self)
         requests = {h: HostAssign(src="launcher", tick=0, seq=0, host=h, run=run, robots=tuple(rs), scenario=scenario,
                                   secrets={r: secrets[r] for r in rs if r in secrets}, fork_server=fork_server,
                                   realtime_hz=float(realtime_hz or 0.0))
@@ -359,7 +362,7 @@ class Hosts:
             for h in waiting:
                 self._put(h, requests[h])
             with self.changed:
-                self.changed.wait_for(lambda w=waiting: all(h in self.answers for h in w), RESEND)
+                self.changed.wait_for(functools.partial(self._answered, waiting), RESEND)
         with self.changed:
             self.changed.wait_for(lambda: all(r.pid or r.returncode is not None for r in self.robots.values()),
                                   FORK_TIMEOUT)
@@ -367,6 +370,9 @@ class Hosts:
                 if not r.pid and r.returncode is None:
                     r.pid, r.returncode = NOT_STARTED, NOT_STARTED
             return dict(self.robots)
+
+    def _answered(self, hosts: list[str]) -> bool:
+        return all(h in self.answers for h in hosts)
 
     def end(self, host: str) -> None:
         """Ask ``host`` to tear this run's robots down (once)."""

@@ -159,8 +159,8 @@ class Fleet:
         self._publish(w.step(moves))
         gain = w.coverage - before
         rewards = dict.fromkeys(live, gain)
-        terminations = {r: self.done and self.reason == "coverage" for r in live}
-        truncations = {r: self.done and self.reason != "coverage" for r in live}
+        terminations: dict[str, bool] = {r: self.done and self.reason == "coverage" for r in live}
+        truncations: dict[str, bool] = {r: self.done and self.reason != "coverage" for r in live}
         infos = {r: {"tick": w.tick, "coverage": w.coverage} for r in live}
         return dict(self.obs), rewards, terminations, truncations, infos
 

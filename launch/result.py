@@ -4,9 +4,11 @@ contract") with the coverage curve beside it, readable like the dict it was."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import os
 from collections.abc import Iterator, Mapping
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +69,35 @@ class Result(Mapping[str, Any]):
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.data)
+
+
+def result_schema() -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of ``result.json``, shipped in the package as
+    ``fleet_emu/launch/schemas/result.schema.json`` (docs/reference/result.md documents each key)."""
+    text = (resources.files("fleet_emu.launch") / "schemas" / "result.schema.json").read_text()
+    schema: dict[str, Any] = json.loads(text)
+    return schema
+
+
+@functools.cache
+def _validator() -> Any:
+    try:
+        import jsonschema
+    except ImportError:
+        raise ImportError("validate_result needs the jsonschema package (pip install 'fleet-emu[test]')") from None
+    schema = result_schema()
+    jsonschema.Draft202012Validator.check_schema(schema)
+    return jsonschema.Draft202012Validator(schema)
+
+
+def validate_result(data: Mapping[str, Any]) -> None:
+    """Check a run's ``result.json`` (or :attr:`Result.data`) against :func:`result_schema`, as it would be
+    written (through JSON); ValueError listing every key that breaks it. Needs ``jsonschema`` (the test extra)."""
+    doc = json.loads(json.dumps(dict(data)))
+    errors = sorted(_validator().iter_errors(doc), key=lambda e: list(map(str, e.absolute_path)))
+    if errors:
+        lines = [f"{'/'.join(map(str, e.absolute_path)) or '(top)'}: {e.message}" for e in errors]
+        raise ValueError(f"result.json breaks its schema ({len(errors)} error(s)):\n  " + "\n  ".join(lines))
 
 
 def write_json_atomic(path: Path, obj: Any) -> None:

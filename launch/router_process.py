@@ -62,14 +62,14 @@ def router_process(run_id: str, creds: dict[str, Credential] | None, listen: lis
     with tempfile.TemporaryDirectory(prefix="fleet-router-") as private:  # mode 0700
         spec_file = Path(private) / "router.json"
         _write_private(spec_file, json.dumps(router_spec(Path(private), run_id, creds, listen, tls)))
-        err = open(log, "wb") if log is not None else subprocess.DEVNULL  # noqa: SIM115 (closed below)
+        err = open(log, "wb") if log is not None else None  # noqa: SIM115 (closed below)
         try:
             proc = subprocess.Popen([sys.executable, "-m", MODULE, str(spec_file)],
-                                    stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=err,
-                                    start_new_session=True)
+                                    stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                    stderr=err if err is not None else subprocess.DEVNULL, start_new_session=True)
         finally:
-            if log is not None:
-                err.close()  # type: ignore[union-attr]
+            if err is not None:
+                err.close()
         try:
             endpoints = _read_endpoints(proc, log)
         except BaseException:

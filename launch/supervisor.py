@@ -13,17 +13,23 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import IO, Protocol
 
-from fleet_emu.launch.forked import ForkedProcess, ForkServer
+from fleet_emu.launch.forked import ForkServer
 
 AGENTS = "fleet_emu.agents"
-if TYPE_CHECKING:
-    from fleet_emu.launch.hosts import RemoteRobot
 
-    Child = subprocess.Popen[bytes] | ForkedProcess | RemoteRobot
-else:
-    Child = subprocess.Popen[bytes] | ForkedProcess
+
+class Child(Protocol):
+    """What the supervisor needs of a child: a process started here (``subprocess.Popen``), a robot the fork
+    server forked (``launch.forked.ForkedProcess``) or a robot on a host (``launch.hosts.RemoteRobot``)."""
+
+    @property
+    def pid(self) -> int: ...
+
+    def poll(self) -> int | None: ...
+
+    def wait(self, timeout: float | None = None) -> int: ...
 
 
 class Supervisor:
@@ -33,7 +39,7 @@ class Supervisor:
         self.children: dict[str, Child] = {}
         self.log_dir = log_dir
         self.server: ForkServer | None = None
-        self._logs: list[object] = []
+        self._logs: list[IO[bytes]] = []
 
     def start_fork_server(self, scenario: Path | None = None) -> None:
         """Start the robots' fork server now (it loads the agent code, and ``scenario``'s allocator, while the
@@ -76,7 +82,7 @@ class Supervisor:
 
     def dead(self) -> dict[str, int]:
         """Children that exited, with their exit codes."""
-        return {n: p.returncode for n, p in self.children.items() if p.poll() is not None}
+        return {n: code for n, p in self.children.items() if (code := p.poll()) is not None}
 
     def wait_all(self, timeout: float, hurry: threading.Event | None = None) -> bool:
         """Wait for every child to exit by itself; True if they all did. Setting ``hurry`` (a second Ctrl-C)
@@ -107,7 +113,7 @@ class Supervisor:
             self.server.close(grace)
         for f in self._logs:
             with contextlib.suppress(OSError):
-                f.close()  # type: ignore[attr-defined]
+                f.close()
         self._logs.clear()
 
 

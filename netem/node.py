@@ -27,7 +27,7 @@ from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import Stop, TxBundle, WorldState
-from fleet_emu.core.node import NodeBase, add_base_cell, node_main, undeclare
+from fleet_emu.core.node import Declared, NodeBase, add_base_cell, node_main, undeclare
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.netem.channel import Channel, radio_tick
@@ -67,7 +67,7 @@ class NetemNode(NodeBase):
     async def run(self, session: zenoh.Session) -> None:
         keys = self.keys
         inbox = Inbox()
-        handles = [
+        handles: list[Declared] = [
             inbox.subscribe(session, keys.state),
             inbox.subscribe(session, keys.wildcard("radio", "tx", "*")),
             inbox.subscribe(session, keys.stop),

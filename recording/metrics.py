@@ -75,7 +75,7 @@ def radio_kind(msg: Envelope) -> str:
     return msg.payload_kind
 
 
-def _r(x: float | None, nd: int = 6) -> float | None:
+def _r(x: float | np.floating | None, nd: int = 6) -> float | None:
     return None if x is None else round(float(x), nd)
 
 
@@ -195,8 +195,8 @@ class RunMetrics:
                 self.series.strength[t] = float(sym.mean())
         for i, j in zip(*iu, strict=True):
             if und[i, j]:
-                pair = tuple(sorted((lk.robots[i], lk.robots[j]), key=self._order))
-                self.pair_ticks[pair] = self.pair_ticks.get(pair, 0) + 1  # type: ignore[index]
+                a, b = sorted((lk.robots[i], lk.robots[j]), key=self._order)
+                self.pair_ticks[a, b] = self.pair_ticks.get((a, b), 0) + 1
 
     def _order(self, r: str) -> int:
         return self.robots.index(r) if r in self.robots else len(self.robots)

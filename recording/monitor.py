@@ -37,6 +37,8 @@ from fleet_emu.recording.relaystats import RelayStats
 #: The channels the monitor folds (``ParsedKey.channel``); the rest is not even decoded.
 _FOLDED = frozenset({"state", "links", "stop", "report", "cmd", "clock", "timing"})
 _RADIO = frozenset({"tx", "rx"})  # folded too in a relaying run (recording/relaystats.py)
+#: The channels whose key names the node that sends on it: only the run's robots (and its base) do.
+_BY_NODE = frozenset({"cmd", "timing", "report", "tx"})
 
 
 def base_graph(lk: Links) -> tuple[tuple[str, ...], np.ndarray]:
@@ -83,14 +85,18 @@ class Monitor:
     def __post_init__(self) -> None:
         if self.relay and self.relay_stats is None:
             self.relay_stats = RelayStats(len(self.robots) + int(self.base))
+        self._nodes = frozenset(self.robots) | ({BASE} if self.base else frozenset())
 
     def feed(self, key: str, data: bytes, wall_ns: int | None = None) -> Message | None:
         """Decode and fold one sample; returns the message (None if it is not one the monitor uses)."""
         got = parse_key(key)
         if got is None or not (got[1].channel in _FOLDED or (self.relay and got[1].channel in _RADIO)):
             return None
+        if got[1].channel in _BY_NODE and got[1].node not in self._nodes:  # a node this run does not have
+            self.malformed += 1
+            return None
         try:
-            msg = decode(data)
+            msg: Message = decode(data)
         except DecodeError:
             self.malformed += 1
             return None
@@ -109,7 +115,7 @@ class Monitor:
             if self.state is None or msg.tick >= self.state.tick:
                 self.state = msg
             self.coverage_curve.append((msg.tick, msg.coverage))
-            self.cells[msg.tick] = {r: tuple(msg.poses[r]) for r in msg.live if r in msg.poses}
+            self.cells[msg.tick] = {r: msg.poses[r] for r in msg.live if r in msg.poses}
             if self.t90 is None and msg.coverage >= 0.90:
                 self.t90 = msg.tick
             if self.t99 is None and msg.coverage >= 0.99:
@@ -152,7 +158,7 @@ class Monitor:
         (the base's report; null values when it sent none: interrupted, or its process died)."""
         frac = self.base_reach.summary()
         rounded = {k: (round(v, 6) if isinstance(v, float) else v) for k, v in frac.items() if k != "per_robot"}
-        rounded["per_robot"] = {r: round(v, 6) for r, v in frac["per_robot"].items()}  # type: ignore[union-attr]
+        rounded["per_robot"] = {r: round(v, 6) for r, v in frac["per_robot"].items()}
         rep = self.base_report
         base: dict[str, Any] = {
             "cell": list(rep.cell) if rep else None, "known_cells": rep.known_cells if rep else None,
@@ -263,6 +269,6 @@ class Monitor:
 
     def ticks_per_second(self) -> float | None:
         """Lockstep speed from the first state to the last (start-up excluded)."""
-        if self.state is None or not self.first_state_ns or self.last_state_ns == self.first_state_ns:
+        if self.state is None or not self.first_state_ns or self.last_state_ns in (None, self.first_state_ns):
             return None
         return round(self.state.tick / ((self.last_state_ns - self.first_state_ns) / 1e9), 3)

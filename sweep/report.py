@@ -219,7 +219,7 @@ def _paper_table(paper: dict[str, Any], rows: list[dict[str, Any]], lines: list[
 def paper_value(pr: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict[str, Any]],
                 baseline: str | None) -> float | None:
     """Our number for one ``[[paper.rows]]`` entry."""
-    keep = {k: pr[k] for k in ("allocator", "robots", "loss") if k in pr}
+    keep: dict[str, Any] = {k: pr[k] for k in ("allocator", "robots", "loss") if k in pr}
     metric = pr.get("metric", "ticks")
     if metric == "vs_baseline_pct":
         vals = [ln["vs_baseline_pct"] for ln in lines if _matches(ln, keep, "allocator")]

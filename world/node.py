@@ -26,7 +26,7 @@ from fleet_emu.core.grid import MapData
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import STALE, Command, Failed, Ready, Stop, WorldClock
-from fleet_emu.core.node import NodeBase, node_main, undeclare
+from fleet_emu.core.node import Declared, NodeBase, node_main, undeclare
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.world.build import build_world
 from fleet_emu.world.messages import hello, stop, tick_messages
@@ -62,7 +62,7 @@ class WorldNode(NodeBase):
         """Run the whole episode; returns the reason it ended."""
         keys = self.keys
         inbox = Inbox()
-        handles = [
+        handles: list[Declared] = [
             inbox.subscribe(session, keys.wildcard("robot", "*", "cmd")),
             inbox.subscribe(session, keys.ready_all),
             inbox.subscribe(session, keys.stop),

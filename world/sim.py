@@ -81,7 +81,7 @@ class World:
 
     @property
     def shape(self) -> tuple[int, int]:
-        return self.grid.shape  # type: ignore[return-value]
+        return self.grid.shape
 
     @property
     def sensed_cells(self) -> int:

@@ -103,9 +103,9 @@ class Hungarian(Allocator, plugin_name="hungarian"):
         live = self.live(problem)
         if live[0] == problem.me:
             return self._coordinate(problem, live)
-        msg = self.received.get(live[0])
-        targets = msg.body.targets if msg is not None else {}  # type: ignore[attr-defined]
-        if msg is not None and problem.tick - msg.tick <= self.timeout and problem.me in targets:
+        last = self.received.get(live[0])  # an Assignment's (allocate keeps only those)
+        targets = last.body.targets if last is not None and isinstance(last.body, Assignment) else {}
+        if last is not None and problem.tick - last.tick <= self.timeout and problem.me in targets:
             j = self._cluster_of(problem, targets[problem.me])
             if j is not None:
                 return Allocation.assigned(problem, j)

@@ -101,7 +101,7 @@ def restricted(problem: Problem, reach: np.ndarray) -> Problem:
     costs = problem.costs.copy()
     costs[problem.index, ~reach] = np.inf
     q = dataclasses.replace(problem)
-    q.costs = costs  # type: ignore[misc]  # the cached property, preset
+    q.costs = costs  # the cached property, preset
     return q
 
 

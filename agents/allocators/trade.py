@@ -339,8 +339,8 @@ class Trade(Allocator, plugin_name="trade"):
         if not len(reach):
             return None
         taken = [t for r, (t, _) in self.s.claims.items() if r != self.s.me] + list(exclude)
-        free = [j for j in reach if not any(near(problem.clusters[j].target, t, self.task_radius) for t in taken)]
-        pool = free or [int(j) for j in reach if problem.clusters[j].target not in exclude] or list(reach)
+        free = [int(j) for j in reach if not any(near(problem.clusters[j].target, t, self.task_radius) for t in taken)]
+        pool = free or [int(j) for j in reach if problem.clusters[j].target not in exclude] or [int(j) for j in reach]
         j = min(pool, key=lambda k: (costs[k], k))
         return problem.clusters[j].target, float(costs[j])
 

@@ -57,6 +57,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Generator, Mapping, Sequence
+from typing import TypeVar
 
 import numpy as np
 
@@ -81,7 +82,9 @@ from fleet_emu.agents.allocators.mhm.wavefront import (
 from fleet_emu.agents.frontiers import frontier_mask
 from fleet_emu.core.grid import UNKNOWN, Cell
 
-Wait = Generator[None, None, object]
+_T = TypeVar("_T")
+#: A stage of the planner's program: it yields once per tick it waits for the robots, then returns its result.
+Wait = Generator[None, None, _T]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -189,8 +192,8 @@ class MhmPlanner:
         tree_relays = [(self.tree[i].pos, "base" if i == BASE_NODE else self.node_of[i]) for i in sorted(self.hinged())]
         out: dict[str, str] = {}
         for i, r in self.node_of.items():
-            p = self.tree.parent(i)
-            out[r] = self.node_of.get(p, "base")  # type: ignore[arg-type]
+            p = self.tree.up(i)
+            out[r] = self.node_of.get(p, "base")
         for r, cell in self.pending.items():
             out[r] = min(tree_relays, key=lambda pn: math.dist(pn[0], cell))[1]
         relays = tree_relays + sorted((c, r) for r, c in self.pending.items())
@@ -215,7 +218,7 @@ class MhmPlanner:
 
     # --- section III-D ----------------------------------------------------------------------------------
 
-    def _run(self) -> Wait:
+    def _run(self) -> Wait[None]:
         yield from self._explore([self.base])  # step 1
         yield from self._rtg(BASE_NODE, scope=None)  # steps 2-7
         self.phase = 2
@@ -238,7 +241,7 @@ class MhmPlanner:
             yield from self._explore([self.tree[cf].pos])  # C_f is created by exploring it
             yield from self._rtg(cf, scope=cf)  # steps 13-17
 
-    def _rtg(self, root: int, scope: int | None) -> Wait:
+    def _rtg(self, root: int, scope: int | None) -> Wait[None]:
         """Recursive Tree Growth of T_root, depth first, new children included (steps 3-7, 13-17)."""
         cur = root
         while True:
@@ -251,9 +254,9 @@ class MhmPlanner:
             elif cur == root:
                 return
             else:
-                cur = self.tree.parent(cur)  # type: ignore[assignment]
+                cur = self.tree.up(cur)
 
-    def _visit(self, i: int, scope: int | None) -> Wait:
+    def _visit(self, i: int, scope: int | None) -> Wait[None]:
         """Recall the backbone's siblings (III-B), hinge A and T_i again, then the Wavefront Expansion of C_i."""
         fdist = self._fdist()
         leaves = [self.tree[j].pos for j in self.tree.leaves(i)]
@@ -266,7 +269,7 @@ class MhmPlanner:
         if i in self.hinged():
             yield from self._expand(i, scope)
 
-    def _expand(self, i: int, scope: int | None) -> Wait:
+    def _expand(self, i: int, scope: int | None) -> Wait[None]:
         """Section III-A's Wavefront Expansion of C_i: iterations of EW, hinging and exploring while eq. 1 holds."""
         cfg = self.config
         while True:
@@ -294,7 +297,7 @@ class MhmPlanner:
                 allowed.add(n)
             self.pending = {}
 
-    def _extend_chain(self, lh: list[Cell]) -> Wait:
+    def _extend_chain(self, lh: list[Cell]) -> Wait[int | None]:
         """Step 12: hinge L_h one node after the other from the base; C_f's id, or None if a hinge failed."""
         prev = BASE_NODE
         for k, p in enumerate(lh):
@@ -311,7 +314,7 @@ class MhmPlanner:
 
     # --- physical actions ---------------------------------------------------------------------------------
 
-    def _explore(self, centers: list[Cell]) -> Wait:
+    def _explore(self, centers: list[Cell]) -> Wait[None]:
         """Frontier exploration of the node cells at ``centers`` with every explorer, inside the safe area.
         Progress is a newly known cell or an explorer nearer its goal than it has been."""
         quiet, known = 0, -1
@@ -334,7 +337,7 @@ class MhmPlanner:
             self.goals = {r: g for r, (g, _) in targets.items()}
             yield
 
-    def _hinge(self, positions: list[Cell]) -> Wait:
+    def _hinge(self, positions: list[Cell]) -> Wait[list[tuple[Cell, str]]]:
         """Send the nearest explorers to ``positions``; the (position, robot) pairs that arrived."""
         chosen = assign_positions(self.passable(), positions, self.explorers())
         best: dict[str, float] = {}
@@ -355,7 +358,7 @@ class MhmPlanner:
         order = {p: k for k, p in enumerate(positions)}
         return sorted(((p, r) for r, p in chosen.items()), key=lambda pr: order[pr[0]])
 
-    def _rehinge(self, nodes: list[int]) -> Wait:
+    def _rehinge(self, nodes: list[int]) -> Wait[None]:
         """Hinge the unhinged ``nodes`` again, shallowest first, while X_min explorers remain."""
         todo = sorted({n for n in nodes if n not in self.hinged()}, key=lambda n: (self.tree.hopcount(n), n))
         while todo:
@@ -371,7 +374,7 @@ class MhmPlanner:
                 if self.tree[n].pos in at:
                     self.node_of[n] = at[self.tree[n].pos]
 
-    def _break(self, roots: list[int]) -> Wait:
+    def _break(self, roots: list[int]) -> Wait[None]:
         """Section III-E.2: pop the stack level by level; each cell's explorers go into its parent cell, then
         its node robot unhinges."""
         roots = [b for b in roots if any(j in self.node_of for j in self.tree.subtree(b))]
@@ -381,11 +384,11 @@ class MhmPlanner:
         for level in reversed(break_stack(self.tree, roots)):
             unsure = yield from self._settle()
             members = self._members(level)
-            movers = {r: self.tree.parent(i) for r, i in members.items()}
+            movers = {r: self.tree.up(i) for r, i in members.items()}
             best: dict[str, float] = {}
             quiet = 0
             while True:
-                targets = {r: self.tree[p].pos for r, p in movers.items()}  # type: ignore[index]
+                targets = {r: self.tree[p].pos for r, p in movers.items()}
                 away = {r for r in movers if math.dist(self.poses[r], targets[r]) >= self.config.r_comm}
                 gaps = self._path_gaps({r: targets[r] for r in away})
                 quiet = 0 if any(gaps[r] < best.get(r, math.inf) for r in away) else quiet + 1
@@ -403,7 +406,7 @@ class MhmPlanner:
                 self._note(f"break: {sorted(away)} could not leave cells {sorted(stuck)}; kept hinged")
             for i in level:
                 if i in stuck or i in keep:  # the constraint first: a cell with a robot left in it stays up
-                    keep.add(self.tree.parent(i))  # type: ignore[arg-type]
+                    keep.add(self.tree.up(i))
                 elif i in self.node_of:
                     self.node_of.pop(i)
 
@@ -420,7 +423,7 @@ class MhmPlanner:
                 out[r] = min(level, key=lambda j: (math.dist(self.tree[j].pos, c), j))
         return out
 
-    def _settle(self) -> Wait:
+    def _settle(self) -> Wait[set[str]]:
         """With ``latency`` > 0: every explorer holds until it confirmed that it follows orders from now on,
         or ``patience`` ticks (module docstring); the explorers that did not confirm."""
         if self.config.latency <= 0:

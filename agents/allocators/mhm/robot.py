@@ -79,6 +79,12 @@ class Mhm(Allocator, plugin_name="mhm"):
         "patience": Param(60, ge=1),
     }
     scenario_fields = {"r_comm": "link_cells", "sensor_range": "sensor_cells"}
+    r_comm: float
+    sensor_range: float
+    x_min: int
+    hinges: int
+    cluster_max: int
+    patience: int
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)

@@ -72,8 +72,8 @@ def simulate(truth: np.ndarray, base: Cell, robots: int, config: MhmConfig, seed
     step_ms: list[float] = []
     t = 0
     for t in range(max_ticks):
-        for r, c in poses.values():
-            idx = visible_cells(occ, r, c, config.sensor_range)
+        for row, col in poses.values():
+            idx = visible_cells(occ, row, col, config.sensor_range)
             belief.flat[idx] = truth.flat[idx]
         t0 = clock() if clock else 0.0
         orders = planner.step(View(t, belief, dict(poses)))

@@ -62,8 +62,10 @@ class MhmStation:
         poses = {}
         for r in self.robots:  # the newest of its beacon and its ack
             h, a = station.heard.get(r), self.acks.get(r)
-            if h is not None or a is not None:
-                poses[r] = a[2] if a is not None and (h is None or a[0] > h.tick) else h.cell  # type: ignore[union-attr]
+            if a is not None and (h is None or a[0] > h.tick):
+                poses[r] = a[2]
+            elif h is not None:
+                poses[r] = h.cell
         if self.first_tick is None:
             self.first_tick = station.tick
         if self.planner is None:

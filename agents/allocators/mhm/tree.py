@@ -70,6 +70,13 @@ class ExplorationTree:
     def parent(self, i: int) -> int | None:
         return self.nodes[i].parent
 
+    def up(self, i: int) -> int:
+        """The parent of C_i, a node other than C_0 (the root, which has none)."""
+        p = self.nodes[i].parent
+        if p is None:
+            raise ValueError(f"C_{i} is the root: it has no parent")
+        return p
+
     def hopcount(self, i: int) -> int:
         """Hops from C_i to C_0 along the tree (eq. 3's hopcount)."""
         hops = 0
@@ -100,7 +107,7 @@ class ExplorationTree:
     def backbone_siblings(self, i: int) -> list[int]:
         """Section III-B's set B: the siblings of every member of A, i.e. the roots of the subtrees whose
         robots are recalled before C_i is expanded."""
-        out = []
+        out: list[int] = []
         for j in self.backbone(i):
             p = self.nodes[j].parent
             if p is not None:

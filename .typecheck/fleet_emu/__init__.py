@@ -1,0 +1,1 @@
+../../fleet_emu/__init__.py

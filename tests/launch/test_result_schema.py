@@ -1,0 +1,120 @@
+"""``result.json`` against its schema (``launch/schemas/result.schema.json``, docs/reference/result.md): the runs of
+every kind write a file the schema accepts (the memory engine plain, with a base and relaying, interrupted; the
+processes engine in real time with a base and relaying, interrupted before it started, failed), and the schema
+refuses what breaks the contract."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+import signal
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from fleet_emu.core.errors import RunError
+from fleet_emu.core.keys import Keys
+from fleet_emu.core.messages import AgentReport
+from fleet_emu.core.scenario import HostPlan, Scenario
+from fleet_emu.core.version import SCHEMA_VERSION
+from fleet_emu.launch.memory import Fleet, run_memory
+from fleet_emu.launch.result import result_schema, validate_result
+from fleet_emu.launch.router_config import router_config_text
+from fleet_emu.launch.runner import RunOptions, run_fleet
+from fleet_emu.launch.signals import Interrupts
+from fleet_emu.recording.monitor import Monitor
+
+
+def _scenario(**kw: Any) -> Scenario:
+    return Scenario().override(map="office", robots=3, seed=1, max_ticks=40, **kw)
+
+
+def _written(out: Path) -> dict[str, Any]:
+    data: dict[str, Any] = json.loads((out / "result.json").read_text())
+    validate_result(data)
+    return data
+
+
+def _interrupts() -> Interrupts:
+    irq = Interrupts()
+    irq._handle(signal.SIGTERM, None)  # as the CLI's handler does on a signal
+    return irq
+
+
+@pytest.fixture(scope="module")
+def memory_run() -> dict[str, Any]:
+    return dict(Fleet(_scenario()).run().data)
+
+
+def test_memory_engine_runs_plain_with_a_base_and_relaying_and_interrupted(memory_run: dict[str, Any],
+                                                                           tmp_path: Path) -> None:
+    validate_result(memory_run)
+    assert memory_run["engine"] == "memory" and "base" not in memory_run and "relay" not in memory_run
+    based = Fleet(_scenario(base=True, relay="flood", relay_ttl=2)).run().data
+    validate_result(based)
+    assert based["base"]["ticks"] is not None and set(based["relay"]["kinds"]) >= {"pose", "map"}
+    planner = Fleet(_scenario(allocator="mhm", base=True)).run().data  # a base-station planner: tree relaying
+    validate_result(planner)
+    assert planner["relay"]["policy"] == "tree"
+    stopped = run_memory(_scenario(), tmp_path / "irq", record=False, interrupts=_interrupts())
+    assert _written(tmp_path / "irq") == stopped.data and stopped["reason"] == "interrupted"
+
+
+def test_processes_runs_in_real_time_interrupted_and_failed(tmp_path: Path) -> None:
+    live = run_fleet(_scenario(base=True, relay="flood", relay_ttl=1),
+                     RunOptions(out_dir=tmp_path / "rt", record=False, realtime_hz=40.0))
+    data = _written(tmp_path / "rt")
+    assert data == live.data and data["engine"] == "processes" and data["authenticated"] is True
+    assert {"realtime", "base", "relay"} <= set(data) and set(data["realtime"]["robots"]) == {"r0", "r1", "r2"}
+    run_fleet(_scenario(), RunOptions(out_dir=tmp_path / "irq", interrupts=_interrupts()))
+    assert _written(tmp_path / "irq")["pids"] == {}
+    users = tmp_path / "users.txt"
+    router_config_text(3, users, listen="tcp/127.0.0.1:0", hosts=1)
+    with pytest.raises(RunError, match=r"waited 0\.5 s for 1 host"):
+        run_fleet(_scenario(hosts=HostPlan(1)), RunOptions(out_dir=tmp_path / "err", record=False, credentials=users,
+                                                          listen="tcp/127.0.0.1:0", host_timeout=0.5))
+    failed = _written(tmp_path / "err")
+    assert failed["reason"] == "error" and failed["error"].startswith("--hosts 1")
+    assert failed["scenario"]["hosts"] == {"count": 1}
+
+
+@pytest.mark.parametrize(("change", "where"), [
+    ({"reason": "finished"}, "reason"),
+    ({"engine": "zenoh"}, "engine"),
+    ({"extra": 1}, "(top)"),
+    ({"ticks": -1}, "ticks"),
+    ({"radio": {"sent": 1}}, "radio"),
+    ({"decision_ms": {"mean": 0.0, "p95": 0.0, "p99": 0.0}}, "decision_ms"),
+    ({"error": "a failure without reason error"}, "(top)"),
+    ({"base": {"cell": None, "known_cells": None, "known_fraction": None, "merged": None, "ticks": None}}, "(top)"),
+    ({"schema_version": SCHEMA_VERSION + 1}, "schema_version"),
+    ({"failed": ["robot0"]}, "failed/0"),
+])
+def test_the_schema_refuses_what_breaks_the_contract(memory_run: dict[str, Any], change: dict[str, Any],
+                                                     where: str) -> None:
+    with pytest.raises(ValueError, match=re.escape(f"\n  {where}: ")):
+        validate_result(memory_run | change)
+
+
+def test_a_report_from_a_robot_the_run_does_not_have_is_dropped() -> None:
+    """A bus without authentication lets anyone put on ``ctl/report/r-1``: the fold keeps only the run's robots
+    (else ``agent_peak_rss_kb`` and ``malformed_dropped_by`` gained robots that never ran)."""
+    keys, mon = Keys("x"), Monitor(("r0", "r1"))
+    rep = AgentReport(src="r-1", tick=1, seq=1, decisions=1, decision_ms_mean=1.0, decision_ms_p95=1.0, dropped=0,
+                      peak_rss_kb=1)
+    assert mon.feed(keys.report("r-1"), rep.encode()) is None and mon.malformed == 1 and mon.reports == {}
+    assert mon.feed(keys.report("r1"), dataclasses.replace(rep, src="r1").encode()) is not None
+    assert set(mon.reports) == {"r1"} and mon.dropped_by()["launcher"] == 1
+
+
+def test_every_key_is_documented_and_the_schema_pins_the_version() -> None:
+    schema = result_schema()
+    assert schema["properties"]["schema_version"] == {"const": SCHEMA_VERSION}
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "reference" / "result.md").read_text()
+    objects = [schema, *(schema["properties"][k] for k in ("radio", "pids", "realtime", "base", "relay")),
+               schema["$defs"]["scenario"], schema["$defs"]["realtime_robot"], schema["$defs"]["relay_kind"]]
+    keys = {k for obj in objects for k in obj["properties"]}
+    missing = sorted(k for k in keys if f"`{k}`" not in doc)
+    assert not missing, f"docs/reference/result.md leaves out {missing}"
