@@ -7,7 +7,8 @@ allocator ``minpos`` with parallel wavefronts, the default radio (wall model, 10
 fixed number of ticks (``max_ticks``, target coverage 1.0 so that no run ends early). Each map is fitted to
 about ``--cells`` cells across through its cell size: a built-in generator (``maze`` by default) and a real map
 (the registry's ``cave``: ``fleet maps fetch cave``) resampled. The sensor and comm ranges are fixed in cells
-(``--sensor-cells``, ``--comm-cells``: 8 and 20, the default scenario's 4 m and 10 m at 0.5 m cells) so that only the map grows.
+(``--sensor-cells``, ``--comm-cells``: 8 and 20, the default scenario's 4 m and 10 m at 0.5 m cells) so that
+only the map grows.
 The fleet starts, for every robot count, around the same cell of each map: the most open one (most free cells
 within the world's start radius) of the map's main free component, nearest the map's own start. Each run is a
 child process of its own (``--one``), so that the launcher's memory is that run's alone.
