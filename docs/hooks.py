@@ -5,6 +5,8 @@
   tree as symbolic links under ``build/api-src`` before mkdocstrings reads it.
 - ``<!-- cli-help: run -->`` in a page becomes the help text of ``fleet run`` (``<!-- cli-help: -->``: of
   ``fleet``), from the parser itself, so that the CLI reference cannot drift from the code.
+- ``<!-- api -->`` becomes a section per name of ``fleet_emu.__all__``, grouped as its source groups them
+  (a comment line per group), each rendered by mkdocstrings from where the name is defined.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from mkdocs.plugins import event_priority
 ROOT = Path(__file__).resolve().parents[1]
 API_SRC = ROOT / "build" / "api-src"
 CLI_HELP = re.compile(r"<!--\s*cli-help:\s*(?P<cmd>[\w-]*)\s*-->")
+API = re.compile(r"<!--\s*api\s*-->")
 
 
 def api_tree(root: Path = ROOT, dest: Path = API_SRC) -> Path:
@@ -71,5 +74,37 @@ def cli_help(command: str) -> str:
     return text
 
 
+def api_groups(root: Path = ROOT) -> list[tuple[str, list[str]]]:
+    """``fleet_emu.__all__`` as its source lists it: (group comment, names) in order."""
+    text = (root / "fleet_emu" / "__init__.py").read_text()
+    body = text[text.index("__all__ = [") + len("__all__ = ["):]
+    body = body[:body.index("]")]
+    groups: list[tuple[str, list[str]]] = [("", [])]
+    for line in body.splitlines():
+        line = line.strip()
+        if line.startswith("#"):
+            groups.append((line.lstrip("# ").strip(), []))
+        else:
+            groups[-1][1].extend(re.findall(r'"([^"]+)"', line))
+    return [(title, names) for title, names in groups if names]
+
+
+def api_page() -> str:
+    """A section per public name, rendered from the module that defines it."""
+    import fleet_emu
+
+    out = []
+    for title, names in api_groups():
+        out.append(f"## {(title or 'package').capitalize()}\n")
+        for name in names:
+            module = fleet_emu._LAZY.get(name, "fleet_emu")
+            if name.startswith("__"):
+                out.append(f"### `fleet_emu.{name}`\n\nThe package's version, `{fleet_emu.__version__}`.\n")
+                continue
+            out.append(f"::: {module}.{name}\n    options:\n      heading_level: 3\n")
+    return "\n".join(out)
+
+
 def on_page_markdown(markdown: str, **_: Any) -> str:
-    return CLI_HELP.sub(lambda m: f"```text\n{cli_help(m['cmd']).rstrip()}\n```", markdown)
+    markdown = CLI_HELP.sub(lambda m: f"```text\n{cli_help(m['cmd']).rstrip()}\n```", markdown)
+    return API.sub(lambda m: api_page(), markdown)

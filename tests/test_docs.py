@@ -9,7 +9,8 @@ changes that (it does not show on the site):
 
 - ``<!-- docs-test: skip REASON -->``: never run (it installs something, needs another machine, runs for
   minutes...); the reason is required;
-- ``<!-- docs-test: slow -->``: run only with ``-m slow`` (a real fleet over Zenoh, or a long run);
+- ``<!-- docs-test: slow -->``: run only with ``-m slow`` (a real fleet over Zenoh, or a long run); the blocks
+  before it on its page run first, so a default block must not build on a slow one;
 - ``<!-- docs-test: pending FEATURE -->``: a feature the documentation describes before it lands: expected to
   fail (strict), so that the block reports once it passes and the marker must go;
 - ``<!-- docs-test: file NAME -->`` (any language): the block is written to ``NAME`` in the page's folder, for the
@@ -107,6 +108,7 @@ class _Page:
     tests list every registered allocator) and the other pages never see them."""
 
     def __init__(self, folder: Path) -> None:
+        import fleet_emu.agents.allocators  # noqa: F401  (every built-in allocator and payload kind, registered first)
         from fleet_emu.agents.allocators import Allocator
         from fleet_emu.core.codec import Payload
 
@@ -116,12 +118,14 @@ class _Page:
         self.allocators = dict(Allocator.registry)
         self.payloads = dict(Payload.REGISTRY)
         self.modules: dict[str, Any] = {}
+        self.done: set[int] = set()  # the lines of the blocks that ran
 
     @contextlib.contextmanager
     def entered(self, monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
         from fleet_emu.agents.allocators import Allocator
         from fleet_emu.core.codec import Payload
 
+        suite = (Allocator.registry, Payload.REGISTRY)  # the suite's own, put back after the block
         monkeypatch.setattr(Allocator, "registry", self.allocators)
         monkeypatch.setattr(Payload, "REGISTRY", self.payloads)
         monkeypatch.setattr(sys, "path", list(sys.path))
@@ -130,10 +134,19 @@ class _Page:
         try:
             yield
         finally:
-            docs = str(ROOT / "docs")
             for name, mod in list(sys.modules.items()):
-                if str(getattr(mod, "__file__", None) or "").startswith(docs):
+                if _in_docs(getattr(mod, "__file__", None)):
                     self.modules[name] = sys.modules.pop(name)
+            for mine, theirs in zip((self.allocators, self.payloads), suite, strict=True):
+                for kind, cls in mine.items():  # what the package registered on a first import stays registered
+                    if kind not in theirs and cls.__module__ != self.namespace["__name__"] \
+                            and cls.__module__ not in self.modules:
+                        theirs[kind] = cls
+
+
+def _in_docs(file: str | None) -> bool:
+    """Whether a module's file is under ``docs/`` (followed through the page folder's link to it)."""
+    return bool(file) and Path(file).resolve().is_relative_to((ROOT / "docs").resolve())
 
 
 @pytest.fixture(scope="module")
@@ -151,12 +164,14 @@ def _env(folder: Path) -> dict[str, str]:
     return env
 
 
-@pytest.mark.parametrize("block", _params())
-def test_example(block: Block, pages: dict[Path, _Page], tmp_path_factory: pytest.TempPathFactory,
-                 monkeypatch: pytest.MonkeyPatch) -> None:
-    page = pages.get(block.page)
-    if page is None:
-        page = pages[block.page] = _Page(tmp_path_factory.mktemp(block.page.stem))
+def _runs(b: Block) -> bool:
+    """Whether a block runs in the default selection (a later block of its page may build on it)."""
+    return (b.lang in RUNNABLE or b.mark("file") is not None) and not any(
+        b.mark(m) is not None for m in ("skip", "slow", "pending"))
+
+
+def _run(block: Block, page: _Page, monkeypatch: pytest.MonkeyPatch) -> None:
+    page.done.add(block.line)
     name = block.mark("file")
     if name:
         (page.folder / name).parent.mkdir(parents=True, exist_ok=True)
@@ -173,6 +188,18 @@ def test_example(block: Block, pages: dict[Path, _Page], tmp_path_factory: pytes
                           capture_output=True, text=True, timeout=170)
     assert done.returncode == want, (f"{block.id}: exit {done.returncode} (expected {want})\n--- stdout\n"
                                      f"{done.stdout[-3000:]}\n--- stderr\n{done.stderr[-3000:]}")
+
+
+@pytest.mark.parametrize("block", _params())
+def test_example(block: Block, pages: dict[Path, _Page], tmp_path_factory: pytest.TempPathFactory,
+                 monkeypatch: pytest.MonkeyPatch) -> None:
+    page = pages.get(block.page)
+    if page is None:
+        page = pages[block.page] = _Page(tmp_path_factory.mktemp(block.page.stem))
+    for earlier in blocks(block.page):  # what a reader typed before, when a selection (-m slow, -k) left it out
+        if earlier.line < block.line and earlier.line not in page.done and _runs(earlier):
+            _run(earlier, page, monkeypatch)
+    _run(block, page, monkeypatch)
 
 
 def test_markers_are_known() -> None:
