@@ -149,7 +149,7 @@ class Brain:
         self.last_target: Cell | None = None  # the previous decision's target, passed to the allocator
         self.stuck = 0
         self.decision_ms: list[float] = []
-        self.decision_cpu_ms = 0.0  # this thread's CPU in the allocator, summed over decisions (issue 11)
+        self.decision_cpu_ms = 0.0  # this thread's CPU in the allocator, summed over decisions
         self.step_cpu_ms = 0.0  # and in the whole of step (decision, belief, clusters, radio decode, navigation)
         self.cpu_ms = dict.fromkeys(STAGES, 0.0)  # thread CPU of step by stage, summed (benchmarks/brain_step.py)
         self.ctx: Context | None = None
@@ -233,7 +233,7 @@ class Brain:
         rejoined: list[str] = []
         # Teammates' map deltas and fills are merged together (Belief.merge_many), in the order they came, once
         # the loop is done, or before anything reads the belief (a whole map for a teammate): the same belief
-        # as merging each as it comes (issue 11, part 4).
+        # as merging each as it comes.
         pending: list[tuple[np.ndarray, np.ndarray]] = []
 
         def flush() -> None:
@@ -361,7 +361,7 @@ class Brain:
         if prev is None:  # a new teammate: the dict stays in id order
             self.teammates[msg.origin] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
             self.teammates = dict(sorted(self.teammates.items()))
-        else:  # updated in place: a robot hears every teammate's beacon every tick (issue 11, part 3)
+        else:  # updated in place: a robot hears every teammate's beacon every tick
             prev.cell, prev.heard, prev.next = beacon.cell, max(t, msg.tick), beacon.next
         return rejoined
 

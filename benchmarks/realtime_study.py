@@ -1,4 +1,4 @@
-"""Real time: does an allocator's computing time cost exploration time? (issue 11, part 5)
+"""Real time: does an allocator's computing time cost exploration time?
 
     python benchmarks/realtime_study.py [--hz 10] [--robots 8 32 64] [--max-ticks 6000] [--maps maze PATH ...]
 
@@ -172,7 +172,7 @@ def main(argv: list[str] | None = None) -> None:
             _fail(f"map {name}: {exc}")
         maps.append((name, Path(name).stem, cs, shape, start))
         print(f"map {name}: {shape[0]} x {shape[1]} cells at {cs:.5g} m, start {start}", file=sys.stderr, flush=True)
-    print(f"# benchmarks/realtime_study.py (issue 11, part 5): {machine()}")
+    print(f"# benchmarks/realtime_study.py: {machine()}")
     mode = "lockstep, memory engine" if a.lockstep else f"real time at {a.hz:g} Hz, processes engine"
     print(f"# {mode}, wall radio, loss 0.1, target 0.99, cap {a.max_ticks} ticks, "
           f"stall {a.stall_seconds:g} s, sensor {a.sensor_cells:g} cells, comm {a.comm_cells:g} cells, seed {a.seed}")

@@ -1,4 +1,4 @@
-"""``fleet``: the user's entry point (DESIGN.md "CLI and the result contract").
+"""``fleet``: the user's entry point (docs/reference/cli.md).
 
 Bad input gets one line on stderr (``fleet: error: ...``) and exit code 2; a run in which a process of the
 fleet failed exits 1 (a robot too, when the others finished); SIGINT (Ctrl-C) exits 130 and SIGTERM 143,

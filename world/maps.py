@@ -2,7 +2,7 @@
 
 Every map becomes an ``int8`` grid of ``0`` (free) and ``100`` (occupied) at the scenario's cell size,
 bordered by walls, with a suggested start cell (see :func:`choose_start`). Bitmaps are resampled by
-max-pooling obstacles, so that walls drawn one pixel thick survive (DESIGN.md "Grids").
+max-pooling obstacles, so that walls drawn one pixel thick survive (docs/guides/maps.md).
 """
 
 from __future__ import annotations
