@@ -1,11 +1,11 @@
 """Every example in the documentation runs: the fenced ``python`` and ``bash`` blocks of ``docs/**/*.md`` and
 ``README.md``, so that a page cannot drift from the code.
 
-The blocks of one page run in order in one temporary folder (where ``docs/`` is this repository's, so that a
-path from a clone's root holds), as a reader would type them: ``python`` blocks
-in this process, in one namespace per page (a notebook: a later block uses an earlier one's names); ``bash``
-blocks with ``bash -euo pipefail``, ``fleet`` being this environment's. An HTML comment right before a block
-changes that (it does not show on the site):
+The blocks of one page run in order in one temporary folder (where ``docs/`` is this repository's, so that a path
+from a clone's root holds), as a reader would type them: ``python`` blocks in this process, in one namespace per
+page (a notebook: a later block uses an earlier one's names); ``bash`` blocks with ``bash -euo pipefail``,
+``fleet`` being this environment's. The default selection keeps to small runs on the memory engine (about 25 s of
+CPU in all). An HTML comment right before a block changes that (it does not show on the site):
 
 - ``<!-- docs-test: skip REASON -->``: never run (it installs something, needs another machine, runs for
   minutes...); the reason is required;
