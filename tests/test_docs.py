@@ -155,7 +155,7 @@ def pages() -> dict[Path, _Page]:
 
 
 def _env(folder: Path) -> dict[str, str]:
-    """This environment's ``fleet`` first on the PATH, and a cache of the page's own (fetched maps)."""
+    """This environment's ``fleet`` first on the PATH, and a cache of the page's own (``fleet maps fetch``)."""
     env = dict(os.environ)
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     env["COLUMNS"] = "120"
