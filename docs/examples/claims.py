@@ -44,8 +44,10 @@ class Claim(Payload):
 
 
 class Claims(Allocator, plugin_name="claims"):
-    """``forget``: ticks after which a teammate's claim no longer holds (it may have been lost, or the teammate
-    may have gone)."""
+    """Claims its frontier over the radio and leaves one that a nearer teammate claimed.
+
+    ``forget``: ticks after which a teammate's claim no longer holds (it may have been lost, or the teammate may
+    have gone)."""
 
     parameters = {"forget": Param(5, ge=1)}
     forget: int
