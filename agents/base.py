@@ -1,4 +1,4 @@
-"""The base station's functional core (issue 10, part 1): a fixed radio endpoint that holds the team map.
+"""The base station's functional core: a fixed radio endpoint that holds the team map.
 
 A :class:`BaseStation` is stepped once per tick with what the radio delivered to it (netem's rx bundle for
 ``base``), as :class:`~fleet_emu.agents.brain.Brain` is for a robot, but it has no body, no sensor and no
@@ -8,7 +8,7 @@ map deltas (``dst = "*"``), so the base hears them whenever it is linked to the 
 robot are not for the base. It asks for nothing: a delta lost on the way to the base stays missing until the
 cells come again in another robot's delta (the robots' map sync, ``agents/mapsync.py``, is between robots).
 
-:meth:`BaseStation.plan` is where a base-station planner goes (the ``mhm`` allocator, issue 10 part 4:
+:meth:`BaseStation.plan` is where a base-station planner goes (the ``mhm`` allocator:
 ``agents/allocators/mhm/station.py``): it gets the station (its belief, the robots' last cells, the tick) and
 returns the radio messages the base sends; :meth:`BaseStation.step` seals them as the base's envelopes (origin
 ``base``, its one sequence counter), which the node shell publishes on ``radio/tx/base``. Without a planner the

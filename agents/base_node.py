@@ -1,4 +1,4 @@
-"""The base station's process shell (issue 10, part 1): ``python -m fleet_emu.agents.base_node``.
+"""The base station's process shell: ``python -m fleet_emu.agents.base_node``.
 
 The base is a fixed radio endpoint: netem computes its links from its cell like a robot's and delivers to it,
 on ``radio/rx/base``, what robots broadcast. It is driven only by those rx bundles: it takes no part in the

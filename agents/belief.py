@@ -40,8 +40,8 @@ class Belief:
 
     def merge_many(self, parts: list[tuple[np.ndarray, np.ndarray]]) -> int:
         """:meth:`merge` of each ``(cells, values)`` of ``parts`` in turn, in one compiled pass
-        (:func:`~fleet_emu.core.kernels.merge_parts`; a robot merges every teammate's map delta each tick:
-        issue 11, parts 3 and 4). The grid, the news, the changed cells (in the same order) and the count are
+        (:func:`~fleet_emu.core.kernels.merge_parts`; a robot merges every teammate's map delta each tick).
+        The grid, the news, the changed cells (in the same order) and the count are
         those of the merges in turn."""
         if len(parts) <= 1:
             return sum(self.merge(c, v) for c, v in parts)
@@ -71,7 +71,7 @@ class Belief:
     def known(self) -> tuple[np.ndarray, np.ndarray]:
         """Every known cell, flat indices ascending and their values (for a full-map sync to a teammate heard
         again after a silence), as read-only arrays. The answer is kept until a merge changes a cell: at 100
-        robots a robot sends several whole maps a tick, each a pass over the grid (issue 11, part 3)."""
+        robots a robot sends several whole maps a tick, each a pass over the grid."""
         if self._known is None:
             flat = self.grid.reshape(-1)
             idx = np.flatnonzero(flat != UNKNOWN)

@@ -148,7 +148,7 @@ class MapSync:
         self.resent_cells = 0
 
     def peer(self, robot: str) -> Peer:
-        p = self.peers.get(robot)  # not setdefault: it would build a Peer for every call (issue 11, part 3)
+        p = self.peers.get(robot)  # not setdefault: it would build a Peer for every call
         if p is None:
             p = self.peers[robot] = Peer()
         return p

@@ -145,7 +145,7 @@ class AgentNode(NodeBase):
     def _belief_heard(self) -> bool:
         """Whether a subscriber (the recorder) listens to the belief snapshots: they are for the recording
         only, and a run that does not record would put a whole grid per robot on the bus for nobody (256 kB
-        per robot every ``belief_every`` ticks on a 512 x 512 map: issue 11, part 4)."""
+        per robot every ``belief_every`` ticks on a 512 x 512 map)."""
         assert self.pub_belief is not None
         try:
             return bool(cast(zenoh.MatchingStatus, self.pub_belief.matching_status).matching)  # a bool, says its stub

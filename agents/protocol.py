@@ -1,4 +1,4 @@
-"""The brain's own radio protocol: pose beacons and map deltas (DESIGN.md "What it is": a robot knows only what
+"""The brain's own radio protocol: pose beacons and map deltas (docs/design/architecture.md: a robot knows only what
 its sensor and its radio tell it), and the map recovery's fill (``agents/mapsync.py``). Each is a
 :class:`~fleet_emu.core.codec.Payload`, sealed in an envelope by the brain; netem never decodes them.
 
@@ -128,7 +128,7 @@ class MapFill(Payload):
             raise DecodeError("mapfill: negative upto")
 
 
-# --- fast decoders (issue 11, part 4) ----------------------------------------------------------------------
+# --- fast decoders -------------------------------------------------------------------------------------
 # Every robot decodes every teammate's beacon and delta each tick, so these are the codec's hot path at 100
 # robots. Each accepts a payload's map only when every field has exactly its type and the payload validates
 # (the checks of ``validate``, in one pass where they can be), and returns None otherwise: the generic decode

@@ -1,4 +1,4 @@
-"""A robot in real-time mode (``fleet run --realtime HZ``; DESIGN.md "A later mode"): it keeps executing its
+"""A robot in real-time mode (``fleet run --realtime HZ``; docs/guides/realtime.md): it keeps executing its
 last plan while it decides.
 
 The world ticks on the wall clock and does not wait (:mod:`world.realtime`). The robot's decision — the

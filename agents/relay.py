@@ -1,8 +1,8 @@
-"""Multi-hop relaying of radio envelopes, as a pure decision per received envelope (issue 10, item 2).
+"""Multi-hop relaying of radio envelopes, as a pure decision per received envelope.
 
 A robot that receives an :class:`~fleet_emu.core.messages.Envelope` decides two things: whether the message is
 for it (``dst`` is its id or ``*``), and whether to send it on, once, with one hop less. The decision is a
-function of the envelope's header only (payloads stay opaque, DESIGN.md "Radio envelope"), of the robot's id,
+function of the envelope's header only (payloads stay opaque, docs/reference/protocol.md), of the robot's id,
 of a forwarding policy, and of a cache of the message ids already seen.
 
 Rules (the choices are ours; the issue fixes only "forward once, deduplicated by origin and id, while hops

@@ -1,4 +1,4 @@
-"""The attacks of issue 12 against a seeded fleet, one at a time, and what each did to the result.
+"""Attacks on the bus against a seeded fleet, one at a time, and what each did to the result.
 
     python3 benchmarks/attacks.py                      # both modes, office, 3 robots, seed 3
     python3 benchmarks/attacks.py --mode open          # only an unauthenticated router (what every run had before)

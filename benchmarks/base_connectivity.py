@@ -1,4 +1,4 @@
-"""Base connectivity for every allocator (issue 10, part 3): how often the robots have a path to a base station.
+"""Base connectivity for every allocator: how often the robots have a path to a base station.
 
     python -m benchmarks.base_connectivity [--map office] [--robots 4] [--seeds 3] [--comm wall]
         [--comm-range 10] [--loss 0.1] [--max-ticks 400] [--allocators nearest minpos ...]

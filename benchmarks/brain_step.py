@@ -1,4 +1,4 @@
-"""Thread CPU of one robot-tick of the brain on a 512 x 512 map, split by stage (issue 11, part 3).
+"""Thread CPU of one robot-tick of the brain on a 512 x 512 map, split by stage.
 
     python -m benchmarks.brain_step [--robots 16] [--ticks 60] [--cells 512] [--maps maze PATH ...]
 
@@ -100,7 +100,7 @@ def main(argv: list[str] | None = None) -> None:
     a = p.parse_args(argv)
     if a.robots < 1 or a.ticks < 2 or a.cells < 8:
         fail(PROG, "--robots must be at least 1, --ticks at least 2, --cells at least 8")
-    print(f"# benchmarks/brain_step.py (issue 11, part 3): {machine()}")
+    print(f"# benchmarks/brain_step.py: {machine()}")
     print(f"# memory engine, minpos (parallel wavefronts), wall radio, loss 0.1, {a.robots} robots, {a.ticks} ticks, "
           f"sensor {a.sensor_cells:g} cells, comm {a.comm_cells:g} cells, seed {a.seed}; "
           "thread CPU in ms per robot-tick")

@@ -1,4 +1,4 @@
-"""Fault trials at scale (issue 12 part 5); not run in CI (``tests/integration/test_faults.py`` runs a few).
+"""Fault trials at scale; not run in CI (``tests/integration/test_faults.py`` runs a few).
 
     python benchmarks/fault_trials.py [--kill 100] [--sigint 50] [--fuzz 100000] [--fuzz-auth]
                                       [--loss-allocators all] [--seed 0]

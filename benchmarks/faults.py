@@ -1,10 +1,11 @@
-"""Fault trials (issue 12 part 5), shared by ``benchmarks/fault_trials.py`` and ``tests/integration/test_faults.py``.
+"""Fault trials, shared by ``benchmarks/fault_trials.py`` and ``tests/integration/test_faults.py``.
 
 Each trial runs the real ``fleet run`` CLI as a user would, does one harmful thing to it, and checks the
 invariants the issue asks for (:class:`Trial`): the run ended by itself (no hang), ``result.json`` is there,
 ``run.mcap`` opens to the end with as many messages as ``result.json`` says, no process of the fleet is left
 alive after the launcher exited (orphans), no node died but the one the trial killed (deaths: a failed robot, a
-crashed world or netem, a traceback or a fatal error in a log), and the exit code is the one the README gives.
+crashed world or netem, a traceback or a fatal error in a log), and the exit code is the one
+docs/reference/errors.md gives.
 
 - :func:`kill_trial`: ``kill -9`` of a random robot at a random tick (watched on an authenticated external
   router as the recorder user); exit 1, ``failed`` is exactly that robot.

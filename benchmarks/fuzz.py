@@ -1,4 +1,4 @@
-"""Fuzzed bus traffic for the fault trials (issue 12 part 5): random bytes, wrong shapes, oversized payloads,
+"""Fuzzed bus traffic for the fault trials: random bytes, wrong shapes, oversized payloads,
 unknown ids and spoofed ids, on every key of a run. A plain generator of ``(key, bytes)`` from a seeded
 ``numpy`` generator; sending it is :mod:`faults`' job.
 
@@ -6,7 +6,8 @@ Two flavours:
 
 - ``open`` (an outsider on an unauthenticated router): nothing it sends may be accepted by a node, so the run's
   seeded result must not change. Every message either does not decode, or carries a ``src`` that may not
-  write on its key (README "A second line"), or names a robot that is not in the fleet on that robot's own key.
+  write on its key (docs/design/security.md, "A second line"), or names a robot that is not in the fleet on
+  that robot's own key.
 - ``robot`` (a compromised robot with its own credentials, ``user``): the same garbage on every key (the
   router drops what is not its own), plus tx bundles from itself whose envelopes carry garbage payloads, so
   that the other robots' payload decoders see them through netem.

@@ -1,4 +1,4 @@
-"""MHM in the whole fleet (issue 10, part 5): the base plans, its orders cross the lossy radio hop by hop, the
+"""MHM in the whole fleet: the base plans, its orders cross the lossy radio hop by hop, the
 robots obey. Memory engine (the same objects as the processes, one process, no Zenoh), disk radio.
 
     python -m benchmarks.mhm_fleet [--map office] [--robots 10 20] [--loss 0 0.1 0.3] [--seeds 0]

@@ -1,5 +1,5 @@
 """Ticks to full coverage per allocator and fleet size on hospital_section with a perfect radio, and MinPos's
-paired difference to utility (issue 13; Bautin et al. 2012, Fig. 5(a), is the figure this approaches).
+paired difference to utility (Bautin et al. 2012, Fig. 5(a), is the figure this approaches).
 
     python -m benchmarks.minpos_vs_utility [--robots 2 4] [--seeds 8] [--allocators nearest utility minpos]
         [--map hospital_section] [--jobs 2] [--in-process]

@@ -1,4 +1,4 @@
-"""Mukhija et al.'s setting for the base-station constraint (issue 10, part 6): their Fig. 7 and Table I.
+"""Mukhija et al.'s setting for the base-station constraint: their Fig. 7 and Table I.
 
     python -m benchmarks.paper_setting [--maps grid PATH ...] [--robots 10 20] [--allocators mhm minpos connectivity]
         [--cells 512] [--r-comm 40] [--sensor 15] [--max-ticks 2000] [--at 250 500 1000 2000] [--cell-size 1]
@@ -300,7 +300,7 @@ def main(argv: list[str] | None = None) -> None:
         except MapError as exc:
             fail(PROG, f"map {name}: {exc}")
     warm_up()
-    print(f"# benchmarks/paper_setting.py (issue 10, part 6): {machine()}")
+    print(f"# benchmarks/paper_setting.py: {machine()}")
     print(f"# {a.cells} x {a.cells} cells, r_comm {a.r_comm:g} cells, sensor {a.sensor:g} cells, "
           f"{a.cell_size:g} m/cell in the runs, loss {a.loss:g}, seed {a.seed}, {a.max_ticks} ticks at most; "
           "mhm: pure planner, kinematic sim; others: memory engine, disk radio, base listening")

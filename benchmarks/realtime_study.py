@@ -1,4 +1,4 @@
-"""Real time: does an allocator's computing time cost exploration time? (issue 11, part 5)
+"""Real time: does an allocator's computing time cost exploration time?
 
     python -m benchmarks.realtime_study [--hz 10] [--robots 8 32 64] [--max-ticks 6000] [--maps maze PATH ...]
 
@@ -150,7 +150,7 @@ def main(argv: list[str] | None = None) -> None:
     from fleet_emu.world.sim import StartAreaError
 
     maps = fitted_maps(PROG, a.maps, a.cells, a.seed)
-    print(f"# benchmarks/realtime_study.py (issue 11, part 5): {machine()}")
+    print(f"# benchmarks/realtime_study.py: {machine()}")
     mode = "lockstep, memory engine" if a.lockstep else f"real time at {a.hz:g} Hz, processes engine"
     print(f"# {mode}, wall radio, loss 0.1, target 0.99, cap {a.max_ticks} ticks, "
           f"stall {a.stall_seconds:g} s, sensor {a.sensor_cells:g} cells, comm {a.comm_cells:g} cells, seed {a.seed}")

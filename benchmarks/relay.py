@@ -1,11 +1,12 @@
-"""Multi-hop relaying (issue 10, part 2): what each policy and hop limit delivers, and at what radio cost.
+"""Multi-hop relaying: what each policy and hop limit delivers, and at what radio cost.
 
     python -m benchmarks.relay [--map office] [--robots 4] [--seeds 3] [--comm disk] [--comm-range 8]
         [--loss 0.1] [--max-ticks 300] [--allocator minpos] [--ttls 0 2 4]
 
 Runs on the memory engine (``fleet_emu.Fleet``: the same objects and result as ``fleet run``). Rows: no
 relaying, then ``flood`` and ``tree`` for each ``relay_ttl``; ``tree`` has no routes until the base-station
-allocator fills them (README "Relaying"), so it forwards nothing and shows what a ttl costs alone. Per row,
+allocator fills them (docs/guides/radio.md, "Relaying"), so it forwards nothing and shows what a ttl costs
+alone. Per row,
 over the seeds (mean ± sd): the pose beacons' delivery ratio and transmissions per delivery, the share of
 beacon deliveries that took 2+ hops, the radio's (message, receiver) pairs sent, coverage and ticks.
 Counts, not timings: the numbers do not depend on the machine's load.
@@ -43,7 +44,7 @@ def table(argv: list[str] | None) -> None:
     p.add_argument("--allocator", default="minpos")
     p.add_argument("--ttls", type=int, nargs="+", default=[0, 2, 4])
     a = p.parse_args(argv)
-    print(f"# benchmarks/relay.py (issue 10, part 2): {a.map}, {a.robots} robots, {a.allocator}, {a.comm} radio, "
+    print(f"# benchmarks/relay.py: {a.map}, {a.robots} robots, {a.allocator}, {a.comm} radio, "
           f"range {a.comm_range} m, loss {a.loss}, {a.max_ticks} ticks at most, seeds 0..{a.seeds - 1}")
     print("| relay | ttl | pose delivery | pose tx/delivered | pose 2+ hops | radio pairs sent | coverage | ticks |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")

@@ -1,4 +1,4 @@
-"""How the multi-process fleet scales with robots on a 512 x 512-cell map (issue 11, part 1: the "before" table).
+"""How the multi-process fleet scales with robots on a 512 x 512-cell map.
 
     python -m benchmarks.scale [--robots 16 32 64 100] [--ticks 30] [--cells 512] [--maps maze PATH ...]
 
@@ -28,7 +28,7 @@ One table row per map and robot count (stdout):
   whole belief, a start-up cost shown apart, see below), from the agents' own clocks (thread CPU of the step
   and of the loop, process CPU, from the end of the first step to the report: the same ticks, so none is
   negative, which a /proc window is not: its ticks under load are not the agents'); ``outside`` is the
-  agent's CPU outside the allocator (``brain + a.py + a.zen``, issue 11 part 3's figure); ``router`` the
+  agent's CPU outside the allocator (``brain + a.py + a.zen``); ``router`` the
   run's Zenoh router process (``pids.router``) and ``launch`` the launcher process (its fold and
   subscriptions); ``total`` their sum, and ``cores`` the CPU seconds per wall second over the window (at
   most the machine's cores);
@@ -95,7 +95,7 @@ def cpu_seconds(pid: int) -> float | None:
 
 @dataclasses.dataclass
 class Sampler:
-    """Samples the fleet's processes from the launcher's progress callback (issue 11): CPU times at the first
+    """Samples the fleet's processes from the launcher's progress callback: CPU times at the first
     tick seen and at every later tick before the stop, PSS once near the end."""
 
     ticks: int
@@ -307,7 +307,7 @@ def main(argv: list[str] | None = None) -> None:
     from fleet_emu.core.scenario import MAX_ROBOTS
 
     maps = fitted_maps(PROG, a.maps, a.cells, a.seed)
-    print(f"# benchmarks/scale.py (issue 11): {machine()}")
+    print(f"# benchmarks/scale.py: {machine()}")
     print(f"# minpos (parallel wavefronts), processes engine, wall radio, loss 0.1, {a.ticks} ticks, sensor "
           f"{a.sensor_cells:g} cells, comm {a.comm_cells:g} cells, seed {a.seed}, robot cap {MAX_ROBOTS}")
     print(header(), flush=True)

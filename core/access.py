@@ -8,7 +8,7 @@
 2. Every receiver (the second line): :func:`allowed_src` says which senders a key may carry, and
    ``NodeBase.decode`` / the launcher's monitor drop and count a message whose ``src`` disagrees with its key.
 
-The keys each node writes (README "Key expressions"):
+The keys each node writes (docs/reference/protocol.md, docs/design/security.md):
 
 =========  ===================================================================================
 world      ``world/**`` (state, obs, clock), ``ctl/hello``, ``ctl/stop``, ``ctl/ready/world``
@@ -63,7 +63,7 @@ def writes(node: str) -> list[str]:
         return ["ctl/stop", "ctl/failed/*", "ctl/ready/launcher"]
     if node == RECORDER or role_of(node) == HOST:
         return []
-    if node == BASE:  # a fixed radio endpoint; it sends on radio/tx/base when it plans (mhm, issue 10 part 4)
+    if node == BASE:  # a fixed radio endpoint; it sends on radio/tx/base when it plans (mhm)
         return [f"radio/tx/{BASE}", f"ctl/report/{BASE}", f"ctl/ready/{BASE}"]
     return [f"robot/{node}/**", f"radio/tx/{node}", f"ctl/report/{node}", f"ctl/ready/{node}"]
 

@@ -1,7 +1,7 @@
 """Zenoh session helpers: router/client configs, reliable publishers, and the asyncio bridge.
 
 zenoh-python has no async API: callbacks run on zenoh's threads, so :class:`Inbox` only copies the bytes
-and hands them to the event loop with ``call_soon_threadsafe`` (DESIGN.md, measured facts).
+and hands them to the event loop with ``call_soon_threadsafe`` (docs/design/architecture.md, "Dependencies").
 """
 
 from __future__ import annotations

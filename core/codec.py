@@ -183,7 +183,7 @@ def _converter(hint: Any) -> Convert:
 def _tuple_converter(args: tuple[Any, ...]) -> Convert:
     if len(args) == 2 and args[1] is Ellipsis:
         item = _converter(args[0])
-        exact = _EXACT.get(item)  # a list of exactly that scalar type is checked in one pass (issue 11, part 4)
+        exact = _EXACT.get(item)  # a list of exactly that scalar type is checked in one pass
 
         def homogeneous(value: Any, name: str, ctx: Context | None) -> Any:
             if not isinstance(value, (list, tuple)):
@@ -283,7 +283,7 @@ def _array(value: Any, name: str) -> np.ndarray:
 _DTYPES = {name: np.dtype(name) for name in ALLOWED_DTYPES}
 
 
-#: Fast decoders (issue 11, part 4), by record class: a function of the record's msgpack map (a message's with
+#: Fast decoders, by record class: a function of the record's msgpack map (a message's with
 #: ``kind`` and ``v``, a payload's without) and the context that returns the record when the map is well formed
 #: and valid in the common way, and None otherwise, in which case the generic, checking decode runs (and
 #: raises the error). So a fast decoder decides nothing: it only accepts sooner what the generic decode

@@ -1,4 +1,4 @@
-"""The radio envelope and the bundles that carry it (DESIGN.md "Radio envelope"; split out of
+"""The radio envelope and the bundles that carry it (docs/reference/protocol.md; split out of
 ``core/messages.py``, which re-exports every name here).
 
 An :class:`Envelope` carries one radio message: its header (who sent this hop, who made it, for whom, hops
@@ -47,7 +47,7 @@ class Envelope(Message):
 
     def encode(self) -> bytes:
         """The envelope's bytes, packed once and kept (an envelope is immutable): netem puts each broadcast
-        envelope in every receiver's rx bundle, and counts its size (issue 11, part 4)."""
+        envelope in every receiver's rx bundle, and counts its size."""
         packed = self.__dict__.get("_packed")
         if packed is None:
             packed = super().encode()
@@ -71,7 +71,7 @@ _ENVELOPE_KEYS = frozenset({"kind", "v", "src", "tick", "seq", "origin", "dst", 
 def _fast_envelope(obj: dict, ctx: Context | None) -> Envelope | None:
     """An envelope straight from its map when every field has exactly its type and it validates
     (:meth:`Envelope.validate`'s checks, inlined); None for anything else, which the generic decode then
-    checks (an rx bundle holds every teammate's envelopes: issue 11, part 4)."""
+    checks (an rx bundle holds every teammate's envelopes)."""
     if obj.keys() != _ENVELOPE_KEYS:
         return None
     src, tick, seq, origin, dst = obj["src"], obj["tick"], obj["seq"], obj["origin"], obj["dst"]
@@ -201,7 +201,7 @@ def _fast_bundle(cls: type[TxBundle] | type[RxBundle], obj: dict, ctx: Context |
     """A bundle straight from its map when its header has exactly its types and every envelope is one the fast
     envelope decoder takes; None for anything else (the generic decode then checks it). A robot decodes its rx
     bundle every tick and netem every robot's tx bundle: the generic decode's field walk per envelope was a
-    good part of a robot's shell CPU (issue 11, part 3)."""
+    good part of a robot's shell CPU."""
     if obj.keys() != _BUNDLE_KEYS[cls]:
         return None
     v, src, tick, seq, msgs = obj["v"], obj["src"], obj["tick"], obj["seq"], obj["msgs"]

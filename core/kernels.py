@@ -134,7 +134,7 @@ def visible_cells(occupied: np.ndarray, row: int, col: int, radius: float) -> np
 def count_walls(occupied: np.ndarray, r0: int, c0: int, r1: int, c1: int) -> int:
     """Number of walls the straight segment between two cells crosses.
 
-    A wall is a maximal run of occupied cells along the Bresenham line (DESIGN.md, radio model); cells off
+    A wall is a maximal run of occupied cells along the Bresenham line (docs/guides/radio.md); cells off
     the grid count as free.
     """
     dr = abs(r1 - r0)
@@ -169,7 +169,7 @@ def count_walls(occupied: np.ndarray, r0: int, c0: int, r1: int, c1: int) -> int
 def cells_valid(cells: np.ndarray, values: np.ndarray, size: int) -> bool:
     """Whether every index of ``cells`` lies in ``[0, size)`` and every value of ``values`` (as long) is -1, 0
     or 100: :func:`fleet_emu.core.messages.check_cells`'s verdict on 1-D arrays of equal length, in one pass
-    instead of four numpy calls (a robot checks every teammate's map delta: issue 11, part 3)."""
+    instead of four numpy calls (a robot checks every teammate's map delta every tick)."""
     for i in range(cells.shape[0]):
         c = cells[i]
         if c < 0 or c >= size:

@@ -1,4 +1,4 @@
-"""Key expressions, built by one function (DESIGN.md "Key expressions")."""
+"""Key expressions, built by one function (docs/reference/protocol.md)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import dataclasses
 import re
 
 ROOT = "fleet"
-BASE = "base"  # the base station's node id (DESIGN.md: robots are r0 .. r<N-1>, a base station is ``base``)
+BASE = "base"  # the base station's node id (robots are r0 .. r<N-1>, a base station is ``base``)
 HOST_ROOT = "fleet-host"  # the hosts' lobby: outside ``fleet/<run>/**``, so never recorded nor readable by a run
 
 
@@ -78,7 +78,7 @@ class Keys:
 
     def folded(self, radio: bool = False) -> tuple[str, ...]:
         """The keys the launcher's fold reads (``recording/monitor.py``), and the world's hello it answers:
-        what it subscribes to when it does not record (issue 11, part 4: at 256 robots the observations, the
+        what it subscribes to when it does not record (at 256 robots the observations, the
         rx and tx bundles and the belief snapshots are most of the bus); with ``radio`` (a relaying run, whose
         bundles' headers it folds) the radio bundles too."""
         return (self.state, self.clock, self.links, self.hello, self.stop, self.report("*"),

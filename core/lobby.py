@@ -64,7 +64,7 @@ class AgentReport(Message):
     decision_ms_p95: float
     dropped: int
     peak_rss_kb: int
-    decision_cpu_ms: float = 0.0  # thread CPU in the allocator, summed over the decisions (issue 11)
+    decision_cpu_ms: float = 0.0  # thread CPU in the allocator, summed over the decisions
     step_cpu_ms: float = 0.0  # thread CPU in the brain's whole step, summed (decision included)
     # the agent process's CPU (every thread) from the start of its first step to this report: minus step_cpu_ms,
     # its bus work over the same ticks (benchmarks/scale.py's a.bus); 0 where not measured (the memory engine)

@@ -1,4 +1,5 @@
-"""Every message of the lockstep protocol, defined once (DESIGN.md "Messages"): the one module to import them from.
+"""Every message of the lockstep protocol, defined once (docs/reference/protocol.md): the one module to import
+them from.
 
 The barrier messages (world -> agents, netem -> agents, agents -> world/netem), netem's links, the belief snapshots
 and the real-time messages are defined here; the radio envelope and its bundles in ``core/envelope.py``, the control

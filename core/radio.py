@@ -1,4 +1,4 @@
-"""The radio: its one parameter type, and the signal model (DESIGN.md "The radio model"; Benavides et al.
+"""The radio: its one parameter type, and the signal model (docs/guides/radio.md; Benavides et al.
 2016, eq. 4, after RADAR), shared by netem (on the true map) and the connectivity allocator (on a belief).
 
     P_ij = -10 * PL * log10(d_ij / c) - min(nW_ij, C) * WAF

@@ -1,4 +1,4 @@
-"""Base connectivity (issue 10, item 3): which robots have a path to the base station in the link graph.
+"""Base connectivity: which robots have a path to the base station in the link graph.
 
 A pure function of the link matrix that :func:`fleet_emu.core.radio.link_matrix` gives (rows and columns in
 the order of ``names``, the base station one of them), and a fold over ticks for ``result.json``'s

@@ -4,7 +4,7 @@ CLI flags (or keyword arguments) on top.
 Every value is checked for type, finiteness and range before any process starts; a bad one is a
 :class:`ConfigError` whose message is one line naming the field and what it accepts.
 
-``[hosts]`` (:class:`HostPlan`, README "Robots on other machines") says where the robots run, not what they do:
+``[hosts]`` (:class:`HostPlan`, docs/guides/hosts.md) says where the robots run, not what they do:
 a lockstep run gives the same result wherever its robots are, so a run without it keeps its ``scenario.json``
 as before, and ``launch.result.deterministic`` leaves it out.
 """
@@ -26,7 +26,7 @@ from fleet_emu.core.radio import COMM_MODELS, RadioConfig
 MAX_ROBOTS = 256
 MAX_HOSTS = 64
 RELAY_POLICIES = ("none", "flood", "tree")
-#: Allocators that plan at the base station (issue 10, part 4): a run with one needs ``base``, the base joins
+#: Allocators that plan at the base station: a run with one needs ``base``, the base joins
 #: netem's lockstep as a sender (``radio/tx/base``), and the robots relay (``tree`` by default, below).
 BASE_PLANNERS = frozenset({"mhm"})
 DEFAULT_STALL = 30
@@ -134,7 +134,7 @@ class Scenario:
         runs with ``tree`` relaying and, when ``relay_ttl`` is 0, the largest hop limit. And its robots hold
         while the base waits (orders crossing the tree, a robot slow to reach its hinge point, up to the
         planner's patience): at the default ``stall_ticks`` (30) it runs with :data:`BASE_PLANNER_STALL`
-        (README "MHM")."""
+        (docs/guides/base-station.md)."""
         if self.plans_at_base and self.relay == "none":
             object.__setattr__(self, "relay", "tree")
             if self.relay_ttl == 0:
@@ -271,7 +271,7 @@ class Scenario:
 
     @property
     def has_base(self) -> bool:
-        """Whether the run has a base station (the ``base`` process, README "Base station")."""
+        """Whether the run has a base station (the ``base`` process, docs/guides/base-station.md)."""
         return self.base is not False
 
     @property

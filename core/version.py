@@ -5,7 +5,7 @@ file too."""
 
 from __future__ import annotations
 
-#: Bumped whenever a message, ``result.json`` or the recording layout changes incompatibly. 1: the first round;
+#: Bumped whenever a message, ``result.json`` or the recording layout changes incompatibly. 1: the first layout;
 #: 2: fleet_emu namespace, opaque radio envelopes.
 SCHEMA_VERSION = 2
 

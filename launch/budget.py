@@ -1,10 +1,10 @@
-"""What a run needs of the machine, checked before anything starts (issue 11, part 4): memory against
+"""What a run needs of the machine, checked before anything starts: memory against
 ``MemAvailable`` and file descriptors against ``RLIMIT_NOFILE``.
 
 :func:`estimate` and :func:`check_memory` are pure: a model of each process's proportional set size (PSS:
 shared pages divided among the processes mapping them, so the sum is what the run costs the machine) from the
 fleet size, the map's cells, the engine and whether the robots are forked. The figures are measured
-(``benchmarks/scale.py`` and ``benchmarks/agent_memory.py``, 2026-11-23, 2-core VM; the README's "Memory") and
+(``benchmarks/scale.py`` and ``benchmarks/agent_memory.py``, 2026-11-23, 2-core VM; docs/guides/large-fleets.md) and
 rounded up; :data:`MODEL` says where each comes from. The estimate is a guard against a run that would swap or
 be killed by the OOM killer halfway, not a measurement: ``FLEET_MEM_AVAILABLE_MB`` replaces what
 ``/proc/meminfo`` says (for a test, or to run past the check on purpose).

@@ -1,7 +1,7 @@
 """``fleet``'s commands that run and inspect fleets: ``run``, ``router-config``, ``host``, ``maps``,
-``allocators``, ``report``, and the dispatch every command goes through (DESIGN.md "CLI and the result
-contract"). The ``fleet`` console script, :mod:`fleet_emu.cli`, adds ``sweep`` on top (sweep runs fleets through
-this package, so this package does not import it); ``python -m fleet_emu.launch`` serves the commands here.
+``allocators``, ``report``, and the dispatch every command goes through (docs/reference/cli.md). The
+``fleet`` console script, :mod:`fleet_emu.cli`, adds ``sweep`` on top (sweep runs fleets through this package,
+so this package does not import it); ``python -m fleet_emu.launch`` serves the commands here.
 
 Bad input gets one line on stderr (``fleet: error: ...``) and exit code 2; a run in which a process of the
 fleet failed exits 1 (a robot too, when the others finished); SIGINT (Ctrl-C) exits 130 and SIGTERM 143,

@@ -128,7 +128,7 @@ LOOPBACK = "tcp/127.0.0.1:0"
 
 def check_reliable(flag: str, endpoint: str) -> None:
     """A ConfigError for a ``udp/`` endpoint: Zenoh does not retransmit over UDP (its reliability is hop to hop,
-    from the link), and the fleet's only losses must be the ones netem decides (DESIGN.md "Time")."""
+    from the link), and the fleet's only losses must be the ones netem decides (docs/design/determinism.md)."""
     if endpoint.startswith("udp/"):
         raise ConfigError(f"{flag} {endpoint}: Zenoh does not retransmit over udp/, and a lockstep run may lose no "
                           f"message: use tcp/, tls/ or quic/")
@@ -138,7 +138,7 @@ def listen_endpoints(listen: str | None, tls_cert: Path | None, tls_key: Path | 
     """The embedded router's endpoints for ``--listen`` (``tcp/``, or ``tls/`` and ``quic/`` with
     ``--tls-cert`` and ``--tls-key``): the one given, and for a ``tls/`` or ``quic/`` one a loopback ``tcp/``
     one too, which this machine's own processes use (they need no CA). ``udp/`` is refused: Zenoh does not
-    retransmit over UDP, and lockstep must lose no message but the ones netem decides (DESIGN.md "Time")."""
+    retransmit over UDP, and lockstep must lose no message but the ones netem decides (docs/design/determinism.md)."""
     proto, sep, address = (listen or LOOPBACK).partition("/")
     if not sep or not address:
         raise ConfigError(f"--listen {listen!r} is not an endpoint (expected <protocol>/<address>:<port>, e.g. "

@@ -1,5 +1,5 @@
 """The in-memory engine: the same :class:`World`, :class:`Channel` and :class:`Brain` objects the node processes
-run, stepped directly in lockstep, with no Zenoh, no threads and no clock (DESIGN.md "Engines").
+run, stepped directly in lockstep, with no Zenoh, no threads and no clock (docs/design/determinism.md).
 
 :class:`Fleet` follows PettingZoo's ``ParallelEnv`` (``reset(seed)`` gives the observations, ``step()`` one
 tick): each tick it does what the three node shells do, in their order (``world/node.py``, ``netem/node.py``,

@@ -1,5 +1,5 @@
-"""What one run gives back: :class:`Result`, the ``result.json`` contract (DESIGN.md "CLI and the result
-contract") with the coverage curve beside it, readable like the dict it was."""
+"""What one run gives back: :class:`Result`, the ``result.json`` contract
+(docs/reference/result.md) with the coverage curve beside it, readable like the dict it was."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 #: ``result.json`` keys that depend on the clock, the processes, the engine or the bus, not on the seed: every
-#: other key is the same for a seed whatever the engine (DESIGN.md "Engines").
+#: other key is the same for a seed whatever the engine (docs/design/determinism.md).
 UNTIMED = frozenset({"run_id", "decision_ms", "agent_peak_rss_kb", "ticks_per_second", "pids", "recording",
                      "wall_seconds", "engine", "authenticated", "signal"})
 

@@ -1,4 +1,4 @@
-"""The radio channel as a pure function of links, bundles and a seeded generator (DESIGN.md radio model).
+"""The radio channel as a pure function of links, bundles and a seeded generator (docs/guides/radio.md).
 
 Counting convention: every (message, intended receiver) pair is one transmission, so
 ``sent == delivered + dropped_loss + dropped_signal``; ``bytes_sent`` counts each message's encoded size once
@@ -100,7 +100,7 @@ class Channel:
                 if has_base and (src == BASE or BASE in receivers):
                     draws = np.array([(self.base_rng if BASE in (src, dst) else self.rng).random()
                                       for dst in receivers])
-                else:  # one draw per receiver in turn, taken at once: the same numbers (issue 11, part 4)
+                else:  # one draw per receiver in turn, taken at once: the same numbers
                     draws = self.rng.random(len(receivers))
                 ok = linked & (draws >= self.loss) if len(receivers) else linked
                 n_linked, n_ok = int(np.count_nonzero(linked)), int(np.count_nonzero(ok))

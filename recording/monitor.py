@@ -54,7 +54,7 @@ def base_graph(lk: Links) -> tuple[tuple[str, ...], np.ndarray]:
 
 @dataclasses.dataclass
 class Monitor:
-    """Folds the run's messages; ``result()`` gives the DESIGN.md result keys."""
+    """Folds the run's messages; ``result()`` gives the ``result.json`` keys (docs/reference/result.md)."""
 
     robots: tuple[str, ...]
     state: WorldState | None = None
@@ -186,7 +186,7 @@ class Monitor:
         return self.state.coverage if self.state else 0.0
 
     def result(self, scenario: dict[str, Any], run_id: str, target: float) -> dict[str, Any]:
-        """The ``result.json`` contract of DESIGN.md (plus a few extra keys)."""
+        """The ``result.json`` keys (docs/reference/result.md)."""
         st = self.state
         lk = self.links
         ms = np.array(self.decision_ms) if self.decision_ms else np.zeros(1)

@@ -110,7 +110,7 @@ def messages_plot(run: Run, path: Path) -> None:
 
 
 def base_plot(run: Run, path: Path) -> None:
-    """A run with a base station (issue 10 part 3): the share of live robots with a path of links to the base,
+    """A run with a base station: the share of live robots with a path of links to the base,
     per tick, and each robot's connected ticks."""
     f = run.fold
     frac = run.metrics.get("base_connected_fraction") or {}

@@ -6,7 +6,7 @@ read front to back with the mcap package's stream reader, so a recording without
 was killed) reads up to its last complete chunk: the recorder flushes one at least once a second.
 
 The recorder writes the schema version into the ``scenario`` metadata (``schema_version``); a recording without it
-is from the first round (schema 1), and one from a newer schema than :data:`fleet_emu.core.version.SCHEMA_VERSION`
+is of the first layout (schema 1), and one from a newer schema than :data:`fleet_emu.core.version.SCHEMA_VERSION`
 is refused before anything else of it is read.
 """
 
@@ -142,7 +142,7 @@ def _read(f: BinaryIO, mcap: Path) -> Run:
 
 
 def _versions(metadata: dict[str, str], mcap: Path) -> tuple[int, str | None]:
-    """The schema and fleet_emu versions a recording was written with (1 and None for the first round's);
+    """The schema and fleet_emu versions a recording was written with (1 and None for the first layout's);
     refuses a newer schema."""
     try:
         schema = int(metadata.get("schema_version", 1))

@@ -1,5 +1,5 @@
 """End-to-end delivery of relayed radio messages, folded from envelope headers in the tx and rx bundles
-(issue 10 part 2; the relaying itself is ``agents/relay.py``).
+(the relaying itself is ``agents/relay.py``).
 
 The bundles are on the bus in every engine and in a recording, so the same fold gives the same numbers for a
 run over Zenoh, in memory, or recomputed by ``fleet report``; it reads headers only, never a payload, and it

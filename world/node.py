@@ -1,9 +1,9 @@
 """The world process shell: ground truth, sensing and motion over Zenoh, and the lockstep clock.
 
-Each tick t (DESIGN.md "Time"): publish every live robot's observation and the state, wait for every live
-robot's command for t (a robot silent past the barrier timeout, or whose liveliness token goes, is failed),
-apply the moves, advance. All the simulation is :class:`world.sim.World` and the lockstep's messages are built
-in :mod:`world.messages` (as the memory engine builds them); this module only does I/O.
+Each tick t (docs/design/architecture.md, "Time"): publish every live robot's observation and the state, wait
+for every live robot's command for t (a robot silent past the barrier timeout, or whose liveliness token goes,
+is failed), apply the moves, advance. All the simulation is :class:`world.sim.World` and the lockstep's
+messages are built in :mod:`world.messages` (as the memory engine builds them); this module only does I/O.
 
 Real time (``realtime_hz``, ``fleet run --realtime HZ``): the world does not wait for the robots. It publishes
 tick k, collects commands until tick k + 1 is due on its wall clock (:class:`world.realtime.TickClock`), applies

@@ -1,4 +1,4 @@
-"""The world's wall clock in real-time mode (``fleet run --realtime HZ``; DESIGN.md "A later mode"), pure:
+"""The world's wall clock in real-time mode (``fleet run --realtime HZ``; docs/guides/realtime.md), pure:
 every time is passed in, so these are unit-tested without a clock.
 
 - :class:`TickClock`. Tick ``k`` is due at ``t0 + k / hz`` on a monotonic clock: the schedule is fixed in

@@ -50,12 +50,12 @@ Choices the paper leaves open, as parameters:
   stops eq. 9 pulling them together at every tick); still more than MinPos's on every map.
 - ``beta`` and ``lam`` (below).
 
-What the robot can know (DESIGN.md): the signal is predicted on its *belief* map from teammates' *last known*
-poses. Walls are the cells the belief holds as occupied; unknown cells count as free by default (a robot cannot
-know a wall it has not seen, and frontier targets border unknown space, so counting unknown runs as walls would
-penalise every frontier alike); ``unknown_walls=True`` counts them as walls instead. Distances are clamped to one
-cell: two robots never stand closer (one cell holds one robot), and the 1 mm clamp of ``signal_db`` would give a
-teammate standing on a target a spurious +80 dB.
+What the robot can know (docs/design/architecture.md): the signal is predicted on its *belief* map from teammates'
+*last known* poses. Walls are the cells the belief holds as occupied; unknown cells count as free by default (a
+robot cannot know a wall it has not seen, and frontier targets border unknown space, so counting unknown runs as
+walls would penalise every frontier alike); ``unknown_walls=True`` counts them as walls instead. Distances are
+clamped to one cell: two robots never stand closer (one cell holds one robot), and the 1 mm clamp of ``signal_db``
+would give a teammate standing on a target a spurious +80 dB.
 
 Settings (``params()``): the paper's experiment that favours connectivity (Fig. 8, Table I) uses
 ``alpha = 0.6``; the paper gives no value for ``beta`` or ``lambda``. With ``alpha, beta`` in ``[0, 1]`` weighed

@@ -83,7 +83,7 @@ def test_scale_reports_a_row_per_map_and_fleet(small_bitmap: Path) -> None:
                   "--maps", "maze", str(small_bitmap))
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.strip().splitlines()
-    assert lines[0].startswith("# benchmarks/scale.py (issue 11): ") and " cores " in lines[0]
+    assert lines[0].startswith("# benchmarks/scale.py: ") and " cores " in lines[0]
     assert lines[3].split()[:6] == ["map", "cells", "robots", "start", "s", "ticks"]
     stage_at = next(i for i, ln in enumerate(lines) if ln.startswith("# brain by stage"))
     rows = [ln.split() for ln in lines[4:stage_at]]
@@ -131,7 +131,7 @@ def test_brain_step_reports_a_row_per_map(small_bitmap: Path) -> None:
                   str(small_bitmap))
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.strip().splitlines()
-    assert lines[0].startswith("# benchmarks/brain_step.py (issue 11, part 3): ") and " cores " in lines[0]
+    assert lines[0].startswith("# benchmarks/brain_step.py: ") and " cores " in lines[0]
     assert lines[2].split()[:3] == ["map", "decide", "clusters"]
     rows = [ln.split() for ln in lines[3:]]
     assert [r[0] for r in rows] == ["maze", "two_rooms"]
@@ -156,7 +156,7 @@ def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_bitmap: Path
                   "--maps", str(small_bitmap))
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.strip().splitlines()
-    assert lines[0].startswith("# benchmarks/realtime_study.py (issue 11, part 5): ")
+    assert lines[0].startswith("# benchmarks/realtime_study.py: ")
     assert lines[3].split()[:5] == ["map", "cells", "robots", "allocator", "t99"]
     rows = [ln.split() for ln in lines[4:]]
     assert [(r[2], r[3]) for r in rows] == [("2", "greedy"), ("2", "minpos-par"), ("250", "greedy"),
@@ -220,7 +220,7 @@ def test_paper_setting_prints_fig7_rows_and_draws_them(small_bitmap: Path, tmp_p
                   "--out", str(png), "--json", str(data))
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.strip().splitlines()
-    assert lines[0].startswith("# benchmarks/paper_setting.py (issue 10, part 6): ")
+    assert lines[0].startswith("# benchmarks/paper_setting.py: ")
     assert "# map two_rooms: drawn at " in lines[2] and lines[2].endswith("base at (11, 12)")  # padded
     assert lines[3].split()[:8] == ["map", "allocator", "robots", "ticks", "end", "coverage", "seen@10", "seen@30"]
     rows = [ln.split() for ln in lines[4:]]
