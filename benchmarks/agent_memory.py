@@ -99,13 +99,13 @@ def measure(robots: int, ticks: int, map_name: str, period: float, extra: list[s
             "server": sum(at.get(p, 0) for p in server), "summed": summed}
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--robots", type=int, nargs="+", default=[16, 32])
     p.add_argument("--ticks", type=int, default=40)
     p.add_argument("--map", default="office")
     p.add_argument("--period", type=float, default=0.5, help="seconds between samples")
-    argv = sys.argv[1:]
+    argv = sys.argv[1:] if argv is None else argv
     extra = argv[argv.index("--") + 1:] if "--" in argv else []
     a = p.parse_args(argv[:argv.index("--")] if "--" in argv else argv)
     print(f"{'robots':>6} {'ticks':>5} {'agent PSS mean MB':>17} {'max MB':>7} {'agent RSS mean MB':>17} "

@@ -49,7 +49,7 @@ def describe(result: dict) -> str:
     return f"t99 {result['t99']}, coverage {result['coverage']:.1%} at tick {result['ticks']}"
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--allocators", nargs="+", default=["nearest", "greedy", "utility", "minpos", "hungarian"])
     p.add_argument("--robots", type=int, nargs="+", default=[2, 4, 8])
@@ -59,7 +59,7 @@ def main() -> None:
     p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--in-process", action="store_true", help="all nodes of a run in one process")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     extra = ["--in-process"] if a.in_process else []
     if a.start != "map":
         extra += ["--start", a.start]

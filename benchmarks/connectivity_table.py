@@ -115,7 +115,7 @@ def cell(outcomes: list[Outcome]) -> str:
     return f"{conn:.0%}, {ticks:.0f}{flags}"
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--maps", nargs="+", default=DEFAULT_MAPS)
     p.add_argument("--configs", nargs="+", default=["minpos", "conn:0.6:0.4", "conn:0.4:0.6"])
@@ -124,7 +124,7 @@ def main() -> None:
     p.add_argument("--max-ticks", type=int, default=3000)
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--check", action="store_true", help="first compare one stepped run with a real fleet run")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     if a.check:
         check(a.maps[0], a.loss)
     jobs = [(m, c, s) for m in a.maps for c in a.configs for s in range(a.seeds)]

@@ -100,13 +100,13 @@ def fit(rows: dict[tuple[int, int], float]) -> tuple[float, float]:
     return float(a), float(b)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="n in (2, 10), m in (5, 50), 3 calls each")
     p.add_argument("--size", type=int, default=256)
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--seed", type=int, default=0)
-    a = p.parse_args()
+    a = p.parse_args(argv)
     ns, ms = ((2, 10), (5, 50)) if a.quick else ((2, 5, 10, 20, 50), (5, 10, 20, 50, 100))
     repeat = 3 if a.quick else a.repeat
     rng = np.random.default_rng(a.seed)

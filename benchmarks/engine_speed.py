@@ -30,7 +30,7 @@ SCENARIOS = [  # (label, overrides)
 ]
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     import fleet_emu as fe
     from fleet_emu.launch.result import deterministic
 
@@ -39,7 +39,7 @@ def main() -> int:
     p.add_argument("--processes", action="store_true", help="also the default engine (one process per node)")
     p.add_argument("--quick", action="store_true", help="the two office scenarios only")
     p.add_argument("--max-ticks", type=int, help="cut every run at this tick (a smoke test)")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     scenarios = SCENARIOS[:2] if args.quick or not HOSPITAL.exists() else SCENARIOS
     engines = ["memory", "in-process"] + (["processes"] if args.processes else [])
     fe.Fleet(fe.Scenario().override(robots=2, max_ticks=5)).run()  # compile or load the kernels once

@@ -100,7 +100,7 @@ def run_seed(scenario: Scenario, seed: int) -> dict:
             "conflict": conflict, "count": dict(count), "bytes": dict(size)}
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--map", default="office")
     p.add_argument("--robots", type=int, default=3)
@@ -111,7 +111,7 @@ def main() -> None:
     p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--max-ticks", type=int, default=3000)
     p.add_argument("--json", type=Path, help="write the per-seed rows here")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     start = None if a.start == "map" else a.start
     if isinstance(start, str) and "," in start:
         with contextlib.suppress(ValueError):  # else the scenario's check says what is wrong

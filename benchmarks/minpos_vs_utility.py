@@ -42,7 +42,7 @@ def paired(a: dict[int, float], b: dict[int, float]) -> str:
     return f"{statistics.fmean(d):+.1f} ± {se:.1f} ({rel:+.1f} %)"
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--allocators", nargs="+", default=["nearest", "utility", "minpos"])
     p.add_argument("--robots", type=int, nargs="+", default=[2, 4])
@@ -51,7 +51,7 @@ def main() -> None:
     p.add_argument("--max-ticks", type=int, default=2000)
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--in-process", action="store_true", help="all nodes of a run in one process")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     extra = ["--comm", "ideal", "--start", "random", "--target-coverage", "1.0", "--max-ticks", str(a.max_ticks)]
     extra += ["--in-process"] if a.in_process else []
     jobs = [(al, n, s) for n in a.robots for al in a.allocators for s in range(a.seeds)]

@@ -35,14 +35,14 @@ def run_once(robots: int, ticks: int, allocator: str, extra: list[str]) -> tuple
         return json.loads((out / "result.json").read_text()), "ok"
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--robots", type=int, nargs="+", default=[4, 16])
     p.add_argument("--ticks", type=int, default=300)
     p.add_argument("--allocator", default="minpos")
     p.add_argument("--repeat", type=int, default=1)
     p.add_argument("--in-process", action="store_true")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     extra = ["--in-process"] if a.in_process else []
     print(f"{'robots':>6} {'ticks':>6} {'wall s':>8} {'ticks/s':>8} {'coverage':>9} "
           f"{'agent RSS max MB':>17} {'mean MB':>8} {'decision ms':>12}")

@@ -74,7 +74,7 @@ def _ms(values: list[float]) -> str:
     return f"{statistics.mean(values):.0f}±{statistics.pstdev(values):.0f}" if values else "-"
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--allocators", nargs="+", default=["hungarian", "trade", "trade:explore_in_round=false"])
     p.add_argument("--robots", type=int, default=4)
@@ -84,7 +84,7 @@ def main() -> None:
     p.add_argument("--comm", default="wall")
     p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--jobs", type=int, default=2)
-    a = p.parse_args()
+    a = p.parse_args(argv)
     extra = ["--comm", a.comm] + (["--start", a.start] if a.start != "map" else [])
     for al in a.allocators:
         try:
