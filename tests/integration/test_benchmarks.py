@@ -225,7 +225,8 @@ def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_map: Path,
     assert [(r["robots"], r["allocator"]) for r in run] == [("2", "greedy"), ("2", "minpos-par")]
     for r in run:
         assert set(r) == set(labels), r  # every real-time column filled
-        assert int(r["ticks"]) <= 20 and float(r["tps"]) > 0 and float(r["dec"]) > 0, r
+        assert int(r["ticks"]) <= 20 and float(r["tps"]) > 0, r  # ticks, achieved ticks/s
+        assert float(r["dec"]) > 0 and float(r["plan"]) > 0, r  # decisions and plan steps per robot
     start = [fields(header, ln, ["map", "cells", "robots", "allocator"]) for ln in lines[6:]]
     assert [(r["robots"], r["allocator"]) for r in start] == [("250", "greedy"), ("250", "minpos-par")]
     assert all(r["rest"].startswith("start: ") for r in start)
