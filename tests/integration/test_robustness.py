@@ -249,9 +249,10 @@ def test_a_killed_robot_is_failed_and_the_run_goes_on(small_map: Path, tmp_path:
     out = tmp_path / "run"
     proc = subprocess.Popen(
         [sys.executable, "-m", "fleet_emu.launch", "run", "--map", str(small_map), "--robots", "3", "--out", str(out),
-         "--quiet", "--comm", "ideal"],
+         "--quiet", "--comm", "ideal", "--sensor-range", "0.5", "--target-coverage", "1.0"],
         cwd=ROOT, stderr=subprocess.PIPE, text=True)
-    # no wait once it is going: robots forked from the fork server start at once, the small map takes seconds
+    # no wait once it is going: robots forked from the fork server start at once; with a 0.5 m sensor the small map
+    # takes 78 ticks (with the default 4 m, 13: an idle machine ran them all before the kill)
     wait_for(lambda: len(fleet_processes(proc.pid)) == 5 and (out / "run.mcap").exists(), 60)
     scenario = json.loads((out / "scenario.json").read_text())
     assert scenario["robots"] == 3
