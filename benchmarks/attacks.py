@@ -160,13 +160,13 @@ def run_one(args: argparse.Namespace, endpoint: str, users: Path | None, run_id:
     return res, proc.returncode, sent[0]
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--mode", choices=("open", "auth", "both"), default="both")
     p.add_argument("--map", default="office")
     p.add_argument("--seed", type=int, default=3)
     p.add_argument("--max-ticks", type=int, default=400)
-    args = p.parse_args()
+    args = p.parse_args(argv)
     modes = ("open", "auth") if args.mode == "both" else (args.mode,)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -1,7 +1,9 @@
 """Fault trials at scale; not run in CI (``tests/integration/test_faults.py`` runs a few).
+The trials themselves are the tests' harness (``tests/harness/faults.py``), so run this from the repository's
+root as a module:
 
-    python benchmarks/fault_trials.py [--kill 100] [--sigint 50] [--fuzz 100000] [--fuzz-auth]
-                                      [--loss-allocators all] [--seed 0]
+    python -m benchmarks.fault_trials [--kill 100] [--sigint 50] [--fuzz 100000] [--fuzz-auth]
+                                         [--loss-allocators all] [--seed 0]
 
 Runs the real ``fleet run`` CLI on a small map and short runs, and prints one row per kind of fault: kill -9
 of a random robot at a random tick, SIGINT at a random moment (sometimes twice), fuzzed messages on every key
@@ -26,9 +28,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from faults import RunSpec, Trial, fuzz_trial, kill_trial, loss_trial, plain_trial, sigint_trial
 
 from fleet_emu.agents.allocators import allocator_names
+from tests.harness.faults import RunSpec, Trial, fuzz_trial, kill_trial, loss_trial, plain_trial, sigint_trial
 
 # 384 x 384 px at 0.05 m: 192 x 192 cells at 0.1 m
 MAP = "turtlebot3_world"  # a registry map: `fleet maps fetch turtlebot3_world` once
@@ -44,7 +46,7 @@ def row(name: str, trials: list[Trial]) -> str:
     return f"{name:<26}" + "".join(f"{v:>12}" for v in values) + f"{changed:>12}"
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     # A background job of a non-interactive shell starts with SIGINT ignored, and the launchers it spawns would
     # inherit that until their own handler is installed: a signal in their first half second would be lost.
     # A handler here (exec resets it to the default) gives every launcher the terminal's default disposition.
@@ -68,7 +70,7 @@ def main() -> None:
     p.add_argument("--fuzz-cell-size", default="0.05", help="a finer grid: fuzz runs outlast the fuzz")
     p.add_argument("--fuzz-sensor-range", default="0.5")
     p.add_argument("--work", type=Path, help="keep every run here (default: a temporary directory)")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     extra = ("--cell-size", a.cell_size, "--sensor-range", a.sensor_range)
     spec = RunSpec(a.map, a.robots, a.max_ticks, seed=a.seed, extra=extra)
     allocators = allocator_names() if a.loss_allocators == ["all"] else \

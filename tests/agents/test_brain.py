@@ -1,5 +1,5 @@
 """The brain's teammate positions: a pose beacon carries the cell after the sender's commanded move, and every
-allocator and the navigation see the teammate there (issue 13; MinPos section 4.3 compares costs at the moment
+allocator and the navigation see the teammate there (MinPos section 4.3 compares costs at the moment
 of the decision)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Incremental frontier clustering equals ``find_clusters`` on the whole grid (issue 11, part 3): the same
+"""Incremental frontier clustering equals ``find_clusters`` on the whole grid: the same
 clusters, in the same order, with the same cells and targets, after every belief update of many random
 sequences on drawn and generated maps (numpy generators with fixed seeds)."""
 

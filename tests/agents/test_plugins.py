@@ -16,7 +16,7 @@ from fleet_emu.agents.allocators.conformance import api_test, seed_test
 from fleet_emu.agents.brain import allocator_config
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.scenario import RadioConfig, Scenario
-from fleet_emu.launch.cli import main
+from tests.conftest import run_cli
 
 Install = Callable[[dict[str, str], dict[str, str]], None]
 
@@ -115,12 +115,11 @@ def test_a_broken_plugin_fails_alone_once_and_in_one_line(install: Install, tmp_
     assert "broken" in allocator_names()
 
 
-def test_fleet_allocators_lists_plugins_and_broken_ones(install: Install, capsys: pytest.CaptureFixture[str]) -> None:
+def test_fleet_allocators_lists_plugins_and_broken_ones(install: Install) -> None:
     install({"plug_cli": LARGEST.format(registration="")}, {"big": "plug_cli:Largest", "gone": "plug_gone:X"})
-    with pytest.raises(SystemExit) as exc:
-        main(["allocators"])
-    assert exc.value.code == 0
-    lines = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()}
+    code, out, _ = run_cli(["allocators"])
+    assert code == 0
+    lines = {line.split()[0]: line for line in out.splitlines()}
     assert set(lines) == set(allocator_names())
     assert "(no description) [plugin plug_cli: weight=0.0, reach=<scenario sensor_cells>]" in lines["big"]
     assert "failed to load: ModuleNotFoundError" in lines["gone"]

@@ -1,4 +1,4 @@
-"""Multi-hop relaying (issue 10): a chain of relays, duplicates, the hop limit, a lost hop, the tree policy.
+"""Multi-hop relaying: a chain of relays, duplicates, the hop limit, a lost hop, the tree policy.
 
 Hops are simulated by a small loop that plays netem's part: each round, every envelope sent reaches the
 sender's linked neighbours (a broadcast medium), unless that directed link is in ``lost``.

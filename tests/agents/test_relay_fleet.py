@@ -1,4 +1,4 @@
-"""Relaying in the robots (issue 10 part 2): real brains, the real world and netem channel, stepped by the memory
+"""Relaying in the robots: real brains, the real world and netem channel, stepped by the memory
 engine on a drawn corridor where a disk radio links only neighbours, every robot held on its cell.
 
     r0 - r1 - r2 - r3 - r4      (4 cells apart, range 2.5 m = 5 cells: only neighbours are linked)

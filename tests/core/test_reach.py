@@ -1,4 +1,4 @@
-"""Base connectivity (issue 10): paths to the base in link graphs from the radio model, and the fold."""
+"""Base connectivity: paths to the base in link graphs from the radio model, and the fold."""
 
 from __future__ import annotations
 

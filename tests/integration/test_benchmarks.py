@@ -1,247 +1,324 @@
-"""The benchmark scripts: a progress line per finished run on stderr, and a non-zero exit when a run failed."""
+"""The benchmark scripts, as smoke checks: each script's ``main(argv)`` in this process on a tiny input, its tables
+read by their header names (never a column's position), a progress line per finished run on stderr, and a
+non-zero exit when a run failed or an argument is bad (the scripts' fleets are real: ``fleet run`` subprocesses,
+or the engines in this process)."""
 
 from __future__ import annotations
 
+import importlib
 import json
-import subprocess
-import sys
+import re
+from collections.abc import Sequence
 from pathlib import Path
 
-from .conftest import ROOT
+import pytest
 
 
-def _bench(script: str, *args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, str(ROOT / "benchmarks" / script), *args], capture_output=True,
-                          text=True, timeout=240, cwd=ROOT)
+def bench(script: str, *argv: str, capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    """``benchmarks/SCRIPT.py``'s ``main(argv)``: (exit code, stdout, stderr)."""
+    main = importlib.import_module(f"benchmarks.{script}").main
+    capsys.readouterr()
+    try:
+        code = main(list(argv)) or 0
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    out, err = capsys.readouterr()
+    return code, out, err
 
 
-def test_compare_allocators_reports_each_run(small_map: Path) -> None:
-    proc = _bench("compare_allocators.py", "--allocators", "nearest", "--robots", "2", "--seeds", "2",
-                  "--maps", str(small_map), "--start", "map")
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 2 and all(" t99 " in ln for ln in lines), proc.stderr
-    assert sorted(ln.split("]")[0] for ln in lines) == ["[1/2", "[2/2"]
-    assert "E" not in proc.stdout.splitlines()[-1]
+def fields(header: str, row: str, labels: Sequence[str | tuple[str, str]]) -> dict[str, str]:
+    """A fixed-width table row as ``{label: text}``: each word of the row goes to the header label it lies under
+    (right- or left-aligned, it overlaps the label's characters). ``labels`` in header order, each a label or
+    ``(key, label)`` for a label the header repeats; words after the last label are the row's ``"rest"``."""
+    spans, at = [], 0
+    for item in labels:
+        key, label = item if isinstance(item, tuple) else (item, item)
+        start = header.index(label, at)
+        assert header[start - 1:start] in ("", " ") and header[start + len(label):][:1] in ("", " "), label
+        spans.append((key, start, start + len(label)))
+        at = start + len(label)
+    out: dict[str, list[str]] = {}
+    for word in re.finditer(r"\S+", row):
+        keys = [k for k, s, e in spans if word.start() < e and s < word.end()]
+        if not keys:
+            assert word.start() >= at, f"{word.group()!r} at {word.start()} is under no label of {header!r}"
+            keys = ["rest"]
+        assert len(keys) == 1, (word.group(), keys)
+        out.setdefault(keys[0], []).append(word.group())
+    return {k: " ".join(v) for k, v in out.items()}
 
 
-def test_compare_allocators_fails_when_a_run_fails() -> None:
-    proc = _bench("compare_allocators.py", "--allocators", "nearest", "--robots", "2", "--seeds", "2",
-                  "--maps", "/no/such/map.png")
-    assert proc.returncode == 1
-    lines = proc.stderr.strip().splitlines()
-    assert [ln.split(": ", 1)[1].split(")")[0] for ln in lines[:2]] == ["FAILED (exit 2"] * 2, proc.stderr
-    assert lines[-1] == "compare_allocators: 2 of 2 runs failed (E in the table; see the lines above)"
-    assert "E2" in proc.stdout
+def markdown(text: str) -> list[dict[str, str]]:
+    """The rows of the Markdown table in ``text`` as ``{header: cell}``."""
+    lines = [ln for ln in text.splitlines() if ln.startswith("|") and not ln.startswith("| ---")]
+    head = [c.strip() for c in lines[0].strip("|").split("|")]
+    return [dict(zip(head, (c.strip() for c in ln.strip("|").split("|")), strict=True)) for ln in lines[1:]]
 
 
-def test_ticks_per_second_reports_each_run() -> None:
-    proc = _bench("ticks_per_second.py", "--robots", "1", "--ticks", "5")
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert proc.stderr.strip().splitlines()[0].startswith("[1/1] 1 robots: 5 ticks in ")
+def test_compare_allocators_reports_each_run_and_fails_when_one_fails(small_map: Path,
+                                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("compare_allocators", "--allocators", "nearest", "--robots", "2", "--seeds", "1",
+                           "--maps", str(small_map), "/no/such/map.png", "--start", "map", "--in-process",
+                           capsys=capsys)
+    assert code == 1
+    lines = err.strip().splitlines()
+    assert sorted(ln.split("]")[0] for ln in lines[:2]) == ["[1/2", "[2/2"], err
+    done = {ln.split(" on ")[1].split(":")[0]: ln.split(": ", 1)[1] for ln in lines[:2]}
+    assert done["two_rooms"].startswith("t99 ") and done["map"].startswith("FAILED (exit 2"), err
+    assert lines[-1] == "compare_allocators: 1 of 2 runs failed (E in the table; see the lines above)"
+    tables = {t.split("\n")[0]: t.split("\n")[1:] for t in out.split("\nmap ")[1:]}
+    for name, cell in (("two_rooms", "^\\d+±\\d+$"), ("map", "^- E1$")):
+        header, row = tables[name][:2]
+        got = fields(header, row, ["robots", "nearest"])
+        assert got["robots"] == "2" and re.match(cell, got["nearest"]), (name, got)
 
 
-def test_ticks_per_second_fails_when_a_run_fails() -> None:
-    proc = _bench("ticks_per_second.py", "--robots", "1", "2", "--ticks", "5", "--allocator", "telepathy")
-    assert proc.returncode == 1
-    lines = proc.stderr.strip().splitlines()
-    assert lines[0].startswith("[1/2] 1 robots: FAILED (exit 2: fleet: error:") and "telepathy" in lines[0]
-    assert lines[-1] == "ticks_per_second: 2 of 2 runs failed (see the lines above)"
+def test_ticks_per_second_reports_each_run_and_fails_when_one_fails(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("ticks_per_second", "--robots", "1", "0", "--ticks", "5", "--in-process", capsys=capsys)
+    assert code == 1
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("[1/2] 1 robots: 5 ticks in "), err
+    assert lines[1].startswith("[2/2] 0 robots: FAILED (exit 2: fleet: error:") and "--robots" in lines[1]
+    assert lines[-1] == "ticks_per_second: 1 of 2 runs failed (see the lines above)"
+    header, ok, failed = out.strip().splitlines()
+    labels = ["robots", "ticks", "wall s", "ticks/s", "coverage", "agent RSS max MB", "mean MB", "decision ms"]
+    got = fields(header, ok, labels)
+    assert got["robots"] == "1" and got["ticks"] == "5" and float(got["wall s"]) > 0 and float(got["ticks/s"]) > 0
+    assert fields(header, failed, labels) == {"robots": "0", "ticks": "failed"}
 
 
-def test_trade_idle_reports_each_run_and_the_idle_ticks(small_map: Path) -> None:
-    proc = _bench("trade_idle.py", "--allocators", "hungarian", "trade:explore_in_round=false", "--seeds", "1",
-                  "--maps", str(small_map), "--start", "map", "--comm", "full")
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 2 and all(" idle " in ln for ln in lines), proc.stderr
-    rows = [ln.split() for ln in proc.stdout.splitlines() if ln.startswith(small_map.stem)]
-    assert [r[2] for r in rows] == ["hungarian", "trade:explore_in_round=false"]
-    assert int(rows[1][-3]) > 0  # robots standing still through their rounds: idle robot-ticks
-    assert int(rows[1][-1]) > 0  # ... spent WAITING
+def test_trade_idle_reports_each_run_and_the_idle_ticks(small_map: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("trade_idle", "--allocators", "hungarian", "trade:explore_in_round=false", "--seeds", "1",
+                           "--maps", str(small_map), "--start", "map", "--comm", "full", capsys=capsys)
+    assert code == 0, err[-2000:]
+    lines = err.strip().splitlines()
+    assert len(lines) == 2 and all(" idle " in ln for ln in lines), err
+    table = out.strip().splitlines()
+    header = next(ln for ln in table if ln.startswith("map "))
+    labels = ["map", "loss", "allocator", "ticks", "vs hungarian", "path", "idle", ("idle share", "idle %"),
+              "waiting"]
+    rows = [fields(header, ln, labels) for ln in table if ln.startswith(small_map.stem)]
+    assert [r["allocator"] for r in rows] == ["hungarian", "trade:explore_in_round=false"]
+    assert int(rows[1]["idle"]) > 0  # robots standing still through their rounds: idle robot-ticks
+    assert int(rows[1]["waiting"]) > 0  # ... spent WAITING
 
 
-def test_trade_idle_bad_allocator_spec_is_one_line() -> None:
-    proc = _bench("trade_idle.py", "--allocators", "trade:explore_in_round")
-    assert proc.returncode == 2 and proc.stderr.strip().splitlines()[-1].endswith(
+def test_trade_idle_bad_allocator_spec_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = bench("trade_idle", "--allocators", "trade:explore_in_round", capsys=capsys)
+    assert code == 2 and err.strip().splitlines()[-1].endswith(
         "'trade:explore_in_round' is not NAME or NAME:PARAM=VALUE,...")
 
 
-def test_engine_speed_compares_the_engines_on_equal_runs() -> None:
-    proc = _bench("engine_speed.py", "--quick", "--seeds", "1", "--max-ticks", "15")
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    lines = proc.stdout.strip().splitlines()
-    assert lines[0].split()[:4] == ["scenario", "memory", "s/run", "in-process"] and "in-process/memory" in lines[0]
-    assert len(lines) == 4 and lines[-1].startswith("all (sum)") and float(lines[-1].split()[-1]) > 0
-    assert "differs" not in proc.stderr
+def test_engine_speed_compares_the_engines_on_equal_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("engine_speed", "--quick", "--seeds", "1", "--max-ticks", "15", capsys=capsys)
+    assert code == 0, err[-2000:]
+    header, *rows = out.strip().splitlines()
+    labels = ["scenario", "memory s/run", "in-process s/run", "in-process/memory"]
+    assert len(rows) == 3 and rows[-1].startswith("all (sum)")
+    total = fields(header, rows[-1].replace("all (sum)", "all_(sum)"), labels)
+    assert total["scenario"] == "all_(sum)" and float(total["in-process/memory"]) > 0
+    assert all(float(total[k]) > 0 for k in labels[1:3])
+    assert "differs" not in err
 
 
-def test_scale_reports_a_row_per_map_and_fleet(small_bitmap: Path) -> None:
-    """Issue 11: a row per map and robot count, positive figures; a ``start`` row for a fleet larger than the
-    map's free area (161 and 199 cells here), a ``cap`` row above the robot cap."""
-    proc = _bench("scale.py", "--robots", "2", "250", "300", "--cells", "20", "--ticks", "6", "--sensor-cells", "2",
-                  "--maps", "maze", str(small_bitmap))
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    lines = proc.stdout.strip().splitlines()
+def test_scale_reports_a_row_per_fleet(capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 11: a row per robot count, positive figures; a ``start`` row for a fleet larger than the map's free
+    area (161 cells here), a ``cap`` row above the robot cap. (A map file, fitted by the same functions:
+    ``test_brain_step_reports_a_row_per_map``.)"""
+    code, out, err = bench("scale", "--robots", "2", "250", "300", "--cells", "20", "--ticks", "6", "--sensor-cells",
+                           "2", "--maps", "maze", capsys=capsys)
+    assert code == 0, err[-2000:]
+    lines = out.strip().splitlines()
     assert lines[0].startswith("# benchmarks/scale.py: ") and " cores " in lines[0]
-    assert lines[3].split()[:6] == ["map", "cells", "robots", "start", "s", "ticks"]
+    groups, header = lines[2], lines[3]
+    cpu, pss, first = groups.index("| CPU ms per robot-tick"), groups.index("| PSS MB"), header.index("world")
+    assert cpu <= first < pss <= header.index("world", first + 1)  # world's CPU, then its PSS
+    labels = ["map", "cells", "robots", "start s", "ticks", "ticks/s", "world", "netem", "decide", "brain", "a.py",
+              "a.zen", "outside", "router", "launch", "total", "cores", "a.mean", "a.max", ("pss world", "world"),
+              ("pss netem", "netem"), ("pss router", "router"), ("pss launch", "launch"), "dec wall", "load1"]
     stage_at = next(i for i, ln in enumerate(lines) if ln.startswith("# brain by stage"))
-    rows = [ln.split() for ln in lines[4:stage_at]]
-    assert [(r[0], r[2]) for r in rows] == [(m, n) for m in ("maze", "two_rooms") for n in ("2", "250", "300")]
-    stage_rows = [ln.split() for ln in lines[stage_at + 2:]]
-    assert lines[stage_at + 1].split() == ["map", "robots", "merge", "clusters", "decode", "navigation", "news",
-                                           "other", "tick0"]
-    assert [(r[0], r[1]) for r in stage_rows] == [("maze", "2"), ("two_rooms", "2")]
-    for r, st in zip((rows[0], rows[3]), stage_rows, strict=True):
-        assert len(r) == 25 and int(r[4]) == 6, r
-        start, tps, total, cores = float(r[3]), float(r[5]), float(r[15]), float(r[16])
-        assert start > 0 and tps > 0 and total > 0 and cores > 0, r
-        assert all(float(v) > 0 for v in r[17:23]), r  # PSS of agents, world, netem, the router and the launcher
-        # decide, brain, a.py and a.zen come from the agents' own clocks over the same steps, so none is negative
-        # (a.bus was, from the /proc window under load); outside is the three besides the allocator
-        decide, brain, apy, azen, outside = map(float, r[8:13])
-        assert decide > 0 and brain > 0 and apy >= 0 and azen >= 0, r
-        assert abs(brain + apy + azen - outside) < 0.02, r
-        assert float(r[13]) >= 0 and float(r[21]) > 0, r  # the router's own process: sampled (its PSS)
-        # the second table splits brain by stage; the stages add up to it
-        *stages, tick0 = map(float, st[2:])
-        assert all(v >= 0 for v in stages[:-1]) and abs(sum(stages) - brain) < 0.02, (r, st)
-        assert tick0 > 0, st  # the first step, left out of the agent columns
-    assert rows[0][1].startswith(("19x", "20x", "21x"))  # the maze fitted to about 20 cells across
-    assert len(proc.stderr.strip().splitlines()) == 8  # two map lines, six progress lines
+    measured, start, cap = lines[4:stage_at]
+    r = fields(header, measured, labels)
+    assert set(r) == {k if isinstance(k, str) else k[0] for k in labels}, r
+    assert (r["map"], r["robots"], r["ticks"]) == ("maze", "2", "6") and r["cells"].startswith(("19x", "20x", "21x"))
+    assert all(float(r[k]) > 0 for k in ("start s", "ticks/s", "total", "cores")), r
+    # PSS of agents, world, netem, the router and the launcher
+    assert all(float(r[k]) > 0 for k in ("a.mean", "a.max", "pss world", "pss netem", "pss router", "pss launch")), r
+    # decide, brain, a.py and a.zen come from the agents' own clocks over the same steps, so none is negative
+    # (a.bus was, from the /proc window under load); outside is the three besides the allocator
+    decide, brain, apy, azen, outside = (float(r[k]) for k in ("decide", "brain", "a.py", "a.zen", "outside"))
+    assert decide > 0 and brain > 0 and apy >= 0 and azen >= 0, r
+    assert abs(brain + apy + azen - outside) < 0.02, r
+    assert float(r["router"]) >= 0, r  # the router's own process: sampled (its PSS above)
+    for row, note in ((start, "start: "), (cap, "cap: ")):
+        got = fields(header, row, ["map", "cells", "robots"])
+        assert got["map"] == "maze" and got["rest"].startswith(note), row
+    assert [fields(header, ln, ["map", "cells", "robots"])["robots"] for ln in (start, cap)] == ["250", "300"]
+    # the second table splits brain by stage; the stages add up to it
+    stage_header, stage_row = lines[stage_at + 1:]
+    names = ["map", "robots", "merge", "clusters", "decode", "navigation", "news", "other", "tick0"]
+    st = fields(stage_header, stage_row, names)
+    assert (st["map"], st["robots"]) == ("maze", "2")
+    stages = [float(st[n]) for n in names[2:-1]]
+    assert all(v >= 0 for v in stages[:-1]) and abs(sum(stages) - brain) < 0.02, (r, st)
+    assert float(st["tick0"]) > 0, st  # the first step, left out of the agent columns
+    assert len(err.strip().splitlines()) == 4  # the map line, three progress lines
 
 
-def test_scale_bad_argument_is_one_line() -> None:
-    proc = _bench("scale.py", "--robots", "0")
-    assert proc.returncode == 2
-    assert proc.stderr.strip().splitlines() == ["scale: error: --robots must be at least 1 (got 0)"]
+def test_scale_bad_argument_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = bench("scale", "--robots", "0", capsys=capsys)
+    assert code == 2
+    assert err.strip().splitlines() == ["scale: error: --robots must be at least 1 (got 0)"]
 
 
-def test_agent_memory_reports_each_run() -> None:
-    proc = _bench("agent_memory.py", "--robots", "2", "--ticks", "40", "--period", "0.2")
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert proc.stderr.strip().splitlines()[0] == "[1/1] 2 robots: 40 ticks"
-    row = proc.stdout.strip().splitlines()[-1].split()
-    assert row[:2] == ["2", "40"] and all(float(x) > 0 for x in row[2:])  # the fork server's share too
+def test_agent_memory_reports_each_run(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("agent_memory", "--robots", "2", "--ticks", "40", "--period", "0.2", capsys=capsys)
+    assert code == 0, err[-2000:]
+    assert err.strip().splitlines()[0] == "[1/1] 2 robots: 40 ticks"
+    header, row = out.strip().splitlines()
+    labels = ["robots", "ticks", "agent PSS mean MB", "max MB", "agent RSS mean MB", "fork server PSS MB",
+              "agents+server PSS MB"]
+    got = fields(header, row, labels)
+    assert got["robots"] == "2" and got["ticks"] == "40"
+    assert all(float(got[k]) > 0 for k in labels[2:]), got  # the fork server's share too
 
 
-def test_brain_step_reports_a_row_per_map(small_bitmap: Path) -> None:
+def test_brain_step_reports_a_row_per_map(small_bitmap: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Issue 11, part 3: a row per map of thread CPU per robot-tick by stage; the stages add up to the step."""
-    proc = _bench("brain_step.py", "--robots", "2", "--ticks", "5", "--cells", "40", "--maps", "maze",
-                  str(small_bitmap))
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    lines = proc.stdout.strip().splitlines()
+    code, out, err = bench("brain_step", "--robots", "2", "--ticks", "5", "--cells", "40", "--maps", "maze",
+                           str(small_bitmap), capsys=capsys)
+    assert code == 0, err[-2000:]
+    lines = out.strip().splitlines()
     assert lines[0].startswith("# benchmarks/brain_step.py: ") and " cores " in lines[0]
-    assert lines[2].split()[:3] == ["map", "decide", "clusters"]
-    rows = [ln.split() for ln in lines[3:]]
-    assert [r[0] for r in rows] == ["maze", "two_rooms"]
+    labels = ["map", "decide", "clusters", "merge", "decode", "nav", "news", "other", "outside", "step", "rx codec",
+              "load1"]
+    rows = [fields(lines[2], ln, labels) for ln in lines[3:]]
+    assert [r["map"] for r in rows] == ["maze", "two_rooms"]
     for r in rows:
-        decide, *stages, outside, step, rx = map(float, r[1:11])
+        decide, step, outside, rx = (float(r[k]) for k in ("decide", "step", "outside", "rx codec"))
+        stages = [float(r[k]) for k in ("clusters", "merge", "decode", "nav", "news", "other")]
         assert step > 0 and rx > 0 and all(v >= 0 for v in stages), r
         assert abs(decide + sum(stages) - step) < 0.01 and abs(step - decide - outside) < 0.01, r
-    assert len(proc.stderr.strip().splitlines()) == 2  # a progress line per map
+    assert len(err.strip().splitlines()) == 2  # a progress line per map
 
 
-def test_brain_step_bad_input_is_one_line() -> None:
-    proc = _bench("brain_step.py", "--maps", "/no/such/map.png")
-    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "map /no/such/map.png" in proc.stderr
-    proc = _bench("brain_step.py", "--ticks", "x")
-    assert proc.returncode == 2 and proc.stderr.startswith("brain_step: error: ") and proc.stderr.count("\n") == 1
+def test_brain_step_bad_input_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = bench("brain_step", "--maps", "/no/such/map.png", capsys=capsys)
+    assert code == 2 and err.count("\n") == 1 and "map /no/such/map.png" in err
+    code, _, err = bench("brain_step", "--ticks", "x", capsys=capsys)
+    assert code == 2 and err.startswith("brain_step: error: ") and err.count("\n") == 1
 
 
-def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_bitmap: Path) -> None:
+def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_bitmap: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
     """Issue 11, part 5: greedy and minpos in real time, a row each with the real-time columns; a ``start`` row
     for a fleet larger than the map's free area (199 cells here)."""
-    proc = _bench("realtime_study.py", "--robots", "2", "250", "--cells", "24", "--max-ticks", "20", "--hz", "20",
-                  "--maps", str(small_bitmap))
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    lines = proc.stdout.strip().splitlines()
+    code, out, err = bench("realtime_study", "--robots", "2", "250", "--cells", "24", "--max-ticks", "20", "--hz",
+                           "20", "--maps", str(small_bitmap), capsys=capsys)
+    assert code == 0, err[-2000:]
+    lines = out.strip().splitlines()
     assert lines[0].startswith("# benchmarks/realtime_study.py: ")
-    assert lines[3].split()[:5] == ["map", "cells", "robots", "allocator", "t99"]
-    rows = [ln.split() for ln in lines[4:]]
-    assert [(r[2], r[3]) for r in rows] == [("2", "greedy"), ("2", "minpos-par"), ("250", "greedy"),
-                                           ("250", "minpos-par")]
-    for r in rows[:2]:
-        assert len(r) == 21 and int(r[6]) <= 20 and float(r[9]) > 0, r  # ticks, achieved ticks/s
-        assert float(r[15]) > 0, r  # decisions per robot
-    assert [r[4] for r in rows[2:]] == ["start:", "start:"]
+    labels = ["map", "cells", "robots", "allocator", "t99", "t99 s", "ticks", "reason", "cov", "tps", "ovr", "late",
+              "lstep", "miss", "dec", "plan", "p50", "p90", "p99", "max", "load1"]
+    header = lines[3]
+    run = [fields(header, ln, labels) for ln in lines[4:6]]
+    assert [(r["robots"], r["allocator"]) for r in run] == [("2", "greedy"), ("2", "minpos-par")]
+    for r in run:
+        assert set(r) == set(labels), r  # every real-time column filled
+        assert int(r["ticks"]) <= 20 and float(r["tps"]) > 0, r  # ticks, achieved ticks/s
+        assert float(r["dec"]) > 0 and float(r["plan"]) > 0, r  # decisions and plan steps per robot
+    start = [fields(header, ln, ["map", "cells", "robots", "allocator"]) for ln in lines[6:]]
+    assert [(r["robots"], r["allocator"]) for r in start] == [("250", "greedy"), ("250", "minpos-par")]
+    assert all(r["rest"].startswith("start: ") for r in start)
 
 
-def test_realtime_study_bad_argument_is_one_line() -> None:
-    proc = _bench("realtime_study.py", "--hz", "0")
-    assert proc.returncode == 2
-    assert proc.stderr.strip().splitlines() == ["realtime_study: error: --hz must be > 0 and <= 1000 (got 0.0)"]
+def test_realtime_study_bad_argument_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = bench("realtime_study", "--hz", "0", capsys=capsys)
+    assert code == 2
+    assert err.strip().splitlines() == ["realtime_study: error: --hz must be > 0 and <= 1000 (got 0.0)"]
 
 
-def test_map_sync_reports_the_gaps_and_the_recovery(small_map: Path) -> None:
-    proc = _bench("map_sync.py", "--map", str(small_map), "--robots", "2", "--seeds", "1", "--start", "map",
-                  "--loss", "0.3")
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    header, row = proc.stdout.splitlines()[:2]
-    cells = dict(zip(header.split(), row.split(), strict=True))
+def test_map_sync_reports_the_gaps_and_the_recovery(small_map: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("map_sync", "--map", str(small_map), "--robots", "2", "--seeds", "1", "--start", "map",
+                           "--loss", "0.3", capsys=capsys)
+    assert code == 0, err[-2000:]
+    header, row = out.splitlines()[:2]
+    cells = dict(zip(header.split(), row.split(), strict=True))  # one word a column, labels included
     assert int(cells["asks"]) > 0 and int(cells["resent"]) > 0 and int(cells["rec.bytes"]) > 0  # loss recovered
     assert int(cells["conflict"]) == 0
 
 
-def test_map_sync_bad_map_is_one_line() -> None:
-    proc = _bench("map_sync.py", "--map", "/no/such/map.png", "--seeds", "1")
-    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
-    assert proc.stderr.startswith("map_sync: error: ")
+def test_map_sync_bad_map_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = bench("map_sync", "--map", "/no/such/map.png", "--seeds", "1", capsys=capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert err.startswith("map_sync: error: ")
 
 
-def test_base_connectivity_prints_a_row_per_allocator(small_map: Path) -> None:
-    proc = _bench("base_connectivity.py", "--map", str(small_map), "--robots", "2", "--seeds", "2",
-                  "--comm", "disk", "--comm-range", "2", "--max-ticks", "40", "--allocators", "nearest", "minpos")
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    rows = [ln for ln in proc.stdout.splitlines() if ln.startswith("| nearest") or ln.startswith("| minpos")]
-    assert len(rows) == 2
-    overall = float(rows[0].split("|")[2].split("±")[0])
+def test_base_connectivity_prints_a_row_per_allocator(small_map: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("base_connectivity", "--map", str(small_map), "--robots", "2", "--seeds", "2", "--comm",
+                           "disk", "--comm-range", "2", "--max-ticks", "40", "--allocators", "nearest", "minpos",
+                           capsys=capsys)
+    assert code == 0, err[-2000:]
+    rows = markdown(out)
+    assert [r["allocator"] for r in rows] == ["nearest", "minpos"]
+    overall = float(rows[0]["base connected (overall)"].split("±")[0])
     assert 0.0 <= overall < 1.0  # a 2 m disk radio leaves the base behind on this map
 
 
-def test_relay_prints_a_row_per_policy_and_ttl(small_map: Path) -> None:
-    proc = _bench("relay.py", "--map", str(small_map), "--robots", "3", "--seeds", "1", "--comm-range", "2",
-                  "--max-ticks", "40", "--ttls", "2")
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    rows = {tuple(c.strip() for c in ln.split("|")[1:3]): ln for ln in proc.stdout.splitlines()
-            if ln.startswith("| ") and not ln.startswith("| relay") and not ln.startswith("| ---")}
+def test_relay_prints_a_row_per_policy_and_ttl(small_map: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("relay", "--map", str(small_map), "--robots", "3", "--seeds", "1", "--comm-range", "2",
+                           "--max-ticks", "40", "--ttls", "2", capsys=capsys)
+    assert code == 0, err[-2000:]
+    rows = {(r["relay"], r["ttl"]): r for r in markdown(out)}
     assert set(rows) == {("none", "0"), ("flood", "2"), ("tree", "2")}
-    assert float(rows[("flood", "2")].split("|")[5].split("±")[0]) > 0  # some beacons crossed a relay
-    bad = _bench("relay.py", "--map", "/no/such/map.png", "--seeds", "1")
-    assert bad.returncode == 2 and bad.stderr.startswith("relay: error: ") and bad.stderr.count("\n") == 1
+    assert float(rows[("flood", "2")]["pose 2+ hops"].split("±")[0]) > 0  # some beacons crossed a relay
+    code, _, err = bench("relay", "--map", "/no/such/map.png", "--seeds", "1", capsys=capsys)
+    assert code == 2 and err.startswith("relay: error: ") and err.count("\n") == 1
 
 
-def test_paper_setting_prints_fig7_rows_and_draws_them(small_bitmap: Path, tmp_path: Path) -> None:
+def test_paper_setting_prints_fig7_rows_and_draws_them(small_bitmap: Path, tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
     """Issue 10, part 6: a row per allocator and fleet size; MHM keeps every robot connected to the base (its
     constraint), the cells seen grow, and the PNG and the JSON are written; ``--from`` redraws from the JSON."""
     png, data = tmp_path / "fig7.png", tmp_path / "fig7.json"
-    proc = _bench("paper_setting.py", "--maps", str(small_bitmap), "--cells", "24", "--r-comm", "6", "--sensor", "3",
-                  "--robots", "2", "3", "--allocators", "mhm", "minpos", "--max-ticks", "30", "--at", "10", "30",
-                  "--out", str(png), "--json", str(data))
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    lines = proc.stdout.strip().splitlines()
+    code, out, err = bench("paper_setting", "--maps", str(small_bitmap), "--cells", "24", "--r-comm", "6", "--sensor",
+                           "3", "--robots", "2", "3", "--allocators", "mhm", "minpos", "--max-ticks", "30", "--at",
+                           "10", "30", "--out", str(png), "--json", str(data), capsys=capsys)
+    assert code == 0, err[-2000:]
+    lines = out.strip().splitlines()
     assert lines[0].startswith("# benchmarks/paper_setting.py: ")
     assert "# map two_rooms: drawn at " in lines[2] and lines[2].endswith("base at (11, 12)")  # padded
-    assert lines[3].split()[:8] == ["map", "allocator", "robots", "ticks", "end", "coverage", "seen@10", "seen@30"]
-    rows = [ln.split() for ln in lines[4:]]
-    assert [(r[1], r[2]) for r in rows] == [("mhm", "2"), ("mhm", "3"), ("minpos", "2"), ("minpos", "3")]
+    labels = ["map", "allocator", "robots", "ticks", "end", "coverage", "seen@10", "seen@30", "overall", "all",
+              "worst", "ms mean", "ms p95", "ms max", "plan s", "run s"]
+    rows = [fields(lines[3], ln, labels) for ln in lines[4:]]
+    assert [(r["allocator"], r["robots"]) for r in rows] == [("mhm", "2"), ("mhm", "3"), ("minpos", "2"),
+                                                             ("minpos", "3")]
     for r in rows:
-        assert 0 < int(r[6]) <= int(r[7]) <= 24 * 24, r  # cells seen by ticks 10 and 30: grow, within the map
-        assert 0.0 <= float(r[10]) <= float(r[8]) <= 1.0, r  # worst tick <= overall share connected
-    assert all(float(r[10]) == 1.0 for r in rows[:2])  # MHM: every robot linked to the base at every tick
-    assert all(r[12:14] == ["-", "-"] for r in rows[2:])  # p95 / max only for MHM's planner
+        assert 0 < int(r["seen@10"]) <= int(r["seen@30"]) <= 24 * 24, r  # cells seen: grow, within the map
+        assert 0.0 <= float(r["worst"]) <= float(r["overall"]) <= 1.0, r  # worst tick <= overall share connected
+    assert all(float(r["worst"]) == 1.0 for r in rows[:2])  # MHM: every robot linked to the base at every tick
+    assert all((r["ms p95"], r["ms max"]) == ("-", "-") for r in rows[2:])  # p95 / max only for MHM's planner
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     saved = json.loads(data.read_text())["rows"]
     assert [len(r["seen"]) for r in saved] == [r["ticks"] + 1 for r in saved]  # ticks 0..T
     assert [(r["end"], r["ticks"]) for r in saved[:2]] == [("step18", 27), ("max_ticks", 30)]  # MHM: up to tick 30
-    again = _bench("paper_setting.py", "--from", str(data), "--at", "10", "30", "--max-ticks", "30")
-    assert again.returncode == 0 and again.stdout.strip().splitlines()[1:] == lines[4:], again.stderr[-2000:]
+    code, again, err = bench("paper_setting", "--from", str(data), "--at", "10", "30", "--max-ticks", "30",
+                             capsys=capsys)
+    assert code == 0 and again.strip().splitlines()[1:] == lines[4:], err[-2000:]
 
 
-def test_paper_setting_bad_input_is_one_line() -> None:
-    proc = _bench("paper_setting.py", "--allocators", "telepathy")
-    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
-    assert proc.stderr.startswith("paper_setting: error: unknown allocator 'telepathy'")
-    proc = _bench("paper_setting.py", "--maps", "/no/such/map.png")
-    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
-    assert proc.stderr.startswith("paper_setting: error: map /no/such/map.png: ")
+def test_paper_setting_bad_input_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = bench("paper_setting", "--allocators", "telepathy", capsys=capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith("paper_setting: error: unknown allocator 'telepathy'")
+    code, _, err = bench("paper_setting", "--maps", "/no/such/map.png", capsys=capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith("paper_setting: error: map /no/such/map.png: ")
+
+
+@pytest.mark.parametrize("script", ["fault_trials", "attacks", "connectivity_table", "decision_time", "mhm_fleet",
+                                    "mhm_planner", "minpos_vs_utility"])
+def test_the_other_scripts_import_and_describe_themselves(script: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """The scripts the suite does not run (minutes each): they import, and ``--help`` describes them."""
+    code, out, _ = bench(script, "--help", capsys=capsys)
+    assert code == 0 and out.startswith("usage: ") and "--" in out

@@ -1,6 +1,6 @@
 """Fault trials, a few of each, with real processes (``benchmarks/fault_trials.py`` runs them by the hundred):
 kill -9 of a random robot at a random tick, SIGINT at a random moment, fuzzed messages on every key, and
-heavy loss. Each trial checks every invariant of issue 12 (``benchmarks/faults.py``: the run ended, result.json
+heavy loss. Each trial checks every invariant of a fault trial (``tests/harness/faults.py``: the run ended, result.json
 is there, run.mcap reads to the end with result.json's count, no orphan, no death but the kill, the right exit
 code); a failing trial lists what it broke."""
 
@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from benchmarks.faults import RunSpec, Trial, fuzz_trial, kill_trial, loss_trial, plain_trial, sigint_trial
-from benchmarks.fuzz import UNKNOWN, fuzz_messages
 from fleet_emu.core.access import allowed_src
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import Keys
-from tests.integration.conftest import ENDLESS
+from tests.conftest import ENDLESS, result, run_cli
+from tests.harness.faults import RunSpec, Trial, fuzz_trial, kill_trial, loss_trial, sigint_trial
+from tests.harness.fuzz import UNKNOWN, fuzz_messages
 
 SEED = 12
 
@@ -68,10 +68,13 @@ def test_sigint_at_a_random_moment(tmp_path: Path, i: int) -> None:
 
 
 def test_fuzz_on_every_key_kills_nothing_and_changes_nothing(small_map: Path, tmp_path: Path) -> None:
+    """Through an open router: the seeded result is the run's without fuzz (the memory engine's, every engine's
+    for a seed)."""
     spec = _spec(small_map, max_ticks=100)
-    base = plain_trial(spec, tmp_path, "fuzzbase", connect_open=True)
-    _ok(base)
-    t = fuzz_trial(spec, tmp_path, np.random.default_rng([SEED, 3]), "fuzz", 3000, None, base.result)
+    code, _, err = run_cli(["run", *spec.args(), "--engine", "memory", "--no-record", "--quiet", "--out",
+                            str(tmp_path / "base")])
+    assert code in (0, 3), err
+    t = fuzz_trial(spec, tmp_path, np.random.default_rng([SEED, 3]), "fuzz", 3000, None, result(tmp_path / "base"))
     _ok(t)  # "changed" included: the seeded result is the baseline's
     assert t.result["malformed_dropped"] > 0
     assert set(t.result["malformed_dropped_by"]) >= {"world", "netem", "r0", "launcher"}

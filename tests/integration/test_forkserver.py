@@ -10,14 +10,18 @@ import sys
 import time
 from pathlib import Path
 
+from mcap.reader import make_reader
+
 from fleet_emu.launch.result import deterministic
-from tests.integration.conftest import (
+from tests.conftest import (
     ENDLESS,
     ROOT,
     all_pids,
     children_of,
     fleet,
+    fleet_processes,
     is_fork_server,
+    nothing_left,
     pid_alive,
     result,
     wait_for,
@@ -49,15 +53,15 @@ def _server_and_robots(launcher: int, robots: int) -> tuple[int, list[int]]:
     return found[0]
 
 
-def _nothing_left(pids: list[int]) -> None:
-    wait_for(lambda: not any(pid_alive(p) for p in pids), 15)
-
-
-def test_robots_are_forked_each_in_its_own_session_with_its_own_log(tmp_path: Path) -> None:
+def test_robots_are_forked_each_in_its_own_session_and_sigint_tears_the_fleet_down(tmp_path: Path) -> None:
+    """Forked robots: the server's children, each its own session and log. SIGINT (Ctrl-C) then ends the run
+    through its teardown: exit 130, an interrupted result.json, a recording that reads to its end, no process
+    left."""
     out = tmp_path / "run"
     proc = _start(out)
     server, robots = _server_and_robots(proc.pid, 3)
     wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
+    assert len(fleet_processes(proc.pid)) == 5  # world, netem and the three robots
     assert int(_stat(server)[2]) == server  # the server: its own process group
     for pid in robots:
         _, ppid, pgrp, session = _stat(pid)[:4]
@@ -72,9 +76,15 @@ def test_robots_are_forked_each_in_its_own_session_with_its_own_log(tmp_path: Pa
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err[-2000:]
+    assert "Traceback" not in err
     res = result(out)
+    assert res["reason"] == "interrupted" and res["completed"] is False
     assert res["pids"]["fork_server"] == server and sorted(res["pids"]["agents"]) == sorted(robots)
-    _nothing_left([server, *robots, *all_pids(res)])
+    with open(out / "run.mcap", "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and sum(summary.statistics.channel_message_counts.values()) == \
+        res["recording"]["messages"] > 0
+    nothing_left([server, *robots, *all_pids(res)], timeout=10)
 
 
 def test_a_killed_fork_server_fails_its_robots_and_leaves_nothing(tmp_path: Path) -> None:
@@ -83,39 +93,42 @@ def test_a_killed_fork_server_fails_its_robots_and_leaves_nothing(tmp_path: Path
     server, robots = _server_and_robots(proc.pid, 2)
     wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
     os.kill(server, signal.SIGKILL)
-    _nothing_left(robots)  # the robots go with it, at once
+    nothing_left(robots)  # the robots go with it, at once
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 1, err[-2000:]
     assert "Traceback" not in err
     res = result(out)
     assert res["failed"] == ["r0", "r1"]
-    _nothing_left(all_pids(res))
+    nothing_left(all_pids(res))
 
 
-def test_a_killed_robot_is_reported_and_the_launcher_leaves_nothing(tmp_path: Path) -> None:
+def test_a_killed_robot_is_reported_and_a_killed_launcher_leaves_nothing(tmp_path: Path) -> None:
+    """A robot killed: the run goes on without it. Then the launcher killed (no teardown of its own): every
+    process it started goes too (the world, netem and the router see it die; the fork server sees its input
+    end and ends the robot left)."""
     out = tmp_path / "run"
     proc = _start(out, robots=2)
     server, robots = _server_and_robots(proc.pid, 2)
     wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
+    started = fleet_processes(proc.pid) + children_of(proc.pid)  # the fork server and the router too
+    assert len(fleet_processes(proc.pid)) == 4 and server in started
     victim = next(p for p in robots if Path(f"/proc/{p}/comm").read_text().strip() == "fleet r1")
     os.kill(victim, signal.SIGKILL)
     wait_for(lambda: not pid_alive(victim), 10)
     time.sleep(2.0)
     assert pid_alive(server) and proc.poll() is None  # the run goes on without it
-    proc.kill()  # and the launcher dies: the server sees its input end and ends the robot left
+    proc.kill()
     proc.wait(10)
-    _nothing_left([server, *robots])
+    nothing_left([*started, *robots])
 
 
-def test_forked_robots_give_the_same_result_as_fresh_ones(small_map: Path, tmp_path: Path) -> None:
-    runs = {}
-    for flag in ("--fork-server", "--no-fork-server"):
-        out = tmp_path / flag
-        fleet("run", "--map", str(small_map), "--robots", "3", "--max-ticks", "60", "--seed", "3", "--quiet",
-              "--out", str(out), flag)
-        runs[flag] = result(out)
-    forked, fresh = runs["--fork-server"], runs["--no-fork-server"]
+def test_forked_robots_give_the_same_result_as_fresh_ones(small_run: Path, tmp_path: Path) -> None:
+    """The suite's plain run (forked robots, the default) again with robots started afresh."""
+    forked = result(small_run)
+    fleet("run", str(small_run / "scenario.json"), "--quiet", "--no-record", "--out", str(tmp_path / "fresh"),
+          "--no-fork-server")
+    fresh = result(tmp_path / "fresh")
     assert "fork_server" in forked["pids"] and "fork_server" not in fresh["pids"]
     assert deterministic(forked) == deterministic(fresh)
-    for res in runs.values():
-        _nothing_left(all_pids(res))
+    for res in (forked, fresh):
+        nothing_left(all_pids(res))

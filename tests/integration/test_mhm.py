@@ -1,13 +1,17 @@
-"""MHM end to end (issue 10, parts 4-5): ``fleet run --allocator mhm --base`` with 6 robots, one OS process per
+"""MHM end to end: ``fleet run --allocator mhm --base`` with 6 robots, one OS process per
 node over Zenoh. The base plans and broadcasts its orders on ``radio/tx/base``; robots relay them over the tree
 and obey. Without loss every robot keeps a path of links to the base on every tick, and the fleet reaches its
-target coverage. (Disk radio of 3 m on the two-room map: r_comm = 6 cells.)"""
+target coverage; and the memory engine gives the same result for the seed (the suite's one MHM run over processes:
+a planning base, its orders relayed). (Disk radio of 3 m on the two-room map: r_comm = 6 cells.)"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from .conftest import fleet, result
+import fleet_emu as fe
+from fleet_emu.launch.memory import Fleet
+from fleet_emu.launch.result import deterministic
+from tests.conftest import fleet, result, run_cli
 
 
 def test_mhm_keeps_every_robot_connected_to_the_base_and_completes(small_map: Path, tmp_path: Path) -> None:
@@ -24,9 +28,11 @@ def test_mhm_keeps_every_robot_connected_to_the_base_and_completes(small_map: Pa
     orders = res["relay"]["kinds"]["mhm"]
     assert orders["sent"] >= res["ticks"] - 5 and orders["delivered"] > 0  # the base planned and was heard
     assert orders["hops"].get("2", 0) > 0  # and robots relayed its orders
+    in_memory = Fleet(fe.Scenario.load(out / "scenario.json")).run()
+    assert deterministic(in_memory.data) == deterministic(res)
 
 
 def test_mhm_without_a_base_is_refused_in_one_line(small_map: Path, tmp_path: Path) -> None:
-    bad = fleet("run", "--map", str(small_map), "--allocator", "mhm", "--out", str(tmp_path / "x"), check=False)
-    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "needs --base" in bad.stderr
+    code, _, err = run_cli(["run", "--map", str(small_map), "--allocator", "mhm", "--out", str(tmp_path / "x")])
+    assert code == 2 and err.count("\n") == 1 and "needs --base" in err
     assert not (tmp_path / "x").exists()

@@ -17,7 +17,7 @@ from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.runner import RunOptions, run_fleet
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.recording.monitor import Monitor
-from tests.integration.conftest import all_pids, fleet, pid_alive, result
+from tests.conftest import all_pids, fleet, pid_alive, result, run_cli
 
 PERCENTILE_KEYS = {"p50", "p90", "p99", "max", "mean"}
 
@@ -119,8 +119,8 @@ def test_ctrl_c_during_a_real_time_run_still_writes_the_result(small_map: Path, 
                                                  "lockstep only"),
 ])
 def test_bad_real_time_input_is_one_line_and_exit_2(args: list[str], match: str, tmp_path: Path) -> None:
-    proc = fleet("run", *args, "--out", str(tmp_path / "x"), "--quiet", check=False, timeout=60)
-    assert proc.returncode == 2
-    assert proc.stderr.strip().splitlines() == [f"fleet: error: {match}"] or \
-        (len(proc.stderr.strip().splitlines()) == 1 and match in proc.stderr), proc.stderr
+    code, _, err = run_cli(["run", *args, "--out", str(tmp_path / "x"), "--quiet"])
+    assert code == 2
+    assert err.strip().splitlines() == [f"fleet: error: {match}"] or \
+        (len(err.strip().splitlines()) == 1 and match in err), err
     assert not (tmp_path / "x").exists()

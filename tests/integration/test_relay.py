@@ -1,4 +1,4 @@
-"""Relaying over real processes and Zenoh (issue 10 part 2): a flooding fleet on a short disk radio relays
+"""Relaying over real processes and Zenoh: a flooding fleet on a short disk radio relays
 messages over more than one hop, ``result.json`` carries the relay block, ``fleet report`` recomputes it from
 the recording, and the memory engine gives the same result for the seed."""
 
@@ -9,8 +9,7 @@ from pathlib import Path
 import fleet_emu as fe
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic
-
-from .conftest import fleet, result
+from tests.conftest import fleet, result, run_cli
 
 
 def test_flood_relays_over_zenoh_and_the_memory_engine_agrees(tmp_path: Path, small_map: Path) -> None:
@@ -27,6 +26,5 @@ def test_flood_relays_over_zenoh_and_the_memory_engine_agrees(tmp_path: Path, sm
     assert pose["transmissions"] > pose["sent"]  # the forwarded copies were transmitted
     mem = Fleet(fe.Scenario.load(tmp_path / "p" / "scenario.json")).run()
     assert deterministic(mem.data) == deterministic(proc)
-    report = fleet("report", str(tmp_path / "p"), "--no-plots")
-    out = report.stdout + report.stderr
-    assert "matches result.json" in out and "relay flood ttl 2" in out
+    code, out, err = run_cli(["report", str(tmp_path / "p"), "--no-plots"])
+    assert code == 0 and "matches result.json" in out + err and "relay flood ttl 2" in out + err

@@ -1,4 +1,6 @@
-"""Bad input, malformed traffic, a failed robot, and teardown on Ctrl-C — with real processes."""
+"""Bad input (in this process through the CLI's ``main``, and twice through the console script's real exit),
+malformed traffic, a failed robot, and a killed router — with real processes (teardown on Ctrl-C and on a killed
+launcher: ``test_forkserver.py``)."""
 
 from __future__ import annotations
 
@@ -6,7 +8,6 @@ import json
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -21,17 +22,18 @@ from mcap.reader import make_reader
 from fleet_emu.agents.protocol import PoseBeacon
 from fleet_emu.core.bus import client_config, router_config, router_locators
 from fleet_emu.core.messages import Command, RadioMsg, TxBundle, seal
-
-from .conftest import (
+from tests.conftest import (
     ENDLESS,
     ROOT,
     all_pids,
     children_of,
     fleet,
     fleet_processes,
+    free_port,
     is_router,
     pid_alive,
     result,
+    run_cli,
     wait_for,
 )
 
@@ -40,11 +42,12 @@ class Toml(str):
     """A scenario file's text in a bad-input row: the test writes it to a file and passes that file's path."""
 
 
-def _free_port() -> int:
-    """A loopback port nothing listens on (bound, then released)."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def _one_line(code: int, err: str, match: str) -> None:
+    """Refused with exit 2 and one line, ``fleet: error: ...`` containing ``match``, and no traceback."""
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("fleet: error:") and match in lines[0], err
+    assert "Traceback" not in err
 
 
 @pytest.mark.parametrize("args, match", [
@@ -71,7 +74,7 @@ def _free_port() -> int:
     (["--run-id", "*"], "--run-id must be"),
     (["--run-id", "../up"], "--run-id must be"),
     (["--connect", "notanendpoint"], "--connect 'notanendpoint' is not a Zenoh endpoint"),
-    (["--connect", f"tcp/127.0.0.1:{_free_port()}"], "no Zenoh router answered (gave up after 5 s)"),
+    (["--connect", f"tcp/127.0.0.1:{free_port()}"], "no Zenoh router answered (gave up after 5 s)"),
     (["--scenario", Toml('[fleet]\nrobots = "four"')], "--robots must be a whole number"),
     (["--scenario", Toml('[radio]\nloss = "high"')], "--loss must be a finite number"),
     (["--scenario", Toml('[fleet]\nsensor_range = "4"')], "--sensor-range must be a finite number"),
@@ -84,13 +87,18 @@ def test_bad_input_is_one_line_and_nonzero(args: list[str], match: str, tmp_path
             (tmp_path / "bad.toml").write_text(arg + "\n")
             args = [*args[:i], str(tmp_path / "bad.toml"), *args[i + 1:]]
     out = tmp_path / "x"
-    proc = fleet("run", "--out", str(out), *args, "--quiet", check=False, timeout=180)  # a later --out wins
-    assert proc.returncode == 2
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("fleet: error:") and match in lines[0], proc.stderr
-    assert "Traceback" not in proc.stderr
+    code, _, err = run_cli(["run", "--out", str(out), *args, "--quiet"])  # a later --out wins
+    _one_line(code, err, match)
     assert not out.exists() and not Path("/proc/forbidden").exists()  # refused before any file was written
     assert not (ROOT / "runs" / "a").exists() and not (ROOT / "up").exists()
+
+
+def test_bad_input_exits_2_from_the_console_script(tmp_path: Path) -> None:
+    """The real exit path of a refusal by the parser: a new interpreter, its exit code, its stderr (the
+    refusal of a value the parser accepted, after the run's imports: ``test_bad_input_without_quiet...``)."""
+    proc = fleet("run", "--robots", "three", "--out", str(tmp_path / "x"), "--quiet", check=False, timeout=60)
+    _one_line(proc.returncode, proc.stderr, "argument --robots: invalid int value: 'three'")
+    assert not (tmp_path / "x").exists()
 
 
 @pytest.mark.parametrize("args, env, match", [
@@ -108,10 +116,10 @@ def test_a_fleet_the_map_or_the_machine_cannot_hold_is_refused(args: list[str], 
     FLEET_MEM_AVAILABLE_MB; the same fleet with the fork server fits)."""
     out = tmp_path / "x"
     where = ["--map", str(small_map)] if "250" in args else []
-    proc = fleet("run", *where, *args, "--out", str(out), "--quiet", check=False, timeout=120, env=env)
-    assert proc.returncode == 2, proc.stderr
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("fleet: error: ") and re.search(match, lines[0]), proc.stderr
+    code, _, err = run_cli(["run", *where, *args, "--out", str(out), "--quiet"], env=env)
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("fleet: error: ") and re.search(match, lines[0]), err
     assert not out.exists()
 
 
@@ -124,11 +132,12 @@ def test_bad_input_without_quiet_is_still_one_line(tmp_path: Path) -> None:
 
 
 def test_a_sensor_range_beyond_the_map_is_clamped(small_map: Path, tmp_path: Path) -> None:
+    """On the memory engine: the same World and Brain objects the node processes run."""
     out = tmp_path / "run"
-    proc = fleet("run", "--sensor-range", "1e9", "--map", str(small_map), "--robots", "2", "--max-ticks", "30",
-                 "--out", str(out), "--quiet", check=False, timeout=120)
-    assert proc.returncode in (0, 3), proc.stderr[-2000:]
-    assert "Traceback" not in proc.stderr
+    code, _, err = run_cli(["run", "--sensor-range", "1e9", "--map", str(small_map), "--robots", "2",
+                            "--max-ticks", "30", "--out", str(out), "--quiet", "--engine", "memory", "--no-record"])
+    assert code in (0, 3), err[-2000:]
+    assert "Traceback" not in err
     res = result(out)
     assert res["scenario"]["sensor_range"] == 1e9 and res["failed"] == []
     assert res["coverage"] > 0.9  # two rooms and a door: the first scans see most of the map
@@ -144,22 +153,21 @@ def test_bad_allocator_parameter_in_a_scenario(section: str, match: str, tmp_pat
     scenario = tmp_path / "bad.toml"
     scenario.write_text(f"[allocator]\n{section}\n")
     allocator = section.split('"')[1]
-    proc = fleet("run", "--scenario", str(scenario), "--allocator", allocator, "--out", str(tmp_path / "x"),
-                 "--quiet", check=False, timeout=60)
-    assert proc.returncode == 2, proc.stderr
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"fleet: error: {match}"), proc.stderr
+    code, _, err = run_cli(["run", "--scenario", str(scenario), "--allocator", allocator, "--out",
+                            str(tmp_path / "x"), "--quiet"])
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"fleet: error: {match}"), err
     assert not (tmp_path / "x").exists()  # refused before any process started
 
 
 def test_unparseable_map_file(tmp_path: Path) -> None:
     bad = tmp_path / "garbage.png"
     bad.write_bytes(b"this is not a png")
-    proc = fleet("run", "--map", str(bad), "--cell-size", "0.5", "--quiet", "--out", str(tmp_path / "x"), check=False,
-                 timeout=60)
-    assert "cannot read image" in proc.stderr
-    assert proc.returncode == 2 and "Traceback" not in proc.stderr
-    assert len(proc.stderr.strip().splitlines()) == 1
+    code, _, err = run_cli(["run", "--map", str(bad), "--cell-size", "0.5", "--quiet", "--out", str(tmp_path / "x")])
+    assert "cannot read image" in err
+    assert code == 2 and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
 
 
 def _inject(session: zenoh.Session, run: str, stop_at: float) -> int:
@@ -216,41 +224,6 @@ def _start(out: Path, *extra: str) -> subprocess.Popen[str]:
         cwd=ROOT, stderr=subprocess.PIPE, text=True)
 
 
-def _children(pid: int) -> list[int]:
-    """The fleet's node processes (world, netem, robots), whether the robots were forked or not."""
-    return fleet_processes(pid)
-
-
-def test_sigint_tears_down_and_keeps_the_recording(tmp_path: Path) -> None:
-    out = tmp_path / "run"
-    proc = _start(out)
-    wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
-    children = _children(proc.pid)
-    assert len(children) == 5
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130, err[-2000:]
-    assert "Traceback" not in err
-    res = result(out)
-    assert res["reason"] == "interrupted" and res["completed"] is False
-    with open(out / "run.mcap", "rb") as f:
-        summary = make_reader(f).get_summary()
-    assert summary is not None and sum(summary.statistics.channel_message_counts.values()) == \
-        res["recording"]["messages"] > 0
-    wait_for(lambda: not any(pid_alive(p) for p in all_pids(res)), 10)
-
-
-def test_children_exit_when_the_launcher_is_killed(tmp_path: Path) -> None:
-    out = tmp_path / "run"
-    proc = _start(out)
-    wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
-    children = _children(proc.pid) + children_of(proc.pid)  # the fork server too
-    assert len(_children(proc.pid)) == 5
-    proc.kill()
-    proc.wait(10)
-    wait_for(lambda: not any(pid_alive(p) for p in children), 15)
-
-
 def test_a_killed_router_fails_the_run_keeps_the_recording_and_leaves_nothing_behind(tmp_path: Path) -> None:
     """The router runs in its own process: when it dies nothing reaches anyone, so the run ends at once as an
     error, with its files written and every process gone."""
@@ -277,13 +250,14 @@ def test_a_killed_robot_is_failed_and_the_run_goes_on(small_map: Path, tmp_path:
     out = tmp_path / "run"
     proc = subprocess.Popen(
         [sys.executable, "-m", "fleet_emu.launch", "run", "--map", str(small_map), "--robots", "3", "--out", str(out),
-         "--quiet", "--comm", "ideal"],
+         "--quiet", "--comm", "ideal", "--sensor-range", "0.5", "--target-coverage", "1.0"],
         cwd=ROOT, stderr=subprocess.PIPE, text=True)
-    # no wait once it is going: robots forked from the fork server start at once, the small map takes seconds
-    wait_for(lambda: len(_children(proc.pid)) == 5 and (out / "run.mcap").exists(), 60)
+    # no wait once it is going: robots forked from the fork server start at once; with a 0.5 m sensor the small map
+    # takes 78 ticks (with the default 4 m, 13: an idle machine ran them all before the kill)
+    wait_for(lambda: len(fleet_processes(proc.pid)) == 5 and (out / "run.mcap").exists(), 60)
     scenario = json.loads((out / "scenario.json").read_text())
     assert scenario["robots"] == 3
-    victim = sorted(_children(proc.pid))[-1]  # the last spawned: agent r2
+    victim = sorted(fleet_processes(proc.pid))[-1]  # the last spawned: agent r2
     os.kill(victim, signal.SIGKILL)
     _, err = proc.communicate(timeout=240)
     res = result(out)

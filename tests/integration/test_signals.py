@@ -16,7 +16,7 @@ from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.runner import RunOptions, run_fleet
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.recording.monitor import Monitor
-from tests.integration.conftest import ENDLESS, ROOT, all_pids, pid_alive, result
+from tests.conftest import ENDLESS, ROOT, all_pids, pid_alive, result
 
 
 def _files_are_whole(out: Path, res: dict) -> None:

@@ -1,4 +1,4 @@
-"""The memory a run needs against what the machine has (issue 11, part 4): a pure estimate and its check."""
+"""The memory a run needs against what the machine has: a pure estimate and its check."""
 
 from __future__ import annotations
 

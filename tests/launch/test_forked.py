@@ -108,8 +108,11 @@ def test_the_switch(monkeypatch: pytest.MonkeyPatch, flag: bool | None, env: str
     assert fork_server_enabled(flag) is expected
 
 
+# Each scenario file in a child forked from one interpreter that has imported the code but loaded no kernel (the
+# fork server's own start): the server's preload, then the robots' ticks; the specializations loaded after the
+# preload, per file.
 _NEW_SPECIALIZATIONS = """
-import json, sys
+import json, os, sys, traceback
 import numba
 from fleet_emu.agents import forkserver
 from fleet_emu.core import cluster_kernels, kernels
@@ -120,28 +123,63 @@ def signatures():
     return {f"{m.__name__}.{n}": set(map(str, f.signatures)) for m in (kernels, cluster_kernels)
             for n, f in vars(m).items() if isinstance(f, numba.core.registry.CPUDispatcher)}
 
-forkserver.preload(sys.argv[1])
-before = signatures()
-fleet = Fleet(Scenario.from_json(sys.argv[1]))
-fleet.reset()
-for _ in range(int(sys.argv[2])):
-    fleet.step()
-print(json.dumps({k: sorted(s - before[k]) for k, s in signatures().items() if s - before[k]}))
+def after_preload(path, ticks):
+    forkserver.preload(path)
+    before = signatures()
+    fleet = Fleet(Scenario.from_json(path))
+    fleet.reset()
+    for _ in range(ticks):
+        fleet.step()
+    return {k: sorted(s - before[k]) for k, s in signatures().items() if s - before[k]}
+
+assert not any(signatures().values())
+found = {}
+for path in sys.argv[2:]:
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(r)
+        try:
+            text = json.dumps(after_preload(path, int(sys.argv[1])))
+        except BaseException:
+            text = json.dumps({"error": traceback.format_exc()})
+        with os.fdopen(w, "w") as f:
+            f.write(text)
+        os._exit(0)
+    os.close(w)
+    with os.fdopen(r) as f:
+        found[path] = json.loads(f.read())
+    os.waitpid(pid, 0)
+print(json.dumps(found))
 """
 
+ALLOCATORS = {"minpos-parallel": {"type": "minpos", "wavefront": "parallel"},
+              "minpos-stop": {"type": "minpos", "wavefront": "stop"}, "greedy": {"type": "greedy"},
+              "connectivity": {"type": "connectivity"}, "mhm": {"type": "mhm"}}
 
-@pytest.mark.parametrize("allocator", [{"type": "minpos", "wavefront": "parallel"},
-                                       {"type": "minpos", "wavefront": "stop"}, {"type": "greedy"},
-                                       {"type": "connectivity"}, {"type": "mhm"}])
-def test_the_fork_server_loads_every_kernel_specialization_a_robot_uses(tmp_path: Path, allocator: dict) -> None:
-    """What the server preloads covers what robots call in their ticks: a kernel's specialization compiled
-    after the fork (a read-only array is one of its own to numba) is compiled, or loaded from numba's cache,
-    by every robot on its own; with an empty cache and 100 robots that stalled the first ticks (issue 11).
-    The robots' ticks run here in one process (the memory engine), after the server's preload."""
+
+@pytest.fixture(scope="module")
+def specializations(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, list[str]]]:
+    """Per allocator of :data:`ALLOCATORS`, the kernel specializations its robots loaded after the server's
+    preload, in 12 ticks of 4 robots on the default map (one interpreter, a fork per allocator)."""
     scenario = Scenario.load(DEFAULT).override(robots=4, max_ticks=12)
-    base = {"base": True} if allocator["type"] == "mhm" else {}  # a base-station planner needs its base
-    (tmp_path / "scenario.json").write_text(json.dumps({**scenario.to_dict(), "allocator": allocator, **base}))
-    out = subprocess.run([sys.executable, "-c", _NEW_SPECIALIZATIONS, str(tmp_path / "scenario.json"), "12"],
+    paths = {}
+    for name, allocator in ALLOCATORS.items():
+        base = {"base": True} if allocator["type"] == "mhm" else {}  # a base-station planner needs its base
+        paths[name] = tmp_path_factory.mktemp("forked") / f"{name}.json"
+        paths[name].write_text(json.dumps({**scenario.to_dict(), "allocator": allocator, **base}))
+    out = subprocess.run([sys.executable, "-c", _NEW_SPECIALIZATIONS, "12", *map(str, paths.values())],
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
-    assert json.loads(out.stdout) == {}
+    found = json.loads(out.stdout)
+    return {name: found[str(path)] for name, path in paths.items()}
+
+
+@pytest.mark.parametrize("allocator", sorted(ALLOCATORS))
+def test_the_fork_server_loads_every_kernel_specialization_a_robot_uses(
+        specializations: dict[str, dict[str, list[str]]], allocator: str) -> None:
+    """What the server preloads covers what robots call in their ticks: a kernel's specialization compiled
+    after the fork (a read-only array is one of its own to numba) is compiled, or loaded from numba's cache,
+    by every robot on its own; with an empty cache and 100 robots that stalled the first ticks.
+    The robots' ticks run in one process (the memory engine), after the server's preload."""
+    assert specializations[allocator] == {}

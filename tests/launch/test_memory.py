@@ -5,9 +5,7 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
-import numpy as np
 import pytest
-from PIL import Image
 
 import fleet_emu as fe
 from fleet_emu.agents.allocators import allocator_names
@@ -16,6 +14,7 @@ from fleet_emu.core.scenario import BASE_PLANNERS
 from fleet_emu.launch.memory import Fleet, seed_test
 from fleet_emu.launch.result import deterministic
 from fleet_emu.world.sim import StartAreaError
+from tests.conftest import draw_map
 
 ROOMS = """
 ##################
@@ -33,10 +32,7 @@ ROOMS = """
 
 @pytest.fixture(scope="module")
 def rooms(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    rows = [ln.strip() for ln in ROOMS.strip().splitlines()]
-    path = tmp_path_factory.mktemp("maps") / "rooms.png"
-    Image.fromarray(np.array([[0 if ch == "#" else 255 for ch in r] for r in rows], np.uint8), "L").save(path)
-    return path
+    return draw_map(ROOMS, tmp_path_factory.mktemp("maps") / "rooms.png")
 
 
 def scenario(rooms: Path, **over: object) -> fe.Scenario:

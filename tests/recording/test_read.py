@@ -13,11 +13,11 @@ import fleet_emu
 from fleet_emu.core.errors import ReportError
 from fleet_emu.core.messages import WorldState
 from fleet_emu.core.version import SCHEMA_VERSION
-from fleet_emu.launch.cli import main as cli_main
 from fleet_emu.recording import Run, load_recording
 from fleet_emu.recording import recorder as recorder_module
 from fleet_emu.recording.metrics import NOT_RECORDED
 from fleet_emu.recording.recorder import TICK_NS, Recorder
+from tests.conftest import run_cli
 
 SCENARIO = {"robots": 2, "cell_size": 0.5, "map": "art", "seed": 3, "allocator": {"type": "minpos"},
             "radio": {"loss": 0.1, "comm": "wall", "threshold": 0.0}, "target_coverage": 0.99, "belief_every": 0}
@@ -99,11 +99,9 @@ def test_a_newer_schema_is_refused(newer: Path) -> None:
                         f"{SCHEMA_VERSION}): upgrade fleet_emu to read it")
 
 
-def test_fleet_report_of_a_newer_schema_is_one_line_exit_2(newer: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    with pytest.raises(SystemExit) as exc:
-        cli_main(["report", str(newer)])
-    assert exc.value.code == 2
-    err = capsys.readouterr().err
+def test_fleet_report_of_a_newer_schema_is_one_line_exit_2(newer: Path) -> None:
+    code, _, err = run_cli(["report", str(newer)])
+    assert code == 2
     assert err.startswith("fleet: error: ") and err.count("\n") == 1 and "newer fleet_emu" in err, err
     assert not (newer / "metrics.json").exists()
 

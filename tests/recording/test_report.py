@@ -35,12 +35,11 @@ from fleet_emu.core.messages import (
     WorldState,
     seal,
 )
-from fleet_emu.launch.cli import main as cli_main
 from fleet_emu.recording.metrics import NOT_RECORDED, RunMetrics, gini, jain
 from fleet_emu.recording.plots import PLOTS
 from fleet_emu.recording.read import load_recording
 from fleet_emu.recording.report import write_report
-from tests.integration.conftest import ROOT, fleet
+from tests.conftest import ROOT, run_cli
 
 ART = """
 #######
@@ -132,14 +131,15 @@ def test_metrics_fold_on_hand_made_messages() -> None:
 # --- a real run -------------------------------------------------------------------------------------------------
 
 @pytest.fixture(scope="session")
-def reported(small_run: Path) -> tuple[subprocess.CompletedProcess[str], dict]:
-    proc = fleet("report", str(small_run), timeout=120)
-    assert proc.returncode == 0, proc.stderr
-    return proc, json.loads((small_run / "metrics.json").read_text())
+def reported(small_run: Path) -> tuple[str, dict]:
+    """``fleet report`` of the suite's plain run: what it printed, and its ``metrics.json``."""
+    code, out, err = run_cli(["report", str(small_run)])
+    assert code == 0, err
+    return out, json.loads((small_run / "metrics.json").read_text())
 
 
 def test_report_metrics_equal_result_json(small_run: Path, reported) -> None:
-    proc, metrics = reported
+    printed, metrics = reported
     live = json.loads((small_run / "result.json").read_text())
     for key, value in live.items():
         if key in NOT_RECORDED:  # the launcher's clock and signals: not on the bus
@@ -154,7 +154,7 @@ def test_report_metrics_equal_result_json(small_run: Path, reported) -> None:
     assert metrics["exploration_time"]["t90"] == live["t90"]
     assert metrics["path"]["total"] == sum(live["path_length"])
     assert metrics["decision_time"]["calls"] == live["robots"] * live["ticks"]
-    assert "matches result.json" in proc.stdout and "coverage" in proc.stdout
+    assert "matches result.json" in printed and "coverage" in printed
 
 
 def colours(png: Path) -> int:
@@ -172,9 +172,10 @@ def test_plots_are_written_and_not_blank(small_run: Path, reported) -> None:
 
 def test_compare(small_run: Path, reported, tmp_path: Path) -> None:
     out = tmp_path / "cmp.png"
-    proc = fleet("report", "--compare", str(small_run), str(small_run / "run.mcap"), "--out", str(out))
-    assert proc.returncode == 0, proc.stderr
-    assert "comparison" in proc.stdout and proc.stdout.count("minpos") >= 2
+    code, printed, err = run_cli(["report", "--compare", str(small_run), str(small_run / "run.mcap"), "--out",
+                                  str(out)])
+    assert code == 0, err
+    assert "comparison" in printed and printed.count("minpos") >= 2
     assert out.stat().st_size > 5_000
     assert colours(out) > 4
 
@@ -228,13 +229,13 @@ def killed_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_killed_run_reports(killed_run: Path) -> None:
     data = (killed_run / "run.mcap").read_bytes()
-    proc = fleet("report", str(killed_run), "--no-plots")
-    assert proc.returncode == 0, proc.stderr
+    code, printed, err = run_cli(["report", str(killed_run), "--no-plots"])
+    assert code == 0, err
     metrics = json.loads((killed_run / "metrics.json").read_text())
     assert metrics["truncated"] is True
     assert metrics["recording"]["messages"] == flushed(data)[-1][1] > 0
     assert metrics["ticks"] > 0 and metrics["coverage"] > 0 and metrics["decision_time"]["calls"] > 0
-    assert "was cut" in proc.stdout
+    assert "was cut" in printed
 
 
 @pytest.mark.parametrize("which", ["small", "killed"])
@@ -263,10 +264,10 @@ def test_cut_copies_read_every_flushed_message(which: str, small_run: Path, kill
 # --- bad input ------------------------------------------------------------------------------------------------
 
 def test_missing_path_is_one_line_exit_2(tmp_path: Path) -> None:
-    proc = fleet("report", str(tmp_path / "nope"), check=False)
-    assert proc.returncode == 2
-    assert proc.stderr.startswith("fleet: error: ") and proc.stderr.count("\n") == 1
-    assert "Traceback" not in proc.stderr
+    code, _, err = run_cli(["report", str(tmp_path / "nope")])
+    assert code == 2
+    assert err.startswith("fleet: error: ") and err.count("\n") == 1
+    assert "Traceback" not in err
 
 
 def _no_scenario(path: Path) -> None:
@@ -279,7 +280,7 @@ def _no_scenario(path: Path) -> None:
 
 
 @pytest.mark.parametrize("case", ["text", "empty", "dir", "no_scenario", "compare_out", "out_alone"])
-def test_bad_input(case: str, tmp_path: Path, small_run: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_bad_input(case: str, tmp_path: Path, small_run: Path) -> None:
     args = ["report"]
     if case == "text":
         (tmp_path / "a.mcap").write_text("hello\n")
@@ -296,10 +297,8 @@ def test_bad_input(case: str, tmp_path: Path, small_run: Path, capsys: pytest.Ca
         args += ["--compare", str(small_run), "--out", str(tmp_path / "missing" / "c.png")]
     else:
         args += [str(small_run), "--out", str(tmp_path / "c.png")]
-    with pytest.raises(SystemExit) as exc:
-        cli_main(args)
-    assert exc.value.code == 2
-    err = capsys.readouterr().err
+    code, _, err = run_cli(args)
+    assert code == 2
     assert err.startswith("fleet: error: ") and err.count("\n") == 1, err
 
 

@@ -2,15 +2,11 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
-from PIL import Image
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.conftest import draw_map
 
 ROOMS = """
 ##############
@@ -24,16 +20,10 @@ ROOMS = """
 """
 
 
-def draw(ascii_map: str, path: Path) -> Path:
-    rows = [ln.strip() for ln in ascii_map.strip().splitlines()]
-    Image.fromarray(np.array([[0 if ch == "#" else 255 for ch in r] for r in rows], np.uint8), "L").save(path)
-    return path
-
-
 @pytest.fixture
 def study_dir(tmp_path: Path) -> Path:
     """A folder with ``rooms.png`` and ``tiny.toml`` (2 allocators x 2 robot counts x 2 seeds)."""
-    draw(ROOMS, tmp_path / "rooms.png")
+    draw_map(ROOMS, tmp_path / "rooms.png")
     (tmp_path / "tiny.toml").write_text("""
 [study]
 name = "tiny"
@@ -53,8 +43,3 @@ start = [1, 1]
 max_ticks = 300
 """)
     return tmp_path
-
-
-def fleet(*args: str, cwd: Path = ROOT, timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "fleet_emu", *args], capture_output=True, text=True,
-                          timeout=timeout, cwd=cwd)

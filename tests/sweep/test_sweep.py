@@ -14,17 +14,16 @@ from fleet_emu.launch.memory import Fleet
 from fleet_emu.sweep.cli import sweep
 from fleet_emu.sweep.execute import read_rows
 from fleet_emu.sweep.study import Study
-
-from .conftest import fleet
+from tests.conftest import ROOT, fleet, run_cli
 
 
 @pytest.mark.slow
 def test_a_sweep_writes_one_row_per_run_and_resumes(study_dir: Path) -> None:
     out = study_dir / "out"
-    first = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out), "--jobs", "2", "--limit", "5")
+    first = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out), "--jobs", "2", "--limit", "5", check=False)
     assert first.returncode == 0, first.stderr
     assert "5 to run" in first.stderr and len(read_rows(out)) == 5
-    again = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out), "--jobs", "2")
+    again = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out), "--jobs", "2", check=False)
     assert again.returncode == 0, again.stderr
     assert "5 done, 3 to run" in again.stderr
     table = pq.read_table(out / "results.parquet").to_pylist()
@@ -42,14 +41,14 @@ def test_a_sweep_writes_one_row_per_run_and_resumes(study_dir: Path) -> None:
         (res["ticks"], res["radio"]["sent"], res["path_length"])
     curve = json.loads(row["curve"])
     assert curve[-1] <= res["coverage"] and len(curve) == res.ticks // row["curve_every"] + 1
-    done = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out))
+    done = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out), check=False)
     assert done.returncode == 0 and "0 to run" in done.stderr
 
-    report = fleet("sweep", "report", str(out))
+    report = fleet("sweep", "report", str(out), check=False)
     assert report.returncode == 0, report.stderr
     assert "baseline nearest" in report.stdout and "minpos" in report.stdout
     assert {p.name for p in out.glob("*.png")} == {"time_vs_robots.png", "coverage_vs_tick.png"}
-    first = fleet("sweep", "report", str(out), "--seeds", "1", "--no-plots")
+    first = fleet("sweep", "report", str(out), "--seeds", "1", "--no-plots", check=False)
     assert "4 runs, 0 failed; baseline nearest; the first 1 seeds" in first.stdout
 
 
@@ -68,7 +67,7 @@ def test_a_grown_grid_keeps_the_finished_runs_and_runs_only_the_new_points(study
     before = {r["id"]: r["ticks"] for r in read_rows(out)}
     text = (study_dir / "tiny.toml").read_text()
     (study_dir / "tiny.toml").write_text(text.replace('["nearest", "minpos"]', '["nearest", "greedy", "minpos"]'))
-    grown = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out), "--jobs", "1")
+    grown = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out), "--jobs", "1", check=False)
     assert grown.returncode == 0, grown.stderr
     assert "8 done, 4 to run" in grown.stderr
     rows = read_rows(out)
@@ -77,7 +76,7 @@ def test_a_grown_grid_keeps_the_finished_runs_and_runs_only_the_new_points(study
     assert "greedy" in (out / "study.toml").read_text()
     # a grid that lost a value is another study
     (study_dir / "tiny.toml").write_text(text.replace('["nearest", "minpos"]', '["nearest"]'))
-    shrunk = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out))
+    shrunk = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out), check=False)
     assert shrunk.returncode == 2 and "another study" in shrunk.stderr
 
 
@@ -91,8 +90,8 @@ def test_failed_runs_are_rows_and_set_the_exit_code(study_dir: Path) -> None:
     bad = [r for r in rows if r["status"] == "failed"]
     assert len(rows) == 8 and len(bad) == 4 and all(r["param.robots"] == 60 for r in bad)
     assert all("60 robots do not fit the free area reachable from the start cell" in r["error"] for r in bad)
-    other = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(out))  # another study's directory
-    assert other.returncode == 2 and other.stderr.count("\n") == 1 and "another study" in other.stderr
+    code, _, err = run_cli(["sweep", str(study_dir / "tiny.toml"), "--out", str(out)])  # another study's directory
+    assert code == 2 and err.count("\n") == 1 and "another study" in err
 
 
 @pytest.mark.parametrize(("args", "message"), [
@@ -104,19 +103,20 @@ def test_failed_runs_are_rows_and_set_the_exit_code(study_dir: Path) -> None:
     (["tiny.toml", "--out", "x", "--dask", "tcp://127.0.0.1:1"], "no Dask scheduler answered"),
 ])
 def test_bad_sweep_input_is_one_line(args: list[str], message: str, study_dir: Path) -> None:
-    proc = fleet("sweep", *args, cwd=study_dir)
-    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and message in proc.stderr, proc.stderr
+    code, _, err = run_cli(["sweep", *args], cwd=study_dir)
+    assert code == 2 and err.count("\n") == 1 and message in err, err
     assert not (study_dir / "x").exists()
 
 
 def test_a_missing_map_is_one_line_exit_2(tmp_path: Path) -> None:
     (tmp_path / "s.toml").write_text('[study]\nname = "s"\n[grid]\nmap = ["stage/no_such_map.yaml"]\n')
-    proc = fleet("sweep", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"))
-    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "no_such_map" in proc.stderr
+    code, _, err = run_cli(["sweep", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")])
+    assert code == 2 and err.count("\n") == 1 and "no_such_map" in err
 
 
 def test_list_names_the_shipped_studies() -> None:
-    out = fleet("sweep", "--list").stdout
+    code, out, _ = run_cli(["sweep", "--list"])
+    assert code == 0
     assert [ln.split()[0] for ln in out.strip().splitlines()] == ["bautin-fig5", "benavides", "yan-loss"]
 
 
@@ -149,8 +149,6 @@ def test_sigterm_stops_a_sweep_keeps_its_rows_and_leaves_no_worker(tmp_path: Pat
     import subprocess
     import sys
     import time
-
-    from .conftest import ROOT
 
     (tmp_path / "long.toml").write_text('[study]\nname = "long"\nengine = "memory"\nseeds = 40\n[grid]\n'
                                         'allocator = ["nearest"]\nrobots = [2]\nmap = ["office"]\n')

@@ -1,7 +1,8 @@
-"""Fault trials, shared by ``benchmarks/fault_trials.py`` and ``tests/integration/test_faults.py``.
+"""Fault trials, shared by ``tests/integration/test_faults.py`` (a few) and
+``benchmarks/fault_trials.py`` (hundreds).
 
 Each trial runs the real ``fleet run`` CLI as a user would, does one harmful thing to it, and checks the
-invariants the issue asks for (:class:`Trial`): the run ended by itself (no hang), ``result.json`` is there,
+invariants every fault must keep (:class:`Trial`): the run ended by itself (no hang), ``result.json`` is there,
 ``run.mcap`` opens to the end with as many messages as ``result.json`` says, no process of the fleet is left
 alive after the launcher exited (orphans), no node died but the one the trial killed (deaths: a failed robot, a
 crashed world or netem, a traceback or a fatal error in a log), and the exit code is the one
@@ -38,14 +39,11 @@ from mcap.reader import make_reader
 from fleet_emu.core.access import Credential, read_dictionary
 from fleet_emu.core.bus import client_config, router_config, router_locators
 from fleet_emu.core.keys import Keys, robot_ids
+from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
+from tests.harness.fuzz import fuzz_messages
 
-try:
-    from fuzz import fuzz_messages  # run as a script from benchmarks/
-except ImportError:
-    from benchmarks.fuzz import fuzz_messages
-
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 HANG = 180.0  # seconds a run may take before the trial calls it hung
 ORPHAN_GRACE = 5.0  # seconds the fleet's processes get to be gone after the launcher exited
 CRASH_SIGNS = ("Traceback", "Fatal Python error", "Segmentation fault", "core dumped", "corrupted",
@@ -266,7 +264,9 @@ def _check_failed(trial: Trial, expected: set[str]) -> None:
 
 
 def comparable(res: dict | None) -> dict:
-    return {k: v for k, v in (res or {}).items() if k not in VOLATILE}
+    """What a seed reproduces on every engine (:func:`~fleet_emu.launch.result.deterministic`), less what the
+    trials change on purpose (:data:`VOLATILE`): a baseline may come from the memory engine."""
+    return {k: v for k, v in deterministic(res or {}).items() if k not in VOLATILE}
 
 
 # --- routers the trials start --------------------------------------------------------------------------------
