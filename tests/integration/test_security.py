@@ -22,7 +22,7 @@ from fleet_emu.core.bus import client_config, router_locators
 from fleet_emu.core.messages import Command, Failed, Links, RadioMsg, RxBundle, Stop, TxBundle, WorldState, seal
 from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
-from tests.conftest import ENDLESS, ROOT, all_pids, fleet, make_certs, pid_alive, result, run_cli
+from tests.conftest import ENDLESS, ROOT, all_pids, fleet, make_certs, pid_alive, result, run_cli, wait_for
 
 RUN = "sec"
 
@@ -185,7 +185,7 @@ def test_the_embedded_router_refuses_outsiders_and_sigterm_keeps_the_files(small
         zenoh.open(client_config(endpoint))
     with pytest.raises(zenoh.ZError):
         zenoh.open(client_config(endpoint, Credential("world", "")))
-    time.sleep(2.0)
+    wait_for(lambda: (out / "run.mcap").stat().st_size > 20000, 90)  # the run is going
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=90)
     assert proc.returncode == 143, err[-2000:]
