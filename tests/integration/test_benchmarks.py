@@ -211,25 +211,29 @@ def test_brain_step_bad_input_is_one_line(capsys: pytest.CaptureFixture[str]) ->
 
 def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_map: Path,
                                                               capsys: pytest.CaptureFixture[str]) -> None:
-    """Issue 11, part 5: greedy and minpos in real time, a row each with the real-time columns; a ``start`` row
-    for a fleet larger than the map's free area (199 cells here)."""
+    """Issue 11, part 5: a fleet in real time, its row with the real-time columns; a ``start`` row for a fleet
+    larger than the map's free area (199 cells here); a row per allocator (here greedy, in lockstep too)."""
     code, out, err = bench("realtime_study", "--robots", "2", "250", "--cells", "24", "--max-ticks", "20", "--hz",
-                           "20", "--maps", str(small_map), capsys=capsys)
+                           "20", "--maps", str(small_map), "--allocators", "greedy", capsys=capsys)
     assert code == 0, err[-2000:]
     lines = out.strip().splitlines()
     assert lines[0].startswith("# benchmarks/realtime_study.py (issue 11, part 5): ")
     labels = ["map", "cells", "robots", "allocator", "t99", "t99 s", "ticks", "reason", "cov", "tps", "ovr", "late",
               "lstep", "miss", "dec", "plan", "p50", "p90", "p99", "max", "load1"]
     header = lines[3]
-    run = [fields(header, ln, labels) for ln in lines[4:6]]
-    assert [(r["robots"], r["allocator"]) for r in run] == [("2", "greedy"), ("2", "minpos-par")]
-    for r in run:
-        assert set(r) == set(labels), r  # every real-time column filled
-        assert int(r["ticks"]) <= 20 and float(r["tps"]) > 0, r  # ticks, achieved ticks/s
-        assert float(r["dec"]) > 0 and float(r["plan"]) > 0, r  # decisions and plan steps per robot
-    start = [fields(header, ln, ["map", "cells", "robots", "allocator"]) for ln in lines[6:]]
-    assert [(r["robots"], r["allocator"]) for r in start] == [("250", "greedy"), ("250", "minpos-par")]
-    assert all(r["rest"].startswith("start: ") for r in start)
+    r = fields(header, lines[4], labels)
+    assert (r["robots"], r["allocator"]) == ("2", "greedy")
+    assert set(r) == set(labels), r  # every real-time column filled
+    assert int(r["ticks"]) <= 20 and float(r["tps"]) > 0, r  # ticks, achieved ticks/s
+    assert float(r["dec"]) > 0 and float(r["plan"]) > 0, r  # decisions and plan steps per robot
+    start = fields(header, lines[5], ["map", "cells", "robots", "allocator"])
+    assert (start["robots"], start["allocator"]) == ("250", "greedy") and start["rest"].startswith("start: ")
+    assert len(lines) == 6
+    code, out, err = bench("realtime_study", "--lockstep", "--robots", "2", "--cells", "24", "--max-ticks", "20",
+                           "--maps", str(small_map), capsys=capsys)
+    assert code == 0, err[-2000:]
+    rows = [fields(header, ln, labels[:10]) for ln in out.strip().splitlines()[4:]]
+    assert [r["allocator"] for r in rows] == ["greedy", "minpos-par"] and all(int(r["ticks"]) > 0 for r in rows)
 
 
 def test_realtime_study_bad_argument_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
