@@ -122,7 +122,7 @@ def test_engine_speed_compares_the_engines_on_equal_runs(capsys: pytest.CaptureF
 
 
 def test_scale_reports_a_row_per_fleet(capsys: pytest.CaptureFixture[str]) -> None:
-    """Issue 11: a row per robot count, positive figures; a ``start`` row for a fleet larger than the map's free
+    """A row per robot count, positive figures; a ``start`` row for a fleet larger than the map's free
     area (161 cells here), a ``cap`` row above the robot cap. (A map file, fitted by the same functions:
     ``test_brain_step_reports_a_row_per_map``.)"""
     code, out, err = bench("scale", "--robots", "2", "250", "300", "--cells", "20", "--ticks", "6", "--sensor-cells",
@@ -184,7 +184,7 @@ def test_agent_memory_reports_each_run(capsys: pytest.CaptureFixture[str]) -> No
 
 
 def test_brain_step_reports_a_row_per_map(small_bitmap: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """Issue 11, part 3: a row per map of thread CPU per robot-tick by stage; the stages add up to the step."""
+    """A row per map of thread CPU per robot-tick by stage; the stages add up to the step."""
     code, out, err = bench("brain_step", "--robots", "2", "--ticks", "5", "--cells", "40", "--maps", "maze",
                            str(small_bitmap), capsys=capsys)
     assert code == 0, err[-2000:]
@@ -211,25 +211,29 @@ def test_brain_step_bad_input_is_one_line(capsys: pytest.CaptureFixture[str]) ->
 
 def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_bitmap: Path,
                                                               capsys: pytest.CaptureFixture[str]) -> None:
-    """Issue 11, part 5: greedy and minpos in real time, a row each with the real-time columns; a ``start`` row
-    for a fleet larger than the map's free area (199 cells here)."""
+    """A fleet in real time, its row with the real-time columns; a ``start`` row for a fleet
+    larger than the map's free area (199 cells here); a row per allocator (here greedy, in lockstep too)."""
     code, out, err = bench("realtime_study", "--robots", "2", "250", "--cells", "24", "--max-ticks", "20", "--hz",
-                           "20", "--maps", str(small_bitmap), capsys=capsys)
+                           "20", "--maps", str(small_bitmap), "--allocators", "greedy", capsys=capsys)
     assert code == 0, err[-2000:]
     lines = out.strip().splitlines()
     assert lines[0].startswith("# benchmarks/realtime_study.py: ")
     labels = ["map", "cells", "robots", "allocator", "t99", "t99 s", "ticks", "reason", "cov", "tps", "ovr", "late",
               "lstep", "miss", "dec", "plan", "p50", "p90", "p99", "max", "load1"]
     header = lines[3]
-    run = [fields(header, ln, labels) for ln in lines[4:6]]
-    assert [(r["robots"], r["allocator"]) for r in run] == [("2", "greedy"), ("2", "minpos-par")]
-    for r in run:
-        assert set(r) == set(labels), r  # every real-time column filled
-        assert int(r["ticks"]) <= 20 and float(r["tps"]) > 0, r  # ticks, achieved ticks/s
-        assert float(r["dec"]) > 0 and float(r["plan"]) > 0, r  # decisions and plan steps per robot
-    start = [fields(header, ln, ["map", "cells", "robots", "allocator"]) for ln in lines[6:]]
-    assert [(r["robots"], r["allocator"]) for r in start] == [("250", "greedy"), ("250", "minpos-par")]
-    assert all(r["rest"].startswith("start: ") for r in start)
+    r = fields(header, lines[4], labels)
+    assert (r["robots"], r["allocator"]) == ("2", "greedy")
+    assert set(r) == set(labels), r  # every real-time column filled
+    assert int(r["ticks"]) <= 20 and float(r["tps"]) > 0, r  # ticks, achieved ticks/s
+    assert float(r["dec"]) > 0 and float(r["plan"]) > 0, r  # decisions and plan steps per robot
+    start = fields(header, lines[5], ["map", "cells", "robots", "allocator"])
+    assert (start["robots"], start["allocator"]) == ("250", "greedy") and start["rest"].startswith("start: ")
+    assert len(lines) == 6
+    code, out, err = bench("realtime_study", "--lockstep", "--robots", "2", "--cells", "24", "--max-ticks", "20",
+                           "--maps", str(small_map), capsys=capsys)
+    assert code == 0, err[-2000:]
+    rows = [fields(header, ln, labels[:10]) for ln in out.strip().splitlines()[4:]]
+    assert [r["allocator"] for r in rows] == ["greedy", "minpos-par"] and all(int(r["ticks"]) > 0 for r in rows)
 
 
 def test_realtime_study_bad_argument_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
@@ -278,7 +282,7 @@ def test_relay_prints_a_row_per_policy_and_ttl(small_map: Path, capsys: pytest.C
 
 def test_paper_setting_prints_fig7_rows_and_draws_them(small_bitmap: Path, tmp_path: Path,
                                                        capsys: pytest.CaptureFixture[str]) -> None:
-    """Issue 10, part 6: a row per allocator and fleet size; MHM keeps every robot connected to the base (its
+    """A row per allocator and fleet size; MHM keeps every robot connected to the base (its
     constraint), the cells seen grow, and the PNG and the JSON are written; ``--from`` redraws from the JSON."""
     png, data = tmp_path / "fig7.png", tmp_path / "fig7.json"
     code, out, err = bench("paper_setting", "--maps", str(small_bitmap), "--cells", "24", "--r-comm", "6", "--sensor",

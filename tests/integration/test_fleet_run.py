@@ -8,7 +8,7 @@ from mcap.reader import make_reader
 
 from fleet_emu.core.messages import decode
 from fleet_emu.launch.result import deterministic
-from tests.conftest import all_pids, fleet, pid_alive, result, run_cli
+from tests.conftest import all_pids, pid_alive, result, run_cli
 
 KEYS = ("run_id", "seed", "map", "allocator", "robots", "loss", "ticks", "completed", "coverage", "t90", "t99",
         "path_length", "connected_fraction", "radio", "decision_ms", "pids", "recording")
@@ -64,8 +64,8 @@ def test_same_seed_same_run_and_in_process_agrees(small_run: Path, tmp_path: Pat
     the same deterministic keys, and every message of every tick the same; another seed, another run."""
     a, b, c, d = small_run, tmp_path / "b", tmp_path / "c", tmp_path / "d"
     scenario = str(a / "scenario.json")
-    fleet("run", scenario, "--quiet", "--out", str(b))  # the file alone: as --scenario
-    fleet("run", "--scenario", scenario, "--quiet", "--out", str(c), "--in-process")
+    run_cli(["run", scenario, "--quiet", "--out", str(b)], check=True)  # the file alone: as --scenario
+    run_cli(["run", "--scenario", scenario, "--quiet", "--out", str(c), "--in-process"], check=True)
     code, _, err = run_cli(["run", scenario, "--quiet", "--out", str(d), "--engine", "memory"])
     assert code == 0, err
     ra, rb, rc, rd = result(a), result(b), result(c), result(d)

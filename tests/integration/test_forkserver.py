@@ -18,12 +18,12 @@ from tests.conftest import (
     ROOT,
     all_pids,
     children_of,
-    fleet,
     fleet_processes,
     is_fork_server,
     nothing_left,
     pid_alive,
     result,
+    run_cli,
     wait_for,
 )
 
@@ -125,8 +125,8 @@ def test_a_killed_robot_is_reported_and_a_killed_launcher_leaves_nothing(tmp_pat
 def test_forked_robots_give_the_same_result_as_fresh_ones(small_run: Path, tmp_path: Path) -> None:
     """The suite's plain run (forked robots, the default) again with robots started afresh."""
     forked = result(small_run)
-    fleet("run", str(small_run / "scenario.json"), "--quiet", "--no-record", "--out", str(tmp_path / "fresh"),
-          "--no-fork-server")
+    run_cli(["run", str(small_run / "scenario.json"), "--quiet", "--no-record", "--out", str(tmp_path / "fresh"),
+             "--no-fork-server"], check=True)
     fresh = result(tmp_path / "fresh")
     assert "fork_server" in forked["pids"] and "fork_server" not in fresh["pids"]
     assert deterministic(forked) == deterministic(fresh)

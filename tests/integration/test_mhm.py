@@ -11,14 +11,14 @@ from pathlib import Path
 import fleet_emu as fe
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic
-from tests.conftest import fleet, result, run_cli
+from tests.conftest import result, run_cli
 
 
 def test_mhm_keeps_every_robot_connected_to_the_base_and_completes(small_map: Path, tmp_path: Path) -> None:
     out = tmp_path / "mhm"
-    fleet("run", "--map", str(small_map), "--robots", "6", "--allocator", "mhm", "--base", "--comm", "disk",
-          "--comm-range", "3", "--sensor-range", "1.5", "--loss", "0", "--seed", "0", "--max-ticks", "300",
-          "--no-record", "--quiet", "--out", str(out))
+    run_cli(["run", "--map", str(small_map), "--robots", "6", "--allocator", "mhm", "--base", "--comm", "disk",
+             "--comm-range", "3", "--sensor-range", "1.5", "--loss", "0", "--seed", "0", "--max-ticks", "300",
+             "--no-record", "--quiet", "--out", str(out)], check=True)
     res = result(out)
     assert res["failed"] == [] and res["malformed_dropped"] == 0
     assert res["completed"] is True and res["coverage"] >= 0.99, res["reason"]

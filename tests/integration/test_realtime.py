@@ -17,7 +17,7 @@ from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.runner import RunOptions, run_fleet
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.recording.monitor import Monitor
-from tests.conftest import all_pids, fleet, pid_alive, result, run_cli
+from tests.conftest import all_pids, pid_alive, result, run_cli
 
 PERCENTILE_KEYS = {"p50", "p90", "p99", "max", "mean"}
 
@@ -28,9 +28,9 @@ def _scenario(small_map: Path, robots: int, max_ticks: int, **kw: object) -> Sce
 
 def test_a_real_time_run_writes_the_real_time_keys(small_map: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    proc = fleet("run", "--map", str(small_map), "--robots", "3", "--realtime", "20", "--max-ticks", "400",
-                 "--out", str(out), "--quiet")
-    assert "Traceback" not in proc.stderr
+    _, _, err = run_cli(["run", "--map", str(small_map), "--robots", "3", "--realtime", "20", "--max-ticks", "400",
+                         "--out", str(out), "--quiet"], check=True)
+    assert "Traceback" not in err
     res = result(out)
     assert res["realtime_hz"] == 20.0 and res["failed"] == [] and res["reason"] in ("coverage", "max_ticks", "stall")
     rt = res["realtime"]

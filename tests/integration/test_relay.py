@@ -9,13 +9,13 @@ from pathlib import Path
 import fleet_emu as fe
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic
-from tests.conftest import fleet, result, run_cli
+from tests.conftest import result, run_cli
 
 
 def test_flood_relays_over_zenoh_and_the_memory_engine_agrees(tmp_path: Path, small_map: Path) -> None:
-    fleet("run", "--map", str(small_map), "--robots", "3", "--allocator", "nearest", "--seed", "5",
-          "--max-ticks", "150", "--comm", "disk", "--comm-range", "2", "--relay", "flood", "--relay-ttl", "2",
-          "--quiet", "--out", str(tmp_path / "p"))
+    run_cli(["run", "--map", str(small_map), "--robots", "3", "--allocator", "nearest", "--seed", "5",
+             "--max-ticks", "150", "--comm", "disk", "--comm-range", "2", "--relay", "flood", "--relay-ttl", "2",
+             "--quiet", "--out", str(tmp_path / "p")], check=True)
     proc = result(tmp_path / "p")
     assert proc["engine"] == "processes"
     relay = proc["relay"]

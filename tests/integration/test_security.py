@@ -22,7 +22,7 @@ from fleet_emu.core.bus import client_config, router_locators
 from fleet_emu.core.messages import Command, Failed, Links, RadioMsg, RxBundle, Stop, TxBundle, WorldState, seal
 from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
-from tests.conftest import ENDLESS, ROOT, all_pids, fleet, make_certs, pid_alive, result, run_cli
+from tests.conftest import ENDLESS, ROOT, all_pids, make_certs, pid_alive, result, run_cli, wait_for
 
 RUN = "sec"
 
@@ -150,14 +150,14 @@ def test_every_attack_leaves_the_seeded_result_unchanged(router, small_map: Path
     counts: dict[str, int] = {}
     attacker = threading.Thread(target=lambda: counts.update(_attack(endpoint, users, RUN, stop)), daemon=True)
     attacker.start()
-    proc = fleet("run", *scenario, "--connect", endpoint, "--credentials", str(users), "--run-id", RUN, "--out",
-                 str(attacked))
+    _, _, err = run_cli(["run", *scenario, "--connect", endpoint, "--credentials", str(users), "--run-id", RUN,
+                         "--out", str(attacked)], check=True)
     stop.set()
     attacker.join(30)
     assert counts["puts"] > 100
     rb, ra = result(base), result(attacked)
     assert ra["authenticated"] is True and ra["malformed_dropped"] == 0  # the router stopped all of it
-    assert _comparable(ra) == _comparable(rb), proc.stderr[-2000:]
+    assert _comparable(ra) == _comparable(rb), err[-2000:]
 
 
 def test_the_embedded_router_refuses_outsiders_and_sigterm_keeps_the_files(small_map: Path, tmp_path: Path) -> None:
@@ -185,7 +185,7 @@ def test_the_embedded_router_refuses_outsiders_and_sigterm_keeps_the_files(small
         zenoh.open(client_config(endpoint))
     with pytest.raises(zenoh.ZError):
         zenoh.open(client_config(endpoint, Credential("world", "")))
-    time.sleep(2.0)
+    wait_for(lambda: (out / "run.mcap").stat().st_size > 20000, 90)  # the run is going
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=90)
     assert proc.returncode == 143, err[-2000:]
@@ -205,17 +205,19 @@ def test_the_embedded_router_refuses_outsiders_and_sigterm_keeps_the_files(small
 def test_a_fleet_runs_over_tls_with_router_config(small_map: Path, tmp_path: Path) -> None:
     ca, cert, key = make_certs(tmp_path)
     users = tmp_path / "users.txt"
-    proc = fleet("router-config", "--robots", "2", "--users", str(users), "--listen", "tls/localhost:0",
-                 "--tls-cert", str(cert), "--tls-key", str(key))
-    with _open_router(proc.stdout) as r:
+    code, config, err = run_cli(["router-config", "--robots", "2", "--users", str(users), "--listen",
+                                 "tls/localhost:0", "--tls-cert", str(cert), "--tls-key", str(key)])
+    assert code == 0, err
+    with _open_router(config) as r:
         endpoint = router_locators(r)[0]
         assert endpoint.startswith("tls/")
         with pytest.raises(zenoh.ZError):  # right password, but no trust in the router's certificate
             _login(users, "launcher", endpoint)
         out = tmp_path / "run"
-        run = fleet("run", "--map", str(small_map), "--robots", "2", "--max-ticks", "15", "--quiet", "--out",
-                    str(out), "--connect", endpoint, "--credentials", str(users), "--tls-ca", str(ca))
-        assert run.returncode == 3, run.stderr[-2000:]
+        code, _, err = run_cli(["run", "--map", str(small_map), "--robots", "2", "--max-ticks", "15", "--quiet",
+                                "--out", str(out), "--connect", endpoint, "--credentials", str(users), "--tls-ca",
+                                str(ca)])
+        assert code == 3, err[-2000:]
     res = result(out)
     assert res["ticks"] == 15 and res["failed"] == [] and res["authenticated"] is True
 
