@@ -216,7 +216,7 @@ MIRRORED = """
 
 
 def test_heavy_beta_abreast_robots_cross_and_flip_every_tick() -> None:
-    """Issue 13 part 5, the stalls of ``conn:0.4:0.6`` (maze seeds 2-5, mbicp, hospital_section at loss 0):
+    """The stalls of ``conn:0.4:0.6`` (maze seeds 2-5, mbicp, hospital_section at loss 0):
     two robots abreast between two frontiers each take the frontier nearer its *teammate* (eq. 8 at the
     teammate's pose; with ``without_self`` both are first everywhere), step toward it, stand abreast mirrored,
     and take the other one: a period-2 cycle that senses nothing. Eq. 9 as the paper gives it, not a bug:

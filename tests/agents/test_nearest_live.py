@@ -1,7 +1,7 @@
 """Nearest frontier run live (:mod:`tests.agents.lockstep`): a robot behind a teammate on the way to the same
 frontier follows it, with no wait for the cell the teammate has just left.
 
-Issue 13 follow-up. Before the beacons carried the next cell, a robot saw its teammate on the cell the teammate
+Before the beacons carried the next cell, a robot saw its teammate on the cell the teammate
 had left one tick earlier, waited for it, and after two such waits took a random step. These false waits and
 random steps spread out two nearest-frontier robots that started together; with the teammate seen where it is,
 they follow each other as the MinPos paper says nearest frontier robots do (Bautin et al. 2012, Fig. 6(a):

@@ -230,7 +230,7 @@ def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_bitmap: Path
     assert (start["robots"], start["allocator"]) == ("250", "greedy") and start["rest"].startswith("start: ")
     assert len(lines) == 6
     code, out, err = bench("realtime_study", "--lockstep", "--robots", "2", "--cells", "24", "--max-ticks", "20",
-                           "--maps", str(small_map), capsys=capsys)
+                           "--maps", str(small_bitmap), capsys=capsys)
     assert code == 0, err[-2000:]
     rows = [fields(header, ln, labels[:10]) for ln in out.strip().splitlines()[4:]]
     assert [r["allocator"] for r in rows] == ["greedy", "minpos-par"] and all(int(r["ticks"]) > 0 for r in rows)
