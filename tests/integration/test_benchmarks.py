@@ -199,7 +199,9 @@ def test_brain_step_reports_a_row_per_map(small_bitmap: Path, capsys: pytest.Cap
         stages = [float(r[k]) for k in ("clusters", "merge", "decode", "nav", "news", "other")]
         assert step > 0 and rx > 0 and all(v >= 0 for v in stages), r
         assert abs(decide + sum(stages) - step) < 0.01 and abs(step - decide - outside) < 0.01, r
-    assert len(err.strip().splitlines()) == 2  # a progress line per map
+    progress = err.strip().splitlines()  # per map: its fitted size, then its progress
+    assert [ln.split(":")[0] for ln in progress if ln.startswith("map ")] == ["map maze", f"map {small_bitmap}"]
+    assert sum("robot-ticks in" in ln for ln in progress) == 2 and len(progress) == 4
 
 
 def test_brain_step_bad_input_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
