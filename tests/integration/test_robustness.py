@@ -170,8 +170,9 @@ def test_unparseable_map_file(tmp_path: Path) -> None:
     assert len(err.strip().splitlines()) == 1
 
 
-def _inject(session: zenoh.Session, run: str, stop_at: float) -> int:
-    """Random bytes, wrong shapes and an unknown robot on every key the nodes listen to."""
+def _inject(session: zenoh.Session, run: str, stop_at: float, launcher: subprocess.Popen[str]) -> int:
+    """Random bytes, wrong shapes and an unknown robot on every key the nodes listen to, until ``stop_at`` or
+    the launcher's exit (after which nothing of the run listens)."""
     garbage = [
         os.urandom(40), b"", msgpack.packb({"kind": "cmd", "tick": "x"}), msgpack.packb([1, 2]),
         Command(src="r9", tick=1, seq=1, move=(0, 1)).encode(),
@@ -181,7 +182,7 @@ def _inject(session: zenoh.Session, run: str, stop_at: float) -> int:
     keys = [f"fleet/{run}/{k}" for k in ("robot/r0/cmd", "radio/tx/r1", "radio/rx/r0", "world/obs/r1",
                                          "world/state", "ctl/hello", "ctl/stop", "ctl/ready/netem")]
     sent = 0
-    while time.monotonic() < stop_at:
+    while time.monotonic() < stop_at and launcher.poll() is None:
         for k in keys:
             for g in garbage:
                 session.put(k, g)
@@ -202,7 +203,7 @@ def test_malformed_messages_are_dropped_and_counted(small_map: Path, tmp_path: P
         watch = s.declare_subscriber("fleet/inject/world/state", lambda _: started.set())
         started.wait(120)
         watch.undeclare()
-        sent = _inject(s, "inject", time.monotonic() + 6.0)
+        sent = _inject(s, "inject", time.monotonic() + 6.0, proc)
         _, err = proc.communicate(timeout=240)
     assert proc.returncode == 0, err[-2000:]
     res = result(out)
