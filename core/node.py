@@ -160,11 +160,12 @@ def add_base_cell(parser: argparse.ArgumentParser, required: bool) -> None:
     flag) and the base station's process. The launcher resolves it once (``world.build.base_cell``: with
     ``base = true`` it is the world's start cell, a ``random`` one drawn by the world) and passes it on, since
     these processes do not import the world's code."""
-    parser.add_argument("--base-cell", type=_cell, required=required, default=None, metavar="ROW,COL",
+    parser.add_argument("--base-cell", type=cell_arg, required=required, default=None, metavar="ROW,COL",
                         help="the base station's cell (resolved by fleet run)")
 
 
-def _cell(text: str) -> tuple[int, int]:
+def cell_arg(text: str) -> tuple[int, int]:
+    """An argparse type: ``ROW,COL`` as a cell."""
     try:
         row, col = (int(v) for v in text.split(","))
     except ValueError:

@@ -49,14 +49,6 @@ def _start(text: str) -> tuple[int, int] | str:
     return (row, col)
 
 
-def _cell(text: str) -> tuple[int, int]:
-    try:
-        row, col = (int(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected ROW,COL, got {text!r}") from None
-    return (row, col)
-
-
 def _hz(text: str) -> float:
     try:
         hz = float(text)
@@ -96,6 +88,7 @@ def _add_run(sub: Any) -> None:
 
 def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
     """``fleet run``'s scenario and its overrides."""
+    from fleet_emu.core.node import cell_arg  # here, not at the top: the dispatcher's signal handler is in place
     r.add_argument("scenario_file", nargs="?", type=Path, metavar="SCENARIO",
                    help="a scenario TOML or a run's scenario.json, as --scenario")
     r.add_argument("--scenario", type=Path, help="a scenario TOML, a run's scenario.json, or a shipped scenario's name "
@@ -112,7 +105,7 @@ def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
     r.add_argument("--start", type=_start, help="start cell ROW,COL, or 'random' (drawn from the seed)")
     r.add_argument("--base", action="store_const", const=True, default=None,
                    help="a base station (its own process) at the start cell; see --base-cell")
-    r.add_argument("--base-cell", type=_cell, metavar="ROW,COL", help="a base station at this cell")
+    r.add_argument("--base-cell", type=cell_arg, metavar="ROW,COL", help="a base station at this cell")
     r.add_argument("--relay", choices=("none", "flood", "tree"),
                    help="multi-hop relaying in the robots: none (default), flood (every robot forwards) or tree")
     r.add_argument("--relay-ttl", type=int, metavar="K",
