@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -42,8 +43,9 @@ def run_id(point: Point) -> str:
     return f"sweep-{point.id}"
 
 
-def run(point: Point, folder: Path | None) -> Any:
-    """One run of a point, on its engine; into ``folder`` with its recording, or keeping nothing."""
+def run(point: Point, folder: Path | None, on_progress: Callable[[Any], None] | None = None) -> Any:
+    """One run of a point, on its engine; into ``folder`` with its recording, or keeping nothing;
+    ``on_progress`` is told the run's monitor as it goes (a kept run's)."""
     from fleet_emu.core.scenario import Scenario
 
     scenario = Scenario.from_dict(point.scenario)
@@ -54,10 +56,11 @@ def run(point: Point, folder: Path | None) -> Any:
             return Fleet(scenario, run_id=run_id(point)).run()
         from fleet_emu.launch.memory import run_memory
 
-        return run_memory(scenario, folder, record=True, run_id=run_id(point))
+        return run_memory(scenario, folder, record=True, run_id=run_id(point), on_progress=on_progress)
     from fleet_emu.launch.runner import RunOptions, run_fleet
 
-    return run_fleet(scenario, RunOptions(out_dir=folder, record=folder is not None, run_id=run_id(point)))
+    return run_fleet(scenario, RunOptions(out_dir=folder, record=folder is not None, run_id=run_id(point),
+                                          on_progress=on_progress))
 
 
 def records_now(point: Point, keep: Keep | None) -> bool:

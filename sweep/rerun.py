@@ -59,7 +59,7 @@ def find_point(out: Path, row: dict[str, Any], maps: Path | None) -> Point:
         for seed in study.seeds:
             if point_id(params, seed) != row["id"]:
                 continue
-            given = str(row.get("scenario.map") or "")
+            given = str(row.get("scenario.map") or row.get("map") or "")
             ran_on = {"map": given} if given and Path(given).is_absolute() and Path(given).exists() else {}
             scenario = study.scenario(params | ran_on, seed, maps)
             label = {k: param_label(v) for k, v in params.items()} | {"seed": seed}
@@ -105,7 +105,9 @@ def rerun(results: Path, wanted: str, out: Path | None, *, overwrite: bool = Fal
     :data:`DIFFERS` (and one line) when it does not."""
     from rich.console import Console
 
+    from fleet_emu.core.scenario import Scenario
     from fleet_emu.launch.checks import make_out
+    from fleet_emu.launch.progress import Progress
 
     folder = results_dir(results)
     row = find_row(folder, wanted)
@@ -113,14 +115,21 @@ def rerun(results: Path, wanted: str, out: Path | None, *, overwrite: bool = Fal
     out = out if out is not None else Path("runs") / run_id(point)
     check_free(out, overwrite)
     make_out(out)
-    console = Console(stderr=True, quiet=quiet)
+    def say(line: str) -> None:
+        if not quiet:
+            print(line, file=sys.stderr)
+
     params = ", ".join(f"{k}={v}" for k, v in point.params.items())
-    console.print(f"re-creating {point.id} ({params}) on the {point.engine} engine -> {out}")
+    say(f"re-creating {point.id} ({params}) on the {point.engine} engine -> {out}")
     try:
-        result = run(point, out)
+        with Progress(Scenario.from_dict(point.scenario), run_id(point), Console(stderr=True), quiet) as progress:
+            result = run(point, out, progress.update)
     except Exception as exc:  # a point whose row failed with an error: the same error is its re-creation
-        print(f"fleet: error: the point {point.id} failed: {type(exc).__name__}: {exc} (its row: "
-              f"{row.get('error')}); what it wrote is in {out}", file=sys.stderr)
+        error, theirs = f"{type(exc).__name__}: {exc}", str(row.get("error") or "")
+        how = " again, as its row says" if theirs.startswith(error) else ""
+        also = "" if how else f" (its row: {theirs or 'no error'})"
+        wrote = f"; what it wrote is in {out}" if any(out.iterdir()) else ""
+        print(f"fleet: error: the point {point.id} failed{how}: {error}{also}{wrote}", file=sys.stderr)
         return DIFFERS
     if row.get("ticks") is None:
         print(f"fleet: error: the point {point.id} ran, but its row holds no run ({row.get('error')}); "
@@ -131,7 +140,7 @@ def rerun(results: Path, wanted: str, out: Path | None, *, overwrite: bool = Fal
         print(f"fleet: error: the rerun of {point.id} differs from its row in {len(diff)} values: "
               f"{'; '.join(diff)}", file=sys.stderr)
         return DIFFERS
-    console.print(f"{point.id}: the run equals its row ({result['reason']} at tick {result['ticks']}, coverage "
+    say(f"{point.id}: the run equals its row ({result['reason']} at tick {result['ticks']}, coverage "
                   f"{result['coverage']:.1%}); open it with `fleet report {out}`")
     if quiet:
         print(out / "result.json")
