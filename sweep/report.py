@@ -178,10 +178,7 @@ def report(results: Path, baseline: str | None = None, plots: bool = True, seeds
                   f"baseline {baseline}" + (f"; the first {seeds} seeds" if seeds else ""))
     lines = summary(rows, baseline)
     console.print(_summary_table(lines, baseline))
-    kept = sum(bool(r.get("run_dir")) for r in rows)
-    if kept:
-        console.print(f"{kept} runs kept in {out / 'runs'} (`fleet report {out / 'runs'}/ID`); any point re-created "
-                      f"with `fleet sweep rerun {out} ID`")
+    _odd_runs(console, rows, out)
     paper = study.get("paper", {})
     if paper:  # the paper's rows compare with the study's own baseline (the paper's), whatever --baseline says
         base = head.get("baseline") or baseline
@@ -191,6 +188,25 @@ def report(results: Path, baseline: str | None = None, plots: bool = True, seeds
 
         for path in draw(ok, out):
             console.print(f"wrote {path}")
+
+
+def _odd_runs(console: Any, rows: list[dict[str, Any]], out: Path, most: int = 10) -> None:
+    """The runs that failed or missed the target, by id (at most ``most``), and where to open them."""
+    from fleet_emu.sweep.record import odd
+
+    runs = sorted((r for r in rows if odd(r)), key=lambda r: (r.get("status") == "ok", str(r["id"])))
+    if not runs:
+        return
+    console.print(f"{len(runs)} runs failed or missed the target; `fleet sweep rerun {out} ID --out DIR` "
+                  f"re-creates one, `fleet report DIR` opens it:", soft_wrap=True)
+    for r in runs[:most]:
+        params = ", ".join(f"{k[6:]}={v}" for k, v in r.items() if k.startswith("param."))
+        what = (f"failed: {r.get('error')}" if r.get("status") != "ok" else
+                f"{r.get('reason')} at tick {r.get('ticks')}, coverage {100 * (r.get('coverage') or 0):.1f} %")
+        kept = f" (kept: {out / r['run_dir']})" if r.get("run_dir") else ""
+        console.print(f"  {r['id']}  {params}  {what}{kept}", soft_wrap=True, highlight=False)
+    if len(runs) > most:
+        console.print(f"  ... and {len(runs) - most} more (results.csv: the rows whose completed is false)")
 
 
 def _fmt(mean_std: tuple[float, float, int], digits: int = 1) -> str:
