@@ -36,6 +36,9 @@ def test_a_sweep_keeps_the_missed_run_and_rerun_recreates_it(study_dir: Path) ->
     assert missed["run_dir"] == f"runs/{missed['id']}" and reached["run_dir"] is None
     assert [p.name for p in (out / "runs").iterdir()] == [missed["id"]]
     kept = result(out / missed["run_dir"])
+    code, report, _ = run_cli(["sweep", "report", str(out), "--no-plots"])
+    assert code == 0 and "1 runs failed or missed the target" in report
+    assert f"{missed['id']}  allocator=nearest, robots=2, max_ticks=4" in report and f"(kept: {out / 'runs'}" in report
     assert kept["ticks"] == missed["ticks"] == 4 and (out / missed["run_dir"] / "run.mcap").stat().st_size > 0
 
     run = study_dir / "rerun"
