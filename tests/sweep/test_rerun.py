@@ -115,3 +115,17 @@ def test_a_record_mode_is_one_of_three() -> None:
     with pytest.raises(ConfigError, match="record must be one of failed, all, none"):
         Study.from_dict({"study": {"record": "some"}, "grid": {"robots": [2]}})
     assert Study.from_dict({"grid": {"robots": [2]}}).record == "failed"
+
+
+def test_a_point_that_runs_again_replaces_its_kept_folder(study_dir: Path) -> None:
+    """Resuming runs a failed point again: the folder its earlier attempt left is the sweep's, and goes."""
+    from fleet_emu.sweep.execute import run_point
+    from fleet_emu.sweep.record import Keep
+
+    point = next(p for p in Study.load(two_points(study_dir, "all")).points() if p.params["max_ticks"] == 4)
+    stale = study_dir / "runs" / point.id / "robot-r9.log"
+    stale.parent.mkdir(parents=True)
+    stale.write_text("an earlier attempt")
+    row = run_point(point, Keep("all", str(study_dir)))
+    assert row["run_dir"] == f"runs/{point.id}" and row["ticks"] == 4
+    assert sorted(p.name for p in stale.parent.iterdir()) == ["map.npz", "result.json", "run.mcap", "scenario.json"]
