@@ -115,6 +115,7 @@ def rerun(results: Path, wanted: str, out: Path | None, *, overwrite: bool = Fal
     out = out if out is not None else Path("runs") / run_id(point)
     check_free(out, overwrite)
     make_out(out)
+
     def say(line: str) -> None:
         if not quiet:
             print(line, file=sys.stderr)
@@ -137,11 +138,12 @@ def rerun(results: Path, wanted: str, out: Path | None, *, overwrite: bool = Fal
         return DIFFERS
     diff = differences(row, result)
     if diff:
-        print(f"fleet: error: the rerun of {point.id} differs from its row in {len(diff)} values: "
+        print(f"fleet: error: the rerun of {point.id} differs from its row in {len(diff)} "
+              f"value{'s' if len(diff) > 1 else ''}: "
               f"{'; '.join(diff)}", file=sys.stderr)
         return DIFFERS
     say(f"{point.id}: the run equals its row ({result['reason']} at tick {result['ticks']}, coverage "
-                  f"{result['coverage']:.1%}); open it with `fleet report {out}`")
+        f"{result['coverage']:.1%}); open it with `fleet report {out}`")
     if quiet:
         print(out / "result.json")
     return 0

@@ -56,7 +56,7 @@ def test_a_sweep_keeps_the_missed_run_and_rerun_recreates_it(study_dir: Path) ->
     code, _, err = run_cli(["sweep", "rerun", str(out), missed["id"], "--out", str(run), "--overwrite",
                              "--quiet"])
     assert code == 1 and err.count("\n") == 1
-    assert f"the rerun of {missed['id']} differs from its row in 1 values: ticks (row 5, rerun 4)" in err
+    assert f"the rerun of {missed['id']} differs from its row in 1 value: ticks (row 5, rerun 4)" in err
 
 
 @pytest.mark.parametrize(("record", "kept"), [("all", {4, 300}), ("none", set())])
