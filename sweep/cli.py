@@ -1,5 +1,6 @@
 """``fleet sweep STUDY --out DIR`` (a study's runs, in parallel, resumable), ``fleet sweep --list`` (the shipped
-studies) and ``fleet sweep report RESULTS`` (figures and tables).
+studies), ``fleet sweep report RESULTS`` (figures and tables) and ``fleet sweep rerun RESULTS ID --out DIR`` (one
+point re-created as a run folder, checked against its row).
 
 Exit codes: 0 when every run succeeded; 2 on bad input (one line, before any run); 130 on Ctrl-C (the rows
 finished so far are kept and the tables written); otherwise 200 + the number of failed runs (at most 255).
@@ -27,10 +28,12 @@ FAILED_BASE = 200
 
 def add_parser(sub: Any) -> None:
     """The ``sweep`` subcommand of ``fleet``."""
-    s = sub.add_parser("sweep", help="run a study (a grid of runs) in parallel; `fleet sweep report RESULTS`")
+    s = sub.add_parser("sweep", help="run a study (a grid of runs) in parallel; `fleet sweep report RESULTS`; "
+                                     "`fleet sweep rerun RESULTS ID`")
     s.add_argument("args", nargs="*", metavar="STUDY",
-                   help="a study TOML or a shipped study's name; or: report RESULTS")
-    s.add_argument("--out", type=Path, help="the results directory (a second call resumes there)")
+                   help="a study TOML or a shipped study's name; or: report RESULTS; or: rerun RESULTS ID")
+    s.add_argument("--out", type=Path, help="the results directory (a second call resumes there); rerun: the run "
+                                            "folder (default runs/sweep-ID)")
     s.add_argument("--jobs", type=int, help="parallel runs (default: the number of cores)")
     s.add_argument("--dask", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://192.0.2.10:8786")
     s.add_argument("--maps", type=Path, help="where the study's map files are, when it names them by path "
@@ -42,6 +45,25 @@ def add_parser(sub: Any) -> None:
     s.add_argument("--baseline", help="report: the allocator to compare with (default: the study's)")
     s.add_argument("--no-plots", action="store_true", help="report: the tables only")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.add_argument("--overwrite", action="store_true", help="rerun: replace the run that --out DIR holds")
+
+
+#: The options each action of ``fleet sweep`` takes (the rest are refused, not ignored).
+USES = {"sweep": {"out", "jobs", "dask", "maps", "limit", "seeds", "quiet"},
+        "report": {"baseline", "no_plots", "seeds"},
+        "rerun": {"out", "maps", "overwrite", "quiet"}}
+OPTIONS = {"out": "--out", "jobs": "--jobs", "dask": "--dask", "maps": "--maps", "limit": "--limit",
+           "seeds": "--seeds", "baseline": "--baseline", "no_plots": "--no-plots", "quiet": "--quiet",
+           "overwrite": "--overwrite"}
+
+
+def refuse_unused(args: argparse.Namespace, action: str) -> None:
+    """One line naming the options given that ``action`` does not use (they would be silently ignored)."""
+    given = [flag for dest, flag in OPTIONS.items()
+             if dest not in USES[action] and getattr(args, dest, None) not in (None, False)]
+    if given:
+        what = {"sweep": "fleet sweep STUDY", "report": "fleet sweep report", "rerun": "fleet sweep rerun"}[action]
+        raise ConfigError(f"{what} does not take {', '.join(given)}")
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
@@ -51,15 +73,24 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         for name, desc in shipped().items():
             print(f"{name:14s} {desc}")
         return 0
-    if args.args[:1] == ["report"]:
+    action = args.args[0] if args.args[:1] in (["report"], ["rerun"]) else "sweep"
+    refuse_unused(args, action)
+    if action == "report":
         if len(args.args) != 2:
             raise ConfigError("usage: fleet sweep report RESULTS (a sweep's --out directory or its results.parquet)")
         from fleet_emu.sweep.report import report
 
         report(Path(args.args[1]), baseline=args.baseline, plots=not args.no_plots, seeds=args.seeds)
         return 0
+    if action == "rerun":
+        if len(args.args) != 3:
+            raise ConfigError("usage: fleet sweep rerun RESULTS ID --out DIR (a sweep's --out directory, a row's id)")
+        from fleet_emu.sweep.rerun import rerun
+
+        return rerun(Path(args.args[1]), args.args[2], args.out, overwrite=args.overwrite, maps=args.maps,
+                     quiet=args.quiet)
     if len(args.args) != 1:
-        raise ConfigError("usage: fleet sweep STUDY --out DIR (or --list, or report RESULTS)")
+        raise ConfigError("usage: fleet sweep STUDY --out DIR (or --list, or report RESULTS, or rerun RESULTS ID)")
     if args.out is None:
         raise ConfigError("fleet sweep needs --out DIR (where the results go)")
     return sweep(args.args[0], args.out, jobs=args.jobs, dask=args.dask, maps=args.maps, limit=args.limit,
@@ -111,6 +142,7 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
     from rich.console import Console
 
     from fleet_emu.sweep.execute import RowWriter, execute, read_rows, write_tables
+    from fleet_emu.sweep.record import Keep
 
     done = {r["id"] for r in read_rows(out) if r.get("status") == "ok"}
     todo = [p for p in points if p.id not in done][:limit]
@@ -133,7 +165,7 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
 
         with _sigterm_as_interrupt() as signals:
             try:
-                execute(todo, jobs, on_row, client)
+                execute(todo, jobs, on_row, client, Keep(study.record, str(out.absolute())))
             except KeyboardInterrupt:
                 interrupted = True
             finally:
@@ -141,8 +173,10 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
     rows = read_rows(out)
     parquet, csv = write_tables(rows, out)
     failed_all = sum(r.get("status") != "ok" for r in rows)
+    kept = sum(bool(r.get("run_dir")) for r in rows)
     console.print(f"{len(rows)} rows ({failed_all} failed) in {parquet} and {csv}; this call ran {ran} of "
-                  f"{len(todo)} in {time.monotonic() - t0:.1f} s")
+                  f"{len(todo)} in {time.monotonic() - t0:.1f} s"
+                  + (f"; {kept} runs kept in {out / 'runs'} (record = {study.record!r})" if kept else ""))
     if interrupted:
         print(f"fleet: interrupted; the finished runs are in {out} (run again to resume)", file=sys.stderr)
         return 128 + (signals[0] if signals else signal.SIGINT)

@@ -23,6 +23,8 @@ from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
+from fleet_emu.sweep import record
+from fleet_emu.sweep.record import Keep
 from fleet_emu.sweep.study import Point
 
 ROWS = "rows.jsonl"
@@ -31,40 +33,45 @@ CSV = "results.csv"
 CURVE_EVERY = 5
 
 
-def run_point(point: Point) -> dict[str, Any]:
+def run_point(point: Point, keep: Keep | None = None) -> dict[str, Any]:
     """One run of a study as a row; never raises (a failed run is a row with its error). Top-level and
-    picklable: a pool worker or a Dask worker runs it."""
-    from fleet_emu.core.scenario import Scenario
-
+    picklable: a pool worker or a Dask worker runs it. ``keep`` says which runs keep their folder
+    (:mod:`fleet_emu.sweep.record`)."""
     row: dict[str, Any] = {"id": point.id, "engine": point.engine}
     row |= {f"param.{k}": v for k, v in point.params.items()}
+    record.clear(point, keep)
     t0, cpu0 = time.perf_counter(), time.process_time()
     try:
-        scenario = Scenario.from_dict(point.scenario)
-        if point.engine == "memory":
-            from fleet_emu.launch.memory import Fleet
-
-            result = Fleet(scenario, run_id=f"sweep-{point.id}").run()
-        else:
-            from fleet_emu.launch.runner import RunOptions, run_fleet
-
-            result = run_fleet(scenario, RunOptions(record=False, run_id=f"sweep-{point.id}"))
+        result = record.run(point, keep.folder(point.id) if keep and record.records_now(point, keep) else None)
     except Exception as exc:  # the row says what went wrong; the sweep goes on
         last = traceback.extract_tb(exc.__traceback__)[-1:] if exc.__traceback__ else []
         where = f" ({last[0].filename.rsplit('/', 1)[-1]}:{last[0].lineno})" if last else ""
-        return row | {"status": "failed", "error": f"{type(exc).__name__}: {exc}{where}",
-                      "point_seconds": round(time.perf_counter() - t0, 3),
-                      "point_cpu_seconds": round(time.process_time() - cpu0, 3)}
+        return record.settle(point, keep, row | group_of(point) | {
+            "status": "failed", "error": f"{type(exc).__name__}: {exc}{where}",
+            "point_seconds": round(time.perf_counter() - t0, 3),
+            "point_cpu_seconds": round(time.process_time() - cpu0, 3)})
+    seconds, cpu = round(time.perf_counter() - t0, 3), round(time.process_time() - cpu0, 3)
     data = dict(flatten(result.to_dict()))
     data.pop("engine", None)
-    ticks, cov = result.coverage_curve()
-    curve = [round(float(c), 4) for t, c in zip(ticks, cov, strict=True) if t % CURVE_EVERY == 0]
     failed = data.get("failed") not in (None, "[]")
-    return row | data | {
+    return record.settle(point, keep, row | data | {
         "status": "failed" if failed else "ok", "error": f"robots failed: {data['failed']}" if failed else None,
-        "point_seconds": round(time.perf_counter() - t0, 3), "point_cpu_seconds": round(time.process_time() - cpu0, 3),
-        "curve_every": CURVE_EVERY, "curve": json.dumps(curve),
-    }
+        "point_seconds": seconds, "point_cpu_seconds": cpu, "curve_every": CURVE_EVERY, "curve": curve(result)})
+
+
+def group_of(point: Point) -> dict[str, Any]:
+    """The keys ``fleet sweep report`` groups by (map, radio, robots), for a row that holds no result."""
+    from fleet_emu.core.radio import RadioConfig
+
+    sc, radio = point.scenario, point.scenario.get("radio", {})
+    loss = RadioConfig(comm=radio.get("comm", "wall"), loss=radio.get("loss", 0.0)).applied_loss
+    return {"map": sc.get("map"), "robots": sc.get("robots"), "comm": radio.get("comm"), "loss_applied": loss}
+
+
+def curve(result: Any) -> str:
+    """The coverage curve of a run as a row's ``curve`` (JSON: one value every :data:`CURVE_EVERY` ticks)."""
+    ticks, cov = result.coverage_curve()
+    return json.dumps([round(float(c), 4) for t, c in zip(ticks, cov, strict=True) if t % CURVE_EVERY == 0])
 
 
 def flatten(d: dict[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
@@ -106,18 +113,20 @@ class RowWriter:
         self._file.close()
 
 
-def execute(points: list[Point], jobs: int, on_row: Callable[[dict[str, Any]], None], dask: Any = None) -> None:
+def execute(points: list[Point], jobs: int, on_row: Callable[[dict[str, Any]], None], dask: Any = None,
+            keep: Keep | None = None) -> None:
     """Run the points (in any order), calling ``on_row`` with each row as it finishes; ``dask`` is a
-    :func:`connect_dask` client (or None for a local pool of ``jobs`` processes)."""
+    :func:`connect_dask` client (or None for a local pool of ``jobs`` processes); ``keep``: the runs whose
+    folders stay (:mod:`fleet_emu.sweep.record`)."""
     if dask is not None:
-        _on_dask(points, dask, on_row)
+        _on_dask(points, dask, on_row, keep)
     elif jobs <= 1:
         for p in points:
-            on_row(run_point(p))
+            on_row(run_point(p, keep))
     else:
         ctx = multiprocessing.get_context("spawn")  # never fork: a worker may open Zenoh sessions
         with cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
-            futures = {pool.submit(run_point, p): p for p in points}
+            futures = {pool.submit(run_point, p, keep): p for p in points}
             try:
                 for fut in cf.as_completed(futures):
                     on_row(_row_of(fut, futures[fut]))
@@ -152,11 +161,12 @@ def connect_dask(address: str) -> Any:
         raise ConfigError(f"--dask {address}: no Dask scheduler answered ({exc})") from None
 
 
-def _on_dask(points: list[Point], client: Any, on_row: Callable[[dict[str, Any]], None]) -> None:
-    """Each point a task on a Dask distributed cluster: every worker runs whole fleets."""
+def _on_dask(points: list[Point], client: Any, on_row: Callable[[dict[str, Any]], None], keep: Keep | None) -> None:
+    """Each point a task on a Dask distributed cluster: every worker runs whole fleets (and writes the runs it
+    keeps under the results folder's path on its own machine)."""
     from distributed import as_completed
 
-    futures = client.map(run_point, points, pure=False, key=[f"fleet-{p.id}" for p in points])
+    futures = client.map(run_point, points, [keep] * len(points), pure=False, key=[f"fleet-{p.id}" for p in points])
     by_key = {f.key: p for f, p in zip(futures, points, strict=True)}
     for fut in as_completed(futures):
         on_row(_row_of(fut, by_key[fut.key]))
@@ -168,7 +178,7 @@ def _row_of(fut: Any, point: Point) -> dict[str, Any]:
         return fut.result()
     except Exception as exc:
         return {"id": point.id, "engine": point.engine, **{f"param.{k}": v for k, v in point.params.items()},
-                "status": "failed", "error": f"worker failed: {type(exc).__name__}: {exc}"}
+                **group_of(point), "status": "failed", "error": f"worker failed: {type(exc).__name__}: {exc}"}
 
 
 def write_tables(rows: Iterable[dict[str, Any]], out: Path) -> tuple[Path, Path]:

@@ -11,6 +11,9 @@ import numpy as np
 
 from fleet_emu.sweep.report import by, ci95, time_to_target
 
+TITLES = {"time_vs_robots": "Time to the target against the robot count",
+          "time_vs_loss": "Time to the target against the loss"}
+
 
 def draw(rows: list[dict[str, Any]], out: Path) -> list[Path]:
     """Write the figures into ``out``; the paths written."""
@@ -25,28 +28,55 @@ def draw(rows: list[dict[str, Any]], out: Path) -> list[Path]:
         if name == "time_vs_loss" and len({r.get("loss_applied") for r in rows}) < 2:
             continue
         fig, ax = plt.subplots(figsize=(7, 4.5))
-        for (alloc,), runs in by(rows, "param.allocator").items():
-            xs, mean, half = [], [], []
-            for (x,), pts in by(runs, x_key).items():
-                v = np.array([time_to_target(r) for r in pts], dtype=float)
-                v = v[~np.isnan(v)]
-                if len(v):
-                    xs.append(float(x))
-                    mean.append(v.mean())
-                    half.append(ci95(v) if len(v) > 1 else 0.0)
-            if not xs:
-                continue
-            order = np.argsort(xs)
-            x, m, h = np.array(xs)[order], np.array(mean)[order], np.nan_to_num(np.array(half)[order])
-            ax.plot(x, m, marker="o", label=str(alloc))
-            ax.fill_between(x, m - h, m + h, alpha=0.2)
+        xs = sorted({float(r[x_key]) for r in rows if isinstance(r.get(x_key), int | float)})
+        step = min(np.diff(xs)) if len(xs) > 1 else 1.0 if x_key == "robots" else max(0.2, abs(xs[0]) if xs else 1)
+        groups = by(rows, "param.allocator")
+        drawn = sum(_time_line(ax, str(alloc), runs, x_key, (i - (len(groups) - 1) / 2) * 0.05 * step)
+                    for i, ((alloc,), runs) in enumerate(groups.items()))
+        _x_axis(ax, xs, integer=x_key == "robots")
+        ax.set_title(TITLES[name] + ("" if drawn else " (no run reached the target)"))
         ax.set_xlabel(x_label)
         ax.set_ylabel("ticks to the target (mean, 95 % CI)")
         ax.grid(alpha=0.3)
-        ax.legend()
+        if drawn:
+            ax.set_ylim(bottom=0)  # a wide confidence interval does not reach below no time
+            ax.legend()
         written.append(_save(fig, out / f"{name}.png"))
     written.append(_coverage(rows, out, plt))
     return written
+
+
+def _time_line(ax: Any, alloc: str, runs: list[dict[str, Any]], x_key: str, dodge: float) -> bool:
+    """One allocator's mean time to the target against ``x_key`` (shifted by ``dodge``, so that the
+    allocators' bars stay apart), with its 95 % CI as error bars and a band; False when none of its runs
+    reached the target."""
+    xs, mean, half, n = [], [], [], []
+    for (x,), pts in by(runs, x_key).items():
+        v = np.array([time_to_target(r) for r in pts], dtype=float)
+        v = v[~np.isnan(v)]
+        if len(v):
+            xs.append(float(x) + dodge)
+            mean.append(v.mean())
+            half.append(ci95(v) if len(v) > 1 else 0.0)
+            n.append(len(v))
+    if not xs:
+        return False
+    order = np.argsort(xs)
+    x, m, h = np.array(xs)[order], np.array(mean)[order], np.nan_to_num(np.array(half)[order])
+    ax.errorbar(x, m, yerr=h, marker="o", capsize=4, label=f"{alloc} ({sum(n)} runs reached it)")
+    if len(x) > 1:
+        ax.fill_between(x, m - h, m + h, alpha=0.2)
+    return True
+
+
+def _x_axis(ax: Any, xs: list[float], integer: bool) -> None:
+    """Ticks at the grid's values (robot counts as integers), with room around a single value."""
+    if not xs:
+        return
+    ax.set_xticks(xs, [f"{x:g}" for x in xs])
+    if len(xs) == 1:
+        pad = 1.0 if integer else max(0.1, abs(xs[0]) * 0.5)
+        ax.set_xlim(xs[0] - pad, xs[0] + pad)
 
 
 def _coverage(rows: list[dict[str, Any]], out: Path, plt: Any) -> Path:
@@ -60,6 +90,7 @@ def _coverage(rows: list[dict[str, Any]], out: Path, plt: Any) -> Path:
         n = max(len(c) for c in curves)
         padded = np.array([np.pad(c, (0, n - len(c)), mode="edge") for c in curves])
         ax.plot(np.arange(n) * every, padded.mean(axis=0), label=f"{alloc} ({len(curves)} runs)")
+    ax.set_title("Coverage against tick (mean over the runs; a run that ended holds its last coverage)")
     ax.set_xlabel("tick")
     ax.set_ylabel("coverage (mean over runs)")
     ax.grid(alpha=0.3)

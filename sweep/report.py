@@ -68,10 +68,20 @@ def base_connected_pct(row: dict[str, Any]) -> float:
     return 100.0 * v if v is not None else math.nan
 
 
+def missed_coverage(row: dict[str, Any]) -> float:
+    """The final coverage (%) of a run that ended without the target; NaN for a run that reached it or holds
+    no result."""
+    if row.get("completed") or row.get("coverage") is None:
+        return math.nan
+    return 100.0 * row["coverage"]
+
+
+
+
 METRICS: dict[str, Callable[[dict[str, Any]], float]] = {
     "ticks": time_to_target, "moves": moves, "connected_pct": connected_pct,
     "coverage_pct": lambda r: 100.0 * r["coverage"] if r.get("coverage") is not None else math.nan,
-    "base_connected_pct": base_connected_pct,
+    "base_connected_pct": base_connected_pct, "missed_coverage_pct": missed_coverage,
 }
 
 
@@ -123,17 +133,23 @@ def paired(runs: list[dict[str, Any]], base: list[dict[str, Any]]) -> tuple[floa
 
 
 def summary(rows: list[dict[str, Any]], baseline: str | None) -> list[dict[str, Any]]:
-    """One line per (group, allocator): the metrics' mean and std, the time's % difference to baseline, and
-    the time's difference to baseline paired by seed (mean ± standard error)."""
+    """One line per point (group, allocator), failed runs included: the metrics' mean and std over the runs
+    that succeeded, the runs that reached the target, failed, and the final coverage of those that missed it;
+    the time's % difference to baseline, and its difference to baseline paired by seed (mean ± standard error)."""
     lines = []
     for group, members in by(rows, *GROUP).items():
         per_alloc = by(members, "param.allocator")
-        base = per_alloc.get((baseline,))
+        ok_of = {k: [r for r in v if r.get("status") == "ok"] for k, v in per_alloc.items()}
+        base = ok_of.get((baseline,))
         base_mean = stats(base, "ticks")[0] if base else math.nan
-        for (alloc,), runs in per_alloc.items():
-            line: dict[str, Any] = dict(zip(GROUP, group, strict=True)) | {"allocator": alloc, "runs": len(runs)}
+        for (alloc,), every in per_alloc.items():
+            runs = ok_of[(alloc,)]
+            line: dict[str, Any] = dict(zip(GROUP, group, strict=True)) | {
+                "allocator": alloc, "runs": len(every), "failed": len(every) - len(runs),
+                "reached": sum(bool(r.get("completed")) for r in runs)}
             for m in METRICS:
                 line[m] = stats(runs, m)
+            line["missed_coverage_pct"] = stats(every, "missed_coverage_pct")
             line["vs_baseline_pct"] = pct(line["ticks"][0], base_mean)
             line["paired"] = paired(runs, base) if base and alloc != baseline else (math.nan, math.nan, 0)
             lines.append(line)
@@ -152,20 +168,21 @@ def report(results: Path, baseline: str | None = None, plots: bool = True, seeds
         rows = [r for r in rows if r.get("param.seed") in keep]
     ok = [r for r in rows if r.get("status") == "ok"]
     failed = len(rows) - len(ok)
-    allocators = sorted({r["param.allocator"] for r in ok})
+    allocators = sorted({str(r["param.allocator"]) for r in rows if r.get("param.allocator") is not None})
     head = study.get("study", {})
     baseline = baseline or head.get("baseline") or (allocators[0] if allocators else None)
     console = Console()
     if not console.is_terminal:
-        console = Console(width=160)
+        console = Console(width=180)
     console.print(f"[bold]{head.get('name', out.name)}[/bold]: {len(rows)} runs, {failed} failed; "
                   f"baseline {baseline}" + (f"; the first {seeds} seeds" if seeds else ""))
-    lines = summary(ok, baseline)
+    lines = summary(rows, baseline)
     console.print(_summary_table(lines, baseline))
+    _odd_runs(console, rows, out)
     paper = study.get("paper", {})
     if paper:  # the paper's rows compare with the study's own baseline (the paper's), whatever --baseline says
         base = head.get("baseline") or baseline
-        console.print(_paper_table(paper, ok, lines if base == baseline else summary(ok, base), base))
+        console.print(_paper_table(paper, ok, lines if base == baseline else summary(rows, base), base))
     if plots and ok:
         from fleet_emu.sweep.plots import draw
 
@@ -173,27 +190,57 @@ def report(results: Path, baseline: str | None = None, plots: bool = True, seeds
             console.print(f"wrote {path}")
 
 
+def _odd_runs(console: Any, rows: list[dict[str, Any]], out: Path, most: int = 10) -> None:
+    """The runs that failed or missed the target, by id (at most ``most``), and where to open them."""
+    from fleet_emu.sweep.record import odd
+
+    runs = sorted((r for r in rows if odd(r)), key=lambda r: (r.get("status") == "ok", str(r["id"])))
+    if not runs:
+        return
+    console.print(f"{len(runs)} runs failed or missed the target; `fleet sweep rerun {out} ID --out DIR` "
+                  f"re-creates one, `fleet report DIR` opens it:", soft_wrap=True)
+    for r in runs[:most]:
+        params = ", ".join(f"{k[6:]}={v}" for k, v in r.items() if k.startswith("param."))
+        what = (f"failed: {r.get('error')}" if r.get("status") != "ok" else
+                f"{r.get('reason')} at tick {r.get('ticks')}, coverage {100 * (r.get('coverage') or 0):.1f} %")
+        kept = f" (kept: {out / r['run_dir']})" if r.get("run_dir") else ""
+        console.print(f"  {r['id']}  {params}  {what}{kept}", soft_wrap=True, highlight=False)
+    if len(runs) > most:
+        console.print(f"  ... and {len(runs) - most} more (results.csv: the rows whose completed is false)")
+
+
 def _fmt(mean_std: tuple[float, float, int], digits: int = 1) -> str:
+    """``mean ± std``; ``mean, n = 1`` for one value (it has no spread); ``-`` for none."""
     mean, std, n = mean_std
-    return "-" if n == 0 else f"{mean:.{digits}f} ± {std:.{digits}f}"
+    if n == 0:
+        return "-"
+    return f"{mean:.{digits}f}, n = 1" if n == 1 else f"{mean:.{digits}f} ± {std:.{digits}f}"
 
 
 def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
     from rich.table import Table
 
     base = any(ln["base_connected_pct"][2] for ln in lines)  # a column only for studies with a base station
-    t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it)")
-    for col in ("map", "radio", "robots", "allocator", "runs", "reached", "time", f"vs {baseline}",
-                "paired Δ ± s.e.", "moves", "connected %", *(["base connected %"] if base else [])):
+    failed = any(ln["failed"] for ln in lines)  # a column only when a run failed
+    t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it; missed: the "
+                    "final coverage of the runs that did not)")
+    for col in ("map", "radio", "robots", "allocator", "reached", *(["failed"] if failed else []), "time",
+                f"vs {baseline}", "paired Δ ± s.e.", "missed: coverage %", "moves", "connected %",
+                *(["base connected %"] if base else [])):
         t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left")
     for ln in lines:
-        t.add_row(Path(str(ln["map"])).stem, f"{ln['comm']}, loss {ln['loss_applied']:g}", str(ln["robots"]),
-                  ln["allocator"], str(ln["runs"]), str(ln["ticks"][2]), _fmt(ln["ticks"]),
+        t.add_row(Path(str(ln["map"])).stem, _radio(ln), str(ln["robots"]), str(ln["allocator"]),
+                  f"{ln['reached']} / {ln['runs']}", *([str(ln["failed"])] if failed else []), _fmt(ln["ticks"]),
                   "-" if math.isnan(ln["vs_baseline_pct"]) else f"{ln['vs_baseline_pct']:+.1f} %",
                   "-" if math.isnan(ln["paired"][0]) else f"{ln['paired'][0]:+.1f} ± {ln['paired'][1]:.1f}",
-                  _fmt(ln["moves"]), _fmt(ln["connected_pct"]),
+                  _fmt(ln["missed_coverage_pct"]), _fmt(ln["moves"]), _fmt(ln["connected_pct"]),
                   *([_fmt(ln["base_connected_pct"])] if base else []))
     return t
+
+
+def _radio(line: dict[str, Any]) -> str:
+    loss = line["loss_applied"]
+    return f"{line['comm']}, loss {loss:g}" if isinstance(loss, int | float) else str(line["comm"])
 
 
 def _paper_table(paper: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict[str, Any]],

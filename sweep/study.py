@@ -7,6 +7,7 @@ name = "tiny"
 engine = "memory"          # or "processes": each point a real fleet over Zenoh
 seeds = 2                  # seeds 0..1, or a list [0, 5, 7]
 baseline = "nearest"       # the allocator `fleet sweep report` compares the others with
+record = "failed"          # keep the recordings of the runs that failed or missed the target; "all"; "none"
 [grid]                     # every key a list; the points are their product
 allocator = ["nearest", {type = "minpos", wavefront = "stop"}]
 robots = [2, 3]
@@ -42,7 +43,9 @@ STUDIES = Path(__file__).resolve().parent / "studies"
 ENGINES = ("memory", "processes")
 #: Grid keys that are not scenario fields.
 _RADIO = {"loss", "comm", "comm_range"}
-_STUDY_KEYS = {"name", "description", "engine", "seeds", "baseline", "maps"}
+_STUDY_KEYS = {"name", "description", "engine", "seeds", "baseline", "maps", "record"}
+#: ``[study] record``: which runs keep their folder (``run.mcap``, ``result.json``...) under ``DIR/runs/ID``.
+RECORD = ("failed", "all", "none")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,6 +66,7 @@ class Study:
     seeds: list[int]
     fleet: dict[str, Any] = dataclasses.field(default_factory=dict)
     engine: str = "memory"
+    record: str = "failed"
     baseline: str | None = None
     description: str = ""
     maps_hint: str = ""
@@ -103,6 +107,9 @@ class Study:
         engine = head.get("engine", "memory")
         if engine not in ENGINES:
             raise ConfigError(f"{where}: engine must be one of {', '.join(ENGINES)} (got {engine!r})")
+        record = head.get("record", "failed")
+        if record not in RECORD:
+            raise ConfigError(f"{where}: record must be one of {', '.join(RECORD)} (got {record!r})")
         seeds = head.get("seeds", 1)
         if isinstance(seeds, int) and not isinstance(seeds, bool) and seeds >= 1:
             seeds = list(range(seeds))
@@ -113,7 +120,7 @@ class Study:
                 raise ConfigError(f"{where}: [grid] {k} must be a non-empty list")
         name = head.get("name") or (path.stem if path else "study")
         study = cls(name=str(name), grid=dict(grid), seeds=list(seeds), fleet=dict(fleet), engine=engine,
-                    baseline=head.get("baseline"), description=str(head.get("description", "")),
+                    record=record, baseline=head.get("baseline"), description=str(head.get("description", "")),
                     maps_hint=str(head.get("maps", "")), paper=dict(raw.get("paper", {})), path=path, text=text)
         study.scenario({k: v[0] for k, v in grid.items()}, seeds[0], resolve=False)  # bad fields fail now
         return study
@@ -153,12 +160,12 @@ class Study:
             params = dict(zip(keys, values, strict=True))
             for seed in self.seeds:
                 s = self.scenario(params, seed, maps_dir, resolved=resolved)
-                label = {k: _label(v) for k, v in params.items()} | {"seed": seed}
+                label = {k: param_label(v) for k, v in params.items()} | {"seed": seed}
                 out.append(Point(point_id(params, seed), label, s.to_dict(), self.engine))
         return out
 
 
-def _label(value: Any) -> Any:
+def param_label(value: Any) -> Any:
     """A grid value as a column: an allocator table becomes ``minpos(wavefront=stop)``."""
     if isinstance(value, dict):
         extra = ",".join(f"{k}={v}" for k, v in sorted(value.items()) if k != "type")

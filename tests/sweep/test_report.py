@@ -111,3 +111,44 @@ def test_a_base_connected_column_only_for_studies_with_a_base_station(tmp_path: 
         text = capsys.readouterr().out
         assert ("base connected %" in text) is shown
         assert ("50.0 ± 25.0" in text) is shown  # nearest, 1 robot: 0.5, 0.25, 0.75
+
+
+MISSED = [row("greedy", 1, 300, completed=False) | {"coverage": c} for c in (0.5, 0.7)] + \
+         [{"param.allocator": "greedy", "robots": 1, "map": "office", "comm": "full", "loss_applied": 0.0,
+           "status": "failed", "error": "RunError: r1 died"}]
+
+
+def test_every_point_shows_its_runs_that_reached_the_target_and_the_coverage_of_those_that_missed(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from fleet_emu.sweep.execute import write_tables
+    from fleet_emu.sweep.report import report
+
+    lines = {(ln["allocator"], ln["robots"], ln["loss_applied"]): ln for ln in summary(ROWS + MISSED, "nearest")}
+    greedy = lines[("greedy", 1, 0.0)]  # no run reached the target, one failed
+    assert (greedy["runs"], greedy["reached"], greedy["failed"], greedy["ticks"][2]) == (3, 0, 1, 0)
+    assert greedy["missed_coverage_pct"] == pytest.approx((60.0, math.sqrt(200.0), 2))
+    minpos = lines[("minpos", 2, 0.0)]
+    assert (minpos["runs"], minpos["reached"], minpos["missed_coverage_pct"]) == (4, 3, (99.0, 0.0, 1))
+    write_tables([r | {"id": str(i)} for i, r in enumerate(ROWS + MISSED)], tmp_path)
+    report(tmp_path, baseline="nearest", plots=False)
+    out = capsys.readouterr().out
+    assert "17 runs, 1 failed" in out
+    cells = {tuple(c.strip() for c in ln.split("│")[1:6]): [c.strip() for c in ln.split("│")[6:-1]]
+             for ln in out.splitlines() if ln.startswith("│")}
+    assert cells[("office", "full, loss 0", "1", "greedy", "0 / 3")][:5] == ["1", "-", "-", "-", "60.0 ± 14.1"]
+    assert cells[("office", "full, loss 0", "2", "minpos", "3 / 4")][4] == "99.0, n = 1"
+
+
+def test_the_figures_have_titles_and_one_robot_count_a_narrow_axis(tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    from fleet_emu.sweep import plots
+
+    figures = {}
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.setdefault(path.name, fig) and path)
+    one = [r | {"curve": json.dumps([0.1, 0.5]), "curve_every": 5} for r in ROWS if r["robots"] == 2]
+    plots.draw(one, tmp_path)
+    ax = figures["time_vs_robots.png"].axes[0]
+    assert ax.get_title() == "Time to the target against the robot count"
+    assert ax.get_xlim() == (1.0, 3.0) and [t.get_text() for t in ax.get_xticklabels()] == ["2"]
+    assert figures["time_vs_loss.png"].axes[0].get_title() == "Time to the target against the loss"
+    assert figures["coverage_vs_tick.png"].axes[0].get_title().startswith("Coverage against tick")

@@ -142,6 +142,9 @@ def test_a_processes_study_runs_real_fleets_with_the_memory_rows(study_dir: Path
     assert real["pids.world"] != real["pids.netem"] and mem["pids.world"] == mem["pids.netem"]
     same = ("ticks", "coverage", "path_length", "radio.sent", "radio.bytes_sent", "curve")
     assert [real[k] for k in same] == [mem[k] for k in same]
+    # a processes run records as it goes; with record = "failed" its folder stays only when it missed the target
+    kept = study_dir / "real" / "runs" / real["id"]
+    assert (kept / "run.mcap").exists() is bool(real["run_dir"]) is (not real["completed"])
 
 
 def test_sigterm_stops_a_sweep_keeps_its_rows_and_leaves_no_worker(tmp_path: Path) -> None:
