@@ -1,5 +1,5 @@
 """``fleet``'s commands that run and inspect fleets: ``run``, ``router-config``, ``host``, ``maps``,
-``allocators``, ``report``, and the dispatch every command goes through (docs/reference/cli.md). The
+``allocators``, ``report``, ``recover``, and the dispatch every command goes through (docs/reference/cli.md). The
 ``fleet`` console script, :mod:`fleet_emu.cli`, adds ``sweep`` on top (sweep runs fleets through this package,
 so this package does not import it); ``python -m fleet_emu.launch`` serves the commands here.
 
@@ -196,6 +196,9 @@ def _add_report(sub: Any) -> None:
     rep.add_argument("--compare", action="store_true", help="one table and overlaid coverage curves of the runs")
     rep.add_argument("--out", type=Path, help="where --compare writes its PNG (default ./compare.png)")
     rep.add_argument("--no-plots", action="store_true", help="metrics.json and the table only")
+    from fleet_emu.launch.recover import add_parser as add_recover
+
+    add_recover(sub)
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
@@ -303,15 +306,25 @@ def cmd_allocators(_: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    from fleet_emu.launch.recover import reporting
     from fleet_emu.recording.report import report
 
-    report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
+    with reporting(args.paths) as recovered:  # run folders locked; a cut recording recovered first
+        for line in recovered:
+            print(line)
+        report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
     return 0
+
+
+def cmd_recover(args: argparse.Namespace) -> int:
+    from fleet_emu.launch.recover import cmd_recover as recover
+
+    return recover(args)
 
 
 #: The handlers of this package's commands other than ``run`` and ``host`` (which handle signals themselves).
 HANDLERS: dict[str, Handler] = {"maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report,
-                                "router-config": cmd_router_config}
+                                "router-config": cmd_router_config, "recover": cmd_recover}
 
 
 def main(argv: list[str] | None = None) -> None:

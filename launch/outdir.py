@@ -14,24 +14,25 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
-import json
 import os
 import re
-import secrets
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 from fleet_emu.core.errors import ConfigError, RunError
+from fleet_emu.core.files import write_atomic, write_json
+
+__all__ = ["DiskFault", "FolderLock", "claim", "claimed", "disk_fault", "lock_folder", "make_folder", "run_files",
+           "write_atomic", "write_json"]
 
 LOCK = ".fleet.lock"
 #: Files whose presence means the folder holds a run.
 RUN_MARKERS = ("result.json", "run.mcap", "scenario.json", "run.mcap.cut")
 #: Every file a run (and ``fleet report`` on it) writes in its folder: removed by ``--overwrite``.
 _RUN_FILE = re.compile(r"(result\.json|scenario\.json|map\.npz|run\.mcap(\.cut)?|metrics\.json|[\w.-]+\.png|"
-                       r"[\w.-]+\.log|\.[\w.-]+\.tmp[\w-]*)")
+                       r"[\w.-]+\.log|\.[\w.-]*\.tmp[\w.-]*)")
 
 
 class DiskFault(RunError):
@@ -162,33 +163,3 @@ def claimed(out: Path | None, overwrite: bool = False) -> Iterator[None]:
     finally:
         if lock is not None:
             lock.release()
-
-
-def write_atomic(path: Path, write: Callable[[Path], Any]) -> None:
-    """``write(tmp)`` into a temporary file beside ``path``, then renamed over it; on any error the temporary
-    file is removed and the error propagates (``path`` is then as it was)."""
-    tmp = _new_temporary(path)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-
-
-def _new_temporary(path: Path) -> Path:
-    """A new empty file ``.<name>.tmp<random>`` beside ``path``, with the mode any new file gets (umask)."""
-    while True:
-        tmp = path.with_name(f".{path.name}.tmp{secrets.token_hex(4)}")
-        try:
-            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666))
-            return tmp
-        except FileExistsError:
-            continue
-
-
-def write_json(path: Path, obj: Any) -> None:
-    """JSON (indented) to ``path``, atomically."""
-    data = json.dumps(obj, indent=2)
-    write_atomic(path, lambda tmp: tmp.write_text(data))
