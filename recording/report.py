@@ -85,6 +85,9 @@ def _check_result(run: Run, console: Console) -> None:
         res = json.loads(live.read_text())
     except (OSError, ValueError):
         return
+    if isinstance(res, dict) and res.get("reason") == "crashed":
+        console.print("result.json was recovered from this recording (reason crashed)")
+        return
     diff = differences(res, run.result)
     if diff:
         console.print(f"[yellow]differs from result.json: {', '.join(diff)}[/yellow]")
