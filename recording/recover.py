@@ -27,10 +27,9 @@ from fleet_emu.recording.recorder import CHUNK_SIZE
 
 @dataclasses.dataclass(frozen=True)
 class Rewritten:
-    """What :func:`rewrite` carried over: messages, and the wall-clock seconds their publish times span."""
+    """What :func:`rewrite` carried over: the number of messages."""
 
     messages: int
-    wall_seconds: float
 
 
 def is_whole(path: Path) -> bool:
@@ -50,7 +49,10 @@ def rewrite(src: Path, dst: Path) -> Rewritten:
             raise ReportError(f"{src} is not an MCAP file")
         f.seek(0)
         carried: list[Rewritten] = []
-        write_atomic(dst, lambda tmp: carried.append(_copy(f, src.stat().st_size, tmp)))
+        try:
+            write_atomic(dst, lambda tmp: carried.append(_copy(f, src.stat().st_size, tmp)))
+        except ReportError as exc:
+            raise ReportError(f"{src}: {exc}") from None
     return carried[0]
 
 
@@ -58,7 +60,7 @@ def _copy(f: Any, size: int, tmp: Path) -> Rewritten:
     """The records of the stream ``f`` into a new MCAP file ``tmp``; ids are renumbered as registered."""
     schemas: dict[int, int] = {0: 0}
     channels: dict[int, int] = {}
-    messages, first, last = 0, None, 0
+    messages = 0
     with open(tmp, "wb") as out:
         writer = Writer(out, compression=CompressionType.ZSTD, chunk_size=CHUNK_SIZE)
         started = False
@@ -80,12 +82,10 @@ def _copy(f: Any, size: int, tmp: Path) -> Rewritten:
                 writer.add_message(channels[rec.channel_id], rec.log_time, rec.data, rec.publish_time,
                                    rec.sequence)
                 messages += 1
-                first = rec.publish_time if first is None else min(first, rec.publish_time)
-                last = max(last, rec.publish_time)
         if not started:
             raise ReportError("the recording was cut before its header")
         writer.finish()
-    return Rewritten(messages, (last - first) / 1e9 if first is not None else 0.0)
+    return Rewritten(messages)
 
 
 def _records(f: Any, size: int) -> Any:
