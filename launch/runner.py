@@ -268,7 +268,8 @@ class _Run:
         nodes reaped (killed after the grace, sooner once hurried), then the last samples in and the consumer
         ended, and the launcher's declarations undone."""
         monitor, sup, hurry = self.monitor, self.sup, self.hurry
-        self.interrupted = self.requested.is_set() and monitor.stop is None
+        # a disk fault stays the run's end, whatever signal comes with it (the signal sets only the exit code)
+        self.interrupted = self.requested.is_set() and monitor.stop is None and self.consumer.fault is None
         if monitor.stop is None or self.interrupted:
             with contextlib.suppress(zenoh.ZError):
                 self.pub_stop.put(Stop(src="launcher", tick=monitor.tick, seq=1,

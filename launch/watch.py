@@ -41,6 +41,8 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
     while True:
         if on_progress is not None:
             on_progress(monitor)
+        if consumer.fault is not None:  # the recording cannot be written (a full disk): nothing to wait for
+            return consumer.fault
         if requested.is_set():
             return None
         if monitor.stop is not None:
@@ -50,8 +52,6 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
                                                           or BASE in sup.dead())
             if reported or time.monotonic() - stop_seen > STOP_GRACE:
                 return None if monitor.stop.reason != "startup" else "startup timed out: see the logs in --out"
-        if consumer.fault is not None:  # the recording cannot be written (a full disk): nothing to wait for
-            return consumer.fault
         if router is not None and (code := router.exited()) is not None:  # nothing can reach anyone now
             return f"the router process exited with code {code} (see router.log)"
         dead = sup.dead()

@@ -82,3 +82,20 @@ def test_a_signal_during_the_teardown_changes_the_code_not_the_line(monkeypatch:
     code, _, err = run_cli(["run", "--quiet", "--out", str(tmp_path)])
     assert code == 143
     _one_line(err, tmp_path)
+
+
+def test_a_recording_fault_ends_the_wait_whatever_signal_came() -> None:
+    """The launcher's wait returns the recording's fault first: a signal then cannot turn it into an interrupt."""
+    import threading
+
+    from fleet_emu.launch import watch
+    from fleet_emu.recording.monitor import Monitor
+
+    class Consumer:
+        changed = threading.Event()
+        fault = "cannot write the run's files in /x (run.mcap): No space left on device"
+
+    requested = threading.Event()
+    requested.set()
+    assert watch.wait_for_end(Monitor(("r0",)), Consumer(), None, None, None,  # type: ignore[arg-type]
+                              requested, lambda _: None) == Consumer.fault
