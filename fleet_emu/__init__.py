@@ -83,7 +83,7 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
         grid_every: int | None = None, engine: str = "processes", realtime_hz: float | None = None,
         credentials: str | Path | None = None, tls_ca: str | Path | None = None, listen: str | None = None,
         tls_cert: str | Path | None = None, tls_key: str | Path | None = None,
-        host_timeout: float | None = None) -> Result:
+        host_timeout: float | None = None, overwrite: bool = False) -> Result:
     """Run one scenario as a real fleet (world, netem and one process per robot over Zenoh; with
     ``in_process`` every node in this process, a session each) and return its :class:`Result`.
 
@@ -98,7 +98,8 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
     The rest are ``fleet run``'s options of the same names: ``credentials`` and ``tls_ca`` with ``connect``
     (or ``credentials`` the hosts' users file of a scenario with ``[hosts]``); ``listen``, ``tls_cert`` and
     ``tls_key`` the embedded router's endpoint and TLS identity, e.g. for hosts on other machines;
-    ``host_timeout`` the seconds to wait for them.
+    ``host_timeout`` the seconds to wait for them. An ``out`` that holds a run is refused (ConfigError) unless
+    ``overwrite``, which removes that run's files first; one another run is writing is always refused.
     """
     from fleet_emu.launch.checks import check_memory_engine
     from fleet_emu.launch.runner import RunOptions, run_fleet
@@ -121,11 +122,11 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
         check_memory_engine("the memory engine", [(name, value is not None) for name, value in bus],
                             ("realtime_hz", realtime_hz is not None))
         return run_memory(scenario, out_dir, record=out_dir is not None and record is not False, run_id=run_id,
-                          grid_every=grid_every)
+                          grid_every=grid_every, overwrite=overwrite)
     opts = RunOptions(out_dir=out_dir, in_process=in_process, record=out_dir is not None and record is not False,
                       connect=connect, run_id=run_id, grid_every=grid_every, realtime_hz=realtime_hz,
                       credentials=_path(credentials), tls_ca=_path(tls_ca), listen=listen,
-                      tls_cert=_path(tls_cert), tls_key=_path(tls_key))
+                      tls_cert=_path(tls_cert), tls_key=_path(tls_key), overwrite=overwrite)
     if host_timeout is not None:  # else RunOptions' own default
         import dataclasses
 

@@ -6,8 +6,6 @@ and the memory engine share them."""
 from __future__ import annotations
 
 import secrets
-import shutil
-import tempfile
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -122,16 +120,9 @@ def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None, 
 def make_out(out: Path) -> None:
     """Create ``out`` (and its missing parents) and check it is writable; a ConfigError, and no directory left
     behind, when it cannot be written."""
-    out = out.absolute()
-    top = next((p for p in (*reversed(out.parents), out) if not p.exists()), None)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=out):
-            pass
-    except OSError as exc:
-        if top is not None:
-            shutil.rmtree(top, ignore_errors=True)
-        raise ConfigError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+    from fleet_emu.launch.outdir import make_folder
+
+    make_folder(out)
 
 
 def check_logins(connect: str | None, credentials: Path | None, tls_ca: Path | None, hosts: bool) -> None:

@@ -1,5 +1,5 @@
 """``fleet``'s commands that run and inspect fleets: ``run``, ``router-config``, ``host``, ``maps``,
-``allocators``, ``report``, and the dispatch every command goes through (docs/reference/cli.md). The
+``allocators``, ``report``, ``recover``, and the dispatch every command goes through (docs/reference/cli.md). The
 ``fleet`` console script, :mod:`fleet_emu.cli`, adds ``sweep`` on top (sweep runs fleets through this package,
 so this package does not import it); ``python -m fleet_emu.launch`` serves the commands here.
 
@@ -120,7 +120,10 @@ def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
 
 def _add_engine_flags(r: argparse.ArgumentParser) -> None:
     """``fleet run``'s output, engine and process options."""
-    r.add_argument("--out", type=Path, help="output directory (default runs/<run id>)")
+    r.add_argument("--out", type=Path, help="output directory (default runs/<run id>); one that holds a run is "
+                                            "refused unless --overwrite, one another run is writing always")
+    r.add_argument("--overwrite", action="store_true",
+                   help="--out holds a run: remove its files (result, recording, logs, plots) before starting")
     r.add_argument("--engine", choices=("processes", "memory"), default="processes",
                    help="processes: one OS process per node over Zenoh; memory: the same objects stepped in this "
                         "process, no Zenoh (same result for a seed)")
@@ -193,6 +196,9 @@ def _add_report(sub: Any) -> None:
     rep.add_argument("--compare", action="store_true", help="one table and overlaid coverage curves of the runs")
     rep.add_argument("--out", type=Path, help="where --compare writes its PNG (default ./compare.png)")
     rep.add_argument("--no-plots", action="store_true", help="metrics.json and the table only")
+    from fleet_emu.launch.recover import add_parser as add_recover
+
+    add_recover(sub)
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
@@ -236,7 +242,7 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
             from fleet_emu.launch.memory import run_memory
 
             check_options(RunOptions(run_id=run_id))
-            result = run_memory(scenario, out, record=not args.no_record, run_id=run_id,
+            result = run_memory(scenario, out, record=not args.no_record, run_id=run_id, overwrite=args.overwrite,
                                 grid_every=args.grid_every, on_progress=progress.update, interrupts=interrupts)
         else:
             opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
@@ -244,7 +250,7 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
                               on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
                               interrupts=interrupts, on_warning=_warn, fork_server=args.fork_server,
                               listen=args.listen, realtime_hz=args.realtime, tls_cert=args.tls_cert,
-                              tls_key=args.tls_key,
+                              tls_key=args.tls_key, overwrite=args.overwrite,
                               **({"host_timeout": args.host_timeout} if args.host_timeout is not None else {}))
             result = run_fleet(scenario, opts)
     if interrupts.signum is not None:
@@ -300,15 +306,25 @@ def cmd_allocators(_: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    from fleet_emu.launch.recover import reporting
     from fleet_emu.recording.report import report
 
-    report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
+    with reporting(args.paths) as recovered:  # run folders locked; a cut recording recovered first
+        for line in recovered:
+            print(line)
+        report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
     return 0
+
+
+def cmd_recover(args: argparse.Namespace) -> int:
+    from fleet_emu.launch.recover import cmd_recover as recover
+
+    return recover(args)
 
 
 #: The handlers of this package's commands other than ``run`` and ``host`` (which handle signals themselves).
 HANDLERS: dict[str, Handler] = {"maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report,
-                                "router-config": cmd_router_config}
+                                "router-config": cmd_router_config, "recover": cmd_recover}
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -383,9 +399,13 @@ def _run_with_signals(args: argparse.Namespace, interrupts: Interrupts) -> int:
     130/143 after writing an interrupted ``result.json``."""
     try:
         return cmd_run(args, interrupts)
-    except FleetError:
+    except FleetError as exc:
         if interrupts.signum is None:
             raise
+        from fleet_emu.launch.outdir import DiskFault
+
+        if isinstance(exc, DiskFault):  # a signal during a disk fault's teardown changes the code, not the line
+            print(f"fleet: error: {exc}", file=sys.stderr)
         return interrupts.exit_code  # bad input found after the user already asked to stop: still a stop
 
 

@@ -317,28 +317,49 @@ def _digest(obs: Mapping[str, Observation]) -> list[Any]:
 
 def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool = True, run_id: str = "",
                grid_every: int | None = None, on_progress: Callable[[Monitor], None] | None = None,
-               interrupts: Interrupts | None = None) -> Result:
+               interrupts: Interrupts | None = None, overwrite: bool = False) -> Result:
     """``fleet run --engine memory``: one run in this process, writing what ``run_fleet`` writes under
     ``out_dir`` (``result.json``, ``scenario.json``, ``map.npz``, and with ``record`` a ``run.mcap`` that
     ``fleet report`` reads). Bad input raises ConfigError before anything is written. With ``interrupts``
     (the CLI's signal state) a signal ends the run after the current tick, as ``run_fleet`` does; without,
-    Ctrl-C re-raises KeyboardInterrupt once the files are written."""
-    from fleet_emu.launch.checks import check, check_machine, make_out, new_run_id
-    from fleet_emu.launch.result import write_json_atomic
+    Ctrl-C re-raises KeyboardInterrupt once the files are written. ``out_dir`` is guarded as ``run_fleet``'s
+    (:mod:`~fleet_emu.launch.outdir`: locked, refused when it holds a run unless ``overwrite``); a write that
+    fails ends the run with :class:`~fleet_emu.launch.outdir.DiskFault`."""
+    from fleet_emu.launch.checks import check, check_machine, new_run_id
+    from fleet_emu.launch.outdir import claimed
 
     map_data = check(scenario)
     check_machine(scenario, map_data, "memory")
     run_id = run_id or new_run_id()
-    if out_dir is not None:
-        make_out(out_dir)
+    with claimed(out_dir, overwrite):  # to the last write: no other run writes here
+        try:
+            result, interrupted = _run_and_write(scenario, map_data, out_dir, record, run_id, grid_every,
+                                                 on_progress, interrupts)
+        except OSError as exc:  # a full disk before the run or at its end
+            from fleet_emu.launch.outdir import disk_fault
+
+            raise disk_fault(out_dir or Path("."), exc) from None
+    if interrupted and interrupts is None:
+        raise KeyboardInterrupt
+    return result
+
+
+def _run_and_write(scenario: Scenario, map_data: MapData, out_dir: Path | None, record: bool, run_id: str,
+                   grid_every: int | None, on_progress: Callable[[Monitor], None] | None,
+                   interrupts: Interrupts | None) -> tuple[Result, bool]:
+    """The run and its files (in ``out_dir``, already claimed); the result and whether a signal ended it. A
+    recording that fails ends the run: its ``result.json`` is written if it can be, and DiskFault raised."""
+    from fleet_emu.launch.outdir import DiskFault, disk_fault, write_atomic
+    from fleet_emu.launch.result import write_json_atomic
+
     with contextlib.ExitStack() as stack:
         recording = out_dir / "run.mcap" if record and out_dir is not None else None
         tap, finish = _recording_tap(stack, scenario, map_data, run_id, recording, grid_every)
         fleet = Fleet(scenario, run_id=run_id, tap=tap)
         if out_dir is not None:
             write_json_atomic(out_dir / "scenario.json", scenario.to_dict())
-            map_data.save(out_dir / "map.npz")
-        interrupted = False
+            write_atomic(out_dir / "map.npz", map_data.save)
+        interrupted, fault = False, None
 
         def tick(monitor: Monitor) -> None:
             if on_progress is not None:
@@ -354,15 +375,23 @@ def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool 
             interrupted = True
             result = fleet.result()
             result.data["reason"] = "interrupted"
+        except OSError as exc:  # the recording failed (a full disk): the run ends here
+            fault = str(disk_fault(out_dir or Path("."), exc, "run.mcap"))
+            result = fleet.result()
+            result.data["reason"], result.data["error"] = "error", fault
         finally:
             messages = finish()
         result.data["signal"] = interrupts.name if interrupts is not None else ("SIGINT" if interrupted else None)
         result.data["recording"] = {"path": str(recording) if recording else None, "messages": messages}
         if out_dir is not None:
-            write_json_atomic(out_dir / "result.json", result.data)
-    if interrupted and interrupts is None:
-        raise KeyboardInterrupt
-    return Result(result.data, result.curve, out_dir)
+            try:
+                write_json_atomic(out_dir / "result.json", result.data)
+            except OSError:
+                if fault is None:
+                    raise
+        if fault is not None:
+            raise DiskFault(fault)
+    return Result(result.data, result.curve, out_dir), interrupted
 
 
 def _recording_tap(stack: contextlib.ExitStack, scenario: Scenario, map_data: MapData, run_id: str,
@@ -383,6 +412,8 @@ def _recording_tap(stack: contextlib.ExitStack, scenario: Scenario, map_data: Ma
         data = msg.encode()
         recorder.record(key, data, wall_ns)
         viz.feed(key, data, msg)
+        if recorder.failed is not None:  # a full disk: the run ends (run_memory's result says why)
+            raise recorder.failed
 
     def finish() -> int:
         if not closed:

@@ -6,7 +6,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
-import os
 from collections.abc import Iterator, Mapping
 from importlib import resources
 from pathlib import Path
@@ -102,7 +101,7 @@ def validate_result(data: Mapping[str, Any]) -> None:
 
 def write_json_atomic(path: Path, obj: Any) -> None:
     """Write JSON to ``path`` through a temporary file and a rename, so that a reader (or a crash) never sees
-    half a file."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(obj, indent=2))
-    os.replace(tmp, path)
+    half a file; the temporary file is removed when the write fails (a full disk)."""
+    from fleet_emu.launch.outdir import write_json
+
+    write_json(path, obj)

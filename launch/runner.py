@@ -32,7 +32,6 @@ from fleet_emu.launch.checks import (
     check_machine,
     check_options,
     credentials,
-    make_out,
     new_run_id,
 )
 from fleet_emu.launch.forked import fork_server_enabled
@@ -43,6 +42,7 @@ from fleet_emu.launch.hosts import (
     listen_endpoints,
     spawn_nodes,
 )
+from fleet_emu.launch.outdir import DiskFault, claimed, disk_fault, write_atomic
 from fleet_emu.launch.result import Result, write_json_atomic
 from fleet_emu.launch.router_process import RouterProcess, router_process, router_spec
 from fleet_emu.launch.signals import Interrupts
@@ -80,13 +80,16 @@ class RunOptions:
     tls_key: Path | None = None  # ... and its private key
     host_timeout: float = HOST_TIMEOUT  # seconds to wait for the hosts
     realtime_hz: float | None = None  # real time: the world ticks at this rate on the wall clock (None: lockstep)
+    overwrite: bool = False  # an ``out_dir`` holding a run: remove that run's files first (else refused)
 
 
 def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     """Run one scenario to its end. ``result.json`` is written (atomically) when ``opts.out_dir`` is given,
-    on every exit path; Ctrl-C re-raises KeyboardInterrupt after it, and a failed run raises RunError.
-    Bad input (the scenario, the options, an unwritable ``out_dir``) raises ConfigError before any process
-    starts and leaves no output directory behind."""
+    on every exit path; Ctrl-C re-raises KeyboardInterrupt after it, and a failed run raises RunError
+    (:class:`~fleet_emu.launch.outdir.DiskFault` when the run's files could not be written). Bad input (the
+    scenario, the options, an unwritable ``out_dir``, one that holds a run without ``opts.overwrite``, one
+    another run holds) raises ConfigError before any process starts and leaves no output directory behind.
+    The folder is locked (:mod:`~fleet_emu.launch.outdir`) from before the first write to after the last."""
     map_data = check(scenario)
     check_machine(scenario, map_data, "in-process" if opts.in_process else "processes",
                   not opts.in_process and fork_server_enabled(opts.fork_server))
@@ -97,21 +100,22 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
         opts.on_warning("--connect without --credentials: this run's bus is not authenticated "
                         "(see `fleet router-config`)")
     run_id = opts.run_id or new_run_id()
-    if opts.out_dir is not None:
-        make_out(opts.out_dir)
     with contextlib.ExitStack() as files:
+        files.enter_context(claimed(opts.out_dir, opts.overwrite))  # to the last write: no other run writes here
         work = opts.out_dir or Path(files.enter_context(tempfile.TemporaryDirectory(prefix="fleet-run-")))
         recording = work / "run.mcap" if opts.record and opts.out_dir is not None else None
         try:
             write_json_atomic(work / "scenario.json", scenario.to_dict())
-            map_data.save(work / "map.npz")
+            write_atomic(work / "map.npz", map_data.save)
             result, failure = _Run(scenario, map_data, run_id, work, recording, opts, creds).execute()
             if opts.out_dir is not None:
-                write_json_atomic(work / "result.json", result.data)
+                _write_result(work, result, failure)
             elif failure == "error":
                 result.data["error"] += f" ({_last_log_line(work, result.data['error'])})"
         except OSError as exc:  # a full disk, a directory removed under the run
-            raise RunError(f"cannot write the run's files in {work}: {exc.strerror or exc}") from None
+            raise disk_fault(work, exc) from None
+    if failure == "disk":
+        raise DiskFault(result["error"])
     if failure == "interrupted" and opts.interrupts is None:
         raise KeyboardInterrupt
     if failure == "error":
@@ -264,7 +268,8 @@ class _Run:
         nodes reaped (killed after the grace, sooner once hurried), then the last samples in and the consumer
         ended, and the launcher's declarations undone."""
         monitor, sup, hurry = self.monitor, self.sup, self.hurry
-        self.interrupted = self.requested.is_set() and monitor.stop is None
+        # a disk fault stays the run's end, whatever signal comes with it (the signal sets only the exit code)
+        self.interrupted = self.requested.is_set() and monitor.stop is None and self.consumer.fault is None
         if monitor.stop is None or self.interrupted:
             with contextlib.suppress(zenoh.ZError):
                 self.pub_stop.put(Stop(src="launcher", tick=monitor.tick, seq=1,
@@ -307,7 +312,18 @@ class _Run:
             "authenticated": self.creds is not None,
         }
         failure = "interrupted" if interrupted else ("error" if self.error else None)
+        if failure == "error" and self.consumer.fault is not None and self.error == self.consumer.fault:
+            failure = "disk"
         return Result(data, tuple(self.monitor.coverage_curve), recording.parent if recording else None), failure
+
+
+def _write_result(work: Path, result: Result, failure: str | None) -> None:
+    """``result.json``, atomically; after a disk fault, a failed write changes nothing of what is told."""
+    try:
+        write_json_atomic(work / "result.json", result.data)
+    except OSError:
+        if failure != "disk":
+            raise
 
 
 def _last_log_line(work: Path, error: str) -> str:

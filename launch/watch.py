@@ -15,11 +15,12 @@ import zenoh
 
 from fleet_emu.core.keys import BASE, Keys
 from fleet_emu.core.messages import ready
+from fleet_emu.launch.outdir import disk_fault
 from fleet_emu.launch.router_process import RouterProcess
 from fleet_emu.launch.supervisor import Supervisor
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.monitor import Monitor
-from fleet_emu.recording.recorder import Recorder
+from fleet_emu.recording.recorder import FLUSH_SECONDS, Recorder
 
 STOP_GRACE = 5.0
 
@@ -40,6 +41,8 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
     while True:
         if on_progress is not None:
             on_progress(monitor)
+        if consumer.fault is not None:  # the recording cannot be written (a full disk): nothing to wait for
+            return consumer.fault
         if requested.is_set():
             return None
         if monitor.stop is not None:
@@ -74,7 +77,9 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
 
 
 class Consumer(threading.Thread):
-    """Takes samples off the subscriber's queue: records them, folds them, and answers the world's hello."""
+    """Takes samples off the subscriber's queue: records them, folds them, and answers the world's hello. The
+    recording is flushed when the bus is quiet for a second; a recording that fails (a full disk) sets
+    :attr:`fault`, the line the run ends with, and the fold goes on."""
 
     def __init__(self, keys: Keys, samples: queue.Queue, monitor: Monitor, recorder: Recorder | None,
                  pub_ready: zenoh.Publisher, viz: FoxgloveWriter | None = None) -> None:
@@ -86,16 +91,18 @@ class Consumer(threading.Thread):
         self.viz = viz
         self.pub_ready = pub_ready
         self.changed = threading.Event()
+        self.fault: str | None = None
 
     def backlog(self) -> int:
         """Samples received and not folded yet."""
         return self.samples.qsize()
 
     def run(self) -> None:
-        while (item := self.samples.get()) is not None:
+        while (item := self._next()) is not None:
             key, data, wall_ns = item
             if self.recorder is not None:
                 self.recorder.record(key, data, wall_ns)
+                self._check_recorder()
             parsed = self.keys.parse(key)
             if parsed is not None and parsed.channel == "hello":
                 self.pub_ready.put(ready("launcher", "launcher", os.getpid()).encode())
@@ -105,6 +112,23 @@ class Consumer(threading.Thread):
                 self.viz.feed(key, data, msg)
             if msg is not None:
                 self.changed.set()
+
+
+    def _next(self) -> tuple[str, bytes, int] | None:
+        """The next sample (None at the end); the recording flushed while none comes."""
+        while True:
+            try:
+                item: tuple[str, bytes, int] | None = self.samples.get(timeout=FLUSH_SECONDS)
+                return item
+            except queue.Empty:
+                if self.recorder is not None:
+                    self.recorder.flush()
+                    self._check_recorder()
+
+    def _check_recorder(self) -> None:
+        if self.recorder is not None and self.recorder.failed is not None and self.fault is None:
+            self.fault = str(disk_fault(self.recorder.path.parent, self.recorder.failed, self.recorder.path.name))
+            self.changed.set()
 
 
 class Drain(threading.Thread):

@@ -5,15 +5,19 @@ Messages keep their msgpack bytes (message encoding ``msgpack``, no schema). Log
 The ``scenario`` metadata record holds what the launcher passes (``run_id``, the scenario as JSON) and the
 versions it was written with: ``schema_version`` (:data:`fleet_emu.core.version.SCHEMA_VERSION`) and
 ``fleet_emu_version`` (:data:`fleet_emu.core.version.__version__`).
-The writer closes a chunk and flushes at least once a second, so a recording cut by a crash still reads up
-to the last flush.
+The writer closes a chunk and flushes at least once a second (and :data:`CHUNK_SIZE` bounds a chunk), so a
+recording cut by a crash still reads up to the last flush and loses about a second at most; ``fleet recover``
+makes such a file whole again (:mod:`.recover`). A write that fails (a full disk) stops the recording: the
+error is kept in :attr:`Recorder.failed` for the launcher to end the run with, and nothing raises.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -26,16 +30,20 @@ from fleet_emu.core.version import SCHEMA_VERSION, __version__
 TICK_NS = 100_000_000  # one tick is shown as 100 ms of log time
 MAX_LOG_TICK = (2**64 - 1) // TICK_NS  # MCAP log times are unsigned 64-bit nanoseconds
 FLUSH_SECONDS = 1.0
+CHUNK_SIZE = 256 * 1024  # bytes of messages per chunk (before compression): a chunk is small
 SCENARIO_METADATA = "scenario"
 
 
 class Recorder:
-    """Thread-safe MCAP writer; ``record`` may be called from any thread, ``close`` once at the end."""
+    """Thread-safe MCAP writer; ``record`` may be called from any thread, ``close`` once at the end. The first
+    write error (an OSError: a full disk) is kept in :attr:`failed` and ends the recording; later calls do
+    nothing."""
 
     def __init__(self, path: Path, metadata: dict[str, Any]) -> None:
         self.path = path
         self._file = open(path, "wb")  # noqa: SIM115 (closed in close())
-        self._writer = Writer(self._file, compression=CompressionType.ZSTD)
+        self.failed: OSError | None = None
+        self._writer = Writer(self._file, compression=CompressionType.ZSTD, chunk_size=CHUNK_SIZE)
         self._writer.start(profile="", library="fleet-emu")
         versions = {"schema_version": str(SCHEMA_VERSION), "fleet_emu_version": __version__}
         self._writer.add_metadata(SCENARIO_METADATA,
@@ -56,14 +64,15 @@ class Recorder:
             if tick is None or tick > MAX_LOG_TICK:  # no tick, or one no log time can hold (malformed, say):
                 tick = self._last_tick  # logged at the latest tick
             self._last_tick = tick
-            channel = self._channels.get(key)
-            if channel is None:
-                channel = self._writer.register_channel(topic=key, message_encoding="msgpack", schema_id=0)
-                self._channels[key] = channel
-            self._writer.add_message(channel_id=channel, log_time=tick * TICK_NS, data=data,
-                                     publish_time=wall_ns, sequence=self.messages)
-            self.messages += 1
-            self._maybe_flush()
+            with self._fault():
+                channel = self._channels.get(key)
+                if channel is None:
+                    channel = self._writer.register_channel(topic=key, message_encoding="msgpack", schema_id=0)
+                    self._channels[key] = channel
+                self._writer.add_message(channel_id=channel, log_time=tick * TICK_NS, data=data,
+                                         publish_time=wall_ns, sequence=self.messages)
+                self.messages += 1
+                self._maybe_flush()
 
     def add_channel_message(self, topic: str, schema_id: int, encoding: str, data: bytes, tick: int) -> None:
         """A derived message (e.g. a viewer channel with a schema) on its own topic."""
@@ -72,18 +81,20 @@ class Recorder:
                 return
             if not 0 <= tick <= MAX_LOG_TICK:  # derived from a message with a tick no log time can hold
                 tick = self._last_tick
-            channel = self._channels.get(topic)
-            if channel is None:
-                channel = self._writer.register_channel(topic=topic, message_encoding=encoding, schema_id=schema_id)
-                self._channels[topic] = channel
-            self._writer.add_message(channel_id=channel, log_time=tick * TICK_NS, data=data,
-                                     publish_time=time.time_ns(), sequence=self.messages)
-            self.messages += 1
-            self._maybe_flush()
+            with self._fault():
+                channel = self._channels.get(topic)
+                if channel is None:
+                    channel = self._writer.register_channel(topic=topic, message_encoding=encoding, schema_id=schema_id)
+                    self._channels[topic] = channel
+                self._writer.add_message(channel_id=channel, log_time=tick * TICK_NS, data=data,
+                                         publish_time=time.time_ns(), sequence=self.messages)
+                self.messages += 1
+                self._maybe_flush()
 
     def register_schema(self, name: str, encoding: str, data: bytes) -> int:
-        with self._lock:
+        with self._lock, self._fault():
             return self._writer.register_schema(name=name, encoding=encoding, data=data)
+        return 0  # the recording failed: nothing will be written on the schema's channels
 
     def _maybe_flush(self) -> None:
         now = time.monotonic()
@@ -94,17 +105,31 @@ class Recorder:
     def flush(self) -> None:
         with self._lock:
             if not self.closed:
-                self._writer.flush()
-                self._last_flush = time.monotonic()
+                with self._fault():
+                    self._writer.flush()
+                    self._last_flush = time.monotonic()
 
     def close(self) -> int:
         """Finish the file (summary and index); returns the number of messages written."""
         with self._lock:
             if not self.closed:
-                self.closed = True
-                self._writer.finish()
-                self._file.close()
+                with self._fault():
+                    self._writer.finish()
+                    self.closed = True
+                    self._file.close()
             return self.messages
+
+    @contextlib.contextmanager
+    def _fault(self) -> Iterator[None]:
+        """Under the lock: an OSError of the block is kept in :attr:`failed` and closes the recording (the file
+        as far as it got: ``fleet recover`` reads it)."""
+        try:
+            yield
+        except OSError as exc:
+            self.failed = self.failed or exc
+            self.closed = True
+            with contextlib.suppress(OSError, ValueError):
+                self._file.close()
 
 
 def _text(value: Any) -> str:

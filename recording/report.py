@@ -4,11 +4,12 @@ Each recording is read with :func:`.read.load_recording`; the report writes ``me
 :data:`.plots.PLOTS` (``coverage.png``, ``connectivity.png``, ``map.png``, ``messages.png``) beside it, prefixed
 with the recording's name when it is not ``run.mcap``, prints :func:`.tables.summary_table`, and says whether a
 ``result.json`` beside the recording agrees. ``--compare`` puts several runs in one table and overlays their
-coverage curves in one PNG.
+coverage curves in one PNG. Every file is written atomically (:mod:`fleet_emu.core.files`).
 """
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,7 @@ import numpy as np
 from rich.console import Console
 
 from fleet_emu.core.errors import ReportError
+from fleet_emu.core.files import write_atomic, write_json
 from fleet_emu.recording.metrics import NOT_RECORDED
 from fleet_emu.recording.plots import PLOTS, base_plot, compare_plot
 from fleet_emu.recording.read import Run, load_recording
@@ -34,13 +36,13 @@ def output_paths(mcap: Path) -> dict[str, Path]:
 def write_report(run: Run, plots: bool = True) -> dict[str, Path]:
     """metrics.json and the PNGs beside the recording; returns their paths."""
     paths = output_paths(run.path)
-    paths["metrics"].write_text(json.dumps(run.metrics, indent=2))
+    write_json(paths["metrics"], run.metrics)
     if plots:
         for name, plot in PLOTS.items():
-            plot(run, paths[name])
+            write_atomic(paths[name], functools.partial(plot, run))
         if run.fold.monitor.base:  # a run with a base station: its connectivity over time
             paths["base"] = paths["metrics"].with_name(paths["metrics"].name.replace("metrics.json", "base.png"))
-            base_plot(run, paths["base"])
+            write_atomic(paths["base"], functools.partial(base_plot, run))
     else:
         for name in PLOTS:
             paths.pop(name)
@@ -61,7 +63,7 @@ def report(paths: list[Path], compare: bool = False, out: Path | None = None, pl
         if not out.parent.exists():
             raise ReportError(f"no such directory: {out.parent}")
         console.print(compare_table(runs))
-        compare_plot(runs, out)
+        write_atomic(out, lambda tmp: compare_plot(runs, tmp))
         console.print(f"coverage curves: {out}")
         return runs
     for run in runs:
@@ -82,6 +84,9 @@ def _check_result(run: Run, console: Console) -> None:
     try:
         res = json.loads(live.read_text())
     except (OSError, ValueError):
+        return
+    if isinstance(res, dict) and res.get("reason") == "crashed":
+        console.print("result.json was recovered from this recording (reason crashed)")
         return
     diff = differences(res, run.result)
     if diff:

@@ -115,6 +115,10 @@ def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | No
         points = [p for p in points if p.params["seed"] in study.seeds[:seeds]]
     with contextlib.ExitStack() as stack:
         client = stack.enter_context(connect_dask(dask)) if dask else None  # before anything is written
+        from fleet_emu.launch.outdir import lock_folder, make_folder
+
+        make_folder(out)
+        stack.callback(lock_folder(out).release)  # one sweep at a time in ``out``: refused naming the other's pid
         _claim(out, study)
         return _run(study, points, out, jobs, client, dask, limit, quiet)
 

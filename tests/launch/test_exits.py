@@ -32,6 +32,7 @@ class _Consumer:
     def __init__(self, backlog: list[int] | None = None) -> None:
         self.changed = threading.Event()
         self.pending = backlog or []
+        self.fault: str | None = None  # the recording's write error (none here)
 
     def backlog(self) -> int:
         """The launcher's samples still to fold: one value per call, then none."""

@@ -6,6 +6,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -227,15 +228,19 @@ def killed_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def test_killed_run_reports(killed_run: Path) -> None:
-    data = (killed_run / "run.mcap").read_bytes()
-    code, printed, err = run_cli(["report", str(killed_run), "--no-plots"])
+def test_killed_run_reports(killed_run: Path, tmp_path: Path) -> None:
+    """The report recovers the cut recording first (``fleet recover``), then reads the whole one."""
+    run_dir = tmp_path / "run"
+    shutil.copytree(killed_run, run_dir)  # the session's cut run stays cut for the other tests
+    data = (run_dir / "run.mcap").read_bytes()
+    code, printed, err = run_cli(["report", str(run_dir), "--no-plots"])
     assert code == 0, err
-    metrics = json.loads((killed_run / "metrics.json").read_text())
-    assert metrics["truncated"] is True
+    assert "rewritten whole" in printed and (run_dir / "run.mcap.cut").read_bytes() == data
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    assert metrics["truncated"] is False
     assert metrics["recording"]["messages"] == flushed(data)[-1][1] > 0
     assert metrics["ticks"] > 0 and metrics["coverage"] > 0 and metrics["decision_time"]["calls"] > 0
-    assert "was cut" in printed
+    assert json.loads((run_dir / "result.json").read_text())["reason"] == "crashed"
 
 
 @pytest.mark.parametrize("which", ["small", "killed"])
