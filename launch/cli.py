@@ -84,6 +84,11 @@ def _add_run(sub: Any) -> None:
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--grid-every", type=int, metavar="K",
                    help="Foxglove map/coverage/belief grids in run.mcap every K ticks (default: belief_every)")
+    r.add_argument("--live", metavar="[HOST:]PORT",
+                   help="serve the run to Foxglove over WebSocket (host 127.0.0.1 unless given; port 0: one the OS "
+                        "picks); prints `live: ws://HOST:PORT` on stderr once up")
+    r.add_argument("--live-hz", type=_hz, metavar="HZ",
+                   help="with --live: at most HZ lockstep ticks per second, to watch a fast run (same result)")
 
 
 def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
@@ -231,20 +236,25 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
             ("--listen", args.listen), ("--tls-cert", args.tls_cert), ("--tls-key", args.tls_key),
             ("--[no-]fork-server", args.fork_server is not None)], ("--realtime", args.realtime is not None))
     check_logins(args.connect, args.credentials, args.tls_ca, scenario.hosts is not None)
+    from fleet_emu.launch.live import live_options
+
+    live = live_options(args.live, args.live_hz, args.realtime is not None,
+                        args.engine == "processes" and not args.in_process)
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
         if args.engine == "memory":
             from fleet_emu.launch.memory import run_memory
 
             check_options(RunOptions(run_id=run_id))
             result = run_memory(scenario, out, record=not args.no_record, run_id=run_id,
-                                grid_every=args.grid_every, on_progress=progress.update, interrupts=interrupts)
+                                grid_every=args.grid_every, on_progress=progress.update, interrupts=interrupts,
+                                live=live)
         else:
             opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
                               connect=args.connect, run_id=run_id, grid_every=args.grid_every,
                               on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
                               interrupts=interrupts, on_warning=_warn, fork_server=args.fork_server,
                               listen=args.listen, realtime_hz=args.realtime, tls_cert=args.tls_cert,
-                              tls_key=args.tls_key,
+                              tls_key=args.tls_key, live=live,
                               **({"host_timeout": args.host_timeout} if args.host_timeout is not None else {}))
             result = run_fleet(scenario, opts)
     if interrupts.signum is not None:
