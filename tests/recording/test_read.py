@@ -16,7 +16,9 @@ from fleet_emu.core.version import SCHEMA_VERSION
 from fleet_emu.recording import Run, load_recording
 from fleet_emu.recording import recorder as recorder_module
 from fleet_emu.recording.metrics import NOT_RECORDED
-from fleet_emu.recording.recorder import TICK_NS, Recorder
+from fleet_emu.recording.recorder import Recorder
+
+TICK_NS = 100_000_000  # what the first round's recorder logged a tick as
 from tests.conftest import run_cli
 
 SCENARIO = {"robots": 2, "cell_size": 0.5, "map": "art", "seed": 3, "allocator": {"type": "minpos"},
