@@ -14,6 +14,7 @@ from mcap.reader import make_reader
 
 from fleet_emu.core.grid import from_ascii
 from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Observation, Stop, WorldState
+from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.foxglove import (
     SCHEMAS,
     TOPIC_COVERAGE,
@@ -26,7 +27,6 @@ from fleet_emu.recording.foxglove import (
     schema_text,
     stamp,
 )
-from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.stats import TOPIC_STATS
 
 VALIDATORS = {name: jsonschema.Draft202012Validator(json.loads(schema_text(name))) for name in SCHEMAS}

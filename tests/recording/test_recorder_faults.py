@@ -11,8 +11,8 @@ from mcap.reader import make_reader
 
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import Command, Message, Stop, WorldState
-from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.clock import RunClock
+from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.recorder import Recorder
 
 

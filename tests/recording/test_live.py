@@ -1,0 +1,178 @@
+"""``fleet run --live``, checked with clients nobody here wrote: the official Foxglove WebSocket client
+(``@foxglove/ws-protocol``) connected to a live run, and the official MCAP reader (``@mcap/core``) over a
+recording, each JSON message checked against its schema. Both run under node with the versions pinned in
+``tests/js/package-lock.json``, installed once (``npm ci``) into a cache folder outside the repository keyed by
+that lock file; without node, npm or the registry these tests are skipped with the reason."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import queue
+import shutil
+import subprocess
+import threading
+from pathlib import Path
+from typing import Any
+
+import pytest
+from mcap.writer import Writer
+
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.live import LiveOptions
+from fleet_emu.launch.memory import run_memory
+from fleet_emu.recording.foxglove import schema_text
+from fleet_emu.recording.stats import SCHEMA_STATS
+from tests.conftest import result, run_cli
+
+JS = Path(__file__).resolve().parents[1] / "js"
+MEASURED = ("run_id", "wall_seconds", "ticks_per_second", "decision_ms", "agent_peak_rss_kb")
+
+
+@pytest.fixture(scope="session")
+def js_clients() -> Path:
+    """A folder with the pinned clients installed and this repository's scripts beside them."""
+    node, npm = shutil.which("node"), shutil.which("npm")
+    if node is None or npm is None:
+        pytest.skip("node and npm are needed for the official Foxglove clients")
+    lock = (JS / "package-lock.json").read_bytes()
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    folder = base / "fleet-emu" / "js-clients" / hashlib.sha256(lock).hexdigest()[:16]
+    if not (folder / "node_modules" / ".package-lock.json").is_file():
+        folder.mkdir(parents=True, exist_ok=True)
+        for name in ("package.json", "package-lock.json"):
+            shutil.copy(JS / name, folder / name)
+        try:
+            proc = subprocess.run([npm, "ci", "--no-audit", "--no-fund"], cwd=folder, capture_output=True,
+                                  text=True, timeout=600)
+        except subprocess.TimeoutExpired:
+            pytest.skip("npm ci timed out (no npm registry?)")
+        if proc.returncode != 0:
+            lines = proc.stderr.strip().splitlines()
+            pytest.skip(f"npm ci failed (no npm registry?): {lines[-1] if lines else proc.returncode}")
+    for script in JS.glob("*.mjs"):
+        shutil.copy(script, folder / script.name)
+    return folder
+
+
+def _node(folder: Path, *args: str, timeout: float = 120) -> dict[str, Any]:
+    proc = subprocess.run(["node", *args], cwd=folder, capture_output=True, text=True, timeout=timeout)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def _unmeasured(data: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in data.items() if k not in MEASURED}
+
+
+def test_the_official_client_sees_every_channel_of_a_live_run(js_clients: Path, small_map: Path) -> None:
+    s = Scenario().override(map=str(small_map), robots=4, seed=3, max_ticks=60)
+    urls: queue.Queue[str] = queue.Queue()
+    connected = threading.Event()
+
+    def on_url(url: str) -> None:  # the test holds the run's first tick until its client is in (the run never would)
+        urls.put(url)
+        connected.wait(60)
+
+    got: dict[str, Any] = {}
+    live = LiveOptions("127.0.0.1", 0, hz=8.0, on_url=on_url)
+    runner = threading.Thread(target=lambda: got.update(run=run_memory(s, record=False, live=live)))
+    runner.start()
+    try:
+        url = urls.get(timeout=60)
+        assert url.startswith("ws://127.0.0.1:") and not url.endswith(":0")  # the port the OS picked
+        with subprocess.Popen(["node", "live_client.mjs", url, "90"], cwd=js_clients, stdout=subprocess.PIPE,
+                              text=True) as client:
+            assert client.stdout is not None
+            assert client.stdout.readline().strip() == "connected"
+            connected.set()
+            out, _ = client.communicate(timeout=120)
+        assert client.returncode == 0
+        seen = json.loads(out.strip().splitlines()[-1])
+    finally:
+        connected.set()
+        runner.join(120)
+    plain = run_memory(s, record=False)
+    assert _unmeasured(got["run"].data) == _unmeasured(plain.data)  # a viewer changed nothing
+
+    assert seen["why"].startswith("closed")  # the run ended: its server closed the connection
+    schemas = {c["topic"]: (c["schemaName"], c["encoding"]) for c in seen["channels"]}
+    assert schemas["/viz/scene"] == ("foxglove.SceneUpdate", "protobuf")
+    assert schemas["/viz/map/truth"] == schemas["/viz/map/coverage"] == ("foxglove.Grid", "protobuf")
+    assert schemas["/viz/belief/r0"] == ("foxglove.Grid", "protobuf")
+    assert schemas["/viz/log"] == ("foxglove.Log", "protobuf")
+    assert schemas["/viz/stats"] == (SCHEMA_STATS, "json")
+    topics = seen["topics"]
+    ticks = plain.data["ticks"]
+    truth = topics["/viz/map/truth"]
+    assert truth["count"] == 1 and truth["first"]["column_count"] == 24  # latched: sent on subscribing
+    assert truth["first"]["bytes"] == 12 * 24 * truth["first"]["cell_stride"]
+    stats = topics["/viz/stats"]
+    assert stats["first"]["tick"] < stats["last"]["tick"] == ticks and stats["count"] >= 2  # during the run
+    assert stats["last"]["robots"] == ["r0", "r1", "r2", "r3"] and stats["last"]["coverage"] == plain["coverage"]
+    assert topics["/viz/map/coverage"]["count"] >= 2 and topics["/viz/scene"]["count"] >= 2
+    assert {"robot/r0", "links"} <= set(topics["/viz/scene"]["last"]["entities"])
+    assert "run ended" in topics["/viz/log"]["last"]["message"]
+    assert stats["last"]["sec"] - truth["first"]["sec"] == ticks  # one second a tick, from the run's start
+
+
+def test_the_official_mcap_reader_validates_every_json_message(js_clients: Path, small_run: Path,
+                                                               tmp_path: Path) -> None:
+    res = result(small_run)
+    read = _node(js_clients, "read_mcap.mjs", str(small_run / "run.mcap"))
+    assert read["invalid"] == []
+    topics = read["topics"]
+    viz = {t: v for t, v in topics.items() if t.startswith("/viz/")}
+    assert {v["schema"] for v in viz.values()} == {"foxglove.Grid (jsonschema)", "foxglove.SceneUpdate (jsonschema)",
+                                                   "foxglove.Log (jsonschema)", f"{SCHEMA_STATS} (jsonschema)"}
+    assert viz["/viz/stats"]["count"] == viz["/viz/scene"]["count"] == res["ticks"] + 1
+    assert viz["/viz/map/truth"]["count"] == 1  # written once
+    start, tick_ns = int(read["metadata"]["start_ns"]), round(float(read["metadata"]["tick_s"]) * 1e9)
+    assert viz["/viz/stats"]["first"] == start and viz["/viz/stats"]["last"] == start + res["ticks"] * tick_ns
+    assert start > 1_600_000_000 * 10**9  # the run's real start, not 1970
+
+    bad = tmp_path / "bad.mcap"  # the reader's check bites: a stats message its schema refuses
+    with bad.open("wb") as f:
+        w = Writer(f)
+        w.start()
+        sid = w.register_schema(SCHEMA_STATS, "jsonschema", schema_text(SCHEMA_STATS))
+        ch = w.register_channel("/viz/stats", "json", sid)
+        w.add_message(ch, 1, json.dumps({"tick": -1}).encode(), 1)
+        w.add_metadata("scenario", {"start_ns": "0"})
+        w.finish()
+    assert [i["topic"] for i in _node(js_clients, "read_mcap.mjs", str(bad))["invalid"]] == ["/viz/stats"]
+
+
+@pytest.mark.parametrize(("argv", "says"), [
+    (["--live", "nope"], "--live wants [HOST:]PORT"),
+    (["--live", "127.0.0.1:70000"], "--live wants [HOST:]PORT"),
+    (["--live-hz", "5"], "--live-hz needs --live"),
+    (["--live", "0", "--live-hz", "5"], "--live-hz needs --engine memory or --in-process"),
+    (["--live", "0", "--live-hz", "5", "--in-process", "--realtime", "5"], "--live-hz paces a lockstep run"),
+])
+def test_bad_live_flags_are_one_line(argv: list[str], says: str) -> None:
+    code, _, err = run_cli(["run", "--robots", "2", *argv])
+    assert code == 2 and says in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_taken_port_is_one_line(tmp_path: Path) -> None:
+    with socket_bound() as port:
+        code, _, err = run_cli(["run", "--engine", "memory", "--robots", "2", "--max-ticks", "3", "--live",
+                                str(port), "--out", str(tmp_path / "r")])
+    assert code == 2 and f"--live 127.0.0.1:{port}: cannot serve there" in err, err
+
+
+class socket_bound:
+    """A loopback port held open for the block."""
+
+    def __enter__(self) -> int:
+        import socket
+
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen()
+        return int(self.sock.getsockname()[1])
+
+    def __exit__(self, *_: object) -> None:
+        self.sock.close()
