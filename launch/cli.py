@@ -194,10 +194,13 @@ def _add_listings(sub: Any) -> None:
 
 def _add_report(sub: Any) -> None:
     rep = sub.add_parser("report", help="metrics.json, plots and a table from a recording (RUN_DIR or RUN.mcap)")
-    rep.add_argument("paths", nargs="+", type=Path, metavar="RUN", help="a run directory or its run.mcap")
+    rep.add_argument("paths", nargs="*", type=Path, metavar="RUN", help="a run directory or its run.mcap")
     rep.add_argument("--compare", action="store_true", help="one table and overlaid coverage curves of the runs")
     rep.add_argument("--out", type=Path, help="where --compare writes its PNG (default ./compare.png)")
     rep.add_argument("--no-plots", action="store_true", help="metrics.json and the table only")
+    rep.add_argument("--layout", type=Path, metavar="FILE",
+                     help="write the Foxglove layout for a recording or a live run (--live) to FILE (JSON)")
+    rep.add_argument("--robots", type=int, metavar="N", help="with --layout: the robots it plots (default 8)")
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
@@ -238,8 +241,7 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     check_logins(args.connect, args.credentials, args.tls_ca, scenario.hosts is not None)
     from fleet_emu.launch.live import live_options
 
-    live = live_options(args.live, args.live_hz, args.realtime is not None,
-                        args.engine == "processes" and not args.in_process)
+    live = live_options(args.live, args.live_hz, args.realtime is not None)
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
         if args.engine == "memory":
             from fleet_emu.launch.memory import run_memory
@@ -312,7 +314,17 @@ def cmd_allocators(_: argparse.Namespace) -> int:
 def cmd_report(args: argparse.Namespace) -> int:
     from fleet_emu.recording.report import report
 
-    report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
+    if args.layout is not None:
+        from fleet_emu.recording.layout import write_layout
+
+        write_layout(args.layout, args.robots)
+        print(args.layout)
+    elif args.robots is not None:
+        raise ConfigError("--robots goes with --layout")
+    if not args.paths and args.layout is None:
+        raise ConfigError("give a run (RUN_DIR or RUN.mcap) to report on, or --layout FILE")
+    if args.paths:
+        report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
     return 0
 
 

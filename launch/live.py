@@ -62,7 +62,7 @@ def say_url(url: str) -> None:
     print(f"live: {url}", file=sys.stderr, flush=True)
 
 
-def live_options(live: str | None, hz: float | None, realtime: bool, processes: bool) -> LiveOptions | None:
+def live_options(live: str | None, hz: float | None, realtime: bool) -> LiveOptions | None:
     """``--live`` and ``--live-hz`` checked (a ConfigError on bad input); None without ``--live``."""
     if live is None:
         if hz is not None:
@@ -76,7 +76,4 @@ def live_options(live: str | None, hz: float | None, realtime: bool, processes: 
         raise ConfigError(str(exc)) from None
     if hz is not None and realtime:
         raise ConfigError("--live-hz paces a lockstep run: a --realtime run already ticks at its own rate")
-    if hz is not None and processes:
-        raise ConfigError("--live-hz needs --engine memory or --in-process (a processes run is watched at its "
-                          "own speed)")
     return LiveOptions(host, port, hz, say_url)

@@ -243,7 +243,8 @@ class _Run:
             self.pids |= {BASE: os.getpid()} if scenario.has_base else {}
         else:
             plan = spawn_nodes(self.sup, scenario, self.run_id, self.endpoint, self.work, self.creds, self.remote,
-                               self.requested, opts.realtime_hz, self.base)
+                               self.requested, opts.realtime_hz, self.base,
+                               opts.live.hz if opts.live is not None else None)
             p = self.sup.pids()
             pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
             pids |= {BASE: p[BASE]} if BASE in p else {}
@@ -288,6 +289,8 @@ class _Run:
         self.samples.put(None)
         self.consumer.join()  # it may still answer a hello on pub_ready: undeclare that only after it ends
         undeclare(self.handles)
+        if self.viz is not None:  # the last tick's scene and grids, while the live server is still up
+            self.viz.finish()
 
     def result(self) -> tuple[Result, str | None]:
         """The recording closed, and the result (``result.json``'s data) with how the run ended."""

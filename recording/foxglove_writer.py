@@ -30,6 +30,7 @@ class FoxgloveWriter:
         self.fold = fold
         self.schema_ids: dict[str, int] = {}
         self.failed = False
+        self.finished = False
         self.written = 0
 
     def feed(self, key: str, data: bytes, msg: Message | None = None) -> None:
@@ -52,8 +53,10 @@ class FoxgloveWriter:
             self.failed = True
 
     def finish(self) -> None:
-        if self.failed:
+        """The fold's last messages, once (a second call does nothing)."""
+        if self.failed or self.finished:
             return
+        self.finished = True
         try:
             self._write(self.fold.finish())
         except Exception:

@@ -15,6 +15,7 @@ nothing came from for ``barrier_timeout`` seconds is failed, as in lockstep.
 
 from __future__ import annotations
 
+import argparse
 import asyncio
 import time
 
@@ -261,5 +262,10 @@ class WorldNode(NodeBase):
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m fleet_emu.world --run RUN --connect ENDPOINT --scenario FILE.json --map-file MAP.npz``."""
-    node_main("world", lambda a: WorldNode(a.scenario, a.run, a.map_file, realtime_hz=a.realtime), argv,
-              map_file=True)
+    node_main("world", lambda a: WorldNode(a.scenario, a.run, a.map_file, realtime_hz=a.realtime, pace_hz=a.pace),
+              argv, extra=_add_pace, map_file=True)
+
+
+def _add_pace(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--pace", type=float, default=None, metavar="HZ",
+                        help="lockstep: at most HZ ticks per wall-clock second (fleet run --live-hz)")

@@ -148,7 +148,6 @@ def test_the_official_mcap_reader_validates_every_json_message(js_clients: Path,
     (["--live", "nope"], "--live wants [HOST:]PORT"),
     (["--live", "127.0.0.1:70000"], "--live wants [HOST:]PORT"),
     (["--live-hz", "5"], "--live-hz needs --live"),
-    (["--live", "0", "--live-hz", "5"], "--live-hz needs --engine memory or --in-process"),
     (["--live", "0", "--live-hz", "5", "--in-process", "--realtime", "5"], "--live-hz paces a lockstep run"),
 ])
 def test_bad_live_flags_are_one_line(argv: list[str], says: str) -> None:
@@ -176,3 +175,25 @@ class socket_bound:
 
     def __exit__(self, *_: object) -> None:
         self.sock.close()
+
+
+def _panels(node: dict[str, Any]) -> list[dict[str, Any]]:
+    if node.get("type") == "panel":
+        return [node]
+    return [p for item in node.get("items", []) for p in _panels(item["content"])]
+
+
+def test_fleet_report_writes_the_layout(tmp_path: Path) -> None:
+    code, out, _ = run_cli(["report", "--layout", str(tmp_path / "fleet.json"), "--robots", "3"])
+    assert code == 0 and out.strip() == str(tmp_path / "fleet.json")
+    layout = json.loads((tmp_path / "fleet.json").read_text())
+    panels = {p["title"]: p for p in _panels(layout["content"])}
+    assert {p["panelType"] for p in panels.values()} == {"ThreeDee", "Plot", "Log"}
+    topics = panels["fleet"]["config"]["topics"]
+    assert {"/viz/scene", "/viz/map/truth", "/viz/map/coverage", "/viz/belief/r2"} <= set(topics)
+    assert topics["/viz/map/coverage"]["colorMode"] == "rgba-fields"  # the grids' RGBA fields
+    paths = {s["value"] for p in panels.values() if p["panelType"] == "Plot" for s in p["config"]["paths"]}
+    assert {"/viz/stats.coverage", "/viz/stats.connected_fraction", "/viz/stats.robots.r2.decision_ms"} <= paths
+    assert panels["log"]["config"]["topicToRender"] == "/viz/log"
+    code, _, err = run_cli(["report", "--layout", str(tmp_path / "x.json"), "--robots", "0"])
+    assert code == 2 and "--robots must be from 1 to 1024" in err
