@@ -197,3 +197,36 @@ def test_fleet_report_writes_the_layout(tmp_path: Path) -> None:
     assert panels["log"]["config"]["topicToRender"] == "/viz/log"
     code, _, err = run_cli(["report", "--layout", str(tmp_path / "x.json"), "--robots", "0"])
     assert code == 2 and "--robots must be from 1 to 1024" in err
+
+
+def test_every_fold_message_becomes_the_sdks_typed_message() -> None:
+    """Without a client: each of the fold's messages (grids, scene with a base, logs, stats) is logged through
+    the SDK's typed channels with no error, and ``[HOST:]PORT`` parses as documented."""
+    import numpy as np
+
+    from fleet_emu.core.grid import from_ascii
+    from fleet_emu.core.messages import BeliefSnapshot, Links, Stop
+    from fleet_emu.recording.clock import RunClock
+    from fleet_emu.recording.foxglove import FoxgloveFold
+    from fleet_emu.recording.live import LiveServer, parse_live
+    from tests.recording.test_foxglove import ART, cmd, links, obs, scenario, state
+
+    truth, _ = from_ascii(ART)
+    fold = FoxgloveFold(scenario(), truth, grid_every=1, run_id="t", base_cell=(3, 1))
+    poses = {"r0": (1, 1), "r1": (3, 5)}
+    lk = links(0, ("r0", "r1"), True)
+    lk = Links(**{**lk.__dict__, "base_link": np.array([True, False]), "base_strength": np.array([8.0, -3.0])})
+    out = fold.feed(obs("r0", 0, (1, 1), [8, 9], truth)) + fold.feed(state(0, poses, ("r0", "r1"), 0.3))
+    out += fold.feed(lk) + fold.feed(cmd("r0", 0, (1, 5)))
+    out += fold.feed(BeliefSnapshot(src="r0", tick=0, seq=0, grid=truth.copy()))
+    out += fold.feed(state(1, poses, ("r0",), 0.6)) + fold.feed(Stop(src="world", tick=1, seq=0, reason="coverage"))
+    out += fold.finish()
+    server = LiveServer("127.0.0.1", 0, RunClock.now())
+    try:
+        server.publish(out)
+        assert not server.failed and server.published == len(out)
+        assert {d.schema for d in out} == {"foxglove.Grid", "foxglove.SceneUpdate", "foxglove.Log", SCHEMA_STATS}
+    finally:
+        server.close()
+    assert parse_live("9000") == ("127.0.0.1", 9000) and parse_live("0.0.0.0:0") == ("0.0.0.0", 0)
+    assert parse_live("[::1]:8765") == ("::1", 8765)
