@@ -14,6 +14,7 @@ from __future__ import annotations
 import base64
 import logging
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -30,6 +31,7 @@ log = logging.getLogger(__name__)
 
 DEFAULT_HOST = "127.0.0.1"
 BACKLOG = 4096  # messages queued per client before the oldest are dropped
+LINGER = 0.5  # seconds the server stays up after the run, for its last messages to reach the viewers
 
 # nested JSON fields -> the SDK's typed message of that field (a list field: each item's type)
 _TYPES: dict[str, Any] = {
@@ -99,6 +101,7 @@ class LiveServer(ServerListener):
         self._lock = threading.Lock()
         self.failed = False
         self.published = 0
+        self.watched = False  # a viewer subscribed at some point
         self.server = foxglove.start_server(name=name, host=host, port=port, context=self.context,
                                             server_listener=self, message_backlog_size=BACKLOG)
         self.host = host
@@ -150,6 +153,7 @@ class LiveServer(ServerListener):
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         """A viewer subscribed: send it the topic's latest grid (to all subscribers: a grid is idempotent)."""
+        self.watched = True
         try:  # no lock here: the dicts are only ever added to, and logging must not wait on the run's thread
             latest = self._latest.get(channel.topic)
             if latest is not None:
@@ -158,4 +162,7 @@ class LiveServer(ServerListener):
             log.exception("live view: cannot send the latest grid")
 
     def close(self) -> None:
+        """Stop serving; a watched run first lingers a moment (stopping drops what is still queued)."""
+        if self.watched:
+            time.sleep(LINGER)
         self.server.stop()

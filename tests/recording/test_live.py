@@ -22,12 +22,13 @@ from mcap.writer import Writer
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.live import LiveOptions
 from fleet_emu.launch.memory import run_memory
+from fleet_emu.launch.result import deterministic
+from fleet_emu.launch.runner import RunOptions, run_fleet
 from fleet_emu.recording.foxglove import schema_text
 from fleet_emu.recording.stats import SCHEMA_STATS
 from tests.conftest import result, run_cli
 
 JS = Path(__file__).resolve().parents[1] / "js"
-MEASURED = ("run_id", "wall_seconds", "ticks_per_second", "decision_ms", "agent_peak_rss_kb")
 
 
 @pytest.fixture(scope="session")
@@ -62,22 +63,19 @@ def _node(folder: Path, *args: str, timeout: float = 120) -> dict[str, Any]:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def _unmeasured(data: dict[str, Any]) -> dict[str, Any]:
-    return {k: v for k, v in data.items() if k not in MEASURED}
-
-
-def test_the_official_client_sees_every_channel_of_a_live_run(js_clients: Path, small_map: Path) -> None:
-    s = Scenario().override(map=str(small_map), robots=4, seed=3, max_ticks=60)
+def _watch(js_clients: Path, run: Any) -> tuple[Any, dict[str, Any]]:
+    """``run(on_url)`` in a thread (a run with a live server that tells ``on_url`` its URL) watched by the
+    official client, which the test lets in before the run's first tick (the run itself never waits for one):
+    the run's result and what the client saw."""
     urls: queue.Queue[str] = queue.Queue()
     connected = threading.Event()
 
-    def on_url(url: str) -> None:  # the test holds the run's first tick until its client is in (the run never would)
+    def on_url(url: str) -> None:
         urls.put(url)
         connected.wait(60)
 
     got: dict[str, Any] = {}
-    live = LiveOptions("127.0.0.1", 0, hz=8.0, on_url=on_url)
-    runner = threading.Thread(target=lambda: got.update(run=run_memory(s, record=False, live=live)))
+    runner = threading.Thread(target=lambda: got.update(result=run(on_url)))
     runner.start()
     try:
         url = urls.get(timeout=60)
@@ -89,12 +87,18 @@ def test_the_official_client_sees_every_channel_of_a_live_run(js_clients: Path, 
             connected.set()
             out, _ = client.communicate(timeout=120)
         assert client.returncode == 0
-        seen = json.loads(out.strip().splitlines()[-1])
     finally:
         connected.set()
         runner.join(120)
+    return got["result"], json.loads(out.strip().splitlines()[-1])
+
+
+def test_the_official_client_sees_every_channel_of_a_live_run(js_clients: Path, small_map: Path) -> None:
+    s = Scenario().override(map=str(small_map), robots=4, seed=3, max_ticks=60)
+    live, seen = _watch(js_clients, lambda on_url: run_memory(s, record=False, live=LiveOptions(
+        "127.0.0.1", 0, hz=8.0, on_url=on_url)))
     plain = run_memory(s, record=False)
-    assert _unmeasured(got["run"].data) == _unmeasured(plain.data)  # a viewer changed nothing
+    assert deterministic(live.data) == deterministic(plain.data)  # a viewer changed nothing
 
     assert seen["why"].startswith("closed")  # the run ended: its server closed the connection
     schemas = {c["topic"]: (c["schemaName"], c["encoding"]) for c in seen["channels"]}
@@ -142,6 +146,19 @@ def test_the_official_mcap_reader_validates_every_json_message(js_clients: Path,
         w.add_metadata("scenario", {"start_ns": "0"})
         w.finish()
     assert [i["topic"] for i in _node(js_clients, "read_mcap.mjs", str(bad))["invalid"]] == ["/viz/stats"]
+
+
+def test_a_processes_run_serves_what_its_launcher_folds(js_clients: Path, small_run: Path, tmp_path: Path) -> None:
+    """The suite's plain processes run again, live and paced (the world's ``--pace``), not recording: the launcher
+    serves what it folds from the bus, up to the last tick, and the result is the run's without a viewer."""
+    scenario = Scenario.from_json(small_run / "scenario.json")
+    res, seen = _watch(js_clients, lambda on_url: run_fleet(scenario, RunOptions(
+        out_dir=tmp_path / "live", record=False, live=LiveOptions("127.0.0.1", 0, hz=50.0, on_url=on_url))))
+    assert deterministic(res.data) == deterministic(result(small_run))
+    topics, ticks = seen["topics"], res["ticks"]
+    assert topics["/viz/stats"]["last"]["tick"] == ticks  # the last tick's, flushed before the server closed
+    assert topics["/viz/map/truth"]["count"] == 1 and topics["/viz/belief/r2"]["count"] >= 1
+    assert "run ended" in topics["/viz/log"]["last"]["message"]
 
 
 @pytest.mark.parametrize(("argv", "says"), [
