@@ -84,6 +84,11 @@ def _add_run(sub: Any) -> None:
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--grid-every", type=int, metavar="K",
                    help="Foxglove map/coverage/belief grids in run.mcap every K ticks (default: belief_every)")
+    r.add_argument("--live", metavar="[HOST:]PORT",
+                   help="serve the run to Foxglove over WebSocket (host 127.0.0.1 unless given; port 0: one the OS "
+                        "picks); prints `live: ws://HOST:PORT` on stderr once up")
+    r.add_argument("--live-hz", type=_hz, metavar="HZ",
+                   help="with --live: at most HZ lockstep ticks per second, to watch a fast run (same result)")
 
 
 def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
@@ -192,10 +197,13 @@ def _add_listings(sub: Any) -> None:
 
 def _add_report(sub: Any) -> None:
     rep = sub.add_parser("report", help="metrics.json, plots and a table from a recording (RUN_DIR or RUN.mcap)")
-    rep.add_argument("paths", nargs="+", type=Path, metavar="RUN", help="a run directory or its run.mcap")
+    rep.add_argument("paths", nargs="*", type=Path, metavar="RUN", help="a run directory or its run.mcap")
     rep.add_argument("--compare", action="store_true", help="one table and overlaid coverage curves of the runs")
     rep.add_argument("--out", type=Path, help="where --compare writes its PNG (default ./compare.png)")
     rep.add_argument("--no-plots", action="store_true", help="metrics.json and the table only")
+    rep.add_argument("--layout", type=Path, metavar="FILE",
+                     help="write the Foxglove layout for a recording or a live run (--live) to FILE (JSON)")
+    rep.add_argument("--robots", type=int, metavar="N", help="with --layout: the robots it plots (default 8)")
     from fleet_emu.launch.recover import add_parser as add_recover
 
     add_recover(sub)
@@ -237,20 +245,24 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
             ("--listen", args.listen), ("--tls-cert", args.tls_cert), ("--tls-key", args.tls_key),
             ("--[no-]fork-server", args.fork_server is not None)], ("--realtime", args.realtime is not None))
     check_logins(args.connect, args.credentials, args.tls_ca, scenario.hosts is not None)
+    from fleet_emu.launch.live import live_options
+
+    live = live_options(args.live, args.live_hz, args.realtime is not None)
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
         if args.engine == "memory":
             from fleet_emu.launch.memory import run_memory
 
             check_options(RunOptions(run_id=run_id))
             result = run_memory(scenario, out, record=not args.no_record, run_id=run_id, overwrite=args.overwrite,
-                                grid_every=args.grid_every, on_progress=progress.update, interrupts=interrupts)
+                                grid_every=args.grid_every, on_progress=progress.update, interrupts=interrupts,
+                                live=live)
         else:
             opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
                               connect=args.connect, run_id=run_id, grid_every=args.grid_every,
                               on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
                               interrupts=interrupts, on_warning=_warn, fork_server=args.fork_server,
                               listen=args.listen, realtime_hz=args.realtime, tls_cert=args.tls_cert,
-                              tls_key=args.tls_key, overwrite=args.overwrite,
+                              tls_key=args.tls_key, overwrite=args.overwrite, live=live,
                               **({"host_timeout": args.host_timeout} if args.host_timeout is not None else {}))
             result = run_fleet(scenario, opts)
     if interrupts.signum is not None:
@@ -309,10 +321,20 @@ def cmd_report(args: argparse.Namespace) -> int:
     from fleet_emu.launch.recover import reporting
     from fleet_emu.recording.report import report
 
-    with reporting(args.paths) as recovered:  # run folders locked; a cut recording recovered first
-        for line in recovered:
-            print(line)
-        report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
+    if args.layout is not None:
+        from fleet_emu.recording.layout import write_layout
+
+        write_layout(args.layout, args.robots)
+        print(args.layout)
+    elif args.robots is not None:
+        raise ConfigError("--robots goes with --layout")
+    if not args.paths and args.layout is None:
+        raise ConfigError("give a run (RUN_DIR or RUN.mcap) to report on, or --layout FILE")
+    if args.paths:
+        with reporting(args.paths) as recovered:  # run folders locked; a cut recording recovered first
+            for line in recovered:
+                print(line)
+            report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
     return 0
 
 

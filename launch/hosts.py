@@ -168,7 +168,7 @@ def agent_argv(robot: str, run_id: str, endpoint: str, scenario_file: Path, auth
 def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str, work: Path,
                 creds: dict[str, Credential] | None, remote: Hosts | None = None,
                 requested: threading.Event | None = None, realtime_hz: float | None = None,
-                base: Cell | None = None) -> dict[str, list[str]]:
+                base: Cell | None = None, pace_hz: float | None = None) -> dict[str, list[str]]:
     """world, netem, the base station (when the scenario has one: at ``base``, its cell as
     ``world.build.base_cell`` resolved it) and one process per robot, each with its
     own credential on standard input; with
@@ -186,7 +186,8 @@ def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str,
     def secret(node: str) -> str | None:
         return creds[node].to_json() if creds else None
 
-    sup.spawn("world", "fleet_emu.world", [*common, *truth, *auth], secret("world"))
+    pace = ["--pace", repr(float(pace_hz))] if pace_hz else []  # --live-hz: the world paces the lockstep
+    sup.spawn("world", "fleet_emu.world", [*common, *truth, *pace, *auth], secret("world"))
     at_base = ["--base-cell", f"{base[0]},{base[1]}"] if base is not None else []
     sup.spawn("netem", "fleet_emu.netem", [*common, *truth, *at_base, *auth], secret("netem"))
     if scenario.has_base:  # the base station: on this machine, like world and netem

@@ -34,9 +34,11 @@ from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import Envelope, Message, Observation, WorldState, ready
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.live import LiveOptions, Pacer, open_live
 from fleet_emu.launch.result import Result
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.netem.channel import Channel, radio_tick
+from fleet_emu.recording.clock import DEFAULT_TICK_S, RunClock
 from fleet_emu.recording.monitor import Monitor
 from fleet_emu.world.build import base_cell, build_world
 from fleet_emu.world.maps import BUILTIN_MAPS, load_map
@@ -317,14 +319,16 @@ def _digest(obs: Mapping[str, Observation]) -> list[Any]:
 
 def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool = True, run_id: str = "",
                grid_every: int | None = None, on_progress: Callable[[Monitor], None] | None = None,
-               interrupts: Interrupts | None = None, overwrite: bool = False) -> Result:
+               interrupts: Interrupts | None = None, overwrite: bool = False, live: LiveOptions | None = None,
+               tick_s: float = DEFAULT_TICK_S) -> Result:
     """``fleet run --engine memory``: one run in this process, writing what ``run_fleet`` writes under
     ``out_dir`` (``result.json``, ``scenario.json``, ``map.npz``, and with ``record`` a ``run.mcap`` that
     ``fleet report`` reads). Bad input raises ConfigError before anything is written. With ``interrupts``
     (the CLI's signal state) a signal ends the run after the current tick, as ``run_fleet`` does; without,
     Ctrl-C re-raises KeyboardInterrupt once the files are written. ``out_dir`` is guarded as ``run_fleet``'s
     (:mod:`~fleet_emu.launch.outdir`: locked, refused when it holds a run unless ``overwrite``); a write that
-    fails ends the run with :class:`~fleet_emu.launch.outdir.DiskFault`."""
+    fails ends the run with :class:`~fleet_emu.launch.outdir.DiskFault`. ``live`` serves the run to Foxglove
+    (``fleet run --live``); ``tick_s``: the seconds one tick stands for on the recording's clock."""
     from fleet_emu.launch.checks import check, check_machine, new_run_id
     from fleet_emu.launch.outdir import claimed
 
@@ -334,7 +338,7 @@ def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool 
     with claimed(out_dir, overwrite):  # to the last write: no other run writes here
         try:
             result, interrupted = _run_and_write(scenario, map_data, out_dir, record, run_id, grid_every,
-                                                 on_progress, interrupts)
+                                                 on_progress, interrupts, live, tick_s)
         except OSError as exc:  # a full disk before the run or at its end
             from fleet_emu.launch.outdir import disk_fault
 
@@ -346,7 +350,8 @@ def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool 
 
 def _run_and_write(scenario: Scenario, map_data: MapData, out_dir: Path | None, record: bool, run_id: str,
                    grid_every: int | None, on_progress: Callable[[Monitor], None] | None,
-                   interrupts: Interrupts | None) -> tuple[Result, bool]:
+                   interrupts: Interrupts | None, live: LiveOptions | None,
+                   tick_s: float) -> tuple[Result, bool]:
     """The run and its files (in ``out_dir``, already claimed); the result and whether a signal ended it. A
     recording that fails ends the run: its ``result.json`` is written if it can be, and DiskFault raised."""
     from fleet_emu.launch.outdir import DiskFault, disk_fault, write_atomic
@@ -354,7 +359,10 @@ def _run_and_write(scenario: Scenario, map_data: MapData, out_dir: Path | None, 
 
     with contextlib.ExitStack() as stack:
         recording = out_dir / "run.mcap" if record and out_dir is not None else None
-        tap, finish = _recording_tap(stack, scenario, map_data, run_id, recording, grid_every)
+        clock = RunClock.now(tick_s)
+        server = open_live(stack, live, clock)
+        pacer = Pacer(live.hz if live is not None else None)
+        tap, finish = _recording_tap(stack, scenario, map_data, run_id, recording, grid_every, clock, server)
         fleet = Fleet(scenario, run_id=run_id, tap=tap)
         if out_dir is not None:
             write_json_atomic(out_dir / "scenario.json", scenario.to_dict())
@@ -362,6 +370,7 @@ def _run_and_write(scenario: Scenario, map_data: MapData, out_dir: Path | None, 
         interrupted, fault = False, None
 
         def tick(monitor: Monitor) -> None:
+            pacer.wait()
             if on_progress is not None:
                 on_progress(monitor)
             if interrupts is not None and interrupts.requested.is_set():
@@ -395,30 +404,34 @@ def _run_and_write(scenario: Scenario, map_data: MapData, out_dir: Path | None, 
 
 
 def _recording_tap(stack: contextlib.ExitStack, scenario: Scenario, map_data: MapData, run_id: str,
-                   recording: Path | None, grid_every: int | None) -> tuple[Tap | None, Callable[[], int]]:
-    """A tap that encodes every message into ``run.mcap`` (with the Foxglove channels), and its closer."""
-    if recording is None:
+                   recording: Path | None, grid_every: int | None, clock: RunClock, live: Any = None
+                   ) -> tuple[Tap | None, Callable[[], int]]:
+    """A tap that encodes every message into ``run.mcap`` (with the Foxglove channels) and serves those
+    channels to ``live`` viewers, and its closer."""
+    if recording is None and live is None:
         return None, lambda: 0
     from fleet_emu.recording.foxglove import FoxgloveFold
     from fleet_emu.recording.foxglove_writer import FoxgloveWriter
     from fleet_emu.recording.recorder import Recorder
 
-    recorder = Recorder(recording, {"run_id": run_id, "scenario": scenario.to_dict(), "engine": "memory"})
-    fold = FoxgloveFold(scenario.to_dict(), map_data.grid, grid_every, run_id, base_cell(scenario, map_data))
-    viz = FoxgloveWriter(recorder, fold, Keys(run_id))
+    recorder = Recorder(recording, {"run_id": run_id, "scenario": scenario.to_dict(), "engine": "memory"},
+                        clock) if recording is not None else None
+    fold = FoxgloveFold(scenario.to_dict(), map_data.grid, grid_every, run_id, base_cell(scenario, map_data), clock)
+    viz = FoxgloveWriter(recorder, fold, Keys(run_id), live)
     closed: list[int] = []
 
     def tap(key: str, msg: Message, wall_ns: int) -> None:
-        data = msg.encode()
-        recorder.record(key, data, wall_ns)
+        data = msg.encode() if recorder is not None else b""
+        if recorder is not None:
+            recorder.record(key, data, wall_ns)
         viz.feed(key, data, msg)
-        if recorder.failed is not None:  # a full disk: the run ends (run_memory's result says why)
+        if recorder is not None and recorder.failed is not None:  # a full disk: the run ends (run_memory says why)
             raise recorder.failed
 
     def finish() -> int:
         if not closed:
             viz.finish()
-            closed.append(recorder.close())
+            closed.append(recorder.close() if recorder is not None else 0)
         return closed[0]
 
     stack.callback(finish)

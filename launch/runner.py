@@ -42,12 +42,14 @@ from fleet_emu.launch.hosts import (
     listen_endpoints,
     spawn_nodes,
 )
+from fleet_emu.launch.live import LiveOptions, open_live
 from fleet_emu.launch.outdir import DiskFault, claimed, disk_fault, write_atomic
 from fleet_emu.launch.result import Result, write_json_atomic
 from fleet_emu.launch.router_process import RouterProcess, router_process, router_spec
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import Supervisor
 from fleet_emu.launch.watch import STOP_GRACE, Consumer, Drain, wait_for_end
+from fleet_emu.recording.clock import DEFAULT_TICK_S, RunClock
 from fleet_emu.recording.foxglove import FoxgloveFold
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.monitor import Monitor
@@ -81,6 +83,8 @@ class RunOptions:
     host_timeout: float = HOST_TIMEOUT  # seconds to wait for the hosts
     realtime_hz: float | None = None  # real time: the world ticks at this rate on the wall clock (None: lockstep)
     overwrite: bool = False  # an ``out_dir`` holding a run: remove that run's files first (else refused)
+    live: LiveOptions | None = None  # serve the run to Foxglove viewers (`fleet run --live`)
+    tick_s: float = DEFAULT_TICK_S  # seconds one tick stands for on the recording's clock
 
 
 def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
@@ -151,11 +155,12 @@ class _Run:
         meta: dict[str, Any] = {"run_id": run_id, "scenario": scenario.to_dict(), "engine": self.engine}
         if opts.realtime_hz:
             meta["realtime_hz"] = opts.realtime_hz
-        self.recorder = Recorder(recording, meta) if recording is not None else None
+        self.clock = RunClock.now(opts.tick_s)
+        self.recorder = Recorder(recording, meta, self.clock) if recording is not None else None
         self.base = base_cell(scenario, map_data)  # resolved once here: netem and the base process take it as given
         self.viz = FoxgloveWriter(self.recorder, FoxgloveFold(
-            scenario.to_dict(), map_data.grid, opts.grid_every, run_id, self.base), self.keys) \
-            if self.recorder else None
+            scenario.to_dict(), map_data.grid, opts.grid_every, run_id, self.base, self.clock), self.keys) \
+            if self.recorder or opts.live else None
         self.sup = Supervisor(log_dir=work)
         self.pids: dict[str, Any] = {}
         self.t_start = time.monotonic()
@@ -189,6 +194,8 @@ class _Run:
         opts, keys = self.opts, self.keys
         if not opts.in_process and not self.requested.is_set() and fork_server_enabled(opts.fork_server):
             self.sup.start_fork_server(self.work / "scenario.json")  # before any session
+        if self.viz is not None:
+            self.viz.live = open_live(stack, opts.live, self.clock)
         self.endpoint = endpoint = opts.connect if opts.connect else self._router(stack)
         login = self.creds or {}
         self.session = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(LAUNCHER)))))
@@ -197,7 +204,7 @@ class _Run:
         # everything when recording; else only what the fold reads (Keys.folded): at 256 robots the rest (obs,
         # the radio bundles with every first contact's whole maps, belief snapshots) was most of the bus
         self.drains = [Drain(listener, k, self.samples) for k in (
-            (keys.all,) if self.recorder is not None else keys.folded(radio=self.scenario.relay != "none"))]
+            (keys.all,) if self.viz is not None else keys.folded(radio=self.scenario.relay != "none"))]
         pub_ready = publisher(self.session, keys.ready("launcher"))
         self.pub_stop = publisher(self.session, keys.stop)
         self.handles = [pub_ready, self.pub_stop,
@@ -234,12 +241,14 @@ class _Run:
         scenario, opts, robots = self.scenario, self.opts, self.robots
         if opts.in_process:
             self.nodes_thread = _start_in_process(scenario, self.map_data, self.run_id, self.endpoint, self.creds,
-                                                  self.base, opts.realtime_hz)
+                                                  self.base, opts.realtime_hz,
+                                                  opts.live.hz if opts.live is not None else None)
             self.pids = {"world": os.getpid(), "netem": os.getpid(), "agents": [os.getpid()] * len(robots)}
             self.pids |= {BASE: os.getpid()} if scenario.has_base else {}
         else:
             plan = spawn_nodes(self.sup, scenario, self.run_id, self.endpoint, self.work, self.creds, self.remote,
-                               self.requested, opts.realtime_hz, self.base)
+                               self.requested, opts.realtime_hz, self.base,
+                               opts.live.hz if opts.live is not None else None)
             p = self.sup.pids()
             pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
             pids |= {BASE: p[BASE]} if BASE in p else {}
@@ -285,6 +294,8 @@ class _Run:
         self.samples.put(None)
         self.consumer.join()  # it may still answer a hello on pub_ready: undeclare that only after it ends
         undeclare(self.handles)
+        if self.viz is not None:  # the last tick's scene and grids, while the live server is still up
+            self.viz.finish()
 
     def result(self) -> tuple[Result, str | None]:
         """The recording closed, and the result (``result.json``'s data) with how the run ended."""
@@ -357,14 +368,15 @@ def _open_router(run_id: str, creds: dict[str, Credential] | None, listen: list[
 
 def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoint: str,
                       creds: dict[str, Credential] | None, base: Cell | None,
-                      realtime_hz: float | None = None) -> threading.Thread:
+                      realtime_hz: float | None = None, pace_hz: float | None = None) -> threading.Thread:
     """Every node in this process, each with its own Zenoh session (and its own login) to the same router;
-    ``base``: the base station's cell (``world.build.base_cell``), in a run with one."""
+    ``base``: the base station's cell (``world.build.base_cell``), in a run with one; ``pace_hz``: the
+    lockstep world's cap on ticks per second (``--live-hz``)."""
     from fleet_emu.agents.node import AgentNode
     from fleet_emu.netem.node import NetemNode
     from fleet_emu.world.node import WorldNode
 
-    nodes = [WorldNode(scenario, run_id, map_data, realtime_hz=realtime_hz),
+    nodes = [WorldNode(scenario, run_id, map_data, realtime_hz=realtime_hz, pace_hz=pace_hz),
              NetemNode(scenario, run_id, map_data, base, realtime_hz=realtime_hz)]
     nodes += [AgentNode(scenario, run_id, r, realtime_hz=realtime_hz) for r in robot_ids(scenario.robots)]
     if base is not None:

@@ -4,13 +4,17 @@
 :class:`Derived` (topic, schema name, JSON bytes, tick). It uses the official Foxglove JSON schemas shipped in
 ``recording/schemas/`` (schema encoding ``jsonschema``, message encoding ``json``):
 
-- ``/viz/map/truth``, ``/viz/map/coverage`` and ``/viz/belief/<robot>``: ``foxglove.Grid``, every ``grid_every``
-  ticks (beliefs as their snapshots come, at most once per ``grid_every`` ticks);
+- ``/viz/map/truth``: ``foxglove.Grid``, once (it never changes; a live viewer gets it on subscribing);
+- ``/viz/map/coverage`` and ``/viz/belief/<robot>``: ``foxglove.Grid``, every ``grid_every`` ticks (beliefs as
+  their snapshots come, at most once per ``grid_every`` ticks);
 - ``/viz/scene``: ``foxglove.SceneUpdate`` every tick — robots at their true poses, their targets with a line
   from robot to target, and the radio links coloured by signal strength; in a run with a base station, the base
   (a white cylinder at its cell, entity ``base``) and its links to the robots;
 - ``/viz/log``: ``foxglove.Log`` for notable events — the start, a robot failing, coverage milestones, the team's
-  radio graph splitting or joining, the end of the run.
+  radio graph splitting or joining, the end of the run;
+- ``/viz/stats``: ``fleet_emu.Stats`` (JSON schema, :mod:`~fleet_emu.recording.stats`) every tick, to plot.
+
+Every timestamp is the tick's time on the run's clock (:class:`~fleet_emu.recording.clock.RunClock`).
 
 Frames: everything is in frame ``map``, x to the right (columns) and y up, so the map appears upright seen from
 above: cell ``(row, col)`` has its centre at ``((col + .5) * cell_size, (rows - row - .5) * cell_size)``.
@@ -33,10 +37,11 @@ import numpy as np
 
 from fleet_emu.core.keys import robot_ids
 from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Message, Observation, Stop, WorldState
+from fleet_emu.recording.clock import EPOCH, RunClock
 from fleet_emu.recording.first_seen import FirstSeen
-from fleet_emu.recording.recorder import TICK_NS
+from fleet_emu.recording.stats import SCHEMA_STATS, TOPIC_STATS, StatsFold, stats_schema_text
 
-SCHEMAS = ("foxglove.Grid", "foxglove.SceneUpdate", "foxglove.Log")
+SCHEMAS = ("foxglove.Grid", "foxglove.SceneUpdate", "foxglove.Log", SCHEMA_STATS)
 FRAME = "map"
 TOPIC_TRUTH = "/viz/map/truth"
 TOPIC_COVERAGE = "/viz/map/coverage"
@@ -64,7 +69,9 @@ def belief_topic(robot: str) -> str:
 
 
 def schema_text(name: str) -> bytes:
-    """The official JSON schema of ``foxglove.<Name>`` (shipped as package data)."""
+    """The official JSON schema of ``foxglove.<Name>`` (shipped as package data), or the stats channel's."""
+    if name == SCHEMA_STATS:
+        return stats_schema_text()
     short = name.removeprefix("foxglove.")
     return (resources.files("fleet_emu.recording") / "schemas" / f"{short}.json").read_bytes()
 
@@ -88,9 +95,8 @@ class Derived:
         return json.loads(self.data)
 
 
-def stamp(tick: int) -> dict[str, int]:
-    ns = tick * TICK_NS
-    return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+def stamp(tick: int, clock: RunClock = EPOCH) -> dict[str, int]:
+    return clock.stamp(tick)
 
 
 def _vec(x: float, y: float, z: float) -> dict[str, float]:
@@ -105,9 +111,9 @@ def _color(rgb: tuple[float, float, float], a: float = 1.0) -> dict[str, float]:
     return {"r": float(rgb[0]), "g": float(rgb[1]), "b": float(rgb[2]), "a": float(a)}
 
 
-def _entity(eid: str, tick: int, **prims: list[dict[str, Any]]) -> dict[str, Any]:
+def _entity(eid: str, ts: dict[str, int], **prims: list[dict[str, Any]]) -> dict[str, Any]:
     e: dict[str, Any] = {
-        "timestamp": stamp(tick), "frame_id": FRAME, "id": eid, "lifetime": {"sec": 0, "nsec": 0},
+        "timestamp": ts, "frame_id": FRAME, "id": eid, "lifetime": {"sec": 0, "nsec": 0},
         "frame_locked": False, "metadata": prims.pop("metadata", []),
     }
     for k in ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models"):
@@ -121,8 +127,8 @@ def _line(points: list[dict[str, float]], rgb: tuple[float, float, float], a: fl
             "color": _color(rgb, a), "colors": [], "indices": []}
 
 
-def grid_message(values: np.ndarray, rgba_lut: np.ndarray, cell_size: float, tick: int, z: float = 0.0
-                 ) -> dict[str, Any]:
+def grid_message(values: np.ndarray, rgba_lut: np.ndarray, cell_size: float, tick: int, z: float = 0.0,
+                 clock: RunClock = EPOCH) -> dict[str, Any]:
     """A ``foxglove.Grid`` of an occupancy array (row 0 at the top), drawn upright in frame ``map``."""
     v = np.asarray(values, dtype=np.int8)
     rows, cols = v.shape
@@ -134,7 +140,7 @@ def grid_message(values: np.ndarray, rgba_lut: np.ndarray, cell_size: float, tic
     fields = [{"name": "occupancy", "offset": 0, "type": INT8}]
     fields += [{"name": n, "offset": i + 1, "type": UINT8} for i, n in enumerate(("red", "green", "blue", "alpha"))]
     return {
-        "timestamp": stamp(tick), "frame_id": FRAME, "pose": _pose(0.0, 0.0, z), "column_count": cols,
+        "timestamp": clock.stamp(tick), "frame_id": FRAME, "pose": _pose(0.0, 0.0, z), "column_count": cols,
         "cell_size": {"x": float(cell_size), "y": float(cell_size)}, "row_stride": cols * 5, "cell_stride": 5,
         "fields": fields, "data": base64.b64encode(data).decode("ascii"),
     }
@@ -171,8 +177,9 @@ class FoxgloveFold:
     """Bus messages in, Foxglove messages out (see the module doc). Pure: no I/O, no clock."""
 
     def __init__(self, scenario: dict[str, Any], truth: np.ndarray | None = None, grid_every: int | None = None,
-                 run_id: str = "", base_cell: tuple[int, int] | None = None) -> None:
+                 run_id: str = "", base_cell: tuple[int, int] | None = None, clock: RunClock = EPOCH) -> None:
         self.scenario = scenario
+        self.clock = clock
         self.base_cell = base_cell  # the base station's cell (``world.build.base_cell``), in a run with one
         self.run_id = run_id
         self.robots = tuple(robot_ids(scenario["robots"]))
@@ -194,6 +201,8 @@ class FoxgloveFold:
         self.belief_tick: dict[str, int] = {}
         self.started = False
         self.ended = False
+        self.truth_sent = False
+        self.stats = StatsFold(self.robots, base=base_cell is not None)
 
     # --- input ------------------------------------------------------------------------------------------
 
@@ -292,6 +301,7 @@ class FoxgloveFold:
         for t in sorted(t for t in self.states if self.flushed < t <= upto):
             last = final and t == upto
             out += self._scene(t)
+            out.append(self._stats(t))
             if t % self.grid_every == 0 or last:
                 out += self._maps(t)
             self.flushed = t
@@ -302,7 +312,8 @@ class FoxgloveFold:
 
     def _maps(self, t: int) -> list[Derived]:
         out = []
-        if self.truth is not None:
+        if self.truth is not None and not self.truth_sent:
+            self.truth_sent = True
             out.append(self._grid(TOPIC_TRUTH, self.truth, _MAP_RGBA, t, 0.0))
         if self.coverage is not None:
             out.append(self._grid(TOPIC_COVERAGE, self.coverage.grid(t), _COVER_RGBA, t, 0.01))
@@ -324,7 +335,7 @@ class FoxgloveFold:
         shown = {e["id"] for e in entities}
         gone = sorted(self.emitted - shown)
         self.emitted = shown
-        msg = {"deletions": [{"timestamp": stamp(t), "type": DELETE_MATCHING_ID, "id": g} for g in gone],
+        msg = {"deletions": [{"timestamp": self.clock.stamp(t), "type": DELETE_MATCHING_ID, "id": g} for g in gone],
                "entities": entities}
         return [_derived(TOPIC_SCENE, "foxglove.SceneUpdate", msg, t)]
 
@@ -348,7 +359,7 @@ class FoxgloveFold:
             if cmd is not None:
                 meta += [{"key": "status", "value": cmd.status}, {"key": "decision_ms", "value": str(cmd.decision_ms)}]
             entities.append(_entity(
-                f"robot/{r}", t, metadata=meta,
+                f"robot/{r}", self.clock.stamp(t), metadata=meta,
                 cubes=[{"pose": _pose(x, y, 0.4 * cs), "size": _vec(0.8 * cs, 0.8 * cs, 0.8 * cs),
                         "color": _color(rgb)}],
                 texts=[{"pose": _pose(x, y, 1.2 * cs), "billboard": True, "font_size": 14.0,
@@ -358,7 +369,7 @@ class FoxgloveFold:
             if live and target is not None:
                 tx, ty = self._xy(target)
                 entities.append(_entity(
-                    f"target/{r}", t,
+                    f"target/{r}", self.clock.stamp(t),
                     spheres=[{"pose": _pose(tx, ty, 0.3 * cs), "size": _vec(0.6 * cs, 0.6 * cs, 0.6 * cs),
                               "color": _color(rgb, 0.8)}],
                     lines=[_line([_vec(x, y, 0.4 * cs), _vec(tx, ty, 0.3 * cs)], rgb, 0.8, 2.0)]))
@@ -381,7 +392,7 @@ class FoxgloveFold:
                     lines.append(line)
                     meta.append({"key": f"{a}-{b}", "value": label})
             meta.append({"key": "connected", "value": str(bool(lk.connected))})
-        return _entity("links", t, lines=lines, metadata=meta)
+        return _entity("links", self.clock.stamp(t), lines=lines, metadata=meta)
 
     def _signal(self, a: tuple[float, float], b: tuple[float, float], p: float) -> tuple[dict[str, Any], str]:
         """A radio link from ``a`` to ``b`` (map coordinates) of strength ``p`` dB (not finite: the threshold):
@@ -407,17 +418,24 @@ class FoxgloveFold:
                 lines.append(line)
                 meta.append({"key": f"base-{r}", "value": label})
         return _entity(
-            "base", t, metadata=meta, lines=lines,
+            "base", self.clock.stamp(t), metadata=meta, lines=lines,
             cylinders=[{"pose": _pose(bx, by, 0.6 * cs), "size": _vec(0.9 * cs, 0.9 * cs, 1.2 * cs),
                         "bottom_scale": 1.0, "top_scale": 0.6, "color": _color((1.0, 1.0, 1.0))}],
             texts=[{"pose": _pose(bx, by, 1.6 * cs), "billboard": True, "font_size": 14.0, "scale_invariant": True,
                     "color": _color((1.0, 1.0, 0.6)), "text": "base"}])
 
     def _grid(self, topic: str, values: np.ndarray, lut: np.ndarray, tick: int, z: float) -> Derived:
-        return _derived(topic, "foxglove.Grid", grid_message(values, lut, self.cell_size, tick, z), tick)
+        return _derived(topic, "foxglove.Grid", grid_message(values, lut, self.cell_size, tick, z, self.clock), tick)
+
+    def _stats(self, t: int) -> Derived:
+        """The tick's ``/viz/stats`` message (the next tick's state, when already in, tells who stood)."""
+        msg = self.stats.tick(self.clock.stamp(t), self.states[t], self.links.get(t), self.cmds.get(t, {}),
+                              self.states.get(t + 1))
+        return _derived(TOPIC_STATS, SCHEMA_STATS, msg, t)
 
     def _log(self, tick: int, level: int, name: str, text: str) -> Derived:
-        msg = {"timestamp": stamp(tick), "level": level, "message": text, "name": name, "file": "", "line": 0}
+        msg = {"timestamp": self.clock.stamp(tick), "level": level, "message": text, "name": name, "file": "",
+               "line": 0}
         return _derived(TOPIC_LOG, "foxglove.Log", msg, tick)
 
 

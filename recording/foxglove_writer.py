@@ -1,6 +1,7 @@
 """The launcher's shell around :class:`~fleet_emu.recording.foxglove.FoxgloveFold`: it decodes the bus samples
-the fold needs and writes the derived Foxglove messages into ``run.mcap`` through the recorder. A failure in it
-never stops the run."""
+the fold needs and writes the derived Foxglove messages into ``run.mcap`` through the recorder (when recording)
+and to the live viewers (:class:`~fleet_emu.recording.live.LiveServer`, with ``fleet run --live``). A failure in
+it never stops the run."""
 
 from __future__ import annotations
 
@@ -22,12 +23,14 @@ _FOLDED = frozenset({"obs", "state", "links", "cmd", "belief", "stop"})
 class FoxgloveWriter:
     """The launcher's shell: decodes what the fold needs and writes its output through a recorder."""
 
-    def __init__(self, recorder: Any, fold: FoxgloveFold, keys: Keys) -> None:
-        self.recorder = recorder
+    def __init__(self, recorder: Any, fold: FoxgloveFold, keys: Keys, live: Any = None) -> None:
+        self.recorder = recorder  # None: live only
+        self.live = live
         self.keys = keys
         self.fold = fold
         self.schema_ids: dict[str, int] = {}
         self.failed = False
+        self.finished = False
         self.written = 0
 
     def feed(self, key: str, data: bytes, msg: Message | None = None) -> None:
@@ -50,8 +53,10 @@ class FoxgloveWriter:
             self.failed = True
 
     def finish(self) -> None:
-        if self.failed:
+        """The fold's last messages, once (a second call does nothing)."""
+        if self.failed or self.finished:
             return
+        self.finished = True
         try:
             self._write(self.fold.finish())
         except Exception:
@@ -59,6 +64,10 @@ class FoxgloveWriter:
             self.failed = True
 
     def _write(self, derived: list[Derived]) -> None:
+        if self.live is not None:
+            self.live.publish(derived)
+        if self.recorder is None:
+            return
         for d in derived:
             sid = self.schema_ids.get(d.schema)
             if sid is None:

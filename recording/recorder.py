@@ -1,10 +1,12 @@
 """The recorder: every sample on ``fleet/<run>/**`` into ``run.mcap``, one channel per key expression.
 
-Messages keep their msgpack bytes (message encoding ``msgpack``, no schema). Log times follow the sim tick
-(``tick * TICK_NS``), so scrubbing a viewer's timeline moves through ticks; publish times are wall-clock.
+Messages keep their msgpack bytes (message encoding ``msgpack``, no schema). Log times follow the sim tick on the
+run's clock (:class:`~fleet_emu.recording.clock.RunClock`: the run's UTC start plus tick x tick period), so
+scrubbing a viewer's timeline moves through ticks; a raw sample's publish time is its wall-clock arrival, a derived
+message's the log time.
 The ``scenario`` metadata record holds what the launcher passes (``run_id``, the scenario as JSON) and the
 versions it was written with: ``schema_version`` (:data:`fleet_emu.core.version.SCHEMA_VERSION`) and
-``fleet_emu_version`` (:data:`fleet_emu.core.version.__version__`).
+``fleet_emu_version`` (:data:`fleet_emu.core.version.__version__`), and the clock's ``start_ns`` and ``tick_s``.
 The writer closes a chunk and flushes at least once a second (and :data:`CHUNK_SIZE` bounds a chunk), so a
 recording cut by a crash still reads up to the last flush and loses about a second at most; ``fleet recover``
 makes such a file whole again (:mod:`.recover`). A write that fails (a full disk) stops the recording: the
@@ -26,9 +28,8 @@ from mcap.writer import CompressionType, Writer
 from fleet_emu.core.codec import peek_tick
 from fleet_emu.core.radio import RadioConfig
 from fleet_emu.core.version import SCHEMA_VERSION, __version__
+from fleet_emu.recording.clock import RunClock
 
-TICK_NS = 100_000_000  # one tick is shown as 100 ms of log time
-MAX_LOG_TICK = (2**64 - 1) // TICK_NS  # MCAP log times are unsigned 64-bit nanoseconds
 FLUSH_SECONDS = 1.0
 CHUNK_SIZE = 256 * 1024  # bytes of messages per chunk (before compression): a chunk is small
 SCENARIO_METADATA = "scenario"
@@ -39,15 +40,16 @@ class Recorder:
     write error (an OSError: a full disk) is kept in :attr:`failed` and ends the recording; later calls do
     nothing."""
 
-    def __init__(self, path: Path, metadata: dict[str, Any]) -> None:
+    def __init__(self, path: Path, metadata: dict[str, Any], clock: RunClock | None = None) -> None:
         self.path = path
+        self.clock = clock = clock or RunClock.now()
         self._file = open(path, "wb")  # noqa: SIM115 (closed in close())
         self.failed: OSError | None = None
         self._writer = Writer(self._file, compression=CompressionType.ZSTD, chunk_size=CHUNK_SIZE)
         self._writer.start(profile="", library="fleet-emu")
         versions = {"schema_version": str(SCHEMA_VERSION), "fleet_emu_version": __version__}
-        self._writer.add_metadata(SCENARIO_METADATA,
-                                  {k: _text(v) for k, v in metadata.items()} | _radio(metadata) | versions)
+        record = {k: _text(v) for k, v in metadata.items()} | _radio(metadata) | versions | clock.metadata()
+        self._writer.add_metadata(SCENARIO_METADATA, record)
         self._channels: dict[str, int] = {}
         self._lock = threading.Lock()
         self._last_flush = time.monotonic()
@@ -61,7 +63,7 @@ class Recorder:
         with self._lock:
             if self.closed:
                 return
-            if tick is None or tick > MAX_LOG_TICK:  # no tick, or one no log time can hold (malformed, say):
+            if tick is None or tick > self.clock.max_tick:  # no tick, or one no log time can hold (malformed, say):
                 tick = self._last_tick  # logged at the latest tick
             self._last_tick = tick
             with self._fault():
@@ -69,7 +71,7 @@ class Recorder:
                 if channel is None:
                     channel = self._writer.register_channel(topic=key, message_encoding="msgpack", schema_id=0)
                     self._channels[key] = channel
-                self._writer.add_message(channel_id=channel, log_time=tick * TICK_NS, data=data,
+                self._writer.add_message(channel_id=channel, log_time=self.clock.ns(tick), data=data,
                                          publish_time=wall_ns, sequence=self.messages)
                 self.messages += 1
                 self._maybe_flush()
@@ -79,15 +81,15 @@ class Recorder:
         with self._lock:
             if self.closed:
                 return
-            if not 0 <= tick <= MAX_LOG_TICK:  # derived from a message with a tick no log time can hold
+            if not 0 <= tick <= self.clock.max_tick:  # derived from a message with a tick no log time can hold
                 tick = self._last_tick
             with self._fault():
                 channel = self._channels.get(topic)
                 if channel is None:
                     channel = self._writer.register_channel(topic=topic, message_encoding=encoding, schema_id=schema_id)
                     self._channels[topic] = channel
-                self._writer.add_message(channel_id=channel, log_time=tick * TICK_NS, data=data,
-                                         publish_time=time.time_ns(), sequence=self.messages)
+                self._writer.add_message(channel_id=channel, log_time=self.clock.ns(tick), data=data,
+                                         publish_time=self.clock.ns(tick), sequence=self.messages)
                 self.messages += 1
                 self._maybe_flush()
 

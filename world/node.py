@@ -15,6 +15,7 @@ nothing came from for ``barrier_timeout`` seconds is failed, as in lockstep.
 
 from __future__ import annotations
 
+import argparse
 import asyncio
 import time
 
@@ -45,7 +46,7 @@ class WorldNode(NodeBase):
     role = "world"
 
     def __init__(self, scenario: Scenario, run: str, map_data: MapData, startup_timeout: float | None = None,
-                 realtime_hz: float | None = None) -> None:
+                 realtime_hz: float | None = None, pace_hz: float | None = None) -> None:
         super().__init__(Keys(run), "world")
         warm_up()  # compile (or load) the kernels before the first tick, not inside it
         self.scenario = scenario
@@ -57,6 +58,7 @@ class WorldNode(NodeBase):
         self.interrupted = False
         self.lost_at_start: set[str] = set()
         self.realtime_hz = realtime_hz
+        self.pace = 1.0 / pace_hz if pace_hz else 0.0  # lockstep: at least this many seconds per tick (a viewer's)
 
     async def run(self, session: zenoh.Session) -> str:
         """Run the whole episode; returns the reason it ended."""
@@ -160,11 +162,15 @@ class WorldNode(NodeBase):
 
     async def _lockstep(self, inbox: Inbox, readings: dict[str, Reading]) -> None:
         """Tick when every live robot has answered, until the run is done (or the launcher stops it)."""
+        due = time.monotonic()
         while True:
             self._publish(readings)
             if self.world.done:
                 return
             moves = await self._barrier(inbox)
+            if self.pace:  # the wall clock only: the tick's moves are already decided
+                due += self.pace
+                await asyncio.sleep(max(0.0, due - time.monotonic()))
             if self.interrupted:
                 return
             readings = self.world.step(moves)
@@ -256,5 +262,10 @@ class WorldNode(NodeBase):
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m fleet_emu.world --run RUN --connect ENDPOINT --scenario FILE.json --map-file MAP.npz``."""
-    node_main("world", lambda a: WorldNode(a.scenario, a.run, a.map_file, realtime_hz=a.realtime), argv,
-              map_file=True)
+    node_main("world", lambda a: WorldNode(a.scenario, a.run, a.map_file, realtime_hz=a.realtime, pace_hz=a.pace),
+              argv, extra=_add_pace, map_file=True)
+
+
+def _add_pace(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--pace", type=float, default=None, metavar="HZ",
+                        help="lockstep: at most HZ ticks per wall-clock second (fleet run --live-hz)")

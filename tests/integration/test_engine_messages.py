@@ -155,18 +155,25 @@ def _show(v: Any) -> str:
 
 
 def _foxglove(path: Path) -> dict[str, list[Any]]:
-    """The Foxglove channels (JSON), by topic in file order, the robots' decision times (measured) left out."""
+    """The Foxglove channels (JSON), by topic in file order, the robots' decision times (measured) left out, and
+    every time taken from the run's start (the recording's ``start_ns``: the one thing two runs of a seed differ
+    by)."""
     out: dict[str, list[Any]] = collections.defaultdict(list)
     with path.open("rb") as f:
+        reader = make_reader(f)
+        start = int(next(m.metadata["start_ns"] for m in reader.iter_metadata() if m.name == "scenario"))
+        f.seek(0)
         for _schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
             if channel.message_encoding == "json":
-                out[channel.topic].append((message.log_time, _unmeasured(json.loads(message.data))))
+                out[channel.topic].append((message.log_time - start, _unmeasured(json.loads(message.data), start)))
     return dict(out)
 
 
-def _unmeasured(obj: Any) -> Any:
+def _unmeasured(obj: Any, start: int) -> Any:
     if isinstance(obj, dict):
-        return {k: _unmeasured(v) for k, v in obj.items()}
+        if obj.keys() == {"sec", "nsec"}:  # a Foxglove time: from the run's start
+            return obj["sec"] * 10**9 + obj["nsec"] - start
+        return {k: v if k == "lifetime" else _unmeasured(v, start) for k, v in obj.items() if k != "decision_ms"}
     if isinstance(obj, list):
-        return [_unmeasured(v) for v in obj if not (isinstance(v, dict) and v.get("key") == "decision_ms")]
+        return [_unmeasured(v, start) for v in obj if not (isinstance(v, dict) and v.get("key") == "decision_ms")]
     return obj

@@ -16,8 +16,10 @@ from fleet_emu.core.version import SCHEMA_VERSION
 from fleet_emu.recording import Run, load_recording
 from fleet_emu.recording import recorder as recorder_module
 from fleet_emu.recording.metrics import NOT_RECORDED
-from fleet_emu.recording.recorder import TICK_NS, Recorder
+from fleet_emu.recording.recorder import Recorder
 from tests.conftest import run_cli
+
+TICK_NS = 100_000_000  # what the first round's recorder logged a tick as
 
 SCENARIO = {"robots": 2, "cell_size": 0.5, "map": "art", "seed": 3, "allocator": {"type": "minpos"},
             "radio": {"loss": 0.1, "comm": "wall", "threshold": 0.0}, "target_coverage": 0.99, "belief_every": 0}

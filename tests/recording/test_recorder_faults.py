@@ -11,8 +11,9 @@ from mcap.reader import make_reader
 
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import Command, Message, Stop, WorldState
+from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
-from fleet_emu.recording.recorder import MAX_LOG_TICK, TICK_NS, Recorder
+from fleet_emu.recording.recorder import Recorder
 
 
 def _state(tick: int) -> bytes:
@@ -20,18 +21,20 @@ def _state(tick: int) -> bytes:
 
 
 def test_ticks_beyond_the_log_time_are_logged_at_the_latest_tick(tmp_path: Path) -> None:
-    rec = Recorder(tmp_path / "run.mcap", {"run_id": "huge"})
+    clock = RunClock(1_700_000_000 * 10**9, 0.1)
+    rec = Recorder(tmp_path / "run.mcap", {"run_id": "huge"}, clock)
     keys = Keys("huge")
+    max_tick = clock.max_tick
     rec.record(keys.state, _state(7))
-    for tick in (MAX_LOG_TICK + 1, 2**63, 2**64 - 1):  # each a valid msgpack uint; tick * TICK_NS overflows
+    for tick in (max_tick + 1, 2**63, 2**64 - 1):  # each a valid msgpack uint; its log time overflows
         rec.record(keys.cmd("r0"), msgpack.packb({"kind": "cmd", "src": "r0", "tick": tick}))
         rec.add_channel_message("/viz/log", 0, "json", b"{}", tick)
-    rec.record(keys.state, _state(MAX_LOG_TICK))  # the largest tick a log time holds is kept
+    rec.record(keys.state, _state(max_tick))  # the largest tick a log time holds is kept
     rec.flush()
     assert rec.close() == 8
     with open(tmp_path / "run.mcap", "rb") as f:
         times = [m.log_time for _, _, m in make_reader(f).iter_messages(log_time_order=False)]
-    assert times == [7 * TICK_NS] * 7 + [MAX_LOG_TICK * TICK_NS]
+    assert times == [clock.ns(7)] * 7 + [clock.ns(max_tick)] and clock.ns(max_tick) <= 2**64 - 1
 
 
 class _Fold:

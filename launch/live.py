@@ -1,0 +1,79 @@
+"""``fleet run --live [HOST:]PORT``: the run's live Foxglove server (:class:`~fleet_emu.recording.live.LiveServer`)
+opened for the run's length in any engine, and the ``--live-hz`` pacer. A viewer never changes a run: the
+server never waits for one, and the pacer only spaces a lockstep run's ticks on the wall clock."""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import sys
+import time
+from collections.abc import Callable
+
+from fleet_emu.core.errors import ConfigError
+from fleet_emu.recording.clock import RunClock
+
+
+@dataclasses.dataclass(frozen=True)
+class LiveOptions:
+    """Where to serve (``port`` 0: one the OS picks), the tick cap (``hz``) and who is told the server's URL."""
+
+    host: str
+    port: int
+    hz: float | None = None
+    on_url: Callable[[str], None] | None = None
+
+
+def open_live(stack: contextlib.ExitStack, opts: LiveOptions | None, clock: RunClock) -> object | None:
+    """The live server (closed by ``stack``), its URL told to ``opts.on_url``; None without ``opts``."""
+    if opts is None:
+        return None
+    from fleet_emu.recording.live import LiveServer
+
+    try:
+        server = LiveServer(opts.host, opts.port, clock)
+    except Exception as exc:  # the SDK's error: the port is taken, the host is not this machine's
+        raise ConfigError(f"--live {opts.host}:{opts.port}: cannot serve there: {str(exc).splitlines()[0]}") \
+            from None
+    stack.callback(server.close)
+    if opts.on_url is not None:
+        opts.on_url(server.url)
+    return server
+
+
+class Pacer:
+    """At most ``hz`` ticks per wall-clock second (``hz`` None: no cap): :meth:`wait` before each tick."""
+
+    def __init__(self, hz: float | None) -> None:
+        self.period = 1.0 / hz if hz else 0.0
+        self.next = 0.0
+
+    def wait(self) -> None:
+        if not self.period:
+            return
+        now = time.monotonic()
+        if self.next > now:
+            time.sleep(self.next - now)
+        self.next = max(now, self.next) + self.period
+
+
+def say_url(url: str) -> None:
+    """The one line a viewer (or a script) waits for."""
+    print(f"live: {url}", file=sys.stderr, flush=True)
+
+
+def live_options(live: str | None, hz: float | None, realtime: bool) -> LiveOptions | None:
+    """``--live`` and ``--live-hz`` checked (a ConfigError on bad input); None without ``--live``."""
+    if live is None:
+        if hz is not None:
+            raise ConfigError("--live-hz needs --live")
+        return None
+    from fleet_emu.recording.live import parse_live
+
+    try:
+        host, port = parse_live(live)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    if hz is not None and realtime:
+        raise ConfigError("--live-hz paces a lockstep run: a --realtime run already ticks at its own rate")
+    return LiveOptions(host, port, hz, say_url)

@@ -1,0 +1,168 @@
+"""A run served live over the Foxglove WebSocket protocol, with the ``foxglove-sdk`` package's server and typed
+schemas: the same topics as the recording's Foxglove channels (:mod:`~fleet_emu.recording.foxglove`), so one
+layout shows both.
+
+:class:`LiveServer` takes the fold's derived messages (JSON, as written into ``run.mcap``) and logs each as the
+SDK's typed message (``foxglove.Grid``, ``foxglove.SceneUpdate``, ``foxglove.Log``: protobuf on the wire) or, for
+``/viz/stats``, as JSON on a channel with its JSON schema. Logging never waits for a viewer: the SDK queues each
+client's messages (dropping the oldest for a slow one). The grids are latched: a client that subscribes mid-run
+gets the latest of each at once.
+"""
+
+from __future__ import annotations
+
+import base64
+import logging
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import foxglove
+import foxglove.channels as fc
+import foxglove.messages as fm
+from foxglove.websocket import ChannelView, Client, ServerListener
+
+from fleet_emu.recording.clock import RunClock
+from fleet_emu.recording.foxglove import Derived
+from fleet_emu.recording.stats import SCHEMA_STATS, STATS_SCHEMA
+
+log = logging.getLogger(__name__)
+
+DEFAULT_HOST = "127.0.0.1"
+BACKLOG = 4096  # messages queued per client before the oldest are dropped
+LINGER = 0.5  # seconds the server stays up after the run, for its last messages to reach the viewers
+
+# nested JSON fields -> the SDK's typed message of that field (a list field: each item's type)
+_TYPES: dict[str, Any] = {
+    "timestamp": fm.Timestamp, "lifetime": fm.Duration, "pose": fm.Pose, "position": fm.Vector3,
+    "orientation": fm.Quaternion, "size": fm.Vector3, "cell_size": fm.Vector2, "color": fm.Color,
+    "colors": fm.Color, "points": fm.Point3, "metadata": fm.KeyValuePair, "cubes": fm.CubePrimitive,
+    "spheres": fm.SpherePrimitive, "cylinders": fm.CylinderPrimitive, "lines": fm.LinePrimitive,
+    "texts": fm.TextPrimitive, "entities": fm.SceneEntity, "deletions": fm.SceneEntityDeletion,
+    "fields": fm.PackedElementField,
+}
+# integer enums, by the message type that holds them
+_ENUMS: dict[Any, tuple[str, Any]] = {
+    fm.Log: ("level", fm.LogLevel), fm.LinePrimitive: ("type", fm.LinePrimitiveLineType),
+    fm.SceneEntityDeletion: ("type", fm.SceneEntityDeletionType),
+    fm.PackedElementField: ("type", fm.PackedElementFieldNumericType),
+}
+_TOP: dict[str, tuple[Any, Callable[..., Any]]] = {
+    "foxglove.Grid": (fm.Grid, fc.GridChannel), "foxglove.SceneUpdate": (fm.SceneUpdate, fc.SceneUpdateChannel),
+    "foxglove.Log": (fm.Log, fc.LogChannel),
+}
+_SKIP = frozenset({"arrows", "triangles", "models"})  # primitives the fold never draws (always empty)
+
+
+def _enum(kind: Any, value: int) -> Any:
+    return next(getattr(kind, n) for n in dir(kind) if n[:1].isupper() and getattr(kind, n).value == value)
+
+
+def typed(cls: Any, obj: dict[str, Any]) -> Any:
+    """The SDK's typed message ``cls`` of a JSON message of its schema (as the fold writes them)."""
+    kwargs: dict[str, Any] = {}
+    enum = _ENUMS.get(cls)
+    for key, value in obj.items():
+        if key in _SKIP:
+            continue
+        sub = _TYPES.get(key)
+        if enum is not None and key == enum[0]:
+            kwargs[key] = _enum(enum[1], int(value))
+        elif key == "data" and cls is fm.Grid:
+            kwargs[key] = base64.b64decode(value)
+        elif sub is not None and isinstance(value, list):
+            kwargs[key] = [typed(sub, v) for v in value]
+        elif sub is not None and isinstance(value, dict):
+            kwargs[key] = typed(sub, value)
+        else:
+            kwargs[key] = value
+    return cls(**kwargs)
+
+
+def parse_live(text: str) -> tuple[str, int]:
+    """``[HOST:]PORT`` -> (host, port); the host defaults to loopback. Raises ValueError on bad input."""
+    host, _, port = text.rpartition(":")
+    host = host.strip("[]") or DEFAULT_HOST
+    if not port.isdigit() or not 0 <= int(port) <= 65535:
+        raise ValueError(f"--live wants [HOST:]PORT with a port from 0 to 65535, not {text!r}")
+    return host, int(port)
+
+
+class LiveServer(ServerListener):
+    """The run's Foxglove WebSocket server (its own SDK context, so nothing else logs into it); it is its own
+    listener, to latch the grids."""
+
+    def __init__(self, host: str, port: int, clock: RunClock, name: str = "fleet-emu") -> None:
+        self.clock = clock
+        self.context = foxglove.Context()
+        self._channels: dict[str, Any] = {}
+        self._latest: dict[str, tuple[Any, int]] = {}  # latched topics (the grids): last message, log time
+        self._lock = threading.Lock()
+        self.failed = False
+        self.published = 0
+        self.watched = False  # a viewer subscribed at some point
+        self.server = foxglove.start_server(name=name, host=host, port=port, context=self.context,
+                                            server_listener=self, message_backlog_size=BACKLOG)
+        self.host = host
+
+    @property
+    def port(self) -> int:
+        return self.server.port
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"ws://{host}:{self.port}"
+
+    def publish(self, derived: list[Derived]) -> None:
+        """Log the fold's messages to every connected viewer; an error turns the live view off, never the run."""
+        if self.failed:
+            return
+        try:
+            for d in derived:
+                self._publish(d)
+        except Exception:
+            log.exception("live view disabled after an error")
+            self.failed = True
+
+    def _publish(self, d: Derived) -> None:
+        t = self.clock.ns(d.tick)
+        with self._lock:
+            channel = self._channels.get(d.topic)
+            if channel is None:
+                channel = self._channel(d.topic, d.schema)
+            if d.schema == SCHEMA_STATS:
+                msg: Any = d.data
+            else:
+                msg = typed(_TOP[d.schema][0], d.obj())
+            if d.schema == "foxglove.Grid":
+                self._latest[d.topic] = (msg, t)
+            channel.log(msg, log_time=t)
+            self.published += 1
+
+    def _channel(self, topic: str, schema: str) -> Any:
+        if schema == SCHEMA_STATS:
+            channel: Any = foxglove.Channel(topic, schema=STATS_SCHEMA, message_encoding="json", context=self.context)
+        else:
+            channel = _TOP[schema][1](topic, context=self.context)
+        self._channels[topic] = channel
+        return channel
+
+    # --- the SDK's ServerListener ------------------------------------------------------------------------
+
+    def on_subscribe(self, client: Client, channel: ChannelView) -> None:
+        """A viewer subscribed: send it the topic's latest grid (to all subscribers: a grid is idempotent)."""
+        self.watched = True
+        try:  # no lock here: the dicts are only ever added to, and logging must not wait on the run's thread
+            latest = self._latest.get(channel.topic)
+            if latest is not None:
+                self._channels[channel.topic].log(latest[0], log_time=latest[1])
+        except Exception:
+            log.exception("live view: cannot send the latest grid")
+
+    def close(self) -> None:
+        """Stop serving; a watched run first lingers a moment (stopping drops what is still queued)."""
+        if self.watched:
+            time.sleep(LINGER)
+        self.server.stop()
