@@ -5,7 +5,8 @@ way everywhere. :class:`~fleet_emu.core.radio.RadioConfig` declares its fields w
 
     waf: float = setting(3.1, unit="dB", low=0.0, high=1000.0, metavar="DB", help="attenuation per wall")
 
-The kind of value (whole number, number, one of ``choices``) is the default's type.
+The kind of value (a whole number, a number, one of ``choices``) is the field's annotation (``int``, ``float``,
+``str``), else its default's type.
 """
 
 from __future__ import annotations
@@ -18,13 +19,14 @@ from fleet_emu.core.errors import ConfigError
 
 T = TypeVar("T")
 _KEY = "fleet_emu.setting"
+_KINDS: dict[str, type] = {"int": int, "float": float, "str": str}
 
 
 @dataclasses.dataclass(frozen=True)
 class Setting:
-    """One field's declaration: ``name`` (the field's, filled by :func:`settings`), ``default``, ``unit``
-    (shown in help and errors; "" for none), the accepted range ``low``..``high`` (``low_open``: ``low``
-    itself refused) or ``choices``, the flag's ``metavar`` and ``help``."""
+    """One field's declaration: ``default``, ``unit`` (shown in help and errors; "" for none), the accepted
+    range ``low``..``high`` (``low_open``: ``low`` itself refused) or ``choices``, the flag's ``metavar`` and
+    ``help``; ``name`` and ``kind`` (``int``, ``float`` or ``str``) are the field's, filled by :func:`settings`."""
 
     default: Any
     unit: str = ""
@@ -35,16 +37,12 @@ class Setting:
     metavar: str | None = None
     help: str = ""
     name: str = ""
+    kind: type = object
 
     @property
     def flag(self) -> str:
         """The ``fleet run`` flag: ``--max-walls`` for ``max_walls``."""
         return "--" + self.name.replace("_", "-")
-
-    @property
-    def kind(self) -> type:
-        """``int``, ``float`` or ``str``: the default's type."""
-        return type(self.default)
 
     def span(self) -> str:
         """The accepted range (or choices), as help texts and errors say it: ``within [0, 1000] dB``."""
@@ -94,7 +92,8 @@ def settings(cls: type) -> tuple[Setting, ...]:
         spec = f.metadata.get(_KEY)
         if spec is None:
             raise TypeError(f"{cls.__name__}.{f.name} has no setting(...) declaration")
-        out.append(dataclasses.replace(spec, name=f.name))
+        kind = _KINDS.get(f.type if isinstance(f.type, str) else getattr(f.type, "__name__", ""), type(spec.default))
+        out.append(dataclasses.replace(spec, name=f.name, kind=kind))
     return tuple(out)
 
 

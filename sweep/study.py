@@ -13,7 +13,9 @@ robots = [2, 3]
 loss = [0.0]
 comm = ["ideal"]
 map = ["office"]
-[fleet]                    # any scenario field, fixed for every point
+waf = [3.1, 6.0]           # a radio setting by name, or several in a table:
+radio = [{comm = "wall"}, {comm = "disk", comm_range = 6.0}]
+[fleet]                    # any scenario field, fixed for every point (radio settings flat or in [fleet.radio])
 max_ticks = 3000
 ```
 
