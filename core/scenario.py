@@ -183,7 +183,10 @@ class Scenario:
                 flat[k] = v
             else:
                 raise ConfigError(f"scenario {p}: unknown key or section {k!r}")
-        return cls.from_dict(flat, where=f"scenario {p}")
+        scenario = cls.from_dict(flat, where=f"scenario {p}")
+        # a file someone wrote: its allocator and map are checked now, as override's (a run's JSON is not)
+        check_names(scenario, [k for k in ("allocator", "map") if k in flat])
+        return scenario
 
     @classmethod
     def from_json(cls, path: str | Path) -> Scenario:

@@ -162,3 +162,19 @@ def test_the_cli_refuses_an_unknown_allocator_or_map_in_one_line() -> None:
     for argv in (["--allocator", "nope"], ["--map", "nomap"]):
         code, _, err = run_cli(["run", *argv, "--engine", "memory", "--no-record"])
         assert code == 2 and err.startswith("fleet: error: unknown") and err.count("\n") == 1, err
+
+
+@pytest.mark.parametrize(("toml", "match"), [
+    ('[allocator]\ntype = "nope"\n', "unknown allocator 'nope'"),
+    ('[allocator]\ntype = "minpos"\nwavefront = "bogus"\n', "wavefront"),
+    ('[map]\nname = "nomap"\n', "unknown map 'nomap'"),
+])
+def test_a_scenario_file_with_an_unknown_allocator_or_map_is_refused_when_loaded(toml: str, match: str,
+                                                                                  tmp_path: Path) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(toml)
+    with pytest.raises(ConfigError, match=match) as exc:
+        Scenario.load(path)
+    assert "\n" not in str(exc.value)
+    code, _, err = run_cli(["run", str(path), "--engine", "memory", "--no-record"])
+    assert code == 2 and match.split("'")[0] in err and err.count("\n") == 1, err
