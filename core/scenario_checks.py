@@ -5,8 +5,8 @@ written, not when the run starts.
 
 Core imports nothing above it, so the checks are found as the entry points of the group :data:`GROUP`
 (``pyproject.toml``; an editable install lists them once ``pip install -e .`` ran), each named after the field
-it checks and loaded on first use. A check takes the scenario and raises :class:`ConfigError`; anything else
-it raises becomes one.
+it checks and loaded on first use. A check takes the scenario and raises a :class:`FleetError` (a
+:class:`ConfigError`, or a :class:`MapError` for a map); anything else it raises becomes a ConfigError.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ _entries: dict[str, EntryPoint] | None = None
 
 
 def check_names(scenario: Any, fields: Iterable[str]) -> None:
-    """Run the check of each of ``fields`` (those with one) on ``scenario``; a ConfigError on the first bad one."""
+    """Run the check of each of ``fields`` (those with one) on ``scenario``; a FleetError on the first bad one."""
     for field in fields:
         check = _check(field)
         if check is None:
