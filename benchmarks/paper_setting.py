@@ -132,7 +132,7 @@ def run_fleet(grid: np.ndarray, base: Cell, robots: int, allocator: str, a: Any)
     from fleet_emu.launch.memory import Fleet
 
     cs = a.cell_size
-    s = Scenario().override(map=a.label, robots=robots, allocator=allocator, comm="disk", comm_range=a.r_comm * cs,
+    s = Scenario().override(map=a.map_name, robots=robots, allocator=allocator, comm="disk", comm_range=a.r_comm * cs,
                             sensor_range=a.sensor * cs, cell_size=cs, loss=a.loss, seed=a.seed,
                             max_ticks=a.max_ticks, base=list(base), target_coverage=0.99)
     fleet = Fleet(s, map_data=MapData(a.label, grid, cs, base), starts=start_cells(grid == FREE, base, robots))
@@ -313,7 +313,7 @@ def main(argv: list[str] | None = None) -> None:
     total = len(maps) * len(a.allocators) * len(a.robots)
     for name, (grid, start, _cs) in maps.items():
         label = Path(name).stem
-        a.label = label
+        a.label, a.map_name = label, name
         for allocator in a.allocators:
             for n in a.robots:
                 k = len(rows) + 1

@@ -24,7 +24,8 @@ from pathlib import Path
 from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.files import write_atomic, write_json
 
-__all__ = ["DiskFault", "FolderLock", "claim", "claimed", "disk_fault", "lock_folder", "make_folder", "run_files",
+__all__ = ["DiskFault", "FolderLock", "claim", "claimed", "disk_fault", "lock_folder", "make_folder", "refuse_held",
+           "run_files",
            "write_atomic", "write_json"]
 
 LOCK = ".fleet.lock"
@@ -111,6 +112,14 @@ def held_run(folder: Path) -> list[str]:
     return [name for name in RUN_MARKERS if (folder / name).exists()]
 
 
+def refuse_held(out: Path, overwrite: bool) -> None:
+    """A ConfigError when ``out`` holds a run and ``overwrite`` is not given (nothing when it does not exist)."""
+    found = held_run(out) if out.is_dir() else []
+    if found and not overwrite:
+        raise ConfigError(f"--out {out} holds a run ({', '.join(found)}): pass --overwrite to replace it, "
+                          f"or choose another folder")
+
+
 def run_files(folder: Path) -> list[Path]:
     """Every file a run left in ``folder`` (not subfolders, nor files of other tools)."""
     return sorted(p for p in folder.iterdir() if p.name != LOCK and _RUN_FILE.fullmatch(p.name) and not p.is_dir())
@@ -138,10 +147,7 @@ def claim(out: Path, overwrite: bool = False) -> FolderLock:
     make_folder(out)
     lock = lock_folder(out)
     try:
-        found = held_run(out)
-        if found and not overwrite:
-            raise ConfigError(f"--out {out} holds a run ({', '.join(found)}): pass --overwrite to replace it, "
-                              f"or choose another folder")
+        refuse_held(out, overwrite)
         if overwrite:
             for path in run_files(out):
                 path.unlink()

@@ -21,7 +21,6 @@ from fleet_emu.sweep.study import Point
 
 RUNS = "runs"
 #: The files of a run folder: a folder holding one of them holds a run.
-RUN_FILES = ("result.json", "run.mcap", "scenario.json")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -43,7 +42,8 @@ def run_id(point: Point) -> str:
     return f"sweep-{point.id}"
 
 
-def run(point: Point, folder: Path | None, on_progress: Callable[[Any], None] | None = None) -> Any:
+def run(point: Point, folder: Path | None, on_progress: Callable[[Any], None] | None = None,
+        overwrite: bool = False) -> Any:
     """One run of a point, on its engine; into ``folder`` with its recording, or keeping nothing;
     ``on_progress`` is told the run's monitor as it goes (a kept run's)."""
     from fleet_emu.core.scenario import Scenario
@@ -56,11 +56,12 @@ def run(point: Point, folder: Path | None, on_progress: Callable[[Any], None] | 
             return Fleet(scenario, run_id=run_id(point)).run()
         from fleet_emu.launch.memory import run_memory
 
-        return run_memory(scenario, folder, record=True, run_id=run_id(point), on_progress=on_progress)
+        return run_memory(scenario, folder, record=True, run_id=run_id(point), on_progress=on_progress,
+                          overwrite=overwrite)
     from fleet_emu.launch.runner import RunOptions, run_fleet
 
     return run_fleet(scenario, RunOptions(out_dir=folder, record=folder is not None, run_id=run_id(point),
-                                          on_progress=on_progress))
+                                          on_progress=on_progress, overwrite=overwrite))
 
 
 def records_now(point: Point, keep: Keep | None) -> bool:

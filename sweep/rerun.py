@@ -15,7 +15,7 @@ from typing import Any
 
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.sweep.execute import PARQUET, ROWS, curve, flatten, read_rows
-from fleet_emu.sweep.record import RUN_FILES, run, run_id
+from fleet_emu.sweep.record import run, run_id
 from fleet_emu.sweep.study import Point, Study, param_label, point_id
 
 #: The exit code when the re-created run differs from its row.
@@ -67,13 +67,6 @@ def find_point(out: Path, row: dict[str, Any], maps: Path | None) -> Point:
     raise ConfigError(f"the point {row['id']} is not in {kept} (was the study file changed?)")
 
 
-def check_free(out: Path, overwrite: bool) -> None:
-    """A folder holding a run is refused unless ``overwrite`` (the words of ``fleet run``)."""
-    held = next((name for name in RUN_FILES if (out / name).exists()), None)
-    if held is not None and not overwrite:
-        raise ConfigError(f"{out} holds a run ({held}); pass --overwrite to replace it")
-
-
 def differences(row: dict[str, Any], result: Any) -> list[str]:
     """The deterministic values of the run that are not the row's: ``key (row X, rerun Y)``."""
     from fleet_emu.launch.result import deterministic
@@ -106,15 +99,14 @@ def rerun(results: Path, wanted: str, out: Path | None, *, overwrite: bool = Fal
     from rich.console import Console
 
     from fleet_emu.core.scenario import Scenario
-    from fleet_emu.launch.checks import make_out
+    from fleet_emu.launch.outdir import refuse_held
     from fleet_emu.launch.progress import Progress
 
     folder = results_dir(results)
     row = find_row(folder, wanted)
     point = find_point(folder, row, maps)
     out = out if out is not None else Path("runs") / run_id(point)
-    check_free(out, overwrite)
-    make_out(out)
+    refuse_held(out, overwrite)  # before anything is said or run, in the words of ``fleet run``
 
     def say(line: str) -> None:
         if not quiet:
@@ -124,12 +116,12 @@ def rerun(results: Path, wanted: str, out: Path | None, *, overwrite: bool = Fal
     say(f"re-creating {point.id} ({params}) on the {point.engine} engine -> {out}")
     try:
         with Progress(Scenario.from_dict(point.scenario), run_id(point), Console(stderr=True), quiet) as progress:
-            result = run(point, out, progress.update)
+            result = run(point, out, progress.update, overwrite)
     except Exception as exc:  # a point whose row failed with an error: the same error is its re-creation
         error, theirs = f"{type(exc).__name__}: {exc}", str(row.get("error") or "")
         how = " again, as its row says" if theirs.startswith(error) else ""
         also = "" if how else f" (its row: {theirs or 'no error'})"
-        wrote = f"; what it wrote is in {out}" if any(out.iterdir()) else ""
+        wrote = f"; what it wrote is in {out}" if out.is_dir() and any(out.iterdir()) else ""
         print(f"fleet: error: the point {point.id} failed{how}: {error}{also}{wrote}", file=sys.stderr)
         return DIFFERS
     if row.get("ticks") is None:

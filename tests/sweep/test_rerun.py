@@ -50,7 +50,8 @@ def test_a_sweep_keeps_the_missed_run_and_rerun_recreates_it(study_dir: Path) ->
     assert code == 0 and "matches result.json" in report, err
 
     code, _, err = run_cli(["sweep", "rerun", str(out), missed["id"], "--out", str(run)])
-    assert code == 2 and err == f"fleet: error: {run} holds a run (result.json); pass --overwrite to replace it\n"
+    assert code == 2 and err == (f"fleet: error: --out {run} holds a run (result.json, run.mcap, scenario.json): "
+                                 "pass --overwrite to replace it, or choose another folder\n")
     lines = (out / ROWS).read_text().replace(f'"ticks": {missed["ticks"]},', '"ticks": 5,')
     (out / ROWS).write_text(lines)  # a row that its run does not give
     code, _, err = run_cli(["sweep", "rerun", str(out), missed["id"], "--out", str(run), "--overwrite",
