@@ -336,24 +336,30 @@ def load_ros_yaml(path: str | Path, cell_size: float, *, name: str | None = None
 
 
 def map_shape(name_or_path: str, cell_size: float) -> tuple[int, int] | None:
-    """The (rows, cols) the map will have at ``cell_size``, from its extent or its image's header alone (about,
-    for a built-in map); None when it cannot be told without loading it (:func:`load_map` then says why)."""
+    """The (rows, cols) the map will have at ``cell_size`` at most (its wall border included), from its extent or
+    its image's header alone (about, for a built-in map); None when it cannot be told without loading it
+    (:func:`load_map` then says why)."""
     if name_or_path in BUILTIN_MAPS:
         return builtin_shape(name_or_path, cell_size)
     if name_or_path in registry():
         entry, path = registry()[name_or_path], local_map(name_or_path)
         if entry.yaml is None:
-            return pooled_shape(image_size(path), cell_size / entry.resolution) if path.is_file() else None
+            return _border(pooled_shape(image_size(path), cell_size / entry.resolution)) if path.is_file() else None
     else:
         path = Path(name_or_path).expanduser()
         if not path.is_file():
             return None
         if path.suffix.lower() not in YAML_SUFFIXES:
-            return image_size(path)
+            return _border(image_size(path))
     meta = read_ros_yaml(path) if path.is_file() else None
     if meta is None or not meta.image.is_file():
         return None
-    return pooled_shape(image_size(meta.image), cell_size / meta.resolution)
+    return _border(pooled_shape(image_size(meta.image), cell_size / meta.resolution))
+
+
+def _border(shape: tuple[int, int]) -> tuple[int, int]:
+    """``shape`` with room for the wall border :func:`_bordered` may add."""
+    return shape[0] + 2, shape[1] + 2
 
 
 def is_bare_bitmap(name_or_path: str) -> bool:

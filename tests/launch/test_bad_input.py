@@ -67,8 +67,8 @@ def test_a_map_too_large_for_the_memory_is_refused_before_its_grid_is_built(imag
     line = _refused(["run", "--engine", "memory", "--map", "office", "--cell-size", "0.001"], tmp_path)
     assert line.startswith("fleet: error: map office (25002 x 40002 cells) with 4 robots needs about ")
     assert line.endswith("use larger cells (--cell-size) or a smaller map")
-    line = _refused(["run", "--map", str(_yaml(image, "100.0"))], tmp_path)  # 200 x 300 px of 100 m: 40000 x 60000
-    assert "(40000 x 60000 cells)" in line and "3.9 GB is available" in line
+    line = _refused(["run", "--map", str(_yaml(image, "100.0"))], tmp_path)  # 200 x 300 px of 100 m, and a border
+    assert "(40002 x 60002 cells)" in line and "3.9 GB is available" in line
 
 
 @pytest.mark.parametrize("value", [".inf", "1.0e+300", ".nan", "-1.0"])
