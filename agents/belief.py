@@ -11,13 +11,16 @@ from fleet_emu.core.kernels import merge_parts
 class Belief:
     """An int8 occupancy grid that starts unknown; ``take_news`` returns cells learned since the last call,
     ``take_changed`` the cells changed since its last call (for the incremental frontier clusters). Both are
-    kept as the merges' changed cells, so that neither takes a pass over the whole grid."""
+    kept as the merges' changed cells, so that neither takes a pass over the whole grid. ``known_cells`` counts
+    the cells known so far (the merges' unknown cells made known), sent with every command: the world's stall
+    rule reads it."""
 
     def __init__(self, shape: tuple[int, int]) -> None:
         self.grid = np.full(shape, UNKNOWN, dtype=np.int8)
         self._news: list[np.ndarray] = []
         self._changed: list[np.ndarray] = []
         self._known: tuple[np.ndarray, np.ndarray] | None = None  # known()'s answer until a merge changes a cell
+        self.known_cells = 0
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -36,7 +39,9 @@ class Belief:
             self._known = None
             self._news.append(changed)
             self._changed.append(changed)
-        return int(np.count_nonzero(old == UNKNOWN))
+        learned = int(np.count_nonzero(old == UNKNOWN))
+        self.known_cells += learned
+        return learned
 
     def merge_many(self, parts: list[tuple[np.ndarray, np.ndarray]]) -> int:
         """:meth:`merge` of each ``(cells, values)`` of ``parts`` in turn, in one compiled pass
@@ -54,6 +59,7 @@ class Belief:
             self._known = None
             self._news.append(changed)
             self._changed.append(changed)
+        self.known_cells += int(unknowns)
         return int(unknowns)
 
     def take_news(self) -> tuple[np.ndarray, np.ndarray]:

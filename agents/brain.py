@@ -281,7 +281,7 @@ class Brain:
             outbox.extend(alloc.outbox)
             sealed = self._news(obs, move, want, outbox, forwards)
         cmd = Command(src=self.me, tick=t, seq=self.next_seq(), move=move, target=alloc.target,
-                      status=alloc.status.name, decision_ms=round(self.decision_ms[-1], 4))
+                      status=alloc.status.name, decision_ms=round(self.decision_ms[-1], 4), known=belief.known_cells)
         self.step_cpu_ms += (time.thread_time() - c0) * 1000.0
         return cmd, sealed
 

@@ -32,10 +32,14 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import secrets
+import stat
 from collections.abc import Iterable
+from pathlib import Path
 from typing import Any
 
+from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.keys import BASE, HOST_ID, HOST_ROOT, ROOT, ParsedKey
 
 WORLD, NETEM, LAUNCHER, RECORDER = "world", "netem", "launcher", "recorder"
@@ -203,3 +207,22 @@ def read_dictionary(text: str) -> dict[str, str]:
             raise ValueError(f"line {n} is not user:password")
         out[user] = password
     return out
+
+
+def read_users(path: Path, option: str = "--credentials") -> dict[str, str]:
+    """A users file (:func:`dictionary_text`'s ``user:password`` lines) read as ssh reads a private key: a
+    ConfigError naming ``chmod 600`` when its group or others may read or write it (its passwords are then no
+    one's own), or when it cannot be read; ``option`` names it for the user."""
+    try:
+        with path.open("rb") as f:
+            mode = os.fstat(f.fileno()).st_mode
+            data = b"" if mode & 0o077 else f.read()
+    except OSError as exc:
+        raise ConfigError(f"{option} {path}: cannot read it ({exc.strerror or exc})") from None
+    if mode & 0o077:
+        raise ConfigError(f"{option} {path} is open to its group or others (mode {stat.S_IMODE(mode):04o}): its "
+                          f"passwords must be yours alone; chmod 600 {path}")
+    try:
+        return read_dictionary(data.decode())
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise ConfigError(f"{option} {path}: cannot read it ({exc})") from None

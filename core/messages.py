@@ -137,18 +137,23 @@ STALE = "STALE"
 
 @dataclasses.dataclass(frozen=True)
 class Command(Message):
-    """A robot's move for ``tick`` (robot/<robot>/cmd), with what it decided, for the record."""
+    """A robot's move for ``tick`` (robot/<robot>/cmd), with what it decided, for the record, and ``known``: the
+    cells its belief holds after the tick (0 in a real-time step without a decision), which the world's stall
+    rule reads (``world/sim.py``)."""
 
     KIND = "cmd"
     move: Cell
     target: Cell | None = None
     status: str = ""
     decision_ms: float = 0.0
+    known: int = 0
 
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)
         if self.move not in VALID_MOVES:
             raise DecodeError(f"cmd: move {self.move} is not a 4-connected step")
+        if self.known < 0 or (ctx is not None and ctx.shape is not None and self.known > ctx.shape[0] * ctx.shape[1]):
+            raise DecodeError(f"cmd: {self.known} known cells for the map's grid")
         if self.target is not None:
             check_cell(self.target, ctx.shape if ctx else None, "cmd")
 

@@ -21,6 +21,7 @@ from typing import Any
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.fields import check_all, merge
 from fleet_emu.core.keys import HOST_ID
+from fleet_emu.core.limits import MAX_NAME, check_size, check_text, check_values
 from fleet_emu.core.messages import MAX_TTL
 from fleet_emu.core.radio import RadioConfig, radio_settings
 from fleet_emu.core.scenario_checks import check_names
@@ -161,6 +162,8 @@ class Scenario:
         p = Path(path)
         try:
             raw = tomllib.loads(_read(p))
+        except RecursionError:  # a bound check_text did not see; never a traceback
+            raise ConfigError(f"scenario {p} nests too deeply") from None
         except tomllib.TOMLDecodeError as exc:
             raise ConfigError(f"scenario {p} is not valid TOML: {exc}") from None
         flat: dict[str, Any] = {}
@@ -194,6 +197,8 @@ class Scenario:
         p = Path(path)
         try:
             d = json.loads(_read(p))
+        except RecursionError:
+            raise ConfigError(f"scenario {p} nests too deeply") from None
         except json.JSONDecodeError as exc:
             raise ConfigError(f"scenario {p} is not valid JSON: {exc}") from None
         if not isinstance(d, dict):
@@ -299,7 +304,10 @@ class Scenario:
     def validate(self) -> Scenario:
         """Raise ConfigError on the first bad value; return self."""
         _text("name", self.name)
+        if len(self.name) > MAX_NAME:
+            raise ConfigError(f"name is {len(self.name)} characters long, more than the {MAX_NAME} allowed")
         _text("--map", self.map)
+        check_values([self.map, self.allocator, self.start], "the scenario")
         _integer("--robots", self.robots, 1, MAX_ROBOTS)
         _integer("--seed", self.seed, 0, 2**63 - 1)
         _integer("--max-ticks", self.max_ticks, 1, 10**9)
@@ -359,8 +367,13 @@ def shipped() -> list[str]:
 
 
 def _read(p: Path) -> str:
+    """The file's text, once its size and nesting are within ``core/limits.py``'s bounds."""
     try:
-        return p.read_text()
+        if p.is_file():
+            check_size(p.stat().st_size, f"scenario {p}")
+        text = p.read_text()
+        check_text(text, f"scenario {p}")
+        return text
     except FileNotFoundError:
         raise ConfigError(f"scenario file not found: {p} (a TOML file, a run's scenario.json, or a shipped "
                           f"scenario: {', '.join(shipped())})") from None

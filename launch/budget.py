@@ -87,9 +87,9 @@ def estimate(robots: int, cells: int, engine: str = "processes", fork_server: bo
 
 
 def check_memory(robots: int, cells: int, engine: str, fork_server: bool, shm: bool, available_mb: float,
-                 model: MemoryModel = MODEL, base: bool = False) -> dict[str, float]:
+                 model: MemoryModel = MODEL, base: bool = False, what: str = "") -> dict[str, float]:
     """:func:`estimate`'s parts when they fit ``available_mb``; a :class:`BudgetError` naming the numbers when
-    they do not."""
+    they do not (and ``what``: the map, when its size is the cause)."""
     parts = estimate(robots, cells, engine, fork_server, shm, model, base)
     need = parts["total"]
     if need <= available_mb:
@@ -98,6 +98,10 @@ def check_memory(robots: int, cells: int, engine: str, fork_server: bool, shm: b
            "in-process": "in one process over Zenoh", "memory": "on the memory engine"}.get(engine, engine)
     split = ", ".join(f"{k} {_mb(v)}" for k, v in parts.items() if k != "total")
     hint = ", or with the fork server" if engine == "processes" and not fork_server else ""
+    if what:
+        raise BudgetError(f"{what} with {robots} robots needs about {_mb(need)} of memory ({split}) but "
+                          f"{_mb(available_mb)} is available (MemAvailable, or {MEM_ENV}); use larger cells "
+                          "(--cell-size) or a smaller map")
     raise BudgetError(f"{robots} robots ({how}) need about {_mb(need)} of memory ({split}) but {_mb(available_mb)} "
                       f"is available (MemAvailable, or {MEM_ENV}); run fewer robots{hint}")
 

@@ -14,7 +14,7 @@ import zenoh
 
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import allocator_config
-from fleet_emu.core.access import LAUNCHER, Credential, fleet_nodes, make_credentials, read_dictionary
+from fleet_emu.core.access import LAUNCHER, Credential, fleet_nodes, make_credentials, read_users
 from fleet_emu.core.bus import client_config, shm_enabled
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import MapData
@@ -24,7 +24,7 @@ from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch import budget
 from fleet_emu.launch.hosts import check_hosts, check_reliable, host_credentials, listen_endpoints
 from fleet_emu.world.build import base_cell, build_world
-from fleet_emu.world.maps import load_map
+from fleet_emu.world.maps import load_map, map_shape
 
 if TYPE_CHECKING:
     from fleet_emu.launch.runner import RunOptions
@@ -42,11 +42,21 @@ def check(scenario: Scenario) -> MapData:
     built once for the whole run."""
     scenario.validate()
     make_allocator(allocator_config(scenario))  # exactly what every agent will build; ConfigError if bad
+    check_map_size(scenario)
     md = load_map(scenario.map, scenario.cell_size, scenario.seed, cell_size_given=scenario.cell_size_given)
     world = build_world(scenario, md)
     world.reset()  # raises StartAreaError when the robots do not fit
     base_cell(scenario, md, world)  # a ConfigError for a base cell off the map or on a wall
     return md
+
+
+def check_map_size(scenario: Scenario) -> None:
+    """The map's grid, sized from its extent or its image's header, against the memory budget before it is built:
+    the memory engine's estimate, the least of any engine's (``check_machine`` checks the run's own later)."""
+    shape = map_shape(scenario.map, scenario.cell_size)
+    if shape is not None:
+        budget.check_memory(scenario.robots, shape[0] * shape[1], "memory", False, False, budget.available_mb(),
+                            base=scenario.has_base, what=f"map {scenario.map} ({shape[0]} x {shape[1]} cells)")
 
 
 def check_machine(scenario: Scenario, map_data: MapData, engine: str, fork_server: bool = False) -> None:
@@ -68,10 +78,7 @@ def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] |
         return {n: Credential(n, p) for n, p in make_credentials(nodes).items()} | hosts
     if opts.credentials is None:
         return None
-    try:
-        users = read_dictionary(opts.credentials.read_text())
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise ConfigError(f"--credentials {opts.credentials}: cannot read it ({exc})") from None
+    users = read_users(opts.credentials)
     missing = [n for n in nodes if n not in users]
     if missing:
         raise ConfigError(f"--credentials {opts.credentials} has no user {missing[0]!r}; make it with "

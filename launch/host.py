@@ -26,7 +26,7 @@ from pathlib import Path
 
 import zenoh
 
-from fleet_emu.core.access import Credential, read_dictionary, role_of
+from fleet_emu.core.access import Credential, read_users, role_of
 from fleet_emu.core.bus import client_config, publisher
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.errors import ConfigError
@@ -52,10 +52,7 @@ def host_login(path: Path | None, name: str | None, tls_ca: Path | None) -> tupl
         raise ConfigError(f"--name must be host0, host1, ... (got {name!r})")
     if path is None:
         return name or "host0", None
-    try:
-        users = read_dictionary(path.read_text())
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise ConfigError(f"--credentials {path}: cannot read it ({exc})") from None
+    users = read_users(path)
     hosts = sorted(u for u in users if role_of(u) == "host")
     if name is None and len(hosts) != 1:
         raise ConfigError(f"--credentials {path} holds {len(hosts)} host users ({', '.join(hosts) or 'none'}): "

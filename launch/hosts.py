@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING
 
 import zenoh
 
-from fleet_emu.core.access import Credential, read_dictionary, role_of
+from fleet_emu.core.access import Credential, read_users, role_of
 from fleet_emu.core.bus import publisher
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.errors import ConfigError, RunError
@@ -90,10 +90,7 @@ def host_credentials(path: Path | None, plan: HostPlan | None = None) -> dict[st
         raise ConfigError("--hosts (or a scenario's [hosts]) with the embedded router needs --credentials USERS, "
                           "whose hostK:password lines the hosts log in with (`fleet router-config --hosts N` writes "
                           "them)")
-    try:
-        users = read_dictionary(path.read_text())
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise ConfigError(f"--credentials {path}: cannot read it ({exc})") from None
+    users = read_users(path)
     hosts = {u: Credential(u, p) for u, p in users.items() if role_of(u) == "host"}
     if not hosts:
         raise ConfigError(f"--credentials {path} has no host user (hostK:password lines)")

@@ -138,6 +138,7 @@ class Fleet:
         t, live, before = w.tick, tuple(self.agents), w.coverage
         bundles: dict[str, tuple[Envelope, ...]] = {}
         moves: dict[str, Cell] = {}
+        known: dict[str, int] = {}
         for r in live:
             brain = self.brains[r]
             try:
@@ -152,13 +153,13 @@ class Fleet:
             self._emit(self.keys.cmd(r), cmd)
             if belief is not None and self.tap is not None:  # for the recording only, as the node's
                 self._emit(self.keys.belief(r), belief)
-            moves[r] = cmd.move
+            moves[r], known[r] = cmd.move, cmd.known
         if actions:
             moves |= {r: tuple(m) for r, m in actions.items() if r in moves}  # type: ignore[misc]
         if self._base_tx is not None:  # a planning base's orders (agents/base_node.py), sent after the robots'
             bundles[BASE] = self._base_tx
         self.channel.transmit(t, self.nodes, self.link, bundles)
-        self._publish(w.step(moves))
+        self._publish(w.step(moves, known))
         gain = w.coverage - before
         rewards = dict.fromkeys(live, gain)
         terminations: dict[str, bool] = {r: self.done and self.reason == "coverage" for r in live}

@@ -13,7 +13,7 @@ import json
 import os
 from pathlib import Path
 
-from fleet_emu.core.access import acl_config, dictionary_text, fleet_nodes, make_credentials, read_dictionary
+from fleet_emu.core.access import acl_config, dictionary_text, fleet_nodes, make_credentials, read_users
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.keys import RUN_ID, host_ids, robot_ids
 from fleet_emu.core.scenario import MAX_ROBOTS
@@ -24,10 +24,7 @@ def write_users(path: Path, nodes: list[str]) -> dict[str, str]:
     0600 through a temporary file and a rename."""
     users: dict[str, str] = {}
     if path.exists():
-        try:
-            users = read_dictionary(path.read_text())
-        except (OSError, UnicodeDecodeError, ValueError) as exc:
-            raise ConfigError(f"--users {path}: cannot read it ({exc})") from None
+        users = read_users(path, "--users")
     users |= make_credentials(n for n in nodes if n not in users)
     tmp = path.with_name(f".{path.name}.tmp")
     try:

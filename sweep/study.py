@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.limits import check_text
 from fleet_emu.core.radio import radio_settings
 from fleet_emu.core.scenario import Scenario
 
@@ -88,6 +89,7 @@ class Study:
                 from None
         except (OSError, UnicodeDecodeError) as exc:
             raise ConfigError(f"cannot read study {p}: {exc}") from None
+        check_text(text, f"study {p}")  # size and nesting before the parser recurses
         try:
             raw = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:

@@ -20,15 +20,14 @@ from __future__ import annotations
 import math
 from collections import deque
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-import yaml
 from PIL import Image
 from scipy import ndimage
 
 from fleet_emu.core.errors import MapError
 from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell, MapData
+from fleet_emu.world.mapsize import builtin_shape, check_cells, image_size, pooled_shape, read_ros_yaml, snapped
 from fleet_emu.world.registry import local_map, registry
 
 BUILTIN_MAPS: dict[str, str] = {
@@ -286,9 +285,8 @@ def resample(occupied: np.ndarray, free: np.ndarray, factor: float) -> np.ndarra
     A cell is occupied if any of its pixels is occupied (max-pool keeps one-pixel walls); it is free only
     when it has no occupied pixel and at least half of its pixels are free; otherwise (mostly unknown) occupied.
     """
-    if abs(factor - round(factor)) < 1e-6:
-        factor = float(round(factor))
-    shape = tuple(max(1, math.ceil(n / factor - 1e-9)) for n in occupied.shape)
+    factor = snapped(factor)
+    shape = pooled_shape(occupied.shape, factor)
     if factor < 1:  # cells smaller than pixels: each cell takes the pixel it lies in
         rows = np.minimum((np.arange(shape[0]) * factor).astype(int), occupied.shape[0] - 1)
         cols = np.minimum((np.arange(shape[1]) * factor).astype(int), occupied.shape[1] - 1)
@@ -317,46 +315,51 @@ def load_bitmap(path: str | Path, cell_size: float, *, resolution: float | None 
                 name: str | None = None) -> MapData:
     """A PNG/PGM bitmap (dark is occupied, map_server default thresholds) at ``resolution`` m/px;
     ``resolution=None``: drawn at the cell size, one pixel per cell."""
-    gray = _read_gray(Path(path))
     if resolution is None:
         resolution = cell_size
+    check_cells(pooled_shape(image_size(Path(path)), cell_size / resolution), name or str(path), cell_size)
+    gray = _read_gray(Path(path))
     occ, fre = classify(gray)
     return _finish(name or str(path), resample(occ, fre, cell_size / resolution), cell_size)
-
-
-def _number(meta: dict[str, Any], key: str, default: float | None, lo: float, hi: float, where: Path) -> float:
-    value = meta.get(key, default)
-    if value is None:
-        raise MapError(f"map YAML {where} has no '{key}'")
-    if isinstance(value, bool) or not isinstance(value, int | float) or not lo <= value <= hi:
-        raise MapError(f"map YAML {where}: '{key}' must be a number in [{lo}, {hi}], not {value!r}")
-    return float(value)
 
 
 def load_ros_yaml(path: str | Path, cell_size: float, *, name: str | None = None) -> MapData:
     """A ROS map_server YAML: ``image`` (relative to the YAML), ``resolution``, ``negate``, thresholds, ``mode``."""
     path = Path(path)
-    try:
-        meta = yaml.safe_load(path.read_text())
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise MapError(f"cannot read map YAML {path}: {exc}") from None
-    if not isinstance(meta, dict):
-        raise MapError(f"map YAML {path} is not a mapping of keys to values")
-    image = meta.get("image")
-    if not isinstance(image, str) or not image.strip():
-        raise MapError(f"map YAML {path} has no 'image' file name")
-    resolution = _number(meta, "resolution", None, 1e-9, math.inf, path)
-    negate = _number(meta, "negate", 0, 0, 1, path)
-    occ_t = _number(meta, "occupied_thresh", DEFAULT_OCCUPIED_THRESH, 0, 1, path)
-    free_t = _number(meta, "free_thresh", DEFAULT_FREE_THRESH, 0, 1, path)
-    mode = str(meta.get("mode", "trinary")).strip().lower()
-    if mode not in ("trinary", "scale", "raw"):
-        raise MapError(f"map YAML {path}: unknown mode {mode!r} (trinary, scale or raw)")
-    image_path = (path.parent / image).expanduser()
-    if not image_path.is_file():
-        raise MapError(f"map image not found: {image_path} (named in {path})")
-    occ, fre = classify(_read_gray(image_path), bool(negate), occ_t, free_t, mode)
-    return _finish(name or str(path), resample(occ, fre, cell_size / resolution), cell_size)
+    meta = read_ros_yaml(path)
+    if not meta.image.is_file():
+        raise MapError(f"map image not found: {meta.image} (named in {path})")
+    factor = cell_size / meta.resolution
+    check_cells(pooled_shape(image_size(meta.image), factor), name or str(path), cell_size)
+    occ, fre = classify(_read_gray(meta.image), meta.negate, meta.occupied_thresh, meta.free_thresh, meta.mode)
+    return _finish(name or str(path), resample(occ, fre, factor), cell_size)
+
+
+def map_shape(name_or_path: str, cell_size: float) -> tuple[int, int] | None:
+    """The (rows, cols) the map will have at ``cell_size`` at most (its wall border included), from its extent or
+    its image's header alone (about, for a built-in map); None when it cannot be told without loading it
+    (:func:`load_map` then says why)."""
+    if name_or_path in BUILTIN_MAPS:
+        return builtin_shape(name_or_path, cell_size)
+    if name_or_path in registry():
+        entry, path = registry()[name_or_path], local_map(name_or_path)
+        if entry.yaml is None:
+            return _border(pooled_shape(image_size(path), cell_size / entry.resolution)) if path.is_file() else None
+    else:
+        path = Path(name_or_path).expanduser()
+        if not path.is_file():
+            return None
+        if path.suffix.lower() not in YAML_SUFFIXES:
+            return _border(image_size(path))
+    meta = read_ros_yaml(path) if path.is_file() else None
+    if meta is None or not meta.image.is_file():
+        return None
+    return _border(pooled_shape(image_size(meta.image), cell_size / meta.resolution))
+
+
+def _border(shape: tuple[int, int]) -> tuple[int, int]:
+    """``shape`` with room for the wall border :func:`_bordered` may add."""
+    return shape[0] + 2, shape[1] + 2
 
 
 def is_bare_bitmap(name_or_path: str) -> bool:
@@ -383,6 +386,7 @@ def load_map(name_or_path: str, cell_size: float, seed: int, *, cell_size_given:
         raise MapError(f"cell size must be a positive number of metres, not {cell_size!r}")
     cell_size = float(cell_size)
     if name_or_path in BUILTIN_MAPS:
+        check_cells(builtin_shape(name_or_path, cell_size), name_or_path, cell_size)
         return generate(name_or_path, cell_size, seed)
     if name_or_path in registry():
         entry, path = registry()[name_or_path], local_map(name_or_path)

@@ -59,6 +59,7 @@ class WorldNode(NodeBase):
         self.lost_at_start: set[str] = set()
         self.realtime_hz = realtime_hz
         self.pace = 1.0 / pace_hz if pace_hz else 0.0  # lockstep: at least this many seconds per tick (a viewer's)
+        self.known: dict[str, int] = {}  # each robot's last command's ``known`` cells (the stall rule's signal)
 
     async def run(self, session: zenoh.Session) -> str:
         """Run the whole episode; returns the reason it ended."""
@@ -173,7 +174,7 @@ class WorldNode(NodeBase):
                 await asyncio.sleep(max(0.0, due - time.monotonic()))
             if self.interrupted:
                 return
-            readings = self.world.step(moves)
+            readings = self.world.step(moves, self.known)
 
     async def _realtime(self, inbox: Inbox, readings: dict[str, Reading], hz: float) -> None:
         """Tick on the wall clock until the run is done (or the launcher stops it)."""
@@ -197,7 +198,7 @@ class WorldNode(NodeBase):
                 return
             for r in latch.silent(list(w.live), time.monotonic(), self.scenario.barrier_timeout):
                 w.fail(r)
-            readings = w.step(latch.take(list(w.live)))
+            readings = w.step(latch.take(list(w.live)), self.known)
 
     async def _collect(self, inbox: Inbox, latch: CommandLatch, deadline: float) -> None:
         """Take commands (and failures, and the launcher's stop) until ``deadline``."""
@@ -218,6 +219,8 @@ class WorldNode(NodeBase):
             if parsed is None or parsed.channel != "cmd":
                 continue
             cmd = self.decode(key, data, Command, self.ctx)
+            if cmd is not None and parsed.node in self.world.live:
+                self.known[parsed.node] = max(self.known.get(parsed.node, 0), cmd.known)
             if cmd is not None and parsed.node in self.world.live \
                     and not latch.receive(parsed.node, cmd.tick, cmd.move, t, time.monotonic(), cmd.status != STALE):
                 self.drop(key, f"command stamped for tick {cmd.tick}, not yet published (now {t})")
@@ -254,7 +257,7 @@ class WorldNode(NodeBase):
             if cmd is None:
                 continue
             if cmd.tick == t and robot in waiting:  # decode checked that robot sent it
-                moves[robot] = cmd.move
+                moves[robot], self.known[robot] = cmd.move, cmd.known
                 waiting.discard(robot)
                 deadline = time.monotonic() + self.scenario.barrier_timeout  # silent since the last command
         return moves

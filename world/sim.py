@@ -21,6 +21,11 @@ class StartAreaError(ConfigError):
     for the user)."""
 
 
+#: The belief stall window in diameters of the map: a robot may cross the known map twice to reach a frontier
+#: without learning anything on its way.
+STALL_DIAMETERS = 2
+
+
 def diamond_cells(radius: int) -> int:
     """Cells within ``radius`` 4-connected steps of a cell on an open grid: 2r(r + 1) + 1."""
     return 2 * radius * (radius + 1) + 1
@@ -35,8 +40,10 @@ class WorldConfig:
     the fleet starts packed; ``placement``: explicit start cells instead, one per robot in robot order (the
     start cell is then the first, unless ``start`` is a cell); ``stall_ticks``: ticks without any move or new
     sensed cell that end the run;
-    ``coverage_stall_ticks``: ticks without any growth of the coverage that end the run, whatever the robots do
-    (robots that keep moving back and forth stall too);
+    ``coverage_stall_ticks``: the least stall window of the belief rule: ticks in which no robot's own belief
+    gained a known cell end the run, whatever the robots do (robots that keep moving back and forth stall too),
+    once there are :attr:`World.stall_window` of them in a row: this or :data:`STALL_DIAMETERS` times the map's
+    diameter in cells, whichever is larger;
     ``start``: a cell, ``"random"`` (a cell drawn from the world's generator where the robots fit, in the map's
     main free component), or None for the map's own start."""
 
@@ -123,15 +130,27 @@ class World:
         self.live = [r for r in self.robots if r not in failed]
         self.path_length = {r: 0 for r in self.robots}
         self.done, self.reason = False, None
-        self._reachable = wavefront(~self.occupied, np.array([flat(self.shape, self.start)], np.int64), -1) >= 0
-        self._reachable &= self.grid == FREE
+        dist = wavefront(~self.occupied, np.array([flat(self.shape, self.start)], np.int64), -1)
+        self._reachable = (dist >= 0) & (self.grid == FREE)
         self._total = int(self._reachable.sum())
+        self.diameter = self._diameter(dist)
+        self.stall_window = max(self.config.coverage_stall_ticks, STALL_DIAMETERS * self.diameter)
         self._sensed = np.zeros(self.shape, dtype=bool)
         self._idle = 0
-        self._flat = 0  # ticks since the coverage last grew
+        self._known: dict[str, int] = {}  # each robot's most known cells so far (its commands' ``known``)
+        self._quiet = 0  # ticks since some robot's belief last gained a cell
         readings = self._sense()
         self._check_end(progress=True)
         return readings
+
+    def _diameter(self, dist: np.ndarray) -> int:
+        """The map's diameter in cells: the longest shortest path (4-connected steps) between two free cells
+        reachable from the start, from ``dist`` (the start's distances) by a second sweep from the farthest
+        cell (exact where the free space is a tree, as a perfect maze's is; at least half of it always)."""
+        if not self._total:
+            return 0
+        far = int(np.argmax(np.where(self._reachable, dist, -1)))
+        return int(wavefront(~self.occupied, np.array([far], np.int64), -1)[self._reachable].max())
 
     def _placement(self) -> list[Cell]:
         """The explicit start cells, checked: one per robot, distinct, each a free cell of the map."""
@@ -173,8 +192,10 @@ class World:
             if not self.live and not self.done:
                 self.done, self.reason = True, "no_robots"
 
-    def step(self, moves: dict[str, Cell]) -> dict[str, Reading]:
+    def step(self, moves: dict[str, Cell], known: dict[str, int] | None = None) -> dict[str, Reading]:
         """Apply the moves of the live robots, advance to the next tick, sense; the readings of that tick.
+        ``known``: the cells each robot's belief held after its decision (its command's ``known``), for the
+        stall rule; without it (a World stepped alone), the cells the fleet sensed stand for them.
 
         A robot cannot enter a wall, leave the grid, or enter a cell another robot holds. Conflicts are
         resolved in passes in robot order: a move goes through when its target is free of every robot's
@@ -203,11 +224,21 @@ class World:
                 del pending[r]
                 changed = moved = True
         self.tick += 1
-        before, coverage = int(self._sensed.sum()), self.coverage
+        before = int(self._sensed.sum())
         readings = self._sense()
-        self._flat = 0 if self.coverage > coverage else self._flat + 1
-        self._check_end(progress=moved or int(self._sensed.sum()) > before)
+        sensed = int(self._sensed.sum()) > before
+        self._quiet = 0 if (self._learned(known) if known is not None else sensed) else self._quiet + 1
+        self._check_end(progress=moved or sensed)
         return readings
+
+    def _learned(self, known: dict[str, int]) -> bool:
+        """Whether some robot's belief holds more cells than it ever did (``known``: their counts now)."""
+        grew = False
+        for r, k in known.items():
+            if k > self._known.get(r, 0):
+                self._known[r] = k
+                grew = True
+        return grew
 
     def _sense(self) -> dict[str, Reading]:
         out: dict[str, Reading] = {}
@@ -231,5 +262,5 @@ class World:
             self.done, self.reason = True, "no_robots"
         elif self.tick >= self.config.max_ticks:
             self.done, self.reason = True, "max_ticks"
-        elif self._idle >= self.config.stall_ticks or self._flat >= self.config.coverage_stall_ticks:
+        elif self._idle >= self.config.stall_ticks or self._quiet >= self.stall_window:
             self.done, self.reason = True, "stall"

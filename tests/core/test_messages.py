@@ -44,7 +44,8 @@ def _samples() -> list:
                     cells=cells, values=values),
         WorldState(src="r0", tick=1, seq=4, poses={"r0": (0, 1)}, live=("r0",), coverage=0.5,
                    path_length={"r0": 3}, done=True, reason="coverage"),
-        Command(src="r1", tick=1, seq=5, move=(0, -1), target=(3, 4), status="ASSIGNED", decision_ms=1.5),
+        Command(src="r1", tick=1, seq=5, move=(0, -1), target=(3, 4), status="ASSIGNED", decision_ms=1.5,
+                known=12),
         beacon, delta,
         TxBundle(src="r0", tick=2, seq=6, msgs=(beacon, delta)),
         RxBundle(src="r1", tick=3, seq=7, dst="r1", msgs=(beacon,)),
@@ -98,6 +99,15 @@ def test_rejects_bad_arrays_and_cells() -> None:
     for obj in (bad_shape, bad_dtype, out_of_range, bad_value, negative, wrapping):
         with pytest.raises(DecodeError):
             decode(msgpack.packb(obj), CTX)
+
+
+def test_a_command_s_known_cells_fit_the_grid() -> None:
+    """A command's ``known`` (the stall rule's signal) is a count of the grid's cells: 0 to its size."""
+    for known in (-1, 21):  # CTX's grid is 4 x 5
+        cmd = Command(src="r1", tick=1, seq=5, move=(0, 1), known=known)
+        with pytest.raises(DecodeError, match="known cells"):
+            decode(cmd.encode(), CTX)
+    assert decode(Command(src="r1", tick=1, seq=5, move=(0, 1), known=20).encode(), CTX).known == 20
 
 
 def test_bundle_rejects_foreign_message_and_wrong_expected_kind() -> None:

@@ -38,6 +38,7 @@ def users(tmp_path: Path) -> tuple[Path, Path]:
 def _own(users: Path, host: str) -> Path:
     own = users.with_name(f"{host}.txt")
     own.write_text(next(ln for ln in users.read_text().splitlines() if ln.startswith(f"{host}:")) + "\n")
+    own.chmod(0o600)
     return own
 
 
@@ -78,6 +79,7 @@ def test_a_host_with_wrong_credentials_is_refused_and_spawn_requests_reach_only_
         endpoint = router_locators(router)[0]
         bad = tmp_path / "bad.txt"
         bad.write_text("host0:guessed\n")
+        bad.chmod(0o600)
         code, _, err = run_cli(["host", "--connect", endpoint, "--credentials", str(bad), "--once"])
         assert code == 2
         assert err.strip().splitlines()[-1] == \

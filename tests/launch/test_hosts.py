@@ -93,11 +93,13 @@ def test_bad_host_options_are_one_line(tmp_path: Path) -> None:
     check_hosts(2, False, "tcp/127.0.0.1:7447", None)
     users = tmp_path / "users.txt"
     users.write_text("world:a\nhost0:b\nhost1:c\n")
+    users.chmod(0o600)
     assert set(host_credentials(users)) == {"host0", "host1"}
     with pytest.raises(ConfigError, match="needs --credentials"):
         host_credentials(None)
     none = tmp_path / "none.txt"
     none.write_text("world:a\n")
+    none.chmod(0o600)
     with pytest.raises(ConfigError, match="has no host user"):
         host_credentials(none)
     with pytest.raises(ConfigError, match=r"has 2 host user\(s\) for 3 hosts: make them with `fleet router-config "
@@ -113,6 +115,7 @@ def test_bad_host_options_are_one_line(tmp_path: Path) -> None:
         host_login(users, "world", None)
     one = tmp_path / "host0.txt"
     one.write_text("host0:b\n")
+    one.chmod(0o600)
     name, cred = host_login(one, None, None)
     assert name == "host0" and cred is not None and cred.user == "host0"
     assert host_login(None, None, None) == ("host0", None)

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 
 from fleet_emu.core.grid import FREE, OCCUPIED, flat, from_ascii
 from fleet_emu.world.maps import MapData
-from fleet_emu.world.sim import StartAreaError, World, WorldConfig
+from fleet_emu.world.sim import STALL_DIAMETERS, StartAreaError, World, WorldConfig
 
 ROOMS = """
 ###########
@@ -170,29 +172,52 @@ def test_tick_limit_stall_and_failure_end_the_run() -> None:
     assert f.done and f.reason == "no_robots"
 
 
-def test_a_robot_pacing_without_new_coverage_stalls_after_the_window() -> None:
-    """The coverage rule ends a run whose robots keep moving but sense nothing new (the move rule cannot)."""
+def test_the_stall_window_is_twice_the_maps_diameter_or_the_scenarios_floor() -> None:
+    w = _world(ROOMS, 1, sensor_range=1.0)
+    w.reset()
+    assert w.diameter == 10  # (1, 1) to (3, 9) round the wall: 1 + 8 + 1 steps
+    assert w.stall_window == 500  # the default floor, coverage_stall_ticks
+    w = _world(ROOMS, 1, sensor_range=1.0, coverage_stall_ticks=6)
+    w.reset()
+    assert w.stall_window == STALL_DIAMETERS * 10 == 20
+
+
+def _pacing(window: int, ticks: int, known: Callable[[int], dict[str, int]] | None = None
+            ) -> tuple[World, list[tuple[int, float, bool, str | None]]]:
+    """A robot stepping right and left for ``ticks`` ticks; ``known(t)``: its belief's known cells sent at t."""
     pace = [(0, 1), (0, -1)]
+    w = _world(ROOMS, 1, sensor_range=1.0, coverage_stall_ticks=window, max_ticks=50)
+    w.reset()
+    out = [(0, w.coverage, w.done, w.reason)]
+    for t in range(ticks):
+        w.step({"r0": pace[t % 2]}, known(t) if known else None)
+        out.append((w.tick, w.coverage, w.done, w.reason))
+        if w.done:
+            break
+    return w, out
 
-    def pacing(window: int, ticks: int) -> list[tuple[int, float, bool, str | None]]:
-        w = _world(ROOMS, 1, sensor_range=1.0, coverage_stall_ticks=window, max_ticks=50)
-        w.reset()
-        out = [(0, w.coverage, w.done, w.reason)]
-        for t in range(ticks):
-            w.step({"r0": pace[t % 2]})
-            out.append((w.tick, w.coverage, w.done, w.reason))
-            if w.done:
-                break
-        return out
 
-    trace = pacing(window=6, ticks=50)
+def test_a_robot_pacing_without_learning_stalls_after_the_window() -> None:
+    """The belief rule ends a run whose robots keep moving but learn nothing new (the move rule cannot); a World
+    stepped without the robots' counts reads what the fleet sensed instead."""
+    w, trace = _pacing(window=6, ticks=50)
     grew = max(t for (t, c, _, _), (_, c0, _, _) in zip(trace[1:], trace, strict=False) if c > c0)
     assert grew == 1  # the first step sensed a new column; the pacing after it senses nothing
     tick, _, done, reason = trace[-1]
-    assert (tick, done, reason) == (grew + 6, True, "stall")
+    assert (tick, done, reason) == (grew + w.stall_window, True, "stall") and w.stall_window == 20
     assert not any(d for _, _, d, _ in trace[:-1])
-    long = pacing(window=1000, ticks=50)  # without the coverage window the moves keep the run going
+    w, trace = _pacing(window=6, ticks=50, known=lambda t: {"r0": 12})  # its belief never grows after tick 0
+    assert trace[-1][0] == 1 + w.stall_window and trace[-1][2:] == (True, "stall")
+    long = _pacing(window=1000, ticks=50)[1]  # with a window past the tick limit the moves keep the run going
     assert long[-1][2:] == (True, "max_ticks") and long[-1][0] == 50
+
+
+def test_a_robot_whose_belief_grows_is_no_stall_though_the_fleet_senses_nothing_new() -> None:
+    """Its teammates' maps reach it (its own belief grows) while nothing new is sensed: that is progress."""
+    _, trace = _pacing(window=6, ticks=50, known=lambda t: {"r0": 12 + t})
+    assert trace[-1][2:] == (True, "max_ticks") and trace[-1][0] == 50
+    _, trace = _pacing(window=6, ticks=50, known=lambda t: {"r0": 12 + (t >= 10)})  # learns once more
+    assert trace[-1][2:] == (True, "stall") and trace[-1][0] == 11 + 20  # the window counts from tick 11
 
 
 def test_random_start_comes_from_the_generator_and_fits_the_fleet() -> None:
