@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 import zenoh
 
+from fleet_emu.core.bus import Publisher, of_run
 from fleet_emu.core.keys import BASE, Keys
 from fleet_emu.core.messages import ready
 from fleet_emu.launch.router_process import RouterProcess
@@ -77,7 +78,7 @@ class Consumer(threading.Thread):
     """Takes samples off the subscriber's queue: records them, folds them, and answers the world's hello."""
 
     def __init__(self, keys: Keys, samples: queue.Queue, monitor: Monitor, recorder: Recorder | None,
-                 pub_ready: zenoh.Publisher, viz: FoxgloveWriter | None = None) -> None:
+                 pub_ready: Publisher, viz: FoxgloveWriter | None = None) -> None:
         super().__init__(daemon=True, name="recorder")
         self.keys = keys
         self.samples = samples
@@ -114,18 +115,25 @@ class Drain(threading.Thread):
     there must take the GIL for every sample, and in this process (which also holds the embedded router) the
     Zenoh threads that wait for it stall the router's routing and its leases. At 256 robots a recording (every
     message, the first contacts' whole maps among them) made most robots' sessions expire that way.
-    The thread ends when the subscriber is undeclared and its channel is empty."""
+    The thread ends when the subscriber is undeclared and its channel is empty. With ``nonce``, a sample that
+    does not carry the run's nonce is neither recorded nor folded, only counted (:attr:`foreign`)."""
 
     CAPACITY = 1 << 20  # samples held before Zenoh waits for this thread (the queue behind it is unbounded)
 
-    def __init__(self, session: zenoh.Session, key: str, samples: queue.Queue) -> None:
+    def __init__(self, session: zenoh.Session, key: str, samples: queue.Queue, nonce: bytes | None = None) -> None:
         super().__init__(daemon=True, name=f"drain {key}")
         self.subscriber = session.declare_subscriber(key, zenoh.handlers.FifoChannel(self.CAPACITY))
         self.samples = samples
+        self.nonce = nonce
+        self.foreign = 0
         self.start()
 
     def run(self) -> None:
+        nonce = self.nonce
         for s in self.subscriber.handler:  # recv() waits without the GIL; ends once undeclared and empty
+            if nonce is not None and not of_run(s, nonce):
+                self.foreign += 1
+                continue
             self.samples.put((str(s.key_expr), s.payload.to_bytes(), time.time_ns()))
 
     def undeclare(self) -> None:

@@ -15,12 +15,13 @@ of t as for a live robot's (lockstep), and sends it from the base's cell, after 
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
 import zenoh
 
-from fleet_emu.core.bus import Inbox, publisher
+from fleet_emu.core.bus import Inbox
 from fleet_emu.core.codec import Context
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import Cell, MapData
@@ -66,15 +67,15 @@ class NetemNode(NodeBase):
 
     async def run(self, session: zenoh.Session) -> None:
         keys = self.keys
-        inbox = Inbox()
+        inbox = self.inbox()
         handles: list[Declared] = [
             inbox.subscribe(session, keys.state),
             inbox.subscribe(session, keys.wildcard("radio", "tx", "*")),
             inbox.subscribe(session, keys.stop),
         ]
         receivers = [*self.robots, *([BASE] if self.base is not None else [])]
-        self.pub_rx = {r: publisher(session, keys.rx(r)) for r in receivers}
-        self.pub_links = publisher(session, keys.links)
+        self.pub_rx = {r: self.publisher(session, keys.rx(r)) for r in receivers}
+        self.pub_links = self.publisher(session, keys.links)
         handles += [*self.pub_rx.values(), self.pub_links, *self.declare_presence(session, inbox)]
         try:
             await (self._realtime(inbox) if self.realtime else self._lockstep(inbox))
@@ -186,7 +187,8 @@ class NetemNode(NodeBase):
         s = self.scenario
         tick = radio_tick(self.channel, self.occupied, self.robots, self.base, s.cell_size, s.radio, state,
                           self.next_seq, self.dropped)
-        self.pub_links.put(tick.links.encode())
+        links = dataclasses.replace(tick.links, foreign=self.foreign) if self.foreign else tick.links
+        self.pub_links.put(links.encode())
         for bundle in tick.rx:
             self.pub_rx[bundle.dst].put(bundle.encode())
         return tick.nodes, tick.link

@@ -267,6 +267,15 @@ class Monitor:
                 **({BASE: self.base_report.dropped} if self.base_report is not None else {}),
                 **{r: rep.dropped for r, rep in sorted(self.reports.items())}}
 
+    def foreign_by(self, launcher: int) -> dict[str, int]:
+        """Messages each process dropped for not carrying the run's nonce (another run's, a replayed
+        recording's): the launcher's own count (``launcher``), the world's and netem's from their last state
+        and links, each robot's and the base's from its report."""
+        return {"launcher": launcher, "world": self.state.foreign if self.state else 0,
+                "netem": self.links.foreign if self.links else 0,
+                **({BASE: self.base_report.foreign} if self.base_report is not None else {}),
+                **{r: rep.foreign for r, rep in sorted(self.reports.items())}}
+
     def ticks_per_second(self) -> float | None:
         """Lockstep speed from the first state to the last (start-up excluded)."""
         if self.state is None or not self.first_state_ns or self.last_state_ns in (None, self.first_state_ns):
