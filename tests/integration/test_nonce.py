@@ -3,6 +3,7 @@ router, with its keys rewritten to the live run's id) changes nothing but the co
 
 from __future__ import annotations
 
+import subprocess
 import threading
 from pathlib import Path
 
@@ -13,7 +14,8 @@ from mcap.stream_reader import StreamReader
 
 from fleet_emu.core.bus import client_config, router_config, router_locators
 from fleet_emu.launch.result import deterministic
-from tests.conftest import result, run_cli
+from fleet_emu.launch.router_config import router_config_text
+from tests.conftest import fleet, result, run_cli
 
 RUN = "replayed"
 
@@ -71,3 +73,37 @@ def test_a_replayed_recording_changes_nothing_and_its_drops_are_counted(small_ru
     by = live["bus"]["foreign_dropped_by"]
     assert all(by[n] > 0 for n in ("launcher", "world", "netem", "r0", "r1", "r2")), by
     assert live["bus"]["foreign_dropped"] == sum(by.values()) and live["bus"]["nonce"] != recorded["bus"]["nonce"]
+
+
+def test_a_second_run_with_a_live_run_id_is_refused_and_the_first_goes_on(small_map: Path, tmp_path: Path) -> None:
+    """Two runs with one --run-id on one authenticated router (``fleet router-config``'s users file): the second,
+    started while the first is live, is refused in one line with exit 2 and leaves no folder; the first ends as
+    its seed decides (the memory engine's result)."""
+    users = tmp_path / "users.txt"
+    scenario = ["--map", str(small_map), "--robots", "3", "--seed", "5", "--quiet", "--no-record"]
+    code, _, err = run_cli(["run", *scenario, "--engine", "memory", "--out", str(tmp_path / "memory")])
+    assert code in (0, 3), err
+    first: dict[str, subprocess.CompletedProcess[str]] = {}
+    started = threading.Event()
+    with _open_router(router_config_text(3, users, listen="tcp/127.0.0.1:0")) as router:
+        endpoint = router_locators(router)[0]
+        login = ["--connect", endpoint, "--credentials", str(users), "--run-id", "twice"]
+        watch = router.declare_subscriber("fleet/twice/world/state", lambda _: started.set())
+        runner = threading.Thread(target=lambda: first.update(run=fleet(
+            "run", *scenario, "--in-process", *login, "--out", str(tmp_path / "first"), check=False)), daemon=True)
+        runner.start()
+        assert started.wait(300)
+        code, out, err = run_cli(["run", *scenario, *login, "--out", str(tmp_path / "second")])
+        runner.join(300)
+        watch.undeclare()
+    assert code == 2 and err.count("\n") == 1 and not out, err
+    assert "run id 'twice' is already live" in err and not (tmp_path / "second").exists()
+    assert first["run"].returncode in (0, 3), first["run"].stderr[-2000:]
+    assert deterministic(result(tmp_path / "first")) == deterministic(result(tmp_path / "memory"))
+
+
+def _open_router(text: str) -> zenoh.Session:
+    """A router from ``fleet router-config``'s text, its admin space on (to read back the port the OS chose)."""
+    conf = zenoh.Config.from_json5(text)
+    conf.insert_json5("adminspace/enabled", "true")
+    return zenoh.open(conf)
