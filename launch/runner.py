@@ -26,6 +26,7 @@ from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import Failed, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.causes import flood, state_timeout
 from fleet_emu.launch.checks import (
     check,
     check_logins,
@@ -258,7 +259,8 @@ class _Run:
                         congestion_control=zenoh.CongestionControl.BLOCK, attachment=nonce)
 
         self.error = wait_for_end(monitor, self.consumer, self.sup, self.nodes_thread, self.opts.on_progress,
-                                  self.requested, failed, self.router_child)
+                                  self.requested, failed, self.router_child,
+                                  state_timeout(self.scenario.barrier_timeout))
 
     def teardown(self) -> None:
         """The stop (unless the world stopped the run by itself: a signal after its stop is the teardown's), the
@@ -295,6 +297,8 @@ class _Run:
         data = self.monitor.result(scenario.to_dict(), self.run_id, scenario.target_coverage)
         if opts.realtime_hz:
             data.setdefault("realtime_hz", opts.realtime_hz)  # also when stopped before tick 0
+        if not interrupted and self.error is None:  # robots failed by a flood: the flood is the cause
+            self.error = flood(data["failed"], sum(d.foreign for d in self.drains))
         if interrupted:
             data["reason"] = "interrupted"
             data.pop("error", None)

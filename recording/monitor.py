@@ -66,6 +66,7 @@ class Monitor:
     decision_ms: list[float] = dataclasses.field(default_factory=list)
     reports: dict[str, AgentReport] = dataclasses.field(default_factory=dict)
     stop: Stop | None = None
+    outside_stop: Stop | None = None  # the first stop sent as anyone but the world (the launcher's own included)
     malformed: int = 0
     coverage_curve: list[tuple[int, float]] = dataclasses.field(default_factory=list)
     first_state_ns: int | None = None
@@ -137,6 +138,8 @@ class Monitor:
             self.base_report = msg
         elif isinstance(msg, Stop) and msg.src == "world":
             self.stop = msg
+        elif isinstance(msg, Stop) and self.outside_stop is None:
+            self.outside_stop = msg
         elif isinstance(msg, WorldClock) and msg.src == "world":
             if self.clock is None or msg.tick >= self.clock.tick:
                 self.clock = msg
