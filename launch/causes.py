@@ -8,27 +8,38 @@ import time
 
 from fleet_emu.recording.monitor import Monitor
 
-#: How many of the scenario's ``barrier_timeout`` the launcher waits for the world's next state before it calls
-#: the world frozen. A live world publishes a state at least every ``barrier_timeout`` seconds after the tick's
-#: last command (it fails the robots still silent then), so three of them is well past any live tick.
-STATE_TIMEOUTS = 3.0
+#: How many of the scenario's ``barrier_timeout`` the launcher waits, in lockstep, with neither a world state
+#: nor a robot command on the bus, before it calls the world frozen. A live world publishes its next state at
+#: most ``barrier_timeout`` seconds after the tick's last command (it fails the robots still silent then), and
+#: a robot that takes longer to answer is failed: two of them is past any live tick.
+STATE_TIMEOUTS = 2.0
 
 
 def state_timeout(barrier_timeout: float) -> float:
-    """Seconds without a new world state after which a running world counts as stopped answering."""
+    """Seconds without a world state nor a command after which a running world counts as stopped answering."""
     return STATE_TIMEOUTS * barrier_timeout
 
 
 def silent_world(monitor: Monitor, timeout: float, now_ns: int | None = None) -> str | None:
-    """The failure line of a world that published no state for ``timeout`` seconds since its last one (after
-    tick 0, before its stop; the monitor's fold caught up, so the state is not merely queued), or None."""
-    st, last = monitor.state, monitor.last_state_ns
+    """The failure line of a world silent for ``timeout`` seconds: no state since its last one and no command
+    (after tick 0, before its stop; the caller makes sure the monitor's fold caught up), or None."""
+    st, last = monitor.state, monitor.last_activity_ns
     if st is None or last is None or st.done or monitor.stop is not None:
         return None
     silent = ((now_ns if now_ns is not None else time.time_ns()) - last) / 1e9
     if silent < timeout:
         return None
-    return f"the world process stopped answering at tick {st.tick} (no state for {timeout:g} s)"
+    return f"the world process stopped answering at tick {monitor.activity_tick} (no state for {timeout:g} s)"
+
+
+def froze(monitor: Monitor, barrier_timeout: float) -> str | None:
+    """The world's longest silence (no state nor command), when it was longer than a live world's can be
+    (``barrier_timeout``), as a cause to put before the line of what followed (the world then lost its session,
+    say, and exited without a stop reaching the launcher); or None."""
+    gap, tick = monitor.longest_silence
+    if gap <= barrier_timeout:
+        return None
+    return f"the world process stopped answering at tick {tick} (no state for {gap:.0f} s)"
 
 
 def outside_stop(monitor: Monitor) -> str | None:

@@ -26,7 +26,7 @@ from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import Failed, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.launch.causes import flood, state_timeout
+from fleet_emu.launch.causes import flood
 from fleet_emu.launch.checks import (
     check,
     check_logins,
@@ -260,7 +260,7 @@ class _Run:
 
         self.error = wait_for_end(monitor, self.consumer, self.sup, self.nodes_thread, self.opts.on_progress,
                                   self.requested, failed, self.router_child,
-                                  state_timeout(self.scenario.barrier_timeout))
+                                  None if self.opts.realtime_hz else self.scenario.barrier_timeout)
 
     def teardown(self) -> None:
         """The stop (unless the world stopped the run by itself: a signal after its stop is the teardown's), the

@@ -16,7 +16,7 @@ import zenoh
 from fleet_emu.core.bus import Publisher, of_run
 from fleet_emu.core.keys import BASE, Keys
 from fleet_emu.core.messages import ready
-from fleet_emu.launch.causes import outside_stop, silent_world
+from fleet_emu.launch.causes import froze, outside_stop, silent_world, state_timeout
 from fleet_emu.launch.router_process import RouterProcess
 from fleet_emu.launch.supervisor import Supervisor
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
@@ -29,7 +29,7 @@ STOP_GRACE = 5.0
 def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_thread: threading.Thread | None,
           on_progress: Callable[[Monitor], None] | None, requested: threading.Event,
           notify_failed: Callable[[str], None], router: RouterProcess | None = None,
-          state_timeout: float | None = None) -> str | None:
+          barrier_timeout: float | None = None) -> str | None:
     """Until the world's stop and every live agent's report; returns an error line, or None.
     An agent process that exits early is announced to the world, which goes on without it. The router's
     process (``router``) exiting, or the world or netem (or the base station) exiting with an error before
@@ -37,8 +37,9 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
     (code 0) is a normal end whose stop message may still be on its way, so it fails the run only if no stop
     comes within :data:`STOP_GRACE` seconds of the launcher having folded every sample it received (with a
     hundred robots and more, their last belief snapshots can take the launcher longer than that). A stop this
-    launcher did not send, or a world that published no state for ``state_timeout`` seconds, fails the run
-    naming that cause (:mod:`fleet_emu.launch.causes`)."""
+    launcher did not send, or (with ``barrier_timeout``, the scenario's, in lockstep) a world silent for
+    :func:`~fleet_emu.launch.causes.state_timeout` seconds, fails the run naming that cause, and a world that
+    ended without a stop after a silence is named for it (:mod:`fleet_emu.launch.causes`)."""
     stop_seen: float | None = None
     clean_end: float | None = None
     announced: set[str] = set()
@@ -49,8 +50,8 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
             return None
         if (cause := outside_stop(monitor)) is not None:
             return cause
-        if state_timeout is not None and not consumer.backlog() and \
-                (cause := silent_world(monitor, state_timeout)) is not None:
+        if barrier_timeout is not None and not consumer.backlog() and \
+                (cause := silent_world(monitor, state_timeout(barrier_timeout))) is not None:
             return cause
         if monitor.stop is not None:
             stop_seen = stop_seen or time.monotonic()
@@ -78,7 +79,9 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
                 if clean_end is None or consumer.backlog():
                     clean_end = time.monotonic()  # the stop may be in the backlog still to fold (a large fleet)
                 if time.monotonic() - clean_end > STOP_GRACE:
-                    return f"{ended[0]} but no stop reached the launcher within {STOP_GRACE:g} s"
+                    why = froze(monitor, barrier_timeout) if barrier_timeout is not None else None
+                    return (f"{why}; then " if why else "") + \
+                        f"{ended[0]} but no stop reached the launcher within {STOP_GRACE:g} s"
         consumer.changed.wait(0.2)
         consumer.changed.clear()
 

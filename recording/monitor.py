@@ -67,6 +67,9 @@ class Monitor:
     reports: dict[str, AgentReport] = dataclasses.field(default_factory=dict)
     stop: Stop | None = None
     outside_stop: Stop | None = None  # the first stop sent as anyone but the world (the launcher's own included)
+    last_activity_ns: int | None = None  # when the last world state or robot command came (lockstep's heartbeat)
+    activity_tick: int = 0  # the world's tick then
+    longest_silence: tuple[float, int] = (0.0, 0)  # the longest gap between them: seconds, and the tick it began at
     malformed: int = 0
     coverage_curve: list[tuple[int, float]] = dataclasses.field(default_factory=list)
     first_state_ns: int | None = None
@@ -109,7 +112,18 @@ class Monitor:
         if isinstance(msg, WorldState) and wall_ns is not None:
             self.first_state_ns = self.first_state_ns or wall_ns
             self.last_state_ns = wall_ns
+        if isinstance(msg, WorldState | Command) and wall_ns is not None and self.state is not None:
+            self._heard(wall_ns)
         return msg
+
+    def _heard(self, wall_ns: int) -> None:
+        """A state or a command came at ``wall_ns``: the longest silence of the lockstep so far, and its tick."""
+        if self.last_activity_ns is not None:
+            gap = (wall_ns - self.last_activity_ns) / 1e9
+            if gap > self.longest_silence[0]:
+                self.longest_silence = (gap, self.activity_tick)
+        self.last_activity_ns = max(wall_ns, self.last_activity_ns or 0)
+        self.activity_tick = self.tick
 
     def fold(self, msg: Message) -> None:
         if isinstance(msg, WorldState) and msg.src == "world":

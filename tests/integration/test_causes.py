@@ -15,7 +15,7 @@ import zenoh
 
 from fleet_emu.core.bus import client_config, router_config, router_locators
 from fleet_emu.core.messages import Stop, WorldState
-from fleet_emu.launch.causes import flood, silent_world, state_timeout
+from fleet_emu.launch.causes import flood, froze, silent_world, state_timeout
 from fleet_emu.recording.monitor import Monitor
 from tests.conftest import ROOT, children_of, result, run_cli
 
@@ -32,15 +32,17 @@ def test_the_causes_read_from_the_monitor() -> None:
     assert silent_world(m, 3.0, now_ns=2 * 10**9) is None
     assert silent_world(m, 3.0, now_ns=4 * 10**9) == "the world process stopped answering at tick 7 (no state " \
                                                       "for 3 s)"
-    m.feed("fleet/x/world/state", _state(8, done=True).encode(), wall_ns=0)
-    assert silent_world(m, 3.0, now_ns=4 * 10**9) is None  # done: its stop is on the way
-    assert state_timeout(10.0) == 30.0
+    assert froze(m, 10.0) is None
+    m.feed("fleet/x/world/state", _state(8, done=True).encode(), wall_ns=20 * 10**9)
+    assert silent_world(m, 3.0, now_ns=30 * 10**9) is None  # done: its stop is on the way
+    assert froze(m, 10.0) == "the world process stopped answering at tick 7 (no state for 20 s)"
+    assert froze(m, 30.0) is None and state_timeout(10.0) == 20.0
     assert flood([], 100) is None and flood(["r1"], 0) is None
     assert "r1 failed while the bus carried 100 message(s) of another run" in (flood(["r1"], 100) or "")
 
 
 def test_a_frozen_world_is_named_with_its_tick(small_map: Path, tmp_path: Path) -> None:
-    """``kill -STOP`` of the world mid-run: the launcher ends the run within the state timeout (three of the
+    """``kill -STOP`` of the world mid-run: the launcher ends the run within the state timeout (two of the
     scenario's ``barrier_timeout``, here 1 s) with one line naming the world and the tick it froze at."""
     scenario = tmp_path / "frozen.toml"
     scenario.write_text(f'max_ticks = 100000\ntarget_coverage = 1.0\nbarrier_timeout = 1.0\n'
@@ -69,7 +71,7 @@ def test_a_frozen_world_is_named_with_its_tick(small_map: Path, tmp_path: Path) 
         watch.undeclare()
     res = result(tmp_path / "run")
     assert proc.returncode == 1 and len(_errors(err)) == 1, err
-    assert "the world process stopped answering at tick" in err and "(no state for 3 s)" in err
+    assert "the world process stopped answering at tick" in err and "(no state for 2 s)" in err
     assert res["reason"] == "error" and res["error"] in err and res["ticks"] >= 4
 
 
