@@ -93,10 +93,10 @@ class Publisher:
 
     def __init__(self, pub: zenoh.Publisher, nonce: bytes | None) -> None:
         self.pub = pub
-        self.nonce = nonce
+        self.attachment = zenoh.ZBytes(nonce) if nonce is not None else None  # made once, put with every message
 
     def put(self, data: bytes) -> None:
-        self.pub.put(data, attachment=self.nonce)
+        self.pub.put(data, attachment=self.attachment)
 
     def undeclare(self) -> None:
         self.pub.undeclare()
