@@ -20,6 +20,7 @@ ends it at once. A base process that dies fails the run like the world or netem 
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import resource
 import time
 
@@ -28,7 +29,7 @@ import zenoh
 from fleet_emu.agents.allocators.mhm.station import station_planner
 from fleet_emu.agents.base import BaseStation
 from fleet_emu.agents.outputs import base_report, base_tx
-from fleet_emu.core.bus import Inbox, publisher
+from fleet_emu.core.bus import Inbox, Publisher
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
@@ -50,7 +51,7 @@ class BaseNode(NodeBase):
         self.station = BaseStation(cell, map_data.grid.shape, frozenset(robot_ids(scenario.robots)),
                                    planner=station_planner(scenario), on_drop=self.drop)
         self.sends = scenario.plans_at_base
-        self.pub_tx: zenoh.Publisher | None = None
+        self.pub_tx: Publisher | None = None
         self.next_tick = 0
 
     def next_seq(self) -> int:
@@ -58,20 +59,21 @@ class BaseNode(NodeBase):
 
     async def run(self, session: zenoh.Session) -> None:
         keys = self.keys
-        inbox = Inbox()
+        inbox = self.inbox()
         handles: list[Declared] = [inbox.subscribe(session, keys.rx(BASE)), inbox.subscribe(session, keys.stop)]
-        pub_report = publisher(session, keys.report(BASE))
+        pub_report = self.publisher(session, keys.report(BASE))
         handles.append(pub_report)
         if self.sends:
-            self.pub_tx = publisher(session, keys.tx(BASE))
+            self.pub_tx = self.publisher(session, keys.tx(BASE))
             handles.append(self.pub_tx)
         handles += self.declare_presence(session, inbox)
         try:
             stop = await self._until_stop(inbox)
             if stop.src == "world":
                 await self._final(inbox, stop.tick)
-            pub_report.put(base_report(self.station, stop.tick, self.dropped,
-                                       resource.getrusage(resource.RUSAGE_SELF).ru_maxrss).encode())
+            rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+            report = base_report(self.station, stop.tick, self.dropped, rss)
+            pub_report.put(dataclasses.replace(report, foreign=self.foreign).encode())
             await asyncio.sleep(0.05)
         finally:
             undeclare(handles)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import resource
 import threading
 import time
@@ -21,7 +22,7 @@ from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import Brain, allocator_config, brain_config, radio_team
 from fleet_emu.agents.outputs import agent_report, first_cpu_ms, robot_outputs
 from fleet_emu.agents.realtime import Timing, percentiles
-from fleet_emu.core.bus import Inbox, publisher
+from fleet_emu.core.bus import Inbox
 from fleet_emu.core.codec import Context
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import Keys
@@ -55,18 +56,18 @@ class AgentNode(NodeBase):
 
     async def run(self, session: zenoh.Session) -> None:
         keys = self.keys
-        inbox = Inbox()
+        inbox = self.inbox()
         handles: list[Declared] = [
             inbox.subscribe(session, keys.obs(self.robot)),
             inbox.subscribe(session, keys.rx(self.robot)),
             inbox.subscribe(session, keys.stop),
         ]
-        self.pub_cmd = publisher(session, keys.cmd(self.robot))
-        self.pub_tx = publisher(session, keys.tx(self.robot))
-        pub_report = publisher(session, keys.report(self.robot))
-        self.pub_belief = publisher(session, keys.belief(self.robot)) if self.scenario.belief_every else None
+        self.pub_cmd = self.publisher(session, keys.cmd(self.robot))
+        self.pub_tx = self.publisher(session, keys.tx(self.robot))
+        pub_report = self.publisher(session, keys.report(self.robot))
+        self.pub_belief = self.publisher(session, keys.belief(self.robot)) if self.scenario.belief_every else None
         handles += [self.pub_cmd, self.pub_tx, pub_report, *([self.pub_belief] if self.pub_belief else [])]
-        pub_timing = publisher(session, keys.timing(self.robot)) if self.realtime else None
+        pub_timing = self.publisher(session, keys.timing(self.robot)) if self.realtime else None
         handles += [*([pub_timing] if pub_timing else []), *self.declare_presence(session, inbox)]
         try:
             tick = await (self._realtime(inbox) if self.realtime else self._lockstep(inbox))
@@ -77,9 +78,10 @@ class AgentNode(NodeBase):
                     plan_steps=tm.plan_steps, waits=tm.waits, decision_ms=percentiles(tm.decision_ms),
                     allocator_ms=percentiles(self.brain.decision_ms[:tm.decisions])).encode())
             process_ms, loop_ms = self._clocks_ms()
-            pub_report.put(agent_report(
+            report = agent_report(
                 self.brain, tick, self.dropped, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
-                process_cpu_ms=process_ms, loop_cpu_ms=loop_ms, first=self.first_cpu_ms).encode())
+                process_cpu_ms=process_ms, loop_cpu_ms=loop_ms, first=self.first_cpu_ms)
+            pub_report.put(dataclasses.replace(report, foreign=self.foreign).encode())
             await asyncio.sleep(0.05)
         finally:
             undeclare(handles)
@@ -148,7 +150,7 @@ class AgentNode(NodeBase):
         per robot every ``belief_every`` ticks on a 512 x 512 map)."""
         assert self.pub_belief is not None
         try:
-            return bool(cast(zenoh.MatchingStatus, self.pub_belief.matching_status).matching)  # a bool, says its stub
+            return bool(cast(zenoh.MatchingStatus, self.pub_belief.pub.matching_status).matching)  # a bool (stub)
         except zenoh.ZError:  # not known: send it, as before
             return True
 

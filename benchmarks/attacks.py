@@ -32,7 +32,7 @@ import zenoh
 
 Put = Callable[[str, bytes], None]
 VOLATILE = {"run_id", "pids", "recording", "decision_ms", "wall_seconds", "ticks_per_second", "agent_peak_rss_kb",
-            "malformed_dropped", "malformed_dropped_by", "authenticated", "signal"}
+            "malformed_dropped", "malformed_dropped_by", "authenticated", "signal", "bus"}
 
 
 def _msg(kind: str, src: str, tick: int, **fields: object) -> bytes:

@@ -10,6 +10,7 @@ import asyncio
 import contextlib
 import json
 import os
+import threading
 from typing import Any
 
 import zenoh
@@ -19,6 +20,7 @@ from fleet_emu.core.access import Credential
 # Zenoh's default lease. A killed process is still noticed at once (its TCP link closes); a frozen one is caught by
 # the barrier timeout. A 1 s lease expired under load here (load average 8 on 2 cores) and failed healthy robots.
 LEASE_MS = 10_000
+NONCE_BYTES = 8
 
 # Zenoh's shared-memory transport is off unless FLEET_ZENOH_SHM=1. On (Zenoh's default), every session makes a
 # 16 MB pool and sends each message over 3 kB through it, so every receiver maps every sender's pool: netem and
@@ -85,22 +87,61 @@ def router_locators(session: zenoh.Session) -> list[str]:
     return []
 
 
-def publisher(session: zenoh.Session, key_expr: str) -> zenoh.Publisher:
-    """A reliable, blocking publisher: the only losses in the system are the ones netem decides."""
-    return session.declare_publisher(
+class Publisher:
+    """A reliable, blocking publisher whose every put carries the run's nonce (when given) as its Zenoh
+    attachment: a receiver of the run drops what carries another (docs/design/security.md, "Run nonce")."""
+
+    def __init__(self, pub: zenoh.Publisher, nonce: bytes | None) -> None:
+        self.pub = pub
+        self.attachment = zenoh.ZBytes(nonce) if nonce is not None else None  # made once, put with every message
+
+    def put(self, data: bytes) -> None:
+        self.pub.put(data, attachment=self.attachment)
+
+    def undeclare(self) -> None:
+        self.pub.undeclare()
+
+
+def publisher(session: zenoh.Session, key_expr: str, nonce: bytes | None = None) -> Publisher:
+    """A reliable, blocking publisher: the only losses in the system are the ones netem decides. ``nonce``:
+    the run's nonce, put on every message (none for the hosts' lobby, which is not a run's)."""
+    return Publisher(session.declare_publisher(
         key_expr, congestion_control=zenoh.CongestionControl.BLOCK, reliability=zenoh.Reliability.RELIABLE
-    )
+    ), nonce)
+
+
+def new_nonce() -> bytes:
+    """A run's nonce: 8 bytes from the OS's entropy, never from the seed (it changes nothing a seed decides)."""
+    return os.urandom(NONCE_BYTES)
+
+
+def of_run(sample: zenoh.Sample, nonce: bytes) -> bool:
+    """Whether ``sample`` carries the run's ``nonce`` as its attachment."""
+    att = sample.attachment
+    return att is not None and att.to_bytes() == nonce
 
 
 class Inbox:
-    """A queue of ``(key, payload, is_put)`` fed from zenoh callbacks into one asyncio loop."""
+    """A queue of ``(key, payload, is_put)`` fed from zenoh callbacks into one asyncio loop. With ``nonce``, a
+    message that does not carry it (another run's, a replayed recording's) is dropped in the callback and
+    counted in :attr:`foreign`; liveliness changes carry no nonce and are all let through."""
 
-    def __init__(self, loop: asyncio.AbstractEventLoop | None = None) -> None:
+    def __init__(self, loop: asyncio.AbstractEventLoop | None = None, nonce: bytes | None = None) -> None:
         self.loop = loop or asyncio.get_running_loop()
         self.queue: asyncio.Queue[tuple[str, bytes, bool]] = asyncio.Queue()
+        self.nonce = nonce
+        self.foreign = 0
+        self._lock = threading.Lock()  # zenoh calls back from several threads
 
     def callback(self, sample: zenoh.Sample) -> None:
-        """The zenoh callback: copy the bytes out and return at once."""
+        """The zenoh callback: drop a message of another run, else copy the bytes out and return at once."""
+        if self.nonce is not None and not of_run(sample, self.nonce):
+            with self._lock:
+                self.foreign += 1
+            return
+        self._enqueue(sample)
+
+    def _enqueue(self, sample: zenoh.Sample) -> None:
         item = (str(sample.key_expr), sample.payload.to_bytes(), sample.kind == zenoh.SampleKind.PUT)
         with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
             self.loop.call_soon_threadsafe(self.queue.put_nowait, item)
@@ -111,7 +152,7 @@ class Inbox:
     def watch_liveliness(self, session: zenoh.Session, key_expr: str) -> zenoh.Subscriber:
         """Liveliness changes under ``key_expr`` arrive as items with ``is_put`` False on deletion (tokens
         declared before this subscriber are announced too, so a later deletion is never missed)."""
-        return session.liveliness().declare_subscriber(key_expr, self.callback, history=True)
+        return session.liveliness().declare_subscriber(key_expr, self._enqueue, history=True)
 
     async def get(self, timeout: float | None = None) -> tuple[str, bytes, bool] | None:
         """The next item, or None after ``timeout`` seconds."""

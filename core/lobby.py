@@ -6,6 +6,7 @@ name here.
 from __future__ import annotations
 
 import dataclasses
+import re
 
 from fleet_emu.core.access import Credential
 from fleet_emu.core.codec import Context, DecodeError, Message
@@ -76,6 +77,7 @@ class AgentReport(Message):
     # the first step's share of the sums above (``process``, ``loop``, ``step``, ``decision`` and each stage): tick
     # 0 merges every teammate's first map and clusters the whole belief, a start-up cost scale.py reports apart
     first_cpu_ms: dict[str, float] = dataclasses.field(default_factory=dict)
+    foreign: int = 0  # messages dropped for not carrying the run's nonce (another run's, a replayed recording's)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -91,11 +93,13 @@ class BaseReport(Message):
     ticks: int
     dropped: int
     peak_rss_kb: int
+    foreign: int = 0  # messages dropped for not carrying the run's nonce
 
 
 # --- the hosts' lobby (fleet-host/<host>/..., launch/hosts.py) --------------------------------------------
 
 MAX_REALTIME_HZ = 1000.0  # the fastest real-time rate a run accepts (``fleet run --realtime``)
+NONCE_HEX = re.compile(r"(?:[0-9a-f]{2}){0,32}")  # a run nonce in hex (empty: none)
 HOST_EVENTS = frozenset({"accepted", "busy", "spawned", "exited", "ended"})
 
 
@@ -104,8 +108,9 @@ class HostAssign(Message):
     """The launcher's request to host ``host`` (fleet-host/<host>/spawn): start ``robots`` of run ``run``, whose
     scenario (as ``scenario.json``) is ``scenario``; ``secrets`` maps each robot to its bus credential (JSON,
     user and password: the host adds its own TLS CA), empty on an unauthenticated bus; ``realtime_hz`` the
-    run's real-time rate (``fleet run --realtime HZ``; 0: lockstep), which the robots are started with. ``end``
-    set: tear the run's robots down instead."""
+    run's real-time rate (``fleet run --realtime HZ``; 0: lockstep), which the robots are started with;
+    ``nonce`` the run's nonce in hex, which they put on every message. ``end`` set: tear the run's robots down
+    instead."""
 
     KIND = "host_assign"
     host: str
@@ -116,6 +121,7 @@ class HostAssign(Message):
     fork_server: bool = True
     end: bool = False
     realtime_hz: float = 0.0
+    nonce: str = ""
 
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)
@@ -123,6 +129,8 @@ class HostAssign(Message):
             raise DecodeError("host_assign: bad host or run id")
         if not 0.0 <= self.realtime_hz <= MAX_REALTIME_HZ:  # NaN fails too
             raise DecodeError(f"host_assign: realtime_hz {self.realtime_hz!r} not in [0, {MAX_REALTIME_HZ:g}]")
+        if not NONCE_HEX.fullmatch(self.nonce):
+            raise DecodeError("host_assign: bad nonce")
         if not all(ROBOT_ID.fullmatch(r) for r in self.robots) or len(set(self.robots)) != len(self.robots):
             raise DecodeError("host_assign: bad robot ids")
         if not set(self.secrets) <= set(self.robots):

@@ -116,7 +116,8 @@ class Observation(Message):
 @dataclasses.dataclass(frozen=True)
 class WorldState(Message):
     """All true poses, coverage and the run's status at ``tick`` (world/state); ``dropped`` counts the
-    messages the world has dropped so far (malformed, or from a sender that may not write on their key)."""
+    messages the world has dropped so far (malformed, or from a sender that may not write on their key),
+    ``foreign`` those it dropped for not carrying the run's nonce (another run's, a replayed recording's)."""
 
     KIND = "state"
     poses: dict[str, Cell]
@@ -126,6 +127,7 @@ class WorldState(Message):
     done: bool = False
     reason: str | None = None
     dropped: int = 0
+    foreign: int = 0
 
 
 # --- agent -> world -----------------------------------------------------------------------------------
@@ -163,7 +165,8 @@ class Command(Message):
 @dataclasses.dataclass(frozen=True)
 class Links(Message):
     """The link graph at ``tick`` (netem/links): signal P_ij in dB, links, and cumulative radio counters
-    (``dropped``: the messages netem itself dropped as malformed or spoofed, not radio losses)."""
+    (``dropped``: the messages netem itself dropped as malformed or spoofed, not radio losses; ``foreign``: those
+    it dropped for not carrying the run's nonce)."""
 
     KIND = "links"
     robots: tuple[str, ...]
@@ -176,6 +179,7 @@ class Links(Message):
     dropped_signal: int
     bytes_sent: int
     dropped: int = 0
+    foreign: int = 0
     # runs with a base station: per robot of ``robots``, its signal to the base (dB) and whether they are linked
     base_strength: np.ndarray | None = None
     base_link: np.ndarray | None = None

@@ -18,7 +18,7 @@ from typing import Any, Protocol, TypeVar
 import zenoh
 
 from fleet_emu.core.access import Credential, allowed_src
-from fleet_emu.core.bus import Inbox, client_config, publisher
+from fleet_emu.core.bus import Inbox, Publisher, client_config, publisher
 from fleet_emu.core.codec import Context, DecodeError, Message, decode
 from fleet_emu.core.errors import FleetError
 from fleet_emu.core.grid import MapData
@@ -42,6 +42,29 @@ class NodeBase:
         self.node_id = node_id
         self.dropped = 0
         self._seq = 0
+        self.nonce: bytes | None = None  # the run's nonce (:meth:`bind`): on every put, checked on every message
+        self._inboxes: list[Inbox] = []
+
+    def bind(self, nonce: bytes | None) -> NodeBase:
+        """Bind the node to its run's nonce (the launcher's ``--nonce``): its messages carry it, and a message
+        without it is dropped and counted (:attr:`foreign`). Without a nonce nothing is checked."""
+        self.nonce = nonce
+        return self
+
+    def publisher(self, session: zenoh.Session, key_expr: str) -> Publisher:
+        """A publisher of this node's run: every put carries the run's nonce."""
+        return publisher(session, key_expr, self.nonce)
+
+    def inbox(self) -> Inbox:
+        """The node's inbox: a message of another nonce is dropped and counted there."""
+        inbox = Inbox(nonce=self.nonce)
+        self._inboxes.append(inbox)
+        return inbox
+
+    @property
+    def foreign(self) -> int:
+        """Messages dropped so far for carrying another run's nonce (or none)."""
+        return sum(i.foreign for i in self._inboxes)
 
     async def run(self, session: zenoh.Session) -> object:
         """The node's whole run on ``session`` (each shell's own)."""
@@ -75,7 +98,7 @@ class NodeBase:
 
     def declare_presence(self, session: zenoh.Session, inbox: Inbox) -> list[Declared]:
         """Subscribe to the hello, then declare the liveliness token (after every other subscription)."""
-        self._ready_pub = publisher(session, self.keys.ready(self.node_id))
+        self._ready_pub = self.publisher(session, self.keys.ready(self.node_id))
         sub = inbox.subscribe(session, self.keys.hello)
         token = session.liveliness().declare_token(self.keys.alive(self.role, self.node_id))
         return [self._ready_pub, sub, token]
@@ -143,6 +166,9 @@ def parse_child(parser: argparse.ArgumentParser, argv: list[str] | None, map_fil
                         help="real-time mode: the world ticks at HZ on the wall clock (default: lockstep)")
     parser.add_argument("--auth-stdin", action="store_true",
                         help="read this process's bus credential (one JSON line) from standard input")
+    parser.add_argument("--nonce", type=_nonce_arg, default=None, metavar="HEX",
+                        help="the run's nonce (drawn by fleet run): put on every message, and a message without "
+                             "it is dropped (default: none, nothing checked)")
     args = parser.parse_args(argv)
     try:
         args.scenario = Scenario.from_json(args.scenario)
@@ -153,6 +179,14 @@ def parse_child(parser: argparse.ArgumentParser, argv: list[str] | None, map_fil
         print(f"{parser.prog}: error: bad input file: {exc}", file=sys.stderr)
         raise SystemExit(2) from None
     return args
+
+
+def _nonce_arg(text: str) -> bytes:
+    """An argparse type: a run nonce in hex."""
+    try:
+        return bytes.fromhex(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected hex digits, got {text!r}") from None
 
 
 def add_base_cell(parser: argparse.ArgumentParser, required: bool) -> None:
@@ -184,7 +218,7 @@ def node_main(prog: str, build: Callable[[argparse.Namespace], Any], argv: list[
     setup_logging()
     keep_heap()  # the same map-sized arrays every tick: no page faults for them (core/heap.py)
     try:
-        node = build(args)
+        node = build(args).bind(args.nonce)
     except FleetError as exc:  # arguments that do not fit together (the launcher's, or a hand-made run's)
         print(f"{prog}: error: {exc}", file=sys.stderr)
         raise SystemExit(2) from None

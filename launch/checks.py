@@ -5,6 +5,7 @@ and the memory engine share them."""
 
 from __future__ import annotations
 
+import contextlib
 import secrets
 import time
 from pathlib import Path
@@ -23,6 +24,7 @@ from fleet_emu.core.messages import MAX_REALTIME_HZ
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch import budget
 from fleet_emu.launch.hosts import check_hosts, check_reliable, host_credentials, listen_endpoints
+from fleet_emu.launch.liveness import check_run_id_free
 from fleet_emu.world.build import base_cell, build_world
 from fleet_emu.world.maps import load_map, map_shape
 
@@ -116,12 +118,14 @@ def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None, 
         raise ConfigError(f"--connect {opts.connect!r} is not a Zenoh endpoint (expected <protocol>/<address>, "
                           f"e.g. tcp/127.0.0.1:7447)") from None
     try:
-        zenoh.open(conf).close()
+        session = zenoh.open(conf)
     except zenoh.ZError:
         refused = " or it refused the credentials" if creds else ""
         hint = "" if creds else "; a router with authentication needs --credentials"
         raise ConfigError(f"--connect {opts.connect}: no Zenoh router answered{refused} (gave up after "
                           f"{CONNECT_TIMEOUT:g} s){hint}") from None
+    with contextlib.closing(session):
+        check_run_id_free(session, opts.run_id, opts.connect)
 
 
 def make_out(out: Path) -> None:

@@ -168,7 +168,8 @@ class Host:
             if robot in req.secrets:  # the launcher's login for it, with this host's CA
                 obj = json.loads(req.secrets[robot])
                 secret = Credential(str(obj["user"]), str(obj["password"]), self.tls_ca).to_json()
-            argv = agent_argv(robot, req.run, self.endpoint, scenario, secret is not None, req.realtime_hz or None)
+            argv = agent_argv(robot, req.run, self.endpoint, scenario, secret is not None, req.realtime_hz or None,
+                              req.nonce)
             child = sup.spawn(robot, AGENTS, argv, secret)
             self.report(req.run, "spawned", robot=robot, pid=child.pid)
 

@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING
 import zenoh
 
 from fleet_emu.core.access import Credential, read_users, role_of
-from fleet_emu.core.bus import publisher
+from fleet_emu.core.bus import Publisher, publisher
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.grid import Cell
@@ -156,16 +156,18 @@ def listen_endpoints(listen: str | None, tls_cert: Path | None, tls_key: Path | 
 
 
 def agent_argv(robot: str, run_id: str, endpoint: str, scenario_file: Path, auth: bool,
-               realtime_hz: float | None = None) -> list[str]:
-    """The command line of robot ``robot`` (``python -m fleet_emu.agents ARGV``), here or on a host."""
+               realtime_hz: float | None = None, nonce: str = "") -> list[str]:
+    """The command line of robot ``robot`` (``python -m fleet_emu.agents ARGV``), here or on a host; ``nonce``:
+    the run's, in hex."""
     return ["--robot", robot, "--run", run_id, "--connect", endpoint, "--scenario", str(scenario_file),
-            *(["--realtime", repr(float(realtime_hz))] if realtime_hz else []), *(["--auth-stdin"] if auth else [])]
+            *(["--realtime", repr(float(realtime_hz))] if realtime_hz else []), *(["--auth-stdin"] if auth else []),
+            *(["--nonce", nonce] if nonce else [])]
 
 
 def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str, work: Path,
                 creds: dict[str, Credential] | None, remote: Hosts | None = None,
                 requested: threading.Event | None = None, realtime_hz: float | None = None,
-                base: Cell | None = None, pace_hz: float | None = None) -> dict[str, list[str]]:
+                base: Cell | None = None, pace_hz: float | None = None, nonce: str = "") -> dict[str, list[str]]:
     """world, netem, the base station (when the scenario has one: at ``base``, its cell as
     ``world.build.base_cell`` resolved it) and one process per robot, each with its
     own credential on standard input; with
@@ -177,6 +179,7 @@ def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str,
     where = placement(robots, hosts, scenario.hosts.robots if scenario.hosts else ())
     common = ["--run", run_id, "--connect", endpoint, "--scenario", str(work / "scenario.json")]
     common += ["--realtime", repr(float(realtime_hz))] if realtime_hz else []
+    common += ["--nonce", nonce] if nonce else []
     auth = ["--auth-stdin"] if creds else []
     truth = ["--map-file", str(work / "map.npz")]
 
@@ -192,13 +195,14 @@ def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str,
     for r in robots:
         if where[r] is None:
             sup.spawn(r, "fleet_emu.agents", agent_argv(r, run_id, endpoint, work / "scenario.json", bool(creds),
-                                                        realtime_hz), secret(r))
+                                                        realtime_hz, nonce), secret(r))
     plan = {h: [r for r in robots if where[r] == h] for h in hosts}
     if remote is not None:
         secrets = {r: json.dumps({"user": creds[r].user, "password": creds[r].password}) for r in robots} \
             if creds else {}
         text = (work / "scenario.json").read_text()
-        for name, handle in remote.start(run_id, plan, text, secrets, sup.server is not None, realtime_hz).items():
+        for name, handle in remote.start(run_id, plan, text, secrets, sup.server is not None, realtime_hz,
+                                         nonce).items():
             sup.adopt(name, handle)
     return plan
 
@@ -249,7 +253,7 @@ class Hosts:
         self.run = ""
         self.answers: dict[str, HostStatus] = {}  # host -> its accepted/busy answer for this run
         self.robots: dict[str, RemoteRobot] = {}
-        self._pubs: dict[str, zenoh.Publisher] = {}
+        self._pubs: dict[str, Publisher] = {}
         self._ended: set[str] = set()
         self._handles: list[Declared] = [
             session.liveliness().declare_subscriber(HostKeys.ALL_ALIVE, self._on_alive, history=True)]
@@ -330,7 +334,7 @@ class Hosts:
             return list(self.names) or sorted(self.alive, key=_number)[:self.count]
 
     def start(self, run: str, plan: dict[str, list[str]], scenario: str, secrets: dict[str, str],
-              fork_server: bool, realtime_hz: float | None = None) -> dict[str, RemoteRobot]:
+              fork_server: bool, realtime_hz: float | None = None, nonce: str = "") -> dict[str, RemoteRobot]:
         """Send every host its robots (with the run's real-time rate, if any); repeat until each accepts; wait
         for their pids (a robot not reported within :data:`FORK_TIMEOUT` counts as never started).
         :class:`HostsError` if a host refuses or is silent."""
@@ -343,7 +347,7 @@ class Hosts:
                     self.robots[name] = RemoteRobot(name, host, self)
         requests = {h: HostAssign(src="launcher", tick=0, seq=0, host=h, run=run, robots=tuple(rs), scenario=scenario,
                                   secrets={r: secrets[r] for r in rs if r in secrets}, fork_server=fork_server,
-                                  realtime_hz=float(realtime_hz or 0.0))
+                                  realtime_hz=float(realtime_hz or 0.0), nonce=nonce)
                     for h, rs in plan.items()}
         deadline = time.monotonic() + ACCEPT_TIMEOUT
         while True:

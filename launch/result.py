@@ -16,7 +16,7 @@ import numpy as np
 #: ``result.json`` keys that depend on the clock, the processes, the engine or the bus, not on the seed: every
 #: other key is the same for a seed whatever the engine (docs/design/determinism.md).
 UNTIMED = frozenset({"run_id", "decision_ms", "agent_peak_rss_kb", "ticks_per_second", "pids", "recording",
-                     "wall_seconds", "engine", "authenticated", "signal"})
+                     "wall_seconds", "engine", "authenticated", "signal", "bus"})
 
 
 def deterministic(data: Mapping[str, Any]) -> dict[str, Any]:

@@ -19,13 +19,14 @@ from typing import Any
 import zenoh
 
 from fleet_emu.core.access import LAUNCHER, RECORDER, Credential
-from fleet_emu.core.bus import client_config, publisher, router_config, router_locators
+from fleet_emu.core.bus import Publisher, client_config, new_nonce, publisher, router_config, router_locators
 from fleet_emu.core.errors import RunError
 from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import Failed, Stop
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.causes import flood
 from fleet_emu.launch.checks import (
     check,
     check_logins,
@@ -137,7 +138,7 @@ class _Run:
     # set by open
     endpoint: str
     session: zenoh.Session
-    pub_stop: zenoh.Publisher
+    pub_stop: Publisher
     handles: list[Declared]
     samples: queue.Queue[tuple[str, bytes, int] | None]
     drains: list[Drain]
@@ -149,6 +150,7 @@ class _Run:
         self.scenario, self.map_data, self.run_id, self.work = scenario, map_data, run_id, work
         self.recording, self.opts, self.creds = recording, opts, creds
         self.keys = Keys(run_id)
+        self.nonce = new_nonce()  # on every message of this run; a message without it is dropped and counted
         self.robots = tuple(robot_ids(scenario.robots))
         self.monitor = Monitor(self.robots, base=scenario.has_base, relay=scenario.relay != "none")
         self.engine = "in-process" if opts.in_process else "processes"
@@ -203,10 +205,10 @@ class _Run:
         self.samples = queue.Queue()
         # everything when recording; else only what the fold reads (Keys.folded): at 256 robots the rest (obs,
         # the radio bundles with every first contact's whole maps, belief snapshots) was most of the bus
-        self.drains = [Drain(listener, k, self.samples) for k in (
+        self.drains = [Drain(listener, k, self.samples, self.nonce) for k in (
             (keys.all,) if self.viz is not None else keys.folded(radio=self.scenario.relay != "none"))]
-        pub_ready = publisher(self.session, keys.ready("launcher"))
-        self.pub_stop = publisher(self.session, keys.stop)
+        pub_ready = publisher(self.session, keys.ready("launcher"), self.nonce)
+        self.pub_stop = publisher(self.session, keys.stop, self.nonce)
         self.handles = [pub_ready, self.pub_stop,
                         self.session.liveliness().declare_token(keys.alive("launcher", "launcher"))]
         hosts = self.scenario.hosts
@@ -242,13 +244,13 @@ class _Run:
         if opts.in_process:
             self.nodes_thread = _start_in_process(scenario, self.map_data, self.run_id, self.endpoint, self.creds,
                                                   self.base, opts.realtime_hz,
-                                                  opts.live.hz if opts.live is not None else None)
+                                                  opts.live.hz if opts.live is not None else None, self.nonce)
             self.pids = {"world": os.getpid(), "netem": os.getpid(), "agents": [os.getpid()] * len(robots)}
             self.pids |= {BASE: os.getpid()} if scenario.has_base else {}
         else:
             plan = spawn_nodes(self.sup, scenario, self.run_id, self.endpoint, self.work, self.creds, self.remote,
                                self.requested, opts.realtime_hz, self.base,
-                               opts.live.hz if opts.live is not None else None)
+                               opts.live.hz if opts.live is not None else None, self.nonce.hex())
             p = self.sup.pids()
             pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
             pids |= {BASE: p[BASE]} if BASE in p else {}
@@ -262,15 +264,16 @@ class _Run:
     def wait(self) -> None:
         """Until the run ends (:func:`~fleet_emu.launch.watch.wait_for_end`); an agent process that exits early
         is announced to the world as failed. A failed run's error line is kept."""
-        keys, monitor, session = self.keys, self.monitor, self.session
+        keys, monitor, session, nonce = self.keys, self.monitor, self.session, self.nonce
 
         def failed(robot: str) -> None:
             session.put(keys.failed(robot), Failed(src="launcher", tick=monitor.tick, seq=0, robot=robot,
                                                    reason="process exited").encode(),
-                        congestion_control=zenoh.CongestionControl.BLOCK)
+                        congestion_control=zenoh.CongestionControl.BLOCK, attachment=nonce)
 
         self.error = wait_for_end(monitor, self.consumer, self.sup, self.nodes_thread, self.opts.on_progress,
-                                  self.requested, failed, self.router_child)
+                                  self.requested, failed, self.router_child,
+                                  None if self.opts.realtime_hz else self.scenario.barrier_timeout)
 
     def teardown(self) -> None:
         """The stop (unless the world stopped the run by itself: a signal after its stop is the teardown's), the
@@ -297,6 +300,10 @@ class _Run:
         if self.viz is not None:  # the last tick's scene and grids, while the live server is still up
             self.viz.finish()
 
+    def bus(self) -> dict[str, Any]:
+        """``result.json``'s ``bus`` (:func:`_bus_result`), the launcher's own drops from its subscribers."""
+        return _bus_result(self.nonce, self.monitor.foreign_by(sum(d.foreign for d in self.drains)))
+
     def result(self) -> tuple[Result, str | None]:
         """The recording closed, and the result (``result.json``'s data) with how the run ended."""
         if self.viz is not None:
@@ -306,6 +313,8 @@ class _Run:
         data = self.monitor.result(scenario.to_dict(), self.run_id, scenario.target_coverage)
         if opts.realtime_hz:
             data.setdefault("realtime_hz", opts.realtime_hz)  # also when stopped before tick 0
+        if not interrupted and self.error is None:  # robots failed by a flood: the flood is the cause
+            self.error = flood(data["failed"], sum(d.foreign for d in self.drains))
         if interrupted:
             data["reason"] = "interrupted"
             data.pop("error", None)
@@ -321,6 +330,7 @@ class _Run:
             "scenario": scenario.to_dict(),
             "signal": signals.name if signals else ("SIGINT" if interrupted else None),
             "authenticated": self.creds is not None,
+            "bus": self.bus(),
         }
         failure = "interrupted" if interrupted else ("error" if self.error else None)
         if failure == "error" and self.consumer.fault is not None and self.error == self.consumer.fault:
@@ -335,6 +345,11 @@ def _write_result(work: Path, result: Result, failure: str | None) -> None:
     except OSError:
         if failure != "disk":
             raise
+
+
+def _bus_result(nonce: bytes, foreign_by: dict[str, int]) -> dict[str, Any]:
+    """``result.json``'s ``bus``: the run's nonce and the messages each process dropped for not carrying it."""
+    return {"nonce": nonce.hex(), "foreign_dropped": sum(foreign_by.values()), "foreign_dropped_by": foreign_by}
 
 
 def _last_log_line(work: Path, error: str) -> str:
@@ -368,7 +383,8 @@ def _open_router(run_id: str, creds: dict[str, Credential] | None, listen: list[
 
 def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoint: str,
                       creds: dict[str, Credential] | None, base: Cell | None,
-                      realtime_hz: float | None = None, pace_hz: float | None = None) -> threading.Thread:
+                      realtime_hz: float | None = None, pace_hz: float | None = None,
+                      nonce: bytes | None = None) -> threading.Thread:
     """Every node in this process, each with its own Zenoh session (and its own login) to the same router;
     ``base``: the base station's cell (``world.build.base_cell``), in a run with one; ``pace_hz``: the
     lockstep world's cap on ticks per second (``--live-hz``)."""
@@ -383,6 +399,9 @@ def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoi
         from fleet_emu.agents.base_node import BaseNode
 
         nodes.append(BaseNode(scenario, run_id, map_data, base))
+
+    for n in nodes:
+        n.bind(nonce)
 
     async def main() -> None:
         with contextlib.ExitStack() as stack:

@@ -13,8 +13,10 @@ from collections.abc import Callable
 
 import zenoh
 
+from fleet_emu.core.bus import Publisher, of_run
 from fleet_emu.core.keys import BASE, Keys
 from fleet_emu.core.messages import ready
+from fleet_emu.launch.causes import froze, outside_stop, silent_world, state_timeout
 from fleet_emu.launch.outdir import disk_fault
 from fleet_emu.launch.router_process import RouterProcess
 from fleet_emu.launch.supervisor import Supervisor
@@ -27,14 +29,18 @@ STOP_GRACE = 5.0
 
 def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_thread: threading.Thread | None,
           on_progress: Callable[[Monitor], None] | None, requested: threading.Event,
-          notify_failed: Callable[[str], None], router: RouterProcess | None = None) -> str | None:
+          notify_failed: Callable[[str], None], router: RouterProcess | None = None,
+          barrier_timeout: float | None = None) -> str | None:
     """Until the world's stop and every live agent's report; returns an error line, or None.
     An agent process that exits early is announced to the world, which goes on without it. The router's
     process (``router``) exiting, or the world or netem (or the base station) exiting with an error before
     the stop, fails the run at once; exiting cleanly
     (code 0) is a normal end whose stop message may still be on its way, so it fails the run only if no stop
     comes within :data:`STOP_GRACE` seconds of the launcher having folded every sample it received (with a
-    hundred robots and more, their last belief snapshots can take the launcher longer than that)."""
+    hundred robots and more, their last belief snapshots can take the launcher longer than that). A stop this
+    launcher did not send, or (with ``barrier_timeout``, the scenario's, in lockstep) a world silent for
+    :func:`~fleet_emu.launch.causes.state_timeout` seconds, fails the run naming that cause, and a world that
+    ended without a stop after a silence is named for it (:mod:`fleet_emu.launch.causes`)."""
     stop_seen: float | None = None
     clean_end: float | None = None
     announced: set[str] = set()
@@ -45,6 +51,11 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
             return consumer.fault
         if requested.is_set():
             return None
+        if (cause := outside_stop(monitor)) is not None:
+            return cause
+        if barrier_timeout is not None and not consumer.backlog() and \
+                (cause := silent_world(monitor, state_timeout(barrier_timeout))) is not None:
+            return cause
         if monitor.stop is not None:
             stop_seen = stop_seen or time.monotonic()
             live = set(monitor.state.live) if monitor.state else set()
@@ -71,7 +82,9 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
                 if clean_end is None or consumer.backlog():
                     clean_end = time.monotonic()  # the stop may be in the backlog still to fold (a large fleet)
                 if time.monotonic() - clean_end > STOP_GRACE:
-                    return f"{ended[0]} but no stop reached the launcher within {STOP_GRACE:g} s"
+                    why = froze(monitor, barrier_timeout) if barrier_timeout is not None else None
+                    return (f"{why}; then " if why else "") + \
+                        f"{ended[0]} but no stop reached the launcher within {STOP_GRACE:g} s"
         consumer.changed.wait(0.2)
         consumer.changed.clear()
 
@@ -82,7 +95,7 @@ class Consumer(threading.Thread):
     :attr:`fault`, the line the run ends with, and the fold goes on."""
 
     def __init__(self, keys: Keys, samples: queue.Queue, monitor: Monitor, recorder: Recorder | None,
-                 pub_ready: zenoh.Publisher, viz: FoxgloveWriter | None = None) -> None:
+                 pub_ready: Publisher, viz: FoxgloveWriter | None = None) -> None:
         super().__init__(daemon=True, name="recorder")
         self.keys = keys
         self.samples = samples
@@ -138,18 +151,25 @@ class Drain(threading.Thread):
     there must take the GIL for every sample, and in this process (which also holds the embedded router) the
     Zenoh threads that wait for it stall the router's routing and its leases. At 256 robots a recording (every
     message, the first contacts' whole maps among them) made most robots' sessions expire that way.
-    The thread ends when the subscriber is undeclared and its channel is empty."""
+    The thread ends when the subscriber is undeclared and its channel is empty. With ``nonce``, a sample that
+    does not carry the run's nonce is neither recorded nor folded, only counted (:attr:`foreign`)."""
 
     CAPACITY = 1 << 20  # samples held before Zenoh waits for this thread (the queue behind it is unbounded)
 
-    def __init__(self, session: zenoh.Session, key: str, samples: queue.Queue) -> None:
+    def __init__(self, session: zenoh.Session, key: str, samples: queue.Queue, nonce: bytes | None = None) -> None:
         super().__init__(daemon=True, name=f"drain {key}")
         self.subscriber = session.declare_subscriber(key, zenoh.handlers.FifoChannel(self.CAPACITY))
         self.samples = samples
+        self.nonce = nonce
+        self.foreign = 0
         self.start()
 
     def run(self) -> None:
+        nonce = self.nonce
         for s in self.subscriber.handler:  # recv() waits without the GIL; ends once undeclared and empty
+            if nonce is not None and not of_run(s, nonce):
+                self.foreign += 1
+                continue
             self.samples.put((str(s.key_expr), s.payload.to_bytes(), time.time_ns()))
 
     def undeclare(self) -> None:

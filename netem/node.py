@@ -15,12 +15,13 @@ of t as for a live robot's (lockstep), and sends it from the base's cell, after 
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
 import zenoh
 
-from fleet_emu.core.bus import Inbox, publisher
+from fleet_emu.core.bus import Inbox
 from fleet_emu.core.codec import Context
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import Cell, MapData
@@ -57,7 +58,8 @@ class NetemNode(NodeBase):
         senders = frozenset(self.robots) | ({BASE} if self.base_sends else set())
         self.ctx_tx = Context(senders=senders, shape=map_data.grid.shape)
         self.ctx_world = Context(senders=frozenset({"world"}))
-        self.states: dict[int, WorldState] = {}
+        self.states: dict[int, WorldState] = {}  # states come in, by tick, from the next one awaited on
+        self.next_state = 0  # the first tick whose state netem has not used yet
         self.tx: dict[int, dict[str, TxBundle]] = {}
         self.stopped = False
         self.stop_tick = -1
@@ -66,15 +68,15 @@ class NetemNode(NodeBase):
 
     async def run(self, session: zenoh.Session) -> None:
         keys = self.keys
-        inbox = Inbox()
+        inbox = self.inbox()
         handles: list[Declared] = [
             inbox.subscribe(session, keys.state),
             inbox.subscribe(session, keys.wildcard("radio", "tx", "*")),
             inbox.subscribe(session, keys.stop),
         ]
         receivers = [*self.robots, *([BASE] if self.base is not None else [])]
-        self.pub_rx = {r: publisher(session, keys.rx(r)) for r in receivers}
-        self.pub_links = publisher(session, keys.links)
+        self.pub_rx = {r: self.publisher(session, keys.rx(r)) for r in receivers}
+        self.pub_links = self.publisher(session, keys.links)
         handles += [*self.pub_rx.values(), self.pub_links, *self.declare_presence(session, inbox)]
         try:
             await (self._realtime(inbox) if self.realtime else self._lockstep(inbox))
@@ -145,24 +147,35 @@ class NetemNode(NodeBase):
         elif channel == "state":
             st = self.decode(key, data, WorldState, self.ctx_world)
             if st is not None:
-                self.states[st.tick] = st
+                self._keep_state(key, st)
         elif channel == "tx":
             b = self.decode(key, data, TxBundle, self.ctx_tx)  # envelopes only: payloads stay opaque
             if b is not None:  # decode checked that the key's robot sent it
                 self.tx.setdefault(b.tick, {})[b.src] = b
         return True
 
+    def _keep_state(self, key: str, st: WorldState) -> None:
+        """Keep a state for its tick; one of a tick already used, or a second one of a tick, is dropped and
+        counted (the world publishes one state per tick, in order)."""
+        if st.tick < self.next_state or st.tick in self.states:
+            self.drop(key, f"a state of tick {st.tick} out of turn (netem awaits tick {self.next_state})")
+        else:
+            self.states[st.tick] = st
+
     async def _await_state(self, inbox: Inbox, tick: int) -> WorldState | None:
-        """The world's state of ``tick``; after a stop, only the states up to the stop's tick (which may
-        arrive after the stop itself: they travel on another key)."""
+        """The world's state of exactly ``tick`` (the states of earlier ticks, never used, are let go); after a
+        stop, only the states up to the stop's tick (which may arrive after the stop itself: they travel on
+        another key)."""
+        self.next_state = max(self.next_state, tick)
+        for t in [t for t in self.states if t < tick]:
+            del self.states[t]
         while tick not in self.states:
             if self.abort or (self.stopped and tick > self.stop_tick):
                 return None
             if await self._next(inbox, timeout=STATE_GRACE if self.stopped else None) is None:
                 return None
-        for t in [t for t in self.states if t <= tick]:
-            st = self.states.pop(t)
-        return st
+        self.next_state = tick + 1
+        return self.states.pop(tick)
 
     async def _await_tx(self, inbox: Inbox, tick: int, live: tuple[str, ...]) -> dict | None:
         deadline = time.monotonic() + self.scenario.barrier_timeout
@@ -186,7 +199,8 @@ class NetemNode(NodeBase):
         s = self.scenario
         tick = radio_tick(self.channel, self.occupied, self.robots, self.base, s.cell_size, s.radio, state,
                           self.next_seq, self.dropped)
-        self.pub_links.put(tick.links.encode())
+        links = dataclasses.replace(tick.links, foreign=self.foreign) if self.foreign else tick.links
+        self.pub_links.put(links.encode())
         for bundle in tick.rx:
             self.pub_rx[bundle.dst].put(bundle.encode())
         return tick.nodes, tick.link

@@ -48,8 +48,9 @@ from fleet_emu.core.reach import base_connected
 from fleet_emu.recording.first_seen import FirstSeen
 from fleet_emu.recording.monitor import Monitor, base_graph
 
-#: result.json keys that a recording cannot give back (they describe the launcher process, not the run)
-NOT_RECORDED = ("wall_seconds", "signal", "authenticated")
+#: result.json keys that a recording cannot give back (they describe the launcher process, not the run; ``bus``:
+#: the run's nonce travels beside the messages, not in them, and the launcher's own foreign drops are not recorded)
+NOT_RECORDED = ("wall_seconds", "signal", "authenticated", "bus")
 
 
 def jain(x: list[float] | np.ndarray) -> float | None:

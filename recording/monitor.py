@@ -66,6 +66,10 @@ class Monitor:
     decision_ms: list[float] = dataclasses.field(default_factory=list)
     reports: dict[str, AgentReport] = dataclasses.field(default_factory=dict)
     stop: Stop | None = None
+    outside_stop: Stop | None = None  # the first stop sent as anyone but the world (the launcher's own included)
+    last_activity_ns: int | None = None  # when the last world state or robot command came (lockstep's heartbeat)
+    activity_tick: int = 0  # the world's tick then
+    longest_silence: tuple[float, int] = (0.0, 0)  # the longest gap between them: seconds, and the tick it began at
     malformed: int = 0
     coverage_curve: list[tuple[int, float]] = dataclasses.field(default_factory=list)
     first_state_ns: int | None = None
@@ -108,7 +112,18 @@ class Monitor:
         if isinstance(msg, WorldState) and wall_ns is not None:
             self.first_state_ns = self.first_state_ns or wall_ns
             self.last_state_ns = wall_ns
+        if isinstance(msg, WorldState | Command) and wall_ns is not None and self.state is not None:
+            self._heard(wall_ns)
         return msg
+
+    def _heard(self, wall_ns: int) -> None:
+        """A state or a command came at ``wall_ns``: the longest silence of the lockstep so far, and its tick."""
+        if self.last_activity_ns is not None:
+            gap = (wall_ns - self.last_activity_ns) / 1e9
+            if gap > self.longest_silence[0]:
+                self.longest_silence = (gap, self.activity_tick)
+        self.last_activity_ns = max(wall_ns, self.last_activity_ns or 0)
+        self.activity_tick = self.tick
 
     def fold(self, msg: Message) -> None:
         if isinstance(msg, WorldState) and msg.src == "world":
@@ -137,6 +152,8 @@ class Monitor:
             self.base_report = msg
         elif isinstance(msg, Stop) and msg.src == "world":
             self.stop = msg
+        elif isinstance(msg, Stop) and self.outside_stop is None:
+            self.outside_stop = msg
         elif isinstance(msg, WorldClock) and msg.src == "world":
             if self.clock is None or msg.tick >= self.clock.tick:
                 self.clock = msg
@@ -266,6 +283,15 @@ class Monitor:
                 "netem": self.links.dropped if self.links else 0,
                 **({BASE: self.base_report.dropped} if self.base_report is not None else {}),
                 **{r: rep.dropped for r, rep in sorted(self.reports.items())}}
+
+    def foreign_by(self, launcher: int) -> dict[str, int]:
+        """Messages each process dropped for not carrying the run's nonce (another run's, a replayed
+        recording's): the launcher's own count (``launcher``), the world's and netem's from their last state
+        and links, each robot's and the base's from its report."""
+        return {"launcher": launcher, "world": self.state.foreign if self.state else 0,
+                "netem": self.links.foreign if self.links else 0,
+                **({BASE: self.base_report.foreign} if self.base_report is not None else {}),
+                **{r: rep.foreign for r, rep in sorted(self.reports.items())}}
 
     def ticks_per_second(self) -> float | None:
         """Lockstep speed from the first state to the last (start-up excluded)."""

@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import dataclasses
 import time
 
 import zenoh
 
-from fleet_emu.core.bus import Inbox, publisher
+from fleet_emu.core.bus import Inbox, Publisher
 from fleet_emu.core.codec import Context
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.kernels import warm_up
@@ -64,7 +65,7 @@ class WorldNode(NodeBase):
     async def run(self, session: zenoh.Session) -> str:
         """Run the whole episode; returns the reason it ended."""
         keys = self.keys
-        inbox = Inbox()
+        inbox = self.inbox()
         handles: list[Declared] = [
             inbox.subscribe(session, keys.wildcard("robot", "*", "cmd")),
             inbox.subscribe(session, keys.ready_all),
@@ -72,11 +73,11 @@ class WorldNode(NodeBase):
             inbox.subscribe(session, keys.failed("*")),
             inbox.watch_liveliness(session, keys.wildcard("alive", "agent", "*")),
         ]
-        self.pub_obs = {r: publisher(session, keys.obs(r)) for r in self.robots}
-        self.pub_state = publisher(session, keys.state)
-        pub_hello = publisher(session, keys.hello)
-        pub_stop = publisher(session, keys.stop)
-        self.pub_clock = publisher(session, keys.clock) if self.realtime_hz else None
+        self.pub_obs = {r: self.publisher(session, keys.obs(r)) for r in self.robots}
+        self.pub_state = self.publisher(session, keys.state)
+        pub_hello = self.publisher(session, keys.hello)
+        pub_stop = self.publisher(session, keys.stop)
+        self.pub_clock = self.publisher(session, keys.clock) if self.realtime_hz else None
         handles += [*self.pub_obs.values(), self.pub_state, pub_hello, pub_stop,
                     *([self.pub_clock] if self.pub_clock else []),
                     session.liveliness().declare_token(keys.alive("world", "world"))]
@@ -87,7 +88,7 @@ class WorldNode(NodeBase):
         finally:
             undeclare(handles)
 
-    async def _episode(self, inbox: Inbox, pub_hello: zenoh.Publisher, pub_stop: zenoh.Publisher) -> str:
+    async def _episode(self, inbox: Inbox, pub_hello: Publisher, pub_stop: Publisher) -> str:
         if not await self._handshake(inbox, pub_hello):
             pub_stop.put(Stop(src="world", tick=0, seq=self.next_seq(), reason="startup").encode())
             return "startup"
@@ -103,7 +104,7 @@ class WorldNode(NodeBase):
         await asyncio.sleep(0.05)
         return end.reason
 
-    async def _handshake(self, inbox: Inbox, pub_hello: zenoh.Publisher) -> bool:
+    async def _handshake(self, inbox: Inbox, pub_hello: Publisher) -> bool:
         """Repeat the hello, less and less often, until the launcher (its recorder), netem and every agent
         answered: their subscriptions are then in place, so nothing of tick 0 is published into the void."""
         waiting = {"launcher", "netem", *([BASE] if self.scenario.has_base else []), *self.robots}
@@ -159,7 +160,7 @@ class WorldNode(NodeBase):
         obs, state = tick_messages(self.world, readings, self.scenario.cell_size, self.next_seq, self.dropped)
         for r, o in obs.items():
             self.pub_obs[r].put(o.encode())
-        self.pub_state.put(state.encode())
+        self.pub_state.put((dataclasses.replace(state, foreign=self.foreign) if self.foreign else state).encode())
 
     async def _lockstep(self, inbox: Inbox, readings: dict[str, Reading]) -> None:
         """Tick when every live robot has answered, until the run is done (or the launcher stops it)."""

@@ -299,10 +299,13 @@ class Ticks:
     def __init__(self, session: zenoh.Session, run: str) -> None:
         self.tick = -1
         self.done = False
+        self.nonce: bytes | None = None  # the run's, off its states' attachment (an open router shows it to all)
         self.changed = threading.Event()
         self._sub = session.declare_subscriber(Keys(run).state, self._on)
 
     def _on(self, sample: zenoh.Sample) -> None:
+        if sample.attachment is not None:
+            self.nonce = sample.attachment.to_bytes()
         with contextlib.suppress(Exception):
             obj = msgpack.unpackb(sample.payload.to_bytes())
             if isinstance(obj, dict) and obj.get("src") == "world" and isinstance(obj.get("tick"), int):
@@ -405,7 +408,8 @@ def loss_trial(spec: RunSpec, work: Path, allocator: str, run: str, loss: float 
 
 def fuzz_trial(spec: RunSpec, work: Path, rng: np.random.Generator, run: str, n: int, as_robot: str | None = None,
                baseline: dict | None = None) -> Trial:
-    """``n`` fuzzed messages on every key of a run, sent from its first tick on. Through an open router
+    """``n`` fuzzed messages on every key of a run, sent from its first tick on with the run's nonce (read off
+    its states, as any subscriber can: the fuzz is for the decoders behind the nonce). Through an open router
     (``as_robot`` None) with ``baseline`` given, the result must equal the baseline's (nothing was accepted);
     through an authenticated one, logged in as ``as_robot``, the run must still end without a death."""
     trial = Trial("fuzz " + (f"as {as_robot} (auth)" if as_robot else "(open router)"), f"{n} messages")
@@ -422,7 +426,7 @@ def fuzz_trial(spec: RunSpec, work: Path, rng: np.random.Generator, run: str, n:
         with launched([*spec.args(), "--connect", endpoint, *extra, "--run-id", run], work / run, trial) as (proc, _):
             if ticks.wait(lambda: ticks.tick >= 0, proc):
                 for key, data, mutation in fuzz_messages(rng, run, robot_ids(spec.robots), n, as_robot):
-                    s.put(key, data, congestion_control=zenoh.CongestionControl.BLOCK)
+                    s.put(key, data, congestion_control=zenoh.CongestionControl.BLOCK, attachment=ticks.nonce)
                     sent += 1
                     during += not ticks.done
                     kinds[mutation] = kinds.get(mutation, 0) + 1

@@ -170,9 +170,11 @@ def test_unparseable_map_file(tmp_path: Path) -> None:
     assert len(err.strip().splitlines()) == 1
 
 
-def _inject(session: zenoh.Session, run: str, stop_at: float, launcher: subprocess.Popen[str]) -> int:
+def _inject(session: zenoh.Session, run: str, stop_at: float, launcher: subprocess.Popen[str],
+            nonce: bytes | None) -> int:
     """Random bytes, wrong shapes and an unknown robot on every key the nodes listen to, until ``stop_at`` or
-    the launcher's exit (after which nothing of the run listens)."""
+    the launcher's exit (after which nothing of the run listens), each with the run's ``nonce`` (as an attacker
+    on the open router reads it off the run's traffic), so that they reach the decoders."""
     garbage = [
         os.urandom(40), b"", msgpack.packb({"kind": "cmd", "tick": "x"}), msgpack.packb([1, 2]),
         Command(src="r9", tick=1, seq=1, move=(0, 1)).encode(),
@@ -185,7 +187,7 @@ def _inject(session: zenoh.Session, run: str, stop_at: float, launcher: subproce
     while time.monotonic() < stop_at and launcher.poll() is None:
         for k in keys:
             for g in garbage:
-                session.put(k, g)
+                session.put(k, g, attachment=nonce)
                 sent += 1
         time.sleep(0.05)
     return sent
@@ -200,10 +202,17 @@ def test_malformed_messages_are_dropped_and_counted(small_map: Path, tmp_path: P
              "--connect", endpoint, "--run-id", "inject", "--out", str(out)],
             cwd=ROOT, stderr=subprocess.PIPE, text=True)
         started = threading.Event()  # inject once every node is up (start-up is slow on a loaded machine)
-        watch = s.declare_subscriber("fleet/inject/world/state", lambda _: started.set())
+        nonce: list[bytes] = []  # the run's, read off its first state: what reaches the decoders is malformed
+
+        def on_state(sample: zenoh.Sample) -> None:
+            if sample.attachment is not None and not nonce:
+                nonce.append(sample.attachment.to_bytes())
+            started.set()
+
+        watch = s.declare_subscriber("fleet/inject/world/state", on_state)
         started.wait(120)
         watch.undeclare()
-        sent = _inject(s, "inject", time.monotonic() + 6.0, proc)
+        sent = _inject(s, "inject", time.monotonic() + 6.0, proc, nonce[0] if nonce else None)
         _, err = proc.communicate(timeout=240)
     assert proc.returncode == 0, err[-2000:]
     res = result(out)

@@ -1,0 +1,112 @@
+"""The failure line names the real cause: a world frozen with a real SIGSTOP, a stop sent from outside the
+launcher (by someone who read the run's nonce off an open router), a flood of another run's messages."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import zenoh
+
+from fleet_emu.core.bus import client_config, router_config, router_locators
+from fleet_emu.core.messages import Stop, WorldState
+from fleet_emu.launch.causes import flood, froze, silent_world, state_timeout
+from fleet_emu.recording.monitor import Monitor
+from tests.conftest import ROOT, children_of, result, run_cli
+
+
+def _state(tick: int, done: bool = False) -> WorldState:
+    return WorldState(src="world", tick=tick, seq=tick, poses={}, live=("r0",), coverage=0.5, path_length={},
+                      done=done)
+
+
+def test_the_causes_read_from_the_monitor() -> None:
+    m = Monitor(("r0",))
+    assert silent_world(m, 3.0, now_ns=10**12) is None  # before tick 0: the start-up has its own timeout
+    m.feed("fleet/x/world/state", _state(7).encode(), wall_ns=0)
+    assert silent_world(m, 3.0, now_ns=2 * 10**9) is None
+    assert silent_world(m, 3.0, now_ns=4 * 10**9) == "the world process stopped answering at tick 7 (no state " \
+                                                      "for 3 s)"
+    assert froze(m, 10.0) is None
+    m.feed("fleet/x/world/state", _state(8, done=True).encode(), wall_ns=20 * 10**9)
+    assert silent_world(m, 3.0, now_ns=30 * 10**9) is None  # done: its stop is on the way
+    assert froze(m, 10.0) == "the world process stopped answering at tick 7 (no state for 20 s)"
+    assert froze(m, 30.0) is None and state_timeout(10.0) == 20.0
+    assert flood([], 100) is None and flood(["r1"], 0) is None
+    assert "r1 failed while the bus carried 100 message(s) of another run" in (flood(["r1"], 100) or "")
+
+
+def test_a_frozen_world_is_named_with_its_tick(small_map: Path, tmp_path: Path) -> None:
+    """``kill -STOP`` of the world mid-run: the launcher ends the run within the state timeout (two of the
+    scenario's ``barrier_timeout``, here 1 s) with one line naming the world and the tick it froze at."""
+    scenario = tmp_path / "frozen.toml"
+    scenario.write_text(f'max_ticks = 100000\ntarget_coverage = 1.0\nbarrier_timeout = 1.0\n'
+                        f'[map]\nname = "{small_map}"\n[fleet]\nrobots = 2\n')
+    ticks: list[int] = []
+    with zenoh.open(router_config()) as router:
+        endpoint = router_locators(router)[0]
+        watch = router.declare_subscriber("fleet/frozen/world/state", lambda _: ticks.append(len(ticks)))
+        proc = subprocess.Popen([sys.executable, "-m", "fleet_emu", "run", str(scenario), "--quiet", "--no-record",
+                                 "--connect", endpoint, "--run-id", "frozen", "--out", str(tmp_path / "run")],
+                                cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        world = None
+        try:
+            while len(ticks) < 5 and proc.poll() is None:
+                threading.Event().wait(0.1)
+            world = next(p for p in children_of(proc.pid) if b"fleet_emu.world" in Path(f"/proc/{p}/cmdline")
+                         .read_bytes())
+            os.kill(world, signal.SIGSTOP)
+            _, err = proc.communicate(timeout=120)
+        finally:
+            if world is not None:
+                with contextlib.suppress(ProcessLookupError):  # the launcher killed it
+                    os.kill(world, signal.SIGCONT)
+            if proc.poll() is None:
+                proc.kill()
+        watch.undeclare()
+    res = result(tmp_path / "run")
+    assert proc.returncode == 1 and len(_errors(err)) == 1, err
+    assert "the world process stopped answering at tick" in err and "(no state for 2 s)" in err
+    assert res["reason"] == "error" and res["error"] in err and res["ticks"] >= 4
+
+
+def _stop_from_outside(endpoint: str, done: threading.Event) -> None:
+    """Read the run's nonce off its first state on the open router, then put a stop in the launcher's name."""
+    got: list[zenoh.Sample] = []
+    with zenoh.open(client_config(endpoint)) as s:
+        watch = s.declare_subscriber("fleet/outside/world/state", got.append)
+        while not got and not done.is_set():
+            threading.Event().wait(0.05)
+        if got:
+            nonce = got[0].attachment
+            s.put("fleet/outside/ctl/stop", Stop(src="launcher", tick=0, seq=1, reason="interrupted").encode(),
+                  attachment=nonce.to_bytes() if nonce is not None else None)
+        watch.undeclare()
+
+
+def test_a_stop_from_outside_is_named(small_map: Path, tmp_path: Path) -> None:
+    """The nonce binds a run to its traffic; it does not authenticate (on an open router anyone can read it off
+    a message). A stop put in the launcher's name with it ends the run, and the line says so."""
+    done = threading.Event()
+    with zenoh.open(router_config()) as router:
+        endpoint = router_locators(router)[0]
+        attacker = threading.Thread(target=_stop_from_outside, args=(endpoint, done), daemon=True)
+        attacker.start()
+        code, _, err = run_cli(["run", "--map", str(small_map), "--robots", "2", "--max-ticks", "100000",
+                                "--target-coverage", "1.0", "--quiet", "--no-record", "--in-process",
+                                "--connect", endpoint, "--run-id", "outside", "--out", str(tmp_path / "run")])
+        done.set()
+        attacker.join(30)
+    assert code == 1 and len(_errors(err)) == 1, err
+    assert "a stop from outside this launcher ended the run" in err
+    assert result(tmp_path / "run")["reason"] == "error"
+
+
+def _errors(err: str) -> list[str]:
+    """The lines on stderr but the warning that an open router's bus is not authenticated."""
+    return [line for line in err.splitlines() if "is not authenticated" not in line]
