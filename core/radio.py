@@ -31,7 +31,9 @@ class RadioConfig:
     """The radio of a scenario (``[radio]``), of netem and of the connectivity allocator's prediction:
     ``comm`` the model (see the module docstring), ``loss`` per message and receiver on an existing link,
     ``comm_range`` c in metres, ``path_loss`` PL, ``waf`` dB per wall, ``max_walls`` C, ``threshold`` dB for a
-    link, ``latency`` ticks from send to delivery."""
+    link, ``latency`` ticks from the last byte on the air to delivery; ``bandwidth`` kbit/s of one shared medium
+    (0: unlimited, every message is on the air in its tick), ``queue_bytes`` each sender's queue (drop-tail),
+    ``jitter`` the most ticks (seeded, uniform) added to ``latency`` per message (netem/medium.py)."""
 
     comm: str = "wall"
     loss: float = 0.1
@@ -41,11 +43,23 @@ class RadioConfig:
     max_walls: int = 4
     threshold: float = 0.0
     latency: int = 1
+    bandwidth: float = 0.0
+    queue_bytes: int = 1_000_000
+    jitter: int = 0
 
     @property
     def applied_loss(self) -> float:
         """The loss probability the channel applies: none on the ideal radio."""
         return 0.0 if self.comm == "ideal" else self.loss
+
+    @property
+    def limited(self) -> bool:
+        """Whether the radio charges airtime (a bandwidth is set): senders queue, media are shared."""
+        return self.bandwidth > 0
+
+    def capacity(self, tick_s: float) -> float:
+        """Bytes one medium carries in a tick of ``tick_s`` seconds: ``bandwidth * 1000 / 8 * tick_s``."""
+        return self.bandwidth * 1000.0 / 8.0 * tick_s
 
     @property
     def sure_range(self) -> float:

@@ -30,6 +30,10 @@ RELAY_POLICIES = ("none", "flood", "tree")
 #: netem's lockstep as a sender (``radio/tx/base``), and the robots relay (``tree`` by default, below).
 BASE_PLANNERS = frozenset({"mhm"})
 DEFAULT_STALL = 30
+#: Seconds of simulated time per tick: one 0.5 m cell a second is 0.5 m/s, a typical indoor ground robot.
+DEFAULT_TICK_S = 1.0
+#: The radio's airtime fields (``RadioConfig``), left out of ``scenario.json`` at their defaults (unlimited).
+_RADIO_QUIET = {"bandwidth": 0.0, "queue_bytes": 1_000_000, "jitter": 0}
 BASE_PLANNER_STALL = 200  # a base planner's runs: robots hold while the base waits (Scenario.__post_init__)
 #: Where the shipped scenarios are (``Scenario.load("default")``): ``launch/scenarios`` of the package, found by
 #: path, not imported (core imports nothing above it).
@@ -119,6 +123,7 @@ class Scenario:
     radio: RadioConfig = dataclasses.field(default_factory=RadioConfig)
     seed: int = 0
     max_ticks: int = 2000
+    tick_s: float = DEFAULT_TICK_S  # seconds of simulated time per tick: a robot moves one cell per tick
     target_coverage: float = 0.99
     stall_ticks: int = DEFAULT_STALL  # ticks without a move nor a new cell sensed that end the run
     coverage_stall_ticks: int = 500  # ticks without coverage growth that end the run as a stall
@@ -231,6 +236,11 @@ class Scenario:
         for k, default in (("relay", "none"), ("relay_ttl", 0)):  # absent at their defaults, as before relaying
             if d[k] == default:
                 del d[k]
+        if self.tick_s == DEFAULT_TICK_S:  # absent at its default, as are the radio's airtime fields
+            del d["tick_s"]
+        for k, default in _RADIO_QUIET.items():
+            if d["radio"][k] == default:
+                del d["radio"][k]
         if self.hosts is None:  # absent without hosts: runs on one machine keep their scenario.json
             del d["hosts"]
         else:
@@ -238,17 +248,17 @@ class Scenario:
         return d
 
     def override(self, **flags: Any) -> Scenario:
-        """Flags on top (None means not given): ``loss``, ``comm_range`` and ``comm`` go to the radio;
-        ``allocator`` a name (its parameters kept when the name is unchanged); ``hosts`` a number (``--hosts N``:
-        the robots dealt round-robin over this machine and any N hosts, replacing the scenario's ``[hosts]``; 0:
-        every robot here); the rest by field name."""
+        """Flags on top (None means not given): a :class:`RadioConfig` field (``loss``, ``bandwidth``...) goes to
+        the radio; ``allocator`` a name (its parameters kept when the name is unchanged); ``hosts`` a number
+        (``--hosts N``: the robots dealt round-robin over this machine and any N hosts, replacing the scenario's
+        ``[hosts]``; 0: every robot here); the rest by field name."""
         top: dict[str, Any] = {}
         radio: dict[str, Any] = {}
         names = {f.name for f in dataclasses.fields(self)}
         for k, v in flags.items():
             if v is None:
                 continue
-            if k in ("loss", "comm_range", "comm"):
+            if k in _RADIO_FIELDS:
                 radio[k] = v
             elif k == "allocator":
                 top["allocator"] = {"type": v} if v != self.allocator.get("type") else self.allocator
@@ -314,6 +324,10 @@ class Scenario:
         _number("radio.threshold", r.threshold, -1000.0, 1000.0)
         _integer("radio.max_walls", r.max_walls, 0, 10**6)
         _integer("radio.latency", r.latency, 1, 10**6)
+        _number("--tick-s", self.tick_s, 0.0, 3600.0, low_open=True)
+        _number("--bandwidth", r.bandwidth, 0.0, 1e9)
+        _integer("radio.queue_bytes", r.queue_bytes, 1, 10**12)
+        _integer("radio.jitter", r.jitter, 0, 10**6)
         if r.comm not in COMM_MODELS:
             raise ConfigError(f"--comm must be one of {', '.join(COMM_MODELS)} (got {r.comm!r})")
         if self.sensor_range / self.cell_size < 1:
@@ -343,8 +357,9 @@ class Scenario:
         return self
 
 
-_TOP = {"name", "base", "seed", "max_ticks", "target_coverage", "stall_ticks", "coverage_stall_ticks",
+_TOP = {"name", "base", "seed", "max_ticks", "tick_s", "target_coverage", "stall_ticks", "coverage_stall_ticks",
         "barrier_timeout", "belief_every", "relay", "relay_ttl"}
+_RADIO_FIELDS = frozenset(f.name for f in dataclasses.fields(RadioConfig))
 _SECTIONS = ("map", "fleet", "radio", "allocator", "hosts")
 
 

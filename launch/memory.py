@@ -36,7 +36,7 @@ from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.result import Result
 from fleet_emu.launch.signals import Interrupts
-from fleet_emu.netem.channel import Channel, radio_tick
+from fleet_emu.netem.channel import make_channel, radio_tick
 from fleet_emu.recording.monitor import Monitor
 from fleet_emu.world.build import base_cell, build_world
 from fleet_emu.world.maps import BUILTIN_MAPS, load_map
@@ -103,8 +103,7 @@ class Fleet:
         self.map = self._map_data if self._map_data is not None else fleet_map(s)
         self.world = build_world(s, self.map, self._starts)
         self.occupied = self.map.grid > 0
-        self.channel = Channel(s.radio.applied_loss, generator(s.seed, "netem"), s.radio.latency,
-                               generator(s.seed, "netem", BASE))
+        self.channel = make_channel(s.seed, s.radio, s.tick_s)
         self.dropped = dict.fromkeys(self.possible_agents, 0)
         self.base: BaseStation | None = None
         self._base_dropped = 0
