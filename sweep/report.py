@@ -24,7 +24,7 @@ import numpy as np
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.sweep.execute import PARQUET
 
-GROUP = ("map", "comm", "loss_applied", "robots")
+GROUP = ("map", "comm", "loss_applied", "bandwidth", "robots")
 
 
 def load(results: Path) -> tuple[list[dict[str, Any]], dict[str, Any], Path]:
@@ -45,7 +45,10 @@ def load(results: Path) -> tuple[list[dict[str, Any]], dict[str, Any], Path]:
     except Exception as exc:
         raise ConfigError(f"cannot read sweep results {path}: {exc}") from None
     study = tomllib.loads((out / "study.toml").read_text()) if (out / "study.toml").exists() else {}
-    return table.to_pylist(), study, out
+    rows = table.to_pylist()
+    for r in rows:  # the radio's rate: absent from an unlimited run's scenario
+        r["bandwidth"] = float(r.get("scenario.radio.bandwidth") or 0.0)
+    return rows, study, out
 
 
 def moves(row: dict[str, Any]) -> float:
@@ -68,7 +71,14 @@ def base_connected_pct(row: dict[str, Any]) -> float:
     return 100.0 * v if v is not None else math.nan
 
 
+def airtime_kb(row: dict[str, Any]) -> float:
+    """Kilobytes on the air per robot-tick (``radio.airtime_bytes`` over ticks and robots)."""
+    ticks, robots, air = row.get("ticks"), row.get("robots"), row.get("radio.airtime_bytes")
+    return air / 1e3 / (ticks * robots) if ticks and robots and air is not None else math.nan
+
+
 METRICS: dict[str, Callable[[dict[str, Any]], float]] = {
+    "airtime_kb": airtime_kb,
     "ticks": time_to_target, "moves": moves, "connected_pct": connected_pct,
     "coverage_pct": lambda r: 100.0 * r["coverage"] if r.get("coverage") is not None else math.nan,
     "base_connected_pct": base_connected_pct,
@@ -184,14 +194,15 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
     base = any(ln["base_connected_pct"][2] for ln in lines)  # a column only for studies with a base station
     t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it)")
     for col in ("map", "radio", "robots", "allocator", "runs", "reached", "time", f"vs {baseline}",
-                "paired Δ ± s.e.", "moves", "connected %", *(["base connected %"] if base else [])):
+                "paired Δ ± s.e.", "moves", "connected %", "kB/robot-tick", *(["base connected %"] if base else [])):
         t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left")
     for ln in lines:
-        t.add_row(Path(str(ln["map"])).stem, f"{ln['comm']}, loss {ln['loss_applied']:g}", str(ln["robots"]),
+        rate = f", {ln['bandwidth']:g} kbit/s" if ln.get("bandwidth") else ""
+        t.add_row(Path(str(ln["map"])).stem, f"{ln['comm']}, loss {ln['loss_applied']:g}{rate}", str(ln["robots"]),
                   ln["allocator"], str(ln["runs"]), str(ln["ticks"][2]), _fmt(ln["ticks"]),
                   "-" if math.isnan(ln["vs_baseline_pct"]) else f"{ln['vs_baseline_pct']:+.1f} %",
                   "-" if math.isnan(ln["paired"][0]) else f"{ln['paired'][0]:+.1f} ± {ln['paired'][1]:.1f}",
-                  _fmt(ln["moves"]), _fmt(ln["connected_pct"]),
+                  _fmt(ln["moves"]), _fmt(ln["connected_pct"]), _fmt(ln["airtime_kb"], 2),
                   *([_fmt(ln["base_connected_pct"])] if base else []))
     return t
 
