@@ -1,12 +1,14 @@
 """Time per run of the memory engine against the Zenoh engines on the same scenarios, as a ratio.
 
-    python -m benchmarks.engine_speed [--seeds 2] [--processes] [--quick]
+    python -m benchmarks.engine_speed [--seeds 2] [--processes] [--quick] [--bandwidth KBITPS] [--memory-only]
 
 Each scenario runs with every seed on the memory engine (``fleet_emu.Fleet``, in this process, after one
 warm-up run), on the in-process Zenoh engine (``fe.run(in_process=True)``: every node in this process, a
 session each, through an embedded router) and, with ``--processes``, on the default one (one OS process per
 node). Every run's deterministic keys are checked equal across engines. Prints one table: seconds per run
-(mean over seeds) per engine, and the ratio in-process / memory (and processes / memory).
+(mean over seeds) per engine, and the ratio in-process / memory (and processes / memory). ``--bandwidth``
+runs every scenario on a bandwidth-limited radio (kbit/s; netem/medium.py), to measure what airtime costs;
+``--memory-only`` times the memory engine alone (a change's cost on it, against another checkout).
 """
 
 from __future__ import annotations
@@ -38,18 +40,20 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--processes", action="store_true", help="also the default engine (one process per node)")
     p.add_argument("--quick", action="store_true", help="the two office scenarios only")
     p.add_argument("--max-ticks", type=int, help="cut every run at this tick (a smoke test)")
+    p.add_argument("--bandwidth", type=float, default=0.0, help="kbit/s of a limited radio (0: unlimited)")
+    p.add_argument("--memory-only", action="store_true", help="the memory engine alone")
     args = p.parse_args(argv)
     from fleet_emu.world.registry import is_fetched
 
     scenarios = SCENARIOS[:2] if args.quick or not is_fetched(HOSPITAL) else SCENARIOS
-    engines = ["memory", "in-process"] + (["processes"] if args.processes else [])
+    engines = ["memory"] if args.memory_only else ["memory", "in-process"] + (["processes"] if args.processes else [])
     fe.Fleet(fe.Scenario().override(robots=2, max_ticks=5)).run()  # compile or load the kernels once
     rows: list[tuple[str, dict[str, float]]] = []
     differ = 0
     for label, over in scenarios:
         times: dict[str, list[float]] = {e: [] for e in engines}
         for seed in range(args.seeds):
-            s = fe.Scenario().override(seed=seed, **over)
+            s = fe.Scenario().override(seed=seed, **over, **({"bandwidth": args.bandwidth} if args.bandwidth else {}))
             s = s.override(max_ticks=min(args.max_ticks, s.max_ticks)) if args.max_ticks else s
             seen: dict[str, Any] | None = None
             for engine in engines:
