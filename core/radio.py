@@ -16,11 +16,13 @@ with no loss, kept for comparison). The loss probability applies on every model 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 
 import numpy as np
 
+from fleet_emu.core.fields import Setting, setting, settings
 from fleet_emu.core.grid import Cell
 
 COMM_MODELS = ("wall", "disk", "full", "ideal")
@@ -28,24 +30,35 @@ COMM_MODELS = ("wall", "disk", "full", "ideal")
 
 @dataclasses.dataclass(frozen=True)
 class RadioConfig:
-    """The radio of a scenario (``[radio]``), of netem and of the connectivity allocator's prediction:
-    ``comm`` the model (see the module docstring), ``loss`` per message and receiver on an existing link,
-    ``comm_range`` c in metres, ``path_loss`` PL, ``waf`` dB per wall, ``max_walls`` C, ``threshold`` dB for a
-    link, ``latency`` ticks from the last byte on the air to delivery; ``bandwidth`` kbit/s of one shared medium
-    (0: unlimited, every message is on the air in its tick), ``queue_bytes`` each sender's queue (drop-tail),
-    ``jitter`` the most ticks (seeded, uniform) added to ``latency`` per message (netem/medium.py)."""
+    """The radio of a scenario (``[radio]``), of netem and of the connectivity allocator's prediction.
 
-    comm: str = "wall"
-    loss: float = 0.1
-    comm_range: float = 10.0
-    path_loss: float = 2.0
-    waf: float = 3.1
-    max_walls: int = 4
-    threshold: float = 0.0
-    latency: int = 1
-    bandwidth: float = 0.0
-    queue_bytes: int = 1_000_000
-    jitter: int = 0
+    Every field is declared with :func:`~fleet_emu.core.fields.setting` (unit, range, flag, help): that one
+    declaration makes it a ``fleet run`` flag (``--max-walls N``), a key of ``[radio]``, a key of a study's
+    ``[grid]`` and ``[fleet]`` (flat, ``waf``, or in a ``radio`` table), a :meth:`Scenario.override` keyword,
+    and checks it the same way in all of them (docs/guides/radio.md, "Every radio setting"). ``bandwidth``,
+    ``queue_bytes`` and ``jitter`` make a radio that charges airtime (``netem/medium.py``)."""
+
+    comm: str = setting("wall", choices=COMM_MODELS,
+                        help="radio model: wall (eq. 4), disk (within --comm-range), full (all pairs), ideal "
+                             "(full, no loss)")
+    loss: float = setting(0.1, low=0.0, high=1.0, metavar="P",
+                          help="per-message loss probability on an existing link")
+    comm_range: float = setting(10.0, unit="m", low=0.0, high=1e6, low_open=True, metavar="M",
+                                help="nominal range c in metres (P = 0 dB in free space)")
+    path_loss: float = setting(2.0, low=0.0, high=100.0, metavar="PL", help="path-loss exponent PL of eq. 4")
+    waf: float = setting(3.1, unit="dB", low=0.0, high=1000.0, metavar="DB",
+                         help="wall attenuation factor: dB lost per wall crossed")
+    max_walls: int = setting(4, low=0, high=10**6, metavar="N", help="most walls eq. 4 counts (C)")
+    threshold: float = setting(0.0, unit="dB", low=-1000.0, high=1000.0, metavar="DB",
+                               help="signal a wall-model link needs (P >= threshold)")
+    latency: int = setting(1, unit="ticks", low=1, high=10**6, metavar="TICKS",
+                           help="ticks from the last byte on the air to delivery")
+    bandwidth: float = setting(0.0, unit="kbit/s", low=0.0, high=1e9, metavar="KBITPS",
+                               help="capacity of one shared medium (robots that hear each other); 0: unlimited")
+    queue_bytes: int = setting(1_000_000, unit="bytes", low=1, high=10**12, metavar="BYTES",
+                               help="each sender's queue on a limited radio (drop-tail)")
+    jitter: int = setting(0, unit="ticks", low=0, high=10**6, metavar="TICKS",
+                          help="most ticks (seeded, uniform) added to the latency of each message")
 
     @property
     def applied_loss(self) -> float:
@@ -71,6 +84,12 @@ class RadioConfig:
         if self.comm == "wall" and self.path_loss > 0:
             return self.comm_range * 10 ** (-(self.threshold + self.max_walls * self.waf) / (10 * self.path_loss))
         return math.inf
+
+
+@functools.cache
+def radio_settings() -> tuple[Setting, ...]:
+    """The declaration of every :class:`RadioConfig` field, in order (flags, tables, checks)."""
+    return settings(RadioConfig)
 
 
 def radio_label(comm: str, loss: float) -> str:

@@ -19,9 +19,11 @@ from pathlib import Path
 from typing import Any
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.fields import check_all, merge
 from fleet_emu.core.keys import HOST_ID
 from fleet_emu.core.messages import MAX_TTL
-from fleet_emu.core.radio import COMM_MODELS, RadioConfig
+from fleet_emu.core.radio import RadioConfig, radio_settings
+from fleet_emu.core.scenario_checks import check_names
 
 MAX_ROBOTS = 256
 MAX_HOSTS = 64
@@ -207,14 +209,7 @@ class Scenario:
         unknown = set(d) - {f.name for f in dataclasses.fields(cls)}
         if unknown:
             raise ConfigError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}")
-        radio = d.pop("radio", {})
-        if isinstance(radio, RadioConfig):
-            radio = dataclasses.asdict(radio)
-        if not isinstance(radio, dict):
-            raise ConfigError(f"{where}: radio must be a table of radio settings")
-        bad = set(radio) - {f.name for f in dataclasses.fields(RadioConfig)}
-        if bad:
-            raise ConfigError(f"{where}: unknown key(s) in [radio]: {', '.join(sorted(bad))}")
+        radio = merge(RadioConfig(), d.pop("radio", {}), "[radio]", where)
         for cell_key in ("start", "base"):
             if isinstance(d.get(cell_key), list):
                 d[cell_key] = tuple(d[cell_key])
@@ -224,7 +219,7 @@ class Scenario:
             d["hosts"] = HostPlan.from_dict(d["hosts"], where)
         elif d.get("hosts") is not None and not isinstance(d["hosts"], HostPlan):
             raise ConfigError(f"{where}: hosts must be a [hosts] table (count, names, robots)")
-        return cls(radio=RadioConfig(**radio), **d).validate()
+        return cls(radio=radio, **d).validate()
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -248,20 +243,24 @@ class Scenario:
         return d
 
     def override(self, **flags: Any) -> Scenario:
-        """Flags on top (None means not given): a :class:`RadioConfig` field (``loss``, ``bandwidth``...) goes to
-        the radio; ``allocator`` a name (its parameters kept when the name is unchanged); ``hosts`` a number
-        (``--hosts N``: the robots dealt round-robin over this machine and any N hosts, replacing the scenario's
-        ``[hosts]``; 0: every robot here); the rest by field name."""
+        """Flags on top (None means not given): a radio field by its name (``waf=6.0``), or ``radio`` a table of
+        them (or a :class:`RadioConfig`), the names winning over the table; ``allocator`` a name (its parameters
+        kept when the name is unchanged) or a table with a ``type``; ``hosts`` a number (``--hosts N``: the
+        robots dealt round-robin over this machine and any N hosts, replacing the scenario's ``[hosts]``; 0:
+        every robot here); the rest by field name. Every value is checked, and an allocator or a map given is
+        checked to exist (:mod:`fleet_emu.core.scenario_checks`), before this returns."""
         top: dict[str, Any] = {}
-        radio: dict[str, Any] = {}
         names = {f.name for f in dataclasses.fields(self)}
+        radio_names = {s.name for s in radio_settings()}
+        table = flags.pop("radio", None)
+        radio = self.radio if table is None else merge(self.radio, table, "radio")
         for k, v in flags.items():
             if v is None:
                 continue
-            if k in _RADIO_FIELDS:
-                radio[k] = v
+            if k in radio_names:
+                radio = dataclasses.replace(radio, **{k: v})
             elif k == "allocator":
-                top["allocator"] = {"type": v} if v != self.allocator.get("type") else self.allocator
+                top["allocator"] = _allocator(v, self.allocator)
             elif k == "hosts" and not isinstance(v, HostPlan):
                 if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= MAX_HOSTS:
                     raise ConfigError(f"--hosts must be in 0..{MAX_HOSTS} (got {v!r})")
@@ -270,9 +269,11 @@ class Scenario:
                 top[k] = tuple(v) if k in ("start", "base") and isinstance(v, list) else v
             else:
                 raise ConfigError(f"unknown scenario field {k!r}")
-        if radio:
-            top["radio"] = dataclasses.replace(self.radio, **radio)
-        return dataclasses.replace(self, **top).validate()
+        if radio != self.radio:
+            top["radio"] = radio
+        out = dataclasses.replace(self, **top).validate()
+        check_names(out, [k for k in ("allocator", "map") if k in top])
+        return out
 
     @property
     def cell_size_given(self) -> bool:
@@ -304,7 +305,6 @@ class Scenario:
 
     def validate(self) -> Scenario:
         """Raise ConfigError on the first bad value; return self."""
-        r = self.radio
         _text("name", self.name)
         _text("--map", self.map)
         _integer("--robots", self.robots, 1, MAX_ROBOTS)
@@ -317,19 +317,8 @@ class Scenario:
         _number("--sensor-range", self.sensor_range, 0.0, math.inf, low_open=True)  # the world clamps it to the map
         _number("--target-coverage", self.target_coverage, 0.0, 1.0, low_open=True)
         _number("barrier_timeout", self.barrier_timeout, 0.0, 86400.0, low_open=True)
-        _number("--loss", r.loss, 0.0, 1.0)
-        _number("--comm-range", r.comm_range, 0.0, 1e6, low_open=True)
-        _number("radio.path_loss", r.path_loss, 0.0, 100.0)
-        _number("radio.waf", r.waf, 0.0, 1000.0)
-        _number("radio.threshold", r.threshold, -1000.0, 1000.0)
-        _integer("radio.max_walls", r.max_walls, 0, 10**6)
-        _integer("radio.latency", r.latency, 1, 10**6)
-        _number("--tick-s", self.tick_s, 0.0, 3600.0, low_open=True)
-        _number("--bandwidth", r.bandwidth, 0.0, 1e9)
-        _integer("radio.queue_bytes", r.queue_bytes, 1, 10**12)
-        _integer("radio.jitter", r.jitter, 0, 10**6)
-        if r.comm not in COMM_MODELS:
-            raise ConfigError(f"--comm must be one of {', '.join(COMM_MODELS)} (got {r.comm!r})")
+        _number("tick_s", self.tick_s, 0.0, 3600.0, low_open=True)
+        check_all(self.radio)
         if self.sensor_range / self.cell_size < 1:
             raise ConfigError(f"--sensor-range {self.sensor_range} m is less than one cell ({self.cell_size} m)")
         start_ok = self.start is None or self.start == "random" or (
@@ -359,8 +348,17 @@ class Scenario:
 
 _TOP = {"name", "base", "seed", "max_ticks", "tick_s", "target_coverage", "stall_ticks", "coverage_stall_ticks",
         "barrier_timeout", "belief_every", "relay", "relay_ttl"}
-_RADIO_FIELDS = frozenset(f.name for f in dataclasses.fields(RadioConfig))
 _SECTIONS = ("map", "fleet", "radio", "allocator", "hosts")
+
+
+def _allocator(value: Any, current: dict[str, Any]) -> dict[str, Any]:
+    """An allocator override: a name (``current``'s parameters kept when it names the same allocator) or a table
+    with a ``type`` name and parameters."""
+    if isinstance(value, str):
+        return current if value == current.get("type") else {"type": value}
+    if isinstance(value, dict) and isinstance(value.get("type"), str):
+        return dict(value)
+    raise ConfigError(f"allocator must be a name or a table with a 'type' name (got {value!r})")
 
 
 def shipped() -> list[str]:

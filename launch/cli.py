@@ -97,8 +97,6 @@ def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
                                  "PNG/PGM path (a bare bitmap needs --cell-size: one pixel per cell)")
     r.add_argument("--robots", type=int)
     r.add_argument("--allocator", help="allocator name (see `fleet allocators`)")
-    r.add_argument("--loss", type=float, help="per-message loss probability on an existing link")
-    r.add_argument("--comm-range", type=float, help="nominal range c in metres (P = 0 dB in free space)")
     r.add_argument("--sensor-range", type=float, help="sensor range in metres")
     r.add_argument("--cell-size", type=float, help="metres per cell (default 0.5)")
     r.add_argument("--seed", type=int)
@@ -112,10 +110,9 @@ def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
                    help="hops left after the first on the messages a robot makes (default 0: one hop)")
     r.add_argument("--max-ticks", type=int)
     r.add_argument("--target-coverage", type=float)
-    from fleet_emu.core.radio import COMM_MODELS
+    from fleet_emu.launch.radio_flags import add_radio_flags
 
-    r.add_argument("--comm", choices=COMM_MODELS,
-                   help="radio: wall (eq. 4), disk (within --comm-range), full (all pairs), ideal (full, no loss)")
+    add_radio_flags(r)
 
 
 def _add_engine_flags(r: argparse.ArgumentParser) -> None:
@@ -202,10 +199,12 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
     if given is not None and args.scenario is not None:
         raise ConfigError(f"two scenarios given ({given} and --scenario {args.scenario}): give one")
     base = Scenario.load(given or args.scenario or DEFAULT_SCENARIO)
+    from fleet_emu.launch.radio_flags import radio_overrides
+
     return base.override(
-        map=args.map, robots=args.robots, allocator=args.allocator, loss=args.loss,
-        comm_range=args.comm_range, sensor_range=args.sensor_range, cell_size=args.cell_size, seed=args.seed,
-        start=args.start, max_ticks=args.max_ticks, target_coverage=args.target_coverage, comm=args.comm,
+        map=args.map, robots=args.robots, allocator=args.allocator, sensor_range=args.sensor_range,
+        cell_size=args.cell_size, seed=args.seed, start=args.start, max_ticks=args.max_ticks,
+        target_coverage=args.target_coverage, **radio_overrides(args),
         base=args.base_cell if args.base_cell is not None else args.base,
         relay=getattr(args, "relay", None), relay_ttl=getattr(args, "relay_ttl", None),
         hosts=getattr(args, "hosts", None))

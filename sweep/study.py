@@ -36,12 +36,11 @@ from pathlib import Path
 from typing import Any
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.radio import radio_settings
 from fleet_emu.core.scenario import Scenario
 
 STUDIES = Path(__file__).resolve().parent / "studies"
 ENGINES = ("memory", "processes")
-#: Grid keys that are not scenario fields.
-_RADIO = {"loss", "comm", "comm_range"}
 _STUDY_KEYS = {"name", "description", "engine", "seeds", "baseline", "maps"}
 
 
@@ -115,34 +114,51 @@ class Study:
         study = cls(name=str(name), grid=dict(grid), seeds=list(seeds), fleet=dict(fleet), engine=engine,
                     baseline=head.get("baseline"), description=str(head.get("description", "")),
                     maps_hint=str(head.get("maps", "")), paper=dict(raw.get("paper", {})), path=path, text=text)
-        study.scenario({k: v[0] for k, v in grid.items()}, seeds[0], resolve=False)  # bad fields fail now
+        first = {k: v[0] for k, v in grid.items()}  # bad values fail now, each with the other keys' first
+        for params in [first, *(first | {k: v} for k, values in grid.items() for v in values[1:])]:
+            study.scenario(params, seeds[0], resolve=False)
         return study
 
     def scenario(self, params: dict[str, Any], seed: int, maps_dir: Path | None = None,
                  resolve: bool = True, resolved: dict[str, str] | None = None) -> Scenario:
-        """The scenario of one point: the defaults, ``[fleet]``, then the point's grid values. ``resolved``
-        keeps the maps found so far (by name), so that a grid of many points looks each one up once."""
-        flat = {**self.fleet, **params, "seed": seed}
-        allocator = flat.pop("allocator", None)
-        radio = {k: flat.pop(k) for k in list(flat) if k in _RADIO}
-        if "map" in flat and resolve:
+        """The scenario of one point: the defaults, ``[fleet]``, then the point's grid values (a radio setting
+        flat, ``waf``, or in a ``radio`` table; the grid's win over ``[fleet]``'s, a flat name over its layer's
+        table). ``resolved`` keeps the maps found so far (by name), so that a grid of many points looks each one
+        up once; ``resolve=False`` leaves the map out (the study's checks before its maps are looked up)."""
+        names = {s.name for s in radio_settings()}
+        flat = {k: v for k, v in (self.fleet | params).items() if k not in names and k != "radio"}
+        flat |= {"seed": seed, "radio": self._radio(params, names)}
+        if "map" in flat and not resolve:
+            del flat["map"]
+        elif "map" in flat:
             memo = resolved if resolved is not None else {}
             name = str(flat["map"])
             if name not in memo:
                 memo[name] = resolve_map(name, self, maps_dir)
             flat["map"] = memo[name]
-        s = Scenario().override(**flat, **radio)
+        try:
+            s = Scenario().override(**flat)
+        except ConfigError as exc:
+            raise ConfigError(f"study {self.name}: {exc}") from None
         if resolve and not s.cell_size_given:
             from fleet_emu.world.maps import is_bare_bitmap, no_scale_error
 
             if is_bare_bitmap(s.map):
                 raise ConfigError(f"study {self.name}: {no_scale_error(s.map)}")
-        if allocator is not None:
-            config = {"type": allocator} if isinstance(allocator, str) else dict(allocator)
-            if not isinstance(config.get("type"), str):
-                raise ConfigError(f"study {self.name}: an allocator needs a 'type' name (got {allocator!r})")
-            s = dataclasses.replace(s, allocator=config).validate()
         return s
+
+    def _radio(self, params: dict[str, Any], names: set[str]) -> dict[str, Any]:
+        """The radio settings of a point, layered: ``[fleet]``'s ``radio`` table, its flat names (``names``),
+        then the grid's (each a table of radio settings, checked by :meth:`Scenario.override`)."""
+        radio: dict[str, Any] = {}
+        for layer, where in ((self.fleet, "[fleet]"), (params, "[grid]")):
+            table = layer.get("radio", {})
+            if not isinstance(table, dict):
+                raise ConfigError(f"study {self.name}: {where} radio must be a table of radio settings "
+                                  f"(got {table!r})")
+            radio |= table
+            radio |= {k: v for k, v in layer.items() if k in names}
+        return radio
 
     def points(self, maps_dir: Path | None = None) -> list[Point]:
         """Every point of the grid, seeds innermost; a missing map is one ConfigError before any run."""
@@ -159,10 +175,13 @@ class Study:
 
 
 def _label(value: Any) -> Any:
-    """A grid value as a column: an allocator table becomes ``minpos(wavefront=stop)``."""
-    if isinstance(value, dict):
+    """A grid value as a column: an allocator table becomes ``minpos(wavefront=stop)``, a radio table
+    ``comm=wall,waf=6.0``."""
+    if isinstance(value, dict) and "type" in value:
         extra = ",".join(f"{k}={v}" for k, v in sorted(value.items()) if k != "type")
         return f"{value.get('type')}({extra})" if extra else str(value.get("type"))
+    if isinstance(value, dict):  # a radio table: ``comm=wall,waf=6.0``
+        return ",".join(f"{k}={v}" for k, v in sorted(value.items()))
     return value
 
 

@@ -1,0 +1,26 @@
+"""``fleet run``'s radio flags: one per :class:`RadioConfig` field, made from its declaration
+(:func:`fleet_emu.core.radio.radio_settings`: flag, metavar, unit, range, help), so that a field declared there
+is a flag here with nothing else to write."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from fleet_emu.core.radio import radio_settings
+
+
+def add_radio_flags(parser: argparse.ArgumentParser) -> None:
+    """A ``radio`` group of flags, ``--waf DB`` and the like, each defaulting to None (not given: the
+    scenario's value)."""
+    group = parser.add_argument_group("radio", "the scenario's [radio], one flag per setting "
+                                               "(docs/guides/radio.md)")
+    for s in radio_settings():
+        extra: dict[str, Any] = {"choices": s.choices} if s.choices else {"type": s.kind, "metavar": s.metavar}
+        span = "" if s.choices else f"; {s.span()}"
+        group.add_argument(s.flag, dest=s.name, default=None, **extra, help=f"{s.help}{span} (default {s.default})")
+
+
+def radio_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The radio flags given, by field name, for :meth:`Scenario.override`."""
+    return {s.name: getattr(args, s.name) for s in radio_settings() if getattr(args, s.name, None) is not None}
