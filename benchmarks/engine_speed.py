@@ -8,7 +8,8 @@ session each, through an embedded router) and, with ``--processes``, on the defa
 node). Every run's deterministic keys are checked equal across engines. Prints one table: seconds per run
 (mean over seeds) per engine, and the ratio in-process / memory (and processes / memory). ``--bandwidth``
 runs every scenario on a bandwidth-limited radio (kbit/s; netem/medium.py), to measure what airtime costs;
-``--memory-only`` times the memory engine alone (a change's cost on it, against another checkout).
+``--memory-only`` times the memory engine alone (a change's cost on it, against another checkout), and adds
+its CPU seconds per run (this process's), steadier than wall time on a loaded machine.
 """
 
 from __future__ import annotations
@@ -52,14 +53,17 @@ def main(argv: list[str] | None = None) -> None:
     differ = 0
     for label, over in scenarios:
         times: dict[str, list[float]] = {e: [] for e in engines}
+        cpu: list[float] = []
         for seed in range(args.seeds):
             s = fe.Scenario().override(seed=seed, **over, **({"bandwidth": args.bandwidth} if args.bandwidth else {}))
             s = s.override(max_ticks=min(args.max_ticks, s.max_ticks)) if args.max_ticks else s
             seen: dict[str, Any] | None = None
             for engine in engines:
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 res = fe.Fleet(s).run() if engine == "memory" else fe.run(s, in_process=engine == "in-process")
                 times[engine].append(time.perf_counter() - t0)
+                if engine == "memory":
+                    cpu.append(time.process_time() - c0)
                 keys = deterministic(res.data)
                 if seen is not None and keys != seen:
                     differ += 1
@@ -67,15 +71,16 @@ def main(argv: list[str] | None = None) -> None:
                 seen = seen or keys
             print(f"{label} seed {seed}: ticks {res['ticks']}, "
                   + ", ".join(f"{e} {times[e][-1]:.2f} s" for e in engines), file=sys.stderr, flush=True)
-        rows.append((label, {e: sum(v) / len(v) for e, v in times.items()}))
-    head = f"{'scenario':34s}" + "".join(f"{e + ' s/run':>18s}" for e in engines) + \
+        rows.append((label, {e: sum(v) / len(v) for e, v in times.items()} | {"cpu": sum(cpu) / len(cpu)}))
+    cols = engines + (["cpu"] if args.memory_only else [])
+    head = f"{'scenario':34s}" + "".join(f"{(e if e != 'cpu' else 'memory cpu') + ' s/run':>18s}" for e in cols) + \
         "".join(f"{e + '/memory':>22s}" for e in engines[1:])
     print(head)
     for label, t in rows:
-        print(f"{label:34s}" + "".join(f"{t[e]:18.2f}" for e in engines)
+        print(f"{label:34s}" + "".join(f"{t[e]:18.2f}" for e in cols)
               + "".join(f"{t[e] / t['memory']:22.1f}" for e in engines[1:]))
-    total = {e: sum(t[e] for _, t in rows) for e in engines}
-    print(f"{'all (sum)':34s}" + "".join(f"{total[e]:18.2f}" for e in engines)
+    total = {e: sum(t[e] for _, t in rows) for e in cols}
+    print(f"{'all (sum)':34s}" + "".join(f"{total[e]:18.2f}" for e in cols)
           + "".join(f"{total[e] / total['memory']:22.1f}" for e in engines[1:]))
     if differ:
         print(f"engine_speed: {differ} run(s) differ between engines (see above)", file=sys.stderr)

@@ -35,7 +35,7 @@ DEFAULT_STALL = 30
 #: Seconds of simulated time per tick: one 0.5 m cell a second is 0.5 m/s, a typical indoor ground robot.
 DEFAULT_TICK_S = 1.0
 #: The radio's airtime fields (``RadioConfig``), left out of ``scenario.json`` at their defaults (unlimited).
-_RADIO_QUIET = {"bandwidth": 0.0, "queue_bytes": 1_000_000, "jitter": 0}
+_RADIO_QUIET: dict[str, float] = {"bandwidth": 0.0, "queue_bytes": 1_000_000, "jitter": 0}
 BASE_PLANNER_STALL = 200  # a base planner's runs: robots hold while the base waits (Scenario.__post_init__)
 #: Where the shipped scenarios are (``Scenario.load("default")``): ``launch/scenarios`` of the package, found by
 #: path, not imported (core imports nothing above it).
@@ -233,9 +233,9 @@ class Scenario:
                 del d[k]
         if self.tick_s == DEFAULT_TICK_S:  # absent at its default, as are the radio's airtime fields
             del d["tick_s"]
-        for k, default in _RADIO_QUIET.items():
-            if d["radio"][k] == default:
-                del d["radio"][k]
+        for name, quiet in _RADIO_QUIET.items():
+            if d["radio"][name] == quiet:
+                del d["radio"][name]
         if self.hosts is None:  # absent without hosts: runs on one machine keep their scenario.json
             del d["hosts"]
         else:

@@ -119,11 +119,11 @@ class Channel:
         index = {r: i for i, r in enumerate(robots)}
         if self.medium is not None:
             self.medium.enqueue(tick, {r: b for r, b in bundles.items() if b})
-            for item, due in self.medium.serve(tick, robots, link):
+            for item, at in self.medium.serve(tick, robots, link):
                 src = item.src
                 if src in index:  # a sender that failed mid-air is gone
-                    self._send(src, item.msg, self._heard(src, robots, index, link), index, self._pending[due])
-                    self.counters.delay[due - item.handed] += 1
+                    self._send(src, item.msg, self._heard(src, robots, index, link), index, self._pending[at])
+                    self.counters.delay[at - item.handed] += 1
             return
         due = self._pending[tick + self.latency]
         for src in robots:
