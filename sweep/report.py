@@ -192,17 +192,21 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
     from rich.table import Table
 
     base = any(ln["base_connected_pct"][2] for ln in lines)  # a column only for studies with a base station
-    t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it)")
+    rated = any(ln.get("bandwidth") for ln in lines)  # and one only for studies of a limited radio
+    t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it"
+                    + ("; air kB: kilobytes on the air per robot-tick)" if rated else ")"))
     for col in ("map", "radio", "robots", "allocator", "runs", "reached", "time", f"vs {baseline}",
-                "paired Δ ± s.e.", "moves", "connected %", "kB/robot-tick", *(["base connected %"] if base else [])):
-        t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left")
+                "paired Δ ± s.e.", "moves", "connected %", *(["air kB"] if rated else []),
+                *(["base connected %"] if base else [])):
+        t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left",
+                     no_wrap=col == "radio")
     for ln in lines:
         rate = f", {ln['bandwidth']:g} kbit/s" if ln.get("bandwidth") else ""
         t.add_row(Path(str(ln["map"])).stem, f"{ln['comm']}, loss {ln['loss_applied']:g}{rate}", str(ln["robots"]),
                   ln["allocator"], str(ln["runs"]), str(ln["ticks"][2]), _fmt(ln["ticks"]),
                   "-" if math.isnan(ln["vs_baseline_pct"]) else f"{ln['vs_baseline_pct']:+.1f} %",
                   "-" if math.isnan(ln["paired"][0]) else f"{ln['paired'][0]:+.1f} ± {ln['paired'][1]:.1f}",
-                  _fmt(ln["moves"]), _fmt(ln["connected_pct"]), _fmt(ln["airtime_kb"], 2),
+                  _fmt(ln["moves"]), _fmt(ln["connected_pct"]), *([_fmt(ln["airtime_kb"], 2)] if rated else []),
                   *([_fmt(ln["base_connected_pct"])] if base else []))
     return t
 
