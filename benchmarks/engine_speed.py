@@ -9,7 +9,8 @@ node). Every run's deterministic keys are checked equal across engines. Prints o
 (mean over seeds) per engine, and the ratio in-process / memory (and processes / memory). ``--bandwidth``
 runs every scenario on a bandwidth-limited radio (kbit/s; netem/medium.py), to measure what airtime costs;
 ``--memory-only`` times the memory engine alone (a change's cost on it, against another checkout), and adds
-its CPU seconds per run (this process's), steadier than wall time on a loaded machine.
+its CPU seconds per run (this process's), steadier than wall time on a loaded machine, and per tick (a limited
+radio changes the run, and its length).
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ def main(argv: list[str] | None = None) -> None:
     for label, over in scenarios:
         times: dict[str, list[float]] = {e: [] for e in engines}
         cpu: list[float] = []
+        ticks: list[int] = []
         for seed in range(args.seeds):
             s = fe.Scenario().override(seed=seed, **over, **({"bandwidth": args.bandwidth} if args.bandwidth else {}))
             s = s.override(max_ticks=min(args.max_ticks, s.max_ticks)) if args.max_ticks else s
@@ -64,6 +66,7 @@ def main(argv: list[str] | None = None) -> None:
                 times[engine].append(time.perf_counter() - t0)
                 if engine == "memory":
                     cpu.append(time.process_time() - c0)
+                    ticks.append(res["ticks"])
                 keys = deterministic(res.data)
                 if seen is not None and keys != seen:
                     differ += 1
@@ -71,15 +74,19 @@ def main(argv: list[str] | None = None) -> None:
                 seen = seen or keys
             print(f"{label} seed {seed}: ticks {res['ticks']}, "
                   + ", ".join(f"{e} {times[e][-1]:.2f} s" for e in engines), file=sys.stderr, flush=True)
-        rows.append((label, {e: sum(v) / len(v) for e, v in times.items()} | {"cpu": sum(cpu) / len(cpu)}))
-    cols = engines + (["cpu"] if args.memory_only else [])
-    head = f"{'scenario':34s}" + "".join(f"{(e if e != 'cpu' else 'memory cpu') + ' s/run':>18s}" for e in cols) + \
+        rows.append((label, {e: sum(v) / len(v) for e, v in times.items()} | {"cpu": sum(cpu) / len(cpu),
+                                                                            "cpu_ms_tick": 1e3 * sum(cpu) / sum(ticks)}))
+    cols = engines + (["cpu", "cpu_ms_tick"] if args.memory_only else [])
+    names = {"cpu": "memory cpu s/run", "cpu_ms_tick": "cpu ms/tick"}
+    head = f"{'scenario':34s}" + "".join(f"{names.get(e, e + ' s/run'):>18s}" for e in cols) + \
         "".join(f"{e + '/memory':>22s}" for e in engines[1:])
     print(head)
     for label, t in rows:
         print(f"{label:34s}" + "".join(f"{t[e]:18.2f}" for e in cols)
               + "".join(f"{t[e] / t['memory']:22.1f}" for e in engines[1:]))
     total = {e: sum(t[e] for _, t in rows) for e in cols}
+    if "cpu_ms_tick" in total:  # a sum of rates means nothing: their mean
+        total["cpu_ms_tick"] /= len(rows)
     print(f"{'all (sum)':34s}" + "".join(f"{total[e]:18.2f}" for e in cols)
           + "".join(f"{total[e] / total['memory']:22.1f}" for e in engines[1:]))
     if differ:
