@@ -74,8 +74,8 @@ def main(argv: list[str] | None = None) -> None:
                 seen = seen or keys
             print(f"{label} seed {seed}: ticks {res['ticks']}, "
                   + ", ".join(f"{e} {times[e][-1]:.2f} s" for e in engines), file=sys.stderr, flush=True)
-        rows.append((label, {e: sum(v) / len(v) for e, v in times.items()} | {"cpu": sum(cpu) / len(cpu),
-                                                                            "cpu_ms_tick": 1e3 * sum(cpu) / sum(ticks)}))
+        mean = {e: sum(v) / len(v) for e, v in times.items()}
+        rows.append((label, mean | {"cpu": sum(cpu) / len(cpu), "cpu_ms_tick": 1e3 * sum(cpu) / sum(ticks)}))
     cols = engines + (["cpu", "cpu_ms_tick"] if args.memory_only else [])
     names = {"cpu": "memory cpu s/run", "cpu_ms_tick": "cpu ms/tick"}
     head = f"{'scenario':34s}" + "".join(f"{names.get(e, e + ' s/run'):>18s}" for e in cols) + \
