@@ -1,19 +1,19 @@
 """Airtime: a radio that charges for what is sent (docs/guides/radio.md, "Bandwidth, queues and delay").
 
-With a ``bandwidth`` (kbit/s) set, robots that hear each other share one medium: by default one medium per
-connected component of the tick's link graph (the base station an endpoint like a robot). A medium carries
-``floor(bandwidth * 1000 / 8 * tick_s)`` bytes a tick. Each sender has a drop-tail queue of ``queue_bytes``;
-a message that does not fit is dropped (``dropped_queue``). Each tick every medium serves its senders' queues
-round-robin, one message per turn, in a seeded order drawn afresh each tick, until its capacity is spent: a
-message larger than what is left waits for the next tick (the sender's turn ends), and one larger than a whole
-tick's capacity takes what is left and goes on over several ticks (airtime). A message is delivered, over the
-links of the tick its last byte went on the air, ``latency`` ticks later plus a seeded ``jitter`` draw
+With a ``bandwidth`` (kbit/s) set, robots that hear each other share one medium: by default one medium per connected
+component of the tick's link graph (the base station an endpoint like a robot). A medium carries ``floor(bandwidth *
+1000 / 8 * tick_s)`` bytes a tick. Each sender has a drop-tail queue of ``queue_bytes``; a message that does not fit
+is dropped (``dropped_queue``). Each tick every medium serves its senders' queues round-robin, one message per turn,
+in a seeded order drawn afresh each tick, until its capacity is spent: a message larger than what is left waits for
+the next tick (the sender's turn ends), and one larger than a whole tick's capacity takes what is left and goes on
+over several ticks (airtime). A message is delivered, over the links of the tick its last byte went on the air (its
+loss draws in the order an unlimited radio makes them), ``latency`` ticks later plus a seeded ``jitter`` draw
 (``0..jitter`` ticks, uniform).
 
 A sender's queue has two classes: beacons and protocol messages go before bulk map data (payload kinds in
-:data:`BULK_KINDS`), so that map sharing under a rate limit does not starve coordination; a message already
-partly on the air finishes first. Within a class, first in, first out. This changes how a robot's messages
-leave, never what its allocator decides.
+:data:`BULK_KINDS`), so that map sharing under a rate limit does not starve coordination; a message already partly
+on the air finishes first. Within a class, first in, first out. This changes how a robot's messages leave, never
+what its allocator decides.
 
 Pure code on the channel's own seeded generators: both engines step it identically.
 """
@@ -41,6 +41,7 @@ class Queued:
     size: int
     handed: int
     left: int
+    pos: int = 0  # its place in its sender's bundle
 
 
 @dataclasses.dataclass
@@ -120,19 +121,21 @@ class Medium:
         """Each sender's new messages, in bundle order, at the tail of its queue (drop-tail)."""
         for src in sorted(bundles):
             q = self.queues[src]
-            for msg in bundles[src]:
+            for pos, msg in enumerate(bundles[src]):
                 size = len(msg.encode())
                 if q.nbytes + size > self.queue_bytes:
                     self.dropped_queue += 1
                     continue
-                item = Queued(src, msg, size, tick, size)
+                item = Queued(src, msg, size, tick, size, pos)
                 (q.bulk if msg.payload_kind in BULK_KINDS else q.control).append(item)
                 q.nbytes += size
             self.queued_max_bytes = max(self.queued_max_bytes, q.nbytes)
 
     def serve(self, tick: int, nodes: tuple[str, ...], link: np.ndarray) -> list[tuple[Queued, int]]:
         """One tick of airtime over the media of ``link`` (rows in ``nodes`` order): the messages whose last
-        byte went on the air, in that order, each with its delivery tick."""
+        byte went on the air, each with its delivery tick, in the order an unlimited radio sends (the tick they
+        were handed over, then their sender's place in ``nodes``, then their place in its bundle), so that a
+        limit that never binds gives the unlimited run's loss draws and deliveries."""
         done: list[tuple[Queued, int]] = []
         load: list[int] = []
         self.medium_of = {}
@@ -144,6 +147,8 @@ class Medium:
                 senders = [senders[k] for k in self.order_rng.permutation(len(senders)).tolist()]
             load.append(self._serve_medium(tick, senders, done))
         self.load = tuple(load)
+        place = {r: i for i, r in enumerate(nodes)}
+        done.sort(key=lambda d: (d[0].handed, place[d[0].src], d[0].pos))
         return done
 
     def _serve_medium(self, tick: int, senders: list[str], done: list[tuple[Queued, int]]) -> int:

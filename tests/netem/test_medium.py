@@ -80,9 +80,15 @@ def test_beacons_go_before_queued_map_data() -> None:
     ch = _channel(bandwidth=8.0)
     deltas = tuple(_delta("r0", 100, 0, s) for s in range(5))  # about 600 bytes each
     ch.transmit(0, ROBOTS, FULL, {"r0": deltas})
+    assert [m.seq for m in ch.deliver(1)["r1"]] == [0]  # one delta a tick fits
     ch.transmit(1, ROBOTS, FULL, {"r0": (_beacon("r0", 1, 9),)})
-    got = ch.deliver(2)["r1"]
-    assert got[0].payload_kind == "pose" and got[0].seq == 9  # handed after the deltas, sent first
+    got = ch.deliver(2)["r1"]  # the beacon, handed after the deltas, went first: behind them it would wait
+    assert [m.seq for m in got if m.payload_kind == "pose"] == [9] and len(got) == 2  # ... and one delta
+    later = []
+    for t in range(2, 8):
+        ch.transmit(t, ROBOTS, FULL, {})
+        later += [m.seq for m in ch.deliver(t + 1).get("r1", [])]
+    assert sorted([m.seq for m in got if m.payload_kind == "map"] + later) == [1, 2, 3, 4]
 
 
 def test_a_full_queue_drops_the_tail() -> None:
@@ -132,3 +138,15 @@ def test_bytes_on_the_air_per_tick_never_exceed_a_medium_capacity(limited_links)
     radio = res["radio"]
     assert radio["airtime_bytes"] >= radio["bytes_sent"] > 0 and radio["queued_max_bytes"] > 0
     assert radio["delay_ticks"]["max"] > 1 and res["scenario"]["radio"]["bandwidth"] == 16.0
+
+
+def test_a_limit_that_never_binds_gives_the_unlimited_run(small_map) -> None:
+    """Messages on the air in their own tick are sent in the unlimited radio's order (sender, then bundle): the
+    same loss draws and deliveries, so only the queue's size tells the runs apart."""
+    from fleet_emu.launch.result import deterministic
+
+    s = Scenario().override(map=str(small_map), robots=3, allocator="trade", seed=2, max_ticks=80)
+    free, wide = (deterministic(Fleet(x).run().data) for x in (s, s.override(bandwidth=1e6)))
+    assert free["radio"].pop("queued_max_bytes") == 0 < wide["radio"].pop("queued_max_bytes")
+    assert free.pop("scenario") != wide.pop("scenario")  # the bandwidth
+    assert free == wide and free["radio"]["dropped_loss"] > 0
