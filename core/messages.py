@@ -183,6 +183,16 @@ class Links(Message):
     # runs with a base station: per robot of ``robots``, its signal to the base (dB) and whether they are linked
     base_strength: np.ndarray | None = None
     base_link: np.ndarray | None = None
+    # airtime (netem/medium.py): cumulative bytes on the air, queue drops, the largest queue, emissions by delay
+    # (ticks from hand-off to delivery); with a bandwidth, each medium's bytes at the last tick served, each
+    # endpoint's medium then, and a medium's capacity a tick
+    airtime_bytes: int = 0
+    dropped_queue: int = 0
+    queued_max_bytes: int = 0
+    delays: tuple[int, ...] = ()
+    medium_load: tuple[int, ...] = ()
+    medium_of: dict[str, int] = dataclasses.field(default_factory=dict)
+    medium_capacity: int = 0
 
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)

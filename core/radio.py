@@ -35,7 +35,8 @@ class RadioConfig:
     Every field is declared with :func:`~fleet_emu.core.fields.setting` (unit, range, flag, help): that one
     declaration makes it a ``fleet run`` flag (``--max-walls N``), a key of ``[radio]``, a key of a study's
     ``[grid]`` and ``[fleet]`` (flat, ``waf``, or in a ``radio`` table), a :meth:`Scenario.override` keyword,
-    and checks it the same way in all of them (docs/guides/radio.md, "Every radio setting")."""
+    and checks it the same way in all of them (docs/guides/radio.md, "Every radio setting"). ``bandwidth``,
+    ``queue_bytes`` and ``jitter`` make a radio that charges airtime (``netem/medium.py``)."""
 
     comm: str = setting("wall", choices=COMM_MODELS,
                         help="radio model: wall (eq. 4), disk (within --comm-range), full (all pairs), ideal "
@@ -51,12 +52,27 @@ class RadioConfig:
     threshold: float = setting(0.0, unit="dB", low=-1000.0, high=1000.0, metavar="DB",
                                help="signal a wall-model link needs (P >= threshold)")
     latency: int = setting(1, unit="ticks", low=1, high=10**6, metavar="TICKS",
-                           help="ticks from send to delivery")
+                           help="ticks from the last byte on the air to delivery")
+    bandwidth: float = setting(0.0, unit="kbit/s", low=0.0, high=1e9, metavar="KBITPS",
+                               help="capacity of one shared medium (robots that hear each other); 0: unlimited")
+    queue_bytes: int = setting(1_000_000, unit="bytes", low=1, high=10**12, metavar="BYTES",
+                               help="each sender's queue on a limited radio (drop-tail)")
+    jitter: int = setting(0, unit="ticks", low=0, high=10**6, metavar="TICKS",
+                          help="most ticks (seeded, uniform) added to the latency of each message")
 
     @property
     def applied_loss(self) -> float:
         """The loss probability the channel applies: none on the ideal radio."""
         return 0.0 if self.comm == "ideal" else self.loss
+
+    @property
+    def limited(self) -> bool:
+        """Whether the radio charges airtime (a bandwidth is set): senders queue, media are shared."""
+        return self.bandwidth > 0
+
+    def capacity(self, tick_s: float) -> float:
+        """Bytes one medium carries in a tick of ``tick_s`` seconds: ``bandwidth * 1000 / 8 * tick_s``."""
+        return self.bandwidth * 1000.0 / 8.0 * tick_s
 
     @property
     def sure_range(self) -> float:

@@ -33,6 +33,10 @@ RELAY_POLICIES = ("none", "flood", "tree")
 #: netem's lockstep as a sender (``radio/tx/base``), and the robots relay (``tree`` by default, below).
 BASE_PLANNERS = frozenset({"mhm"})
 DEFAULT_STALL = 30
+#: Seconds of simulated time per tick: one 0.5 m cell a second is 0.5 m/s, a typical indoor ground robot.
+DEFAULT_TICK_S = 1.0
+#: The radio's airtime fields (``RadioConfig``), left out of ``scenario.json`` at their defaults (unlimited).
+_RADIO_QUIET: dict[str, float] = {"bandwidth": 0.0, "queue_bytes": 1_000_000, "jitter": 0}
 BASE_PLANNER_STALL = 200  # a base planner's runs: robots hold while the base waits (Scenario.__post_init__)
 #: Where the shipped scenarios are (``Scenario.load("default")``): ``launch/scenarios`` of the package, found by
 #: path, not imported (core imports nothing above it).
@@ -122,6 +126,7 @@ class Scenario:
     radio: RadioConfig = dataclasses.field(default_factory=RadioConfig)
     seed: int = 0
     max_ticks: int = 2000
+    tick_s: float = DEFAULT_TICK_S  # seconds of simulated time per tick: a robot moves one cell per tick
     target_coverage: float = 0.99
     stall_ticks: int = DEFAULT_STALL  # ticks without a move nor a new cell sensed that end the run
     coverage_stall_ticks: int = 500  # ticks without coverage growth that end the run as a stall
@@ -234,6 +239,11 @@ class Scenario:
         for k, default in (("relay", "none"), ("relay_ttl", 0)):  # absent at their defaults, as before relaying
             if d[k] == default:
                 del d[k]
+        if self.tick_s == DEFAULT_TICK_S:  # absent at its default, as are the radio's airtime fields
+            del d["tick_s"]
+        for name, quiet in _RADIO_QUIET.items():
+            if d["radio"][name] == quiet:
+                del d["radio"][name]
         if self.hosts is None:  # absent without hosts: runs on one machine keep their scenario.json
             del d["hosts"]
         else:
@@ -318,6 +328,7 @@ class Scenario:
         _number("--sensor-range", self.sensor_range, 0.0, math.inf, low_open=True)  # the world clamps it to the map
         _number("--target-coverage", self.target_coverage, 0.0, 1.0, low_open=True)
         _number("barrier_timeout", self.barrier_timeout, 0.0, 86400.0, low_open=True)
+        _number("tick_s", self.tick_s, 0.0, 3600.0, low_open=True)
         check_all(self.radio)
         if self.sensor_range / self.cell_size < 1:
             raise ConfigError(f"--sensor-range {self.sensor_range} m is less than one cell ({self.cell_size} m)")
@@ -346,7 +357,7 @@ class Scenario:
         return self
 
 
-_TOP = {"name", "base", "seed", "max_ticks", "target_coverage", "stall_ticks", "coverage_stall_ticks",
+_TOP = {"name", "base", "seed", "max_ticks", "tick_s", "target_coverage", "stall_ticks", "coverage_stall_ticks",
         "barrier_timeout", "belief_every", "relay", "relay_ttl"}
 _SECTIONS = ("map", "fleet", "radio", "allocator", "hosts")
 

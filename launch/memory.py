@@ -37,8 +37,8 @@ from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.live import LiveOptions, Pacer, open_live
 from fleet_emu.launch.result import Result
 from fleet_emu.launch.signals import Interrupts
-from fleet_emu.netem.channel import Channel, radio_tick
-from fleet_emu.recording.clock import DEFAULT_TICK_S, RunClock
+from fleet_emu.netem.channel import make_channel, radio_tick
+from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.monitor import Monitor
 from fleet_emu.world.build import base_cell, build_world
 from fleet_emu.world.maps import BUILTIN_MAPS, load_map
@@ -105,8 +105,7 @@ class Fleet:
         self.map = self._map_data if self._map_data is not None else fleet_map(s)
         self.world = build_world(s, self.map, self._starts)
         self.occupied = self.map.grid > 0
-        self.channel = Channel(s.radio.applied_loss, generator(s.seed, "netem"), s.radio.latency,
-                               generator(s.seed, "netem", BASE))
+        self.channel = make_channel(s.seed, s.radio, s.tick_s)
         self.dropped = dict.fromkeys(self.possible_agents, 0)
         self.base: BaseStation | None = None
         self._base_dropped = 0
@@ -320,8 +319,8 @@ def _digest(obs: Mapping[str, Observation]) -> list[Any]:
 
 def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool = True, run_id: str = "",
                grid_every: int | None = None, on_progress: Callable[[Monitor], None] | None = None,
-               interrupts: Interrupts | None = None, overwrite: bool = False, live: LiveOptions | None = None,
-               tick_s: float = DEFAULT_TICK_S) -> Result:
+               interrupts: Interrupts | None = None, overwrite: bool = False,
+               live: LiveOptions | None = None) -> Result:
     """``fleet run --engine memory``: one run in this process, writing what ``run_fleet`` writes under
     ``out_dir`` (``result.json``, ``scenario.json``, ``map.npz``, and with ``record`` a ``run.mcap`` that
     ``fleet report`` reads). Bad input raises ConfigError before anything is written. With ``interrupts``
@@ -329,7 +328,7 @@ def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool 
     Ctrl-C re-raises KeyboardInterrupt once the files are written. ``out_dir`` is guarded as ``run_fleet``'s
     (:mod:`~fleet_emu.launch.outdir`: locked, refused when it holds a run unless ``overwrite``); a write that
     fails ends the run with :class:`~fleet_emu.launch.outdir.DiskFault`. ``live`` serves the run to Foxglove
-    (``fleet run --live``); ``tick_s``: the seconds one tick stands for on the recording's clock."""
+    (``fleet run --live``). The recording's clock counts the scenario's ``tick_s`` seconds per tick."""
     from fleet_emu.launch.checks import check, check_machine, new_run_id
     from fleet_emu.launch.outdir import claimed
 
@@ -339,7 +338,7 @@ def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool 
     with claimed(out_dir, overwrite):  # to the last write: no other run writes here
         try:
             result, interrupted = _run_and_write(scenario, map_data, out_dir, record, run_id, grid_every,
-                                                 on_progress, interrupts, live, tick_s)
+                                                 on_progress, interrupts, live)
         except OSError as exc:  # a full disk before the run or at its end
             from fleet_emu.launch.outdir import disk_fault
 
@@ -351,8 +350,7 @@ def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool 
 
 def _run_and_write(scenario: Scenario, map_data: MapData, out_dir: Path | None, record: bool, run_id: str,
                    grid_every: int | None, on_progress: Callable[[Monitor], None] | None,
-                   interrupts: Interrupts | None, live: LiveOptions | None,
-                   tick_s: float) -> tuple[Result, bool]:
+                   interrupts: Interrupts | None, live: LiveOptions | None) -> tuple[Result, bool]:
     """The run and its files (in ``out_dir``, already claimed); the result and whether a signal ended it. A
     recording that fails ends the run: its ``result.json`` is written if it can be, and DiskFault raised."""
     from fleet_emu.launch.outdir import DiskFault, disk_fault, write_atomic
@@ -360,7 +358,7 @@ def _run_and_write(scenario: Scenario, map_data: MapData, out_dir: Path | None, 
 
     with contextlib.ExitStack() as stack:
         recording = out_dir / "run.mcap" if record and out_dir is not None else None
-        clock = RunClock.now(tick_s)
+        clock = RunClock.now(scenario.tick_s)
         server = open_live(stack, live, clock)
         pacer = Pacer(live.hz if live is not None else None)
         tap, finish = _recording_tap(stack, scenario, map_data, run_id, recording, grid_every, clock, server)

@@ -82,9 +82,21 @@ def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
         rows.insert(11, ("base connected", _base(result)))
     if result.get("relay"):
         rows.insert(-4, ("relaying", relay_line(result["relay"])))
+    sr = result.get("scenario", {}).get("radio", {})
+    if sr.get("bandwidth") or sr.get("jitter"):  # a radio that charges airtime (netem/medium.py)
+        rows.insert(rows.index(next(r for r in rows if r[0] == "radio msgs")) + 1, ("airtime", _airtime(radio, sr)))
     for k, v in rows:
         t.add_row(k, v)
     return t
+
+
+def _airtime(radio: Mapping[str, Any], sr: Mapping[str, Any]) -> str:
+    """A bandwidth-limited run: the rate, the bytes on the air, the queues and the delay from hand-off to delivery."""
+    d = radio["delay_ticks"]
+    rate = f"{sr['bandwidth']:g} kbit/s" if sr.get("bandwidth") else "unlimited"
+    delay = "-" if d["mean"] is None else f"mean {d['mean']:.2f}, p95 {d['p95']}, max {d['max']}"
+    return (f"{rate}: {radio['airtime_bytes'] / 1e6:.2f} MB on the air, {radio['dropped_queue']} dropped at a full "
+            f"queue, largest queue {radio['queued_max_bytes'] / 1e3:.1f} kB; delay (ticks) {delay}")
 
 
 def _realtime(result: Mapping[str, Any]) -> str:

@@ -50,7 +50,7 @@ from fleet_emu.launch.router_process import RouterProcess, router_process, route
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import Supervisor
 from fleet_emu.launch.watch import STOP_GRACE, Consumer, Drain, wait_for_end
-from fleet_emu.recording.clock import DEFAULT_TICK_S, RunClock
+from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.foxglove import FoxgloveFold
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.monitor import Monitor
@@ -85,7 +85,6 @@ class RunOptions:
     realtime_hz: float | None = None  # real time: the world ticks at this rate on the wall clock (None: lockstep)
     overwrite: bool = False  # an ``out_dir`` holding a run: remove that run's files first (else refused)
     live: LiveOptions | None = None  # serve the run to Foxglove viewers (`fleet run --live`)
-    tick_s: float = DEFAULT_TICK_S  # seconds one tick stands for on the recording's clock
 
 
 def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
@@ -157,7 +156,7 @@ class _Run:
         meta: dict[str, Any] = {"run_id": run_id, "scenario": scenario.to_dict(), "engine": self.engine}
         if opts.realtime_hz:
             meta["realtime_hz"] = opts.realtime_hz
-        self.clock = RunClock.now(opts.tick_s)
+        self.clock = RunClock.now(scenario.tick_s)  # the scenario's seconds per tick
         self.recorder = Recorder(recording, meta, self.clock) if recording is not None else None
         self.base = base_cell(scenario, map_data)  # resolved once here: netem and the base process take it as given
         self.viz = FoxgloveWriter(self.recorder, FoxgloveFold(

@@ -11,9 +11,11 @@ a relay must hear a message that is not for it to forward it; only relaying runs
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 from collections import defaultdict
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -21,6 +23,10 @@ from fleet_emu.core.grid import Cell
 from fleet_emu.core.keys import BASE
 from fleet_emu.core.messages import Envelope, Links, RxBundle, WorldState
 from fleet_emu.core.radio import RadioConfig, connected, link_matrix
+from fleet_emu.core.rng import generator
+from fleet_emu.netem.medium import Medium
+
+UNLIMITED = 1 << 62  # a medium's capacity when only a jitter is set
 
 
 @dataclasses.dataclass
@@ -30,6 +36,7 @@ class Counters:
     dropped_loss: int = 0
     dropped_signal: int = 0
     bytes_sent: int = 0
+    delay: collections.Counter[int] = dataclasses.field(default_factory=collections.Counter)  # emissions by delay
 
 
 def endpoint_links(occupied: np.ndarray, robots: tuple[str, ...], cells: list[tuple[int, int]],
@@ -43,7 +50,7 @@ def endpoint_links(occupied: np.ndarray, robots: tuple[str, ...], cells: list[tu
 
 
 def links_message(tick: int, seq: int, nodes: tuple[str, ...], strength: np.ndarray, link: np.ndarray,
-                  counters: Counters, dropped: int = 0) -> Links:
+                  counters: Counters, dropped: int = 0, medium: Medium | None = None) -> Links:
     """netem's :class:`Links` of a tick: the robots' graph (the base left out of ``connected`` and of the
     matrices, so that a run without a base publishes what it always did) and, with a base, each robot's
     signal and link to it."""
@@ -55,18 +62,47 @@ def links_message(tick: int, seq: int, nodes: tuple[str, ...], strength: np.ndar
         link=link[:n, :n], connected=bool(connected(link[:n, :n])), sent=c.sent, delivered=c.delivered,
         dropped_loss=c.dropped_loss, dropped_signal=c.dropped_signal, bytes_sent=c.bytes_sent, dropped=dropped,
         base_strength=strength[:n, n].astype(np.float32) if has_base else None,
-        base_link=link[:n, n].copy() if has_base else None)
+        base_link=link[:n, n].copy() if has_base else None, **airtime(counters, medium))
+
+
+def airtime(counters: Counters, medium: Medium | None) -> dict[str, Any]:
+    """The :class:`Links` airtime fields: cumulative ``airtime_bytes``, ``dropped_queue``, ``queued_max_bytes``
+    and ``delays`` (emissions by delay in ticks, from hand-off to delivery); with a medium, each medium's bytes
+    at the last tick served (``medium_load``), each endpoint's medium then (``medium_of``) and a medium's
+    capacity a tick (``medium_capacity``)."""
+    hist = counters.delay
+    delays = tuple(hist.get(d, 0) for d in range(max(hist) + 1)) if hist else ()
+    if medium is None:
+        return {"airtime_bytes": counters.bytes_sent, "delays": delays}
+    return {"airtime_bytes": medium.airtime_bytes, "dropped_queue": medium.dropped_queue,
+            "queued_max_bytes": medium.queued_max_bytes, "delays": delays, "medium_load": medium.load,
+            "medium_of": dict(medium.medium_of),
+            "medium_capacity": medium.capacity if medium.capacity < UNLIMITED else 0}
+
+
+def make_channel(seed: int, radio: RadioConfig, tick_s: float) -> Channel:
+    """A run's channel, as both engines build it: its seeded loss draws (``netem``, and ``netem/base`` for the
+    base station's pairs) and, with a bandwidth or a jitter, a :class:`Medium` on generators of its own (the
+    loss draws stay those of an unlimited radio's stream)."""
+    medium = None
+    if radio.limited or radio.jitter:
+        capacity = max(1, int(radio.capacity(tick_s))) if radio.limited else UNLIMITED
+        medium = Medium(capacity, radio.queue_bytes, radio.latency, radio.jitter, generator(seed, "netem", "medium"),
+                        generator(seed, "netem", "jitter"))
+    return Channel(radio.applied_loss, generator(seed, "netem"), radio.latency, generator(seed, "netem", BASE), medium)
 
 
 class Channel:
-    """Decides, per receiver, whether each radio message arrives, and when (``latency`` ticks later)."""
+    """Decides, per receiver, whether each radio message arrives, and when (``latency`` ticks later); with a
+    :class:`~fleet_emu.netem.medium.Medium` (a bandwidth or a jitter set) messages queue for airtime first."""
 
     def __init__(self, loss: float, rng: np.random.Generator, latency: int = 1,
-                 base_rng: np.random.Generator | None = None) -> None:
+                 base_rng: np.random.Generator | None = None, medium: Medium | None = None) -> None:
         self.loss = loss
         self.rng = rng
         self.base_rng = base_rng if base_rng is not None else rng
         self.latency = latency
+        self.medium = medium
         self.counters = Counters()
         self._pending: dict[int, dict[str, list[Envelope]]] = defaultdict(lambda: defaultdict(list))
 
@@ -78,38 +114,57 @@ class Channel:
         draw is made for every pair whether or not a link exists, so the generator's stream does not depend
         on the link graph. A pair with the base station (:data:`~fleet_emu.core.keys.BASE` among ``robots``)
         draws from ``base_rng``, so that the robots' own deliveries are the same with or without a base.
+        With a medium, the messages whose last byte went on the air this tick are sent instead, in that order.
         """
         index = {r: i for i, r in enumerate(robots)}
+        if self.medium is not None:
+            self.medium.enqueue(tick, {r: b for r, b in bundles.items() if b})
+            for item, at in self.medium.serve(tick, robots, link):
+                src = item.src
+                if src in index:  # a sender that failed mid-air is gone
+                    self._send(src, item.msg, self._heard(src, robots, index, link), index, self._pending[at])
+                    self.counters.delay[at - item.handed] += 1
+            return
         due = self._pending[tick + self.latency]
-        c = self.counters
-        has_base = BASE in index
         for src in robots:
             msgs = bundles.get(src, ())
-            if not msgs:
-                continue
-            row = link[index[src]]
-            others = [r for r in robots if r != src]
-            others_linked = row[[index[r] for r in others]] if others else np.zeros(0, dtype=bool)
-            for msg in msgs:
-                c.bytes_sent += len(msg.encode())
-                if msg.dst == "*" or msg.ttl > 0:
-                    receivers, linked = others, others_linked
-                else:
-                    receivers = [msg.dst] if msg.dst in index and msg.dst != src else []
-                    linked = row[[index[r] for r in receivers]] if receivers else others_linked[:0]
-                if has_base and (src == BASE or BASE in receivers):
-                    draws = np.array([(self.base_rng if BASE in (src, dst) else self.rng).random()
-                                      for dst in receivers])
-                else:  # one draw per receiver in turn, taken at once: the same numbers
-                    draws = self.rng.random(len(receivers))
-                ok = linked & (draws >= self.loss) if len(receivers) else linked
-                n_linked, n_ok = int(np.count_nonzero(linked)), int(np.count_nonzero(ok))
-                c.sent += len(receivers)
-                c.dropped_signal += len(receivers) - n_linked
-                c.dropped_loss += n_linked - n_ok
-                c.delivered += n_ok
-                for j in np.flatnonzero(ok).tolist():
-                    due[receivers[j]].append(msg)
+            if msgs:
+                heard = self._heard(src, robots, index, link)
+                for msg in msgs:
+                    self._send(src, msg, heard, index, due)
+                self.counters.delay[self.latency] += len(msgs)
+
+    @staticmethod
+    def _heard(src: str, robots: tuple[str, ...], index: dict[str, int], link: np.ndarray
+               ) -> tuple[np.ndarray, list[str], np.ndarray]:
+        """``src``'s row of the link matrix, every other endpoint and whether ``src`` is linked to each."""
+        row = link[index[src]]
+        others = [r for r in robots if r != src]
+        return row, others, row[[index[r] for r in others]] if others else np.zeros(0, dtype=bool)
+
+    def _send(self, src: str, msg: Envelope, heard: tuple[np.ndarray, list[str], np.ndarray],
+              index: dict[str, int], due: dict[str, list[Envelope]]) -> None:
+        """One emission of ``src``'s message (``heard``: :meth:`_heard`): its loss draws and deliveries."""
+        c = self.counters
+        row, others, others_linked = heard
+        c.bytes_sent += len(msg.encode())
+        if msg.dst == "*" or msg.ttl > 0:
+            receivers, linked = others, others_linked
+        else:
+            receivers = [msg.dst] if msg.dst in index and msg.dst != src else []
+            linked = row[[index[r] for r in receivers]] if receivers else others_linked[:0]
+        if BASE in index and (src == BASE or BASE in receivers):
+            draws = np.array([(self.base_rng if BASE in (src, dst) else self.rng).random() for dst in receivers])
+        else:  # one draw per receiver in turn, taken at once: the same numbers
+            draws = self.rng.random(len(receivers))
+        ok = linked & (draws >= self.loss) if len(receivers) else linked
+        n_linked, n_ok = int(np.count_nonzero(linked)), int(np.count_nonzero(ok))
+        c.sent += len(receivers)
+        c.dropped_signal += len(receivers) - n_linked
+        c.dropped_loss += n_linked - n_ok
+        c.delivered += n_ok
+        for j in np.flatnonzero(ok).tolist():
+            due[receivers[j]].append(msg)
 
     def deliver(self, tick: int) -> dict[str, list[Envelope]]:
         """What arrives at ``tick``, per receiver (and forget it)."""
@@ -136,7 +191,7 @@ def radio_tick(channel: Channel, occupied: np.ndarray, robots: Sequence[str], ba
     live = tuple(r for r in robots if r in state.live)
     nodes, strength, link = endpoint_links(occupied, live, [state.poses[r] for r in live], base, cell_size, radio)
     t = state.tick
-    links = links_message(t, seq(), nodes, strength, link, channel.counters, dropped)
+    links = links_message(t, seq(), nodes, strength, link, channel.counters, dropped, channel.medium)
     if state.done:
         return RadioTick(nodes, link, links, ())
     arriving = channel.deliver(t)

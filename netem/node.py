@@ -29,9 +29,8 @@ from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import Stop, TxBundle, WorldState
 from fleet_emu.core.node import Declared, NodeBase, add_base_cell, node_main, undeclare
-from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.netem.channel import Channel, radio_tick
+from fleet_emu.netem.channel import make_channel, radio_tick
 
 STATE_GRACE = 2.0  # seconds to wait, after a stop, for the states it announced
 
@@ -52,8 +51,7 @@ class NetemNode(NodeBase):
         self.robots = robot_ids(scenario.robots)
         self.occupied = map_data.grid > 0
         self.base = base  # a fixed radio endpoint, in a run with a base station
-        self.channel = Channel(scenario.radio.applied_loss, generator(scenario.seed, "netem"), scenario.radio.latency,
-                               generator(scenario.seed, "netem", BASE))
+        self.channel = make_channel(scenario.seed, scenario.radio, scenario.tick_s)
         self.base_sends = self.base is not None and scenario.plans_at_base  # the base's orders (mhm)
         senders = frozenset(self.robots) | ({BASE} if self.base_sends else set())
         self.ctx_tx = Context(senders=senders, shape=map_data.grid.shape)

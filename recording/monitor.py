@@ -7,6 +7,7 @@ result from a recording.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -50,6 +51,22 @@ def base_graph(lk: Links) -> tuple[tuple[str, ...], np.ndarray]:
     full[:n, :n] = lk.link
     full[:n, n] = full[n, :n] = lk.base_link
     return (*lk.robots, BASE), full
+
+
+def airtime_result(lk: Links | None) -> dict[str, Any]:
+    """``result.json``'s radio airtime keys from the last links: bytes on the air, queue drops, the largest
+    queue, and the delay (ticks from hand-off to delivery) of the messages emitted, ``mean``, ``p95`` (nearest
+    rank) and ``max`` (null values when none was)."""
+    hist = np.array(lk.delays if lk else (), dtype=np.int64)
+    n = int(hist.sum())
+    delay: dict[str, Any] = {"mean": None, "p95": None, "max": None}
+    if n:
+        ticks = np.arange(len(hist))
+        rank = int(np.searchsorted(np.cumsum(hist), math.ceil(0.95 * n)))
+        delay = {"mean": round(float((ticks * hist).sum()) / n, 4), "p95": int(ticks[rank]),
+                 "max": int(ticks[hist > 0].max())}
+    return {"airtime_bytes": lk.airtime_bytes if lk else 0, "dropped_queue": lk.dropped_queue if lk else 0,
+            "queued_max_bytes": lk.queued_max_bytes if lk else 0, "delay_ticks": delay}
 
 
 @dataclasses.dataclass
@@ -235,7 +252,7 @@ class Monitor:
                 "dropped_loss": lk.dropped_loss if lk else 0,
                 "dropped_signal": lk.dropped_signal if lk else 0,
                 "bytes_sent": lk.bytes_sent if lk else 0,
-            },
+            } | airtime_result(lk),
             "decision_ms": {"mean": round(float(ms.mean()), 4), "p95": round(float(np.percentile(ms, 95)), 4)},
             "failed": sorted(set(self.robots) - set(st.live)) if st else [],
             "malformed_dropped": sum(self.dropped_by().values()),

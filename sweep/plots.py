@@ -1,5 +1,5 @@
 """The figures of ``fleet sweep report`` (matplotlib, Agg): time to target vs robot count with 95 % confidence
-bands, mean coverage vs tick, time vs loss; one line per allocator."""
+bands, mean coverage vs tick, time vs loss and time vs bandwidth; one line per allocator."""
 
 from __future__ import annotations
 
@@ -42,6 +42,8 @@ def draw(rows: list[dict[str, Any]], out: Path) -> list[Path]:
             ax.set_ylim(bottom=0)  # a wide confidence interval does not reach below no time
             ax.legend()
         written.append(_save(fig, out / f"{name}.png"))
+    if len({r.get("bandwidth") for r in rows}) > 1:
+        written.append(_time_vs_bandwidth(rows, out, plt))
     written.append(_coverage(rows, out, plt))
     return written
 
@@ -77,6 +79,26 @@ def _x_axis(ax: Any, xs: list[float], integer: bool) -> None:
     if len(xs) == 1:
         pad = 1.0 if integer else max(0.1, abs(xs[0]) * 0.5)
         ax.set_xlim(xs[0] - pad, xs[0] + pad)
+
+
+def _time_vs_bandwidth(rows: list[dict[str, Any]], out: Path, plt: Any) -> Path:
+    """Time to the target against the radio's bandwidth per allocator, one panel per map and robot count; the
+    rates are categories from unlimited (0) down, each point the mean over the runs that reached the target."""
+    rates = sorted({float(r.get("bandwidth") or 0.0) for r in rows}, key=lambda b: -b if b else -float("inf"))
+    panels = by(rows, "map", "robots")
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.5 * len(panels), 4.2), squeeze=False, sharey=False)
+    for ax, ((map_name, robots), runs) in zip(axes[0], panels.items(), strict=True):
+        for (alloc,), pts in by(runs, "param.allocator").items():
+            at = {float(b or 0.0): [time_to_target(r) for r in p] for (b,), p in by(pts, "bandwidth").items()}
+            ys = [np.nanmean(at[b]) if b in at and not np.isnan(at[b]).all() else np.nan for b in rates]
+            ax.plot(range(len(rates)), ys, marker="o", label=str(alloc))
+        ax.set_xticks(range(len(rates)), [f"{b:g}" if b else "unlimited" for b in rates])
+        ax.set_title(f"{Path(str(map_name)).stem}, {robots} robots")
+        ax.set_xlabel("bandwidth (kbit/s)")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("ticks to the target (mean of runs that reached it)")
+    axes[0][-1].legend(fontsize="small")
+    return _save(fig, out / "time_vs_bandwidth.png")
 
 
 def _coverage(rows: list[dict[str, Any]], out: Path, plt: Any) -> Path:

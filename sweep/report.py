@@ -24,7 +24,7 @@ import numpy as np
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.sweep.execute import PARQUET
 
-GROUP = ("map", "comm", "loss_applied", "robots")
+GROUP = ("map", "comm", "loss_applied", "bandwidth", "robots")
 
 
 def load(results: Path) -> tuple[list[dict[str, Any]], dict[str, Any], Path]:
@@ -45,7 +45,10 @@ def load(results: Path) -> tuple[list[dict[str, Any]], dict[str, Any], Path]:
     except Exception as exc:
         raise ConfigError(f"cannot read sweep results {path}: {exc}") from None
     study = tomllib.loads((out / "study.toml").read_text()) if (out / "study.toml").exists() else {}
-    return table.to_pylist(), study, out
+    rows = table.to_pylist()
+    for r in rows:  # the radio's rate: absent from an unlimited run's scenario
+        r["bandwidth"] = float(r.get("scenario.radio.bandwidth") or 0.0)
+    return rows, study, out
 
 
 def moves(row: dict[str, Any]) -> float:
@@ -76,9 +79,14 @@ def missed_coverage(row: dict[str, Any]) -> float:
     return 100.0 * row["coverage"]
 
 
+def airtime_kb(row: dict[str, Any]) -> float:
+    """Kilobytes on the air per robot-tick (``radio.airtime_bytes`` over ticks and robots)."""
+    ticks, robots, air = row.get("ticks"), row.get("robots"), row.get("radio.airtime_bytes")
+    return air / 1e3 / (ticks * robots) if ticks and robots and air is not None else math.nan
 
 
 METRICS: dict[str, Callable[[dict[str, Any]], float]] = {
+    "airtime_kb": airtime_kb,
     "ticks": time_to_target, "moves": moves, "connected_pct": connected_pct,
     "coverage_pct": lambda r: 100.0 * r["coverage"] if r.get("coverage") is not None else math.nan,
     "base_connected_pct": base_connected_pct, "missed_coverage_pct": missed_coverage,
@@ -222,25 +230,29 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
 
     base = any(ln["base_connected_pct"][2] for ln in lines)  # a column only for studies with a base station
     failed = any(ln["failed"] for ln in lines)  # a column only when a run failed
+    rated = any(ln.get("bandwidth") for ln in lines)  # and one only for studies of a limited radio
     t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it; missed: the "
-                    "final coverage of the runs that did not)")
+                    "final coverage of the runs that did not" + ("; air kB: kilobytes on the air per robot-tick)"
+                                                                 if rated else ")"))
     for col in ("map", "radio", "robots", "allocator", "reached", *(["failed"] if failed else []), "time",
                 f"vs {baseline}", "paired Δ ± s.e.", "missed: coverage %", "moves", "connected %",
-                *(["base connected %"] if base else [])):
-        t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left")
+                *(["air kB"] if rated else []), *(["base connected %"] if base else [])):
+        t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left",
+                     no_wrap=col == "radio")
     for ln in lines:
         t.add_row(Path(str(ln["map"])).stem, _radio(ln), str(ln["robots"]), str(ln["allocator"]),
                   f"{ln['reached']} / {ln['runs']}", *([str(ln["failed"])] if failed else []), _fmt(ln["ticks"]),
                   "-" if math.isnan(ln["vs_baseline_pct"]) else f"{ln['vs_baseline_pct']:+.1f} %",
                   "-" if math.isnan(ln["paired"][0]) else f"{ln['paired'][0]:+.1f} ± {ln['paired'][1]:.1f}",
                   _fmt(ln["missed_coverage_pct"]), _fmt(ln["moves"]), _fmt(ln["connected_pct"]),
+                  *([_fmt(ln["airtime_kb"], 2)] if rated else []),
                   *([_fmt(ln["base_connected_pct"])] if base else []))
     return t
 
 
 def _radio(line: dict[str, Any]) -> str:
-    loss = line["loss_applied"]
-    return f"{line['comm']}, loss {loss:g}" if isinstance(loss, int | float) else str(line["comm"])
+    loss, rate = line["loss_applied"], f", {line['bandwidth']:g} kbit/s" if line.get("bandwidth") else ""
+    return (f"{line['comm']}, loss {loss:g}" if isinstance(loss, int | float) else str(line["comm"])) + rate
 
 
 def _paper_table(paper: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict[str, Any]],

@@ -1,0 +1,29 @@
+"""``benchmarks/radio.py``: bytes per robot-tick by kind, per allocator, on the memory engine."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tests.integration.test_benchmarks import bench, fields
+
+
+def test_radio_splits_each_allocators_bytes_by_kind(small_map: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("radio", "--map", str(small_map), "--robots", "2", "--seeds", "1", "--max-ticks", "40",
+                           "--allocators", "nearest", "hungarian", "--bandwidth", "4", capsys=capsys)
+    assert code == 0, err[-2000:]
+    lines = [ln for ln in out.splitlines() if not ln.startswith("#")]
+    header, rows = lines[0], lines[1:]
+    labels = ["allocator", "ticks", "map", "beacons", "protocol", "total", "zlib", "delay", "max", "qdrop"]
+    got = {r["allocator"]: r for r in (fields(header, ln, labels) for ln in rows)}
+    assert set(got) == {"nearest", "hungarian"}
+    for r in got.values():
+        assert float(r["map"]) > 0 and float(r["beacons"]) > 0
+        assert float(r["total"]) == pytest.approx(float(r["map"]) + float(r["beacons"]) + float(r["protocol"]), abs=2)
+    assert float(got["nearest"]["protocol"]) == 0 < float(got["hungarian"]["protocol"])  # assignments
+
+
+def test_radio_bad_allocator_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = bench("radio", "--allocators", "nope", capsys=capsys)
+    assert code == 2 and err.strip().startswith("radio: error: unknown allocator(s) nope")
