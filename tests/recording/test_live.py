@@ -247,3 +247,18 @@ def test_every_fold_message_becomes_the_sdks_typed_message() -> None:
         server.close()
     assert parse_live("9000") == ("127.0.0.1", 9000) and parse_live("0.0.0.0:0") == ("0.0.0.0", 0)
     assert parse_live("[::1]:8765") == ("::1", 8765)
+
+
+def test_the_recording_clock_counts_the_scenarios_tick_s(small_map: Path, tmp_path: Path) -> None:
+    """A tick is logged ``tick_s`` seconds after the one before it, from the run's real start."""
+    from mcap.reader import make_reader
+
+    scenario = Scenario().override(map=str(small_map), robots=2, max_ticks=6, tick_s=0.25)
+    res = run_memory(scenario, tmp_path / "run")
+    with (tmp_path / "run" / "run.mcap").open("rb") as f:
+        reader = make_reader(f)
+        meta = next(m.metadata for m in reader.iter_metadata() if m.name == "scenario")
+        times = [m.log_time for _, ch, m in reader.iter_messages(topics=["/viz/stats"])]
+    assert float(meta["tick_s"]) == 0.25 and res.data["scenario"]["tick_s"] == 0.25
+    assert len(times) == res.data["ticks"] + 1 and {b - a for a, b in zip(times, times[1:])} == {250_000_000}
+    assert times[0] == int(meta["start_ns"])
