@@ -1,25 +1,28 @@
-"""The robots' fork server: imports the agent code (numpy, numba, scipy) and loads the compiled kernels once,
-then forks one process per robot on the launcher's request, so that the robots share those pages.
+"""The fleet's fork server: imports the agent code (numpy, numba, scipy) and loads the compiled kernels once,
+then forks one process per node on the launcher's request, so that the nodes share those pages and none pays
+the interpreter's start-up (the imports and the kernels' loading: about a CPU second each).
 
-``python -m fleet_emu.agents.forkserver [--scenario FILE.json]``, started by the launcher's
-:class:`~fleet_emu.launch.supervisor.Supervisor` in its own process group. It never opens a Zenoh session
-(Zenoh's runtime threads would not survive a fork): each forked robot opens its own, exactly as
-``python -m fleet_emu.agents`` does. The protocol is one JSON object a message:
+``python -m fleet_emu.agents.forkserver [--scenario FILE.json] [--preload MODULE ...]``, started by the
+launcher's :class:`~fleet_emu.launch.supervisor.Supervisor` in its own process group; ``--preload`` names the
+other node modules it forks (the world, netem, the base: the launcher's choice, imported here before any fork).
+It never opens a Zenoh session (Zenoh's runtime threads would not survive a fork): each forked node opens its
+own, exactly as ``python -m MODULE`` does. The protocol is one JSON object a message:
 
 - on standard input, a ``SOCK_SEQPACKET`` socket, requests: ``{"name": "r0", "argv": [...], "log":
-  "/out/r0.log"}``, one per packet. A robot with a credential gets it as its standard input, never on a command
-  line or in the environment: the launcher writes the credential line into a pipe and passes the pipe's read end
-  with the request (``SCM_RIGHTS``); the server hands that descriptor to the forked robot and closes its own copy,
-  so the credential travels launcher -> kernel pipe -> robot and never enters this process's memory, where a
-  robot forked later (which inherits it) could find it. End of input (the launcher closed its socket, or died)
-  ends the server: it kills what is left of its robots, reaps them, reports them and exits.
+  "/out/r0.log"}``, one per packet (with ``"module": "fleet_emu.world"`` for a node other than a robot: what
+  ``python -m fleet_emu.world ARGV`` runs). A node with a credential gets it as its standard input, never on a
+  command line or in the environment: the launcher writes the credential line into a pipe and passes the pipe's
+  read end with the request (``SCM_RIGHTS``); the server hands that descriptor to the forked node and closes its
+  own copy, so the credential travels launcher -> kernel pipe -> node and never enters this process's memory,
+  where a node forked later (which inherits it) could find it. End of input (the launcher closed its socket, or
+  died) ends the server: it kills what is left of its nodes, reaps them, reports them and exits.
 - on standard output, events: ``{"spawned": "r0", "pid": 123}`` (or ``{"failed": "r0", "error": "..."}``) for
-  each request, in order, and ``{"exited": 123, "code": 0}`` when a robot ends (``code`` as
+  each request, in order, and ``{"exited": 123, "code": 0}`` when a node ends (``code`` as
   :attr:`subprocess.Popen.returncode`: negative for a signal).
 
-Each robot is a direct child of the server, in a new session (its own process group), with its standard output
-and error on its log file and standard input on ``/dev/null``; its parent watchdog (``core.node.watch_parent``)
-watches the server, which watches the launcher through its standard input.
+Each node is a direct child of the server, in a new session (its own process group), named ``fleet NAME``, with
+its standard output and error on its log file and standard input on ``/dev/null``; its parent watchdog
+(``core.node.watch_parent``) watches the server, which watches the launcher through its standard input.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ import io
 import json
 import logging
 import os
+import runpy
 import select
 import signal
 import socket
@@ -51,6 +55,7 @@ from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.scenario import Scenario
 
 PRELOAD = {"hungarian": ("scipy.optimize",)}  # imported on use in a robot: loaded here when the run needs it
+AGENTS = "fleet_emu.agents"  # a request's module when it names none: a robot
 POLL = 0.05  # seconds between looks for exited robots
 KILL_GRACE = 2.0  # seconds the robots left at the end get between SIGTERM and SIGKILL
 
@@ -94,12 +99,12 @@ class Server:
             try:
                 req = json.loads(packet)
                 name, argv = str(req["name"]), [str(a) for a in req["argv"]]
-                log = req.get("log")
+                log, module = req.get("log"), str(req.get("module", AGENTS))
             except (ValueError, KeyError, TypeError) as exc:
                 self.emit(failed="?", error=f"bad request: {exc}")
                 return
             try:
-                pid = self.fork(name, argv, log, secret)
+                pid = self.fork(name, argv, log, secret, module)
             except OSError as exc:
                 self.emit(failed=name, error=str(exc))
                 return
@@ -109,9 +114,9 @@ class Server:
             if secret is not None:
                 os.close(secret)
 
-    def fork(self, name: str, argv: list[str], log: str | None, secret: int | None) -> int:
-        """Fork one robot (its credential pipe ``secret`` becomes its standard input); in the child, never
-        return."""
+    def fork(self, name: str, argv: list[str], log: str | None, secret: int | None, module: str = AGENTS) -> int:
+        """Fork one node, ``python -m module argv`` (its credential pipe ``secret`` becomes its standard input);
+        in the child, never return."""
         logfd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644) if log else None
         sys.stdout.flush()
         sys.stderr.flush()
@@ -135,8 +140,8 @@ class Server:
                 signal.signal(sig, signal.SIG_DFL)
             signal.signal(signal.SIGINT, signal.default_int_handler)
             sys.stdin = io.StringIO(_read_all(secret) if secret is not None else "")  # fd 0 stays /dev/null
-            sys.argv = ["fleet_emu.agents", *argv]
-            code = run_robot(argv)
+            sys.argv = [module, *argv]
+            code = run_robot(argv) if module == AGENTS else run_node(module)
         except BaseException:  # the child must never return into the server's loop
             traceback.print_exc()
         finally:
@@ -189,8 +194,19 @@ def set_name(name: str) -> None:
 
 def run_robot(argv: list[str]) -> int:
     """What ``python -m fleet_emu.agents ARGV`` does, as an exit code (uncaught exceptions print and give 1)."""
+    return _exit_code(agent_main, argv)
+
+
+def run_node(module: str) -> int:
+    """What ``python -m MODULE`` does with ``sys.argv`` as set, as an exit code (its ``__main__`` run afresh; the
+    modules it imports were loaded before the fork)."""
+    return _exit_code(lambda _: runpy.run_module(module, run_name="__main__", alter_sys=False), [])
+
+
+def _exit_code(main: Any, argv: list[str]) -> int:
+    """``main(argv)``'s exit code as the interpreter would give it."""
     try:
-        agent_main(argv)
+        main(argv)
     except SystemExit as exc:
         if exc.code is None or isinstance(exc.code, int):
             return exc.code or 0
@@ -202,10 +218,13 @@ def run_robot(argv: list[str]) -> int:
     return 0
 
 
-def preload(scenario_file: str | None) -> None:
-    """Load the kernels; with the run's scenario, build its allocator once too (a plugin is imported, a
-    kernel only it uses is loaded) and import what it imports on use (:data:`PRELOAD`)."""
+def preload(scenario_file: str | None, modules: list[str] | None = None) -> None:
+    """Load the kernels and import ``modules`` (the other nodes' code); with the run's scenario, build its
+    allocator once too (a plugin is imported, a kernel only it uses is loaded) and import what it imports on use
+    (:data:`PRELOAD`)."""
     warm_up()
+    for module in modules or ():
+        importlib.import_module(module)
     if not scenario_file:
         return
     try:
@@ -221,7 +240,10 @@ def preload(scenario_file: str | None) -> None:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="forkserver")
     parser.add_argument("--scenario", help="the run's scenario (JSON): its allocator is loaded before any fork")
-    preload(parser.parse_args(argv).scenario)
+    parser.add_argument("--preload", action="append", default=[], metavar="MODULE",
+                        help="a node module to import before any fork (a request may then name its package)")
+    args = parser.parse_args(argv)
+    preload(args.scenario, args.preload)
     # The protocol's pipes move off 0 and 1: a robot gets /dev/null and its log there, never the pipes.
     req, events = os.dup(0), os.dup(1)
     devnull = os.open(os.devnull, os.O_RDONLY)

@@ -2,7 +2,7 @@
 
     python -m benchmarks.trade_idle [--allocators hungarian trade trade:explore_in_round=false] [--robots 4]
         [--seeds 5] [--maps office hospital_section autolab]
-        [--loss 0 0.1 0.3 0.5] [--comm wall] [--start random] [--jobs 2]
+        [--loss 0 0.1 0.3 0.5] [--comm wall] [--start random] [--jobs 2] [--in-process]
 
 Yan et al. 2011 compare their trade-based allocation with a Hungarian-method central planner (section 5,
 Tables 1-2: +3.9 % and +7.4 % runtime with 4 robots) and run it under 10/30/50 % message loss (Tables 3-4).
@@ -13,7 +13,8 @@ the run's robot-ticks they are and how many of them the robots spent ``WAITING``
 for every allocator after the first, the mean paired difference in ticks to the first one (same map, loss
 and seed). An allocator is ``NAME`` or ``NAME:PARAM=VALUE,...`` (its parameters, given through a scenario
 file: ``trade:explore_in_round=false`` is the first version, robots standing still during a round). Each run
-is ``fleet run --no-record --quiet`` in a subprocess. One line per finished run goes to stderr; the exit code
+is ``fleet run --no-record --quiet`` in a subprocess (with ``--in-process``, every node of a run in that one
+process: the same results at a fraction of the CPU). One line per finished run goes to stderr; the exit code
 is 1 when a run failed (exit other than 0 or 3; left out of the table, counted as ``E``).
 """
 
@@ -82,8 +83,10 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--comm", default="wall")
     p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--in-process", action="store_true", help="all nodes of a run in one process")
     a = p.parse_args(argv)
     extra = ["--comm", a.comm] + (["--start", a.start] if a.start != "map" else [])
+    extra += ["--in-process"] if a.in_process else []
     for al in a.allocators:
         try:
             _spec(al)  # a malformed spec stops here (one line, exit 2), before any run

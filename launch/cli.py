@@ -134,8 +134,8 @@ def _add_engine_flags(r: argparse.ArgumentParser) -> None:
                    help="real time: the world ticks HZ times a second on the wall clock, whether or not every robot "
                         "has answered (not deterministic; default: lockstep)")
     r.add_argument("--fork-server", action=argparse.BooleanOptionalAction, default=None,
-                   help="fork the robot processes from one fork server that loaded the agent code once (default: "
-                        "on, unless FLEET_FORK_SERVER=0); --no-fork-server starts each robot afresh")
+                   help="fork the robot, world, netem and base processes from one fork server that loaded the code "
+                        "once (default: on, unless FLEET_FORK_SERVER=0); --no-fork-server starts each afresh")
     r.add_argument("--no-record", action="store_true", help="do not write run.mcap")
     r.add_argument("--run-id", help="the <run> of the key expressions (default: a timestamp)")
 

@@ -58,10 +58,13 @@ class ForkedProcess:
 class ForkServer:
     """One fork server process (in its own process group) and the robots it forked."""
 
-    def __init__(self, log: Path | None = None, scenario: Path | None = None) -> None:
+    def __init__(self, log: Path | None = None, scenario: Path | None = None, modules: tuple[str, ...] = ()) -> None:
+        """``modules``: the other node modules (``fleet_emu.world.node``...) the server imports before any fork,
+        so that a request naming their package forks a process that has them loaded."""
         stderr: IO[bytes] | None = open(log, "wb") if log is not None else None  # noqa: SIM115 (closed in close)
         self._log = stderr
         preload = ["--scenario", str(scenario)] if scenario is not None else []
+        preload += [arg for module in modules for arg in ("--preload", module)]
         # requests go on a SOCK_SEQPACKET socket (its standard input), so that a robot's credential pipe can
         # travel with its request; closing our end (or dying) is the server's end of input
         self._sock, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
@@ -79,11 +82,15 @@ class ForkServer:
         self._reader = threading.Thread(target=self._read, daemon=True, name="forkserver")
         self._reader.start()
 
-    def spawn(self, name: str, argv: list[str], log: Path | None, secret: str | None) -> ForkedProcess:
-        """Ask for one robot (``python -m fleet_emu.agents ARGV``) and wait for its pid. A robot the server
-        could not fork (it is gone, it failed, it did not answer in :data:`FORK_TIMEOUT`) comes back exited."""
+    def spawn(self, name: str, argv: list[str], log: Path | None, secret: str | None,
+              module: str | None = None) -> ForkedProcess:
+        """Ask for one robot (``python -m fleet_emu.agents ARGV``), or another node (``python -m MODULE ARGV``),
+        and wait for its pid. A node the server could not fork (it is gone, it failed, it did not answer in
+        :data:`FORK_TIMEOUT`) comes back exited."""
         handle = ForkedProcess(name, self)
         request = {"name": name, "argv": argv, "log": str(log) if log is not None else None}
+        if module is not None:
+            request["module"] = module
         with self.changed:
             if self._gone:  # its output ended: it will answer nothing more
                 self._fail(handle)

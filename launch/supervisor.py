@@ -1,7 +1,7 @@
 """Spawning and tearing down the fleet's processes: each child in its own process group, killed on every
 exit path of the runner (normal end, Ctrl-C, an exception); a child whose launcher dies exits by itself
-(``fleet_emu.core.node.watch_parent``). With a fork server (:mod:`fleet_emu.launch.forked`) the robots are
-forked by it instead of started afresh: the same handles, the same process groups, the same logs."""
+(``fleet_emu.core.node.watch_parent``). With a fork server (:mod:`fleet_emu.launch.forked`) the robots, the
+world, netem and the base are forked by it instead of started afresh: the same process groups, the same logs."""
 
 from __future__ import annotations
 
@@ -18,6 +18,10 @@ from typing import IO, Protocol
 from fleet_emu.launch.forked import ForkServer
 
 AGENTS = "fleet_emu.agents"
+#: The other nodes the fork server forks too (their package: what ``python -m`` runs), with the module each
+#: imports, which the server loads before any fork: none of them pays an interpreter's start-up.
+FORKED = {"fleet_emu.world": "fleet_emu.world.node", "fleet_emu.netem": "fleet_emu.netem.node",
+          "fleet_emu.agents.base_node": "fleet_emu.agents.base_node"}
 
 
 class Child(Protocol):
@@ -42,18 +46,20 @@ class Supervisor:
         self._logs: list[IO[bytes]] = []
 
     def start_fork_server(self, scenario: Path | None = None) -> None:
-        """Start the robots' fork server now (it loads the agent code, and ``scenario``'s allocator, while the
-        rest starts): from then on, :meth:`spawn` forks every robot (module :data:`AGENTS`) from it."""
+        """Start the fork server now (it loads the agent code, and ``scenario``'s allocator, while the router
+        opens): from then on, :meth:`spawn` forks every robot (module :data:`AGENTS`) and every node of
+        :data:`FORKED` from it."""
         log = self.log_dir / "forkserver.log" if self.log_dir is not None else None
-        self.server = ForkServer(log, scenario)
+        self.server = ForkServer(log, scenario, tuple(FORKED.values()))
 
     def spawn(self, name: str, module: str, args: list[str], secret: str | None = None) -> Child:
         """Start ``python -m module args`` in a new session (its own process group); ``secret`` (one line) is
         written to its standard input, which is then closed. A robot comes from the fork server when there
-        is one (its standard input then reads ``secret``)."""
-        if module == AGENTS and self.server is not None:
+        is one, and so do the world, netem and the base (its standard input then reads ``secret``)."""
+        if (module == AGENTS or module in FORKED) and self.server is not None:
             log = self.log_dir / f"{name}.log" if self.log_dir is not None else None
-            child = self.children[name] = self.server.spawn(name, args, log, secret)
+            child = self.children[name] = self.server.spawn(name, args, log, secret,
+                                                            None if module == AGENTS else module)
             return child
         stderr = None
         if self.log_dir is not None:

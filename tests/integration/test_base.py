@@ -22,7 +22,7 @@ from fleet_emu.core.bus import client_config, router_locators
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
-from tests.conftest import ENDLESS, ROOT, all_pids, children_of, pid_alive, result, run_cli, wait_for
+from tests.conftest import ENDLESS, ROOT, all_pids, fleet_processes, pid_alive, result, run_cli, wait_for
 from tests.harness.faults import RunSpec, kill_trial, sigint_trial
 
 RUN = "basesec"
@@ -87,10 +87,10 @@ def test_a_killed_base_fails_the_run_and_leaves_nothing_behind(small_map: Path, 
     proc = subprocess.Popen([sys.executable, "-m", "fleet_emu.launch", *args], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
-        def base_pid() -> int | None:
-            for pid in children_of(proc.pid):
+        def base_pid() -> int | None:  # forked by the fork server, named "fleet base"
+            for pid in fleet_processes(proc.pid):
                 try:
-                    if b"fleet_emu.agents.base_node" in Path(f"/proc/{pid}/cmdline").read_bytes():
+                    if Path(f"/proc/{pid}/comm").read_text().strip() == "fleet base":
                         return pid
                 except OSError:
                     pass

@@ -89,7 +89,7 @@ def test_ticks_per_second_reports_each_run_and_fails_when_one_fails(capsys: pyte
 
 def test_trade_idle_reports_each_run_and_the_idle_ticks(small_map: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = bench("trade_idle", "--allocators", "hungarian", "trade:explore_in_round=false", "--seeds", "1",
-                           "--maps", str(small_map), "--start", "map", "--comm", "full", capsys=capsys)
+                           "--maps", str(small_map), "--start", "map", "--comm", "full", "--in-process", capsys=capsys)
     assert code == 0, err[-2000:]
     lines = err.strip().splitlines()
     assert len(lines) == 2 and all(" idle " in ln for ln in lines), err

@@ -55,10 +55,15 @@ def test_open_fuzz_is_never_a_message_a_node_may_accept() -> None:
 
 @pytest.mark.parametrize("i", range(2))
 def test_kill9_of_a_random_robot_at_a_random_tick(small_map: Path, tmp_path: Path, i: int) -> None:
+    """The robot is failed and the run goes on to its own end without it; exit 1 and one line naming it."""
     t = kill_trial(_spec(small_map), tmp_path, np.random.default_rng([SEED, 1, i]), f"kill{i}", window=30)
     assert t.notes == [], t.notes  # the robot was killed while the run went on
     _ok(t)
-    assert t.exit_code == 1 and len(t.result["failed"]) == 1
+    assert t.exit_code == 1 and len(t.result["failed"]) == 1  # a robot of the fleet failed: never a silent 0
+    assert t.result["reason"] in ("coverage", "max_ticks", "stall") and t.result["coverage"] > 0.5
+    err = (tmp_path / f"kill{i}.stderr").read_text()
+    assert err.strip().splitlines()[-1].startswith(f"fleet: error: robot(s) {t.result['failed'][0]} of 3 failed"), \
+        err[-2000:]
 
 
 @pytest.mark.parametrize("i", range(2))

@@ -20,6 +20,7 @@ from tests.conftest import (
     children_of,
     fleet_processes,
     is_fork_server,
+    is_router,
     nothing_left,
     pid_alive,
     result,
@@ -41,12 +42,21 @@ def _start(out: Path, robots: int = 3) -> subprocess.Popen[str]:
         cwd=ROOT, stderr=subprocess.PIPE, text=True)
 
 
+def _name(pid: int) -> str:
+    """A forked node's name, ``fleet NAME`` (``""`` once it is gone)."""
+    try:
+        return Path(f"/proc/{pid}/comm").read_text().strip()
+    except OSError:
+        return ""
+
+
 def _server_and_robots(launcher: int, robots: int) -> tuple[int, list[int]]:
-    """Wait until the fork server has forked every robot and the run has ticked."""
+    """Wait until the fork server has forked every robot (and the world and netem) and the run has ticked."""
     found: list[tuple[int, list[int]]] = []
 
     def ready() -> bool:
-        found[:] = [(p, children_of(p)) for p in children_of(launcher) if is_fork_server(p)]
+        found[:] = [(p, [c for c in children_of(p) if _name(c).startswith("fleet r")])
+                    for p in children_of(launcher) if is_fork_server(p)]
         return len(found) == 1 and len(found[0][1]) == robots
 
     wait_for(ready, 120)
@@ -54,20 +64,24 @@ def _server_and_robots(launcher: int, robots: int) -> tuple[int, list[int]]:
 
 
 def test_robots_are_forked_each_in_its_own_session_and_sigint_tears_the_fleet_down(tmp_path: Path) -> None:
-    """Forked robots: the server's children, each its own session and log. SIGINT (Ctrl-C) then ends the run
-    through its teardown: exit 130, an interrupted result.json, a recording that reads to its end, no process
-    left."""
+    """Forked robots, world and netem: the server's children, each its own session and log (none a child of the
+    launcher but the server and the router). SIGINT (Ctrl-C) then ends the run through its teardown: exit 130, an
+    interrupted result.json, a recording that reads to its end, no process left."""
     out = tmp_path / "run"
     proc = _start(out)
     server, robots = _server_and_robots(proc.pid, 3)
     wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
     assert len(fleet_processes(proc.pid)) == 5  # world, netem and the three robots
+    assert sorted(_name(p) for p in children_of(server)) == ["fleet netem", "fleet r0", "fleet r1", "fleet r2",
+                                                             "fleet world"]
+    assert set(children_of(proc.pid)) == {server, *(p for p in children_of(proc.pid) if is_router(p))}
     assert int(_stat(server)[2]) == server  # the server: its own process group
-    for pid in robots:
+    nodes = [p for p in children_of(server) if _name(p) in ("fleet world", "fleet netem")]
+    for pid in [*robots, *nodes]:
         _, ppid, pgrp, session = _stat(pid)[:4]
         assert int(ppid) == server and int(pgrp) == pid and int(session) == pid
-        name = Path(f"/proc/{pid}/comm").read_text().strip()
-        assert name.startswith("fleet r")
+        name = _name(pid)
+        assert name.startswith("fleet ")
         assert os.readlink(f"/proc/{pid}/fd/0") == os.devnull
         assert os.readlink(f"/proc/{pid}/fd/2") == str(out / f"{name.split()[1]}.log")
         assert {int(fd) for fd in os.listdir(f"/proc/{pid}/fd")} >= {0, 1, 2}
@@ -80,6 +94,7 @@ def test_robots_are_forked_each_in_its_own_session_and_sigint_tears_the_fleet_do
     res = result(out)
     assert res["reason"] == "interrupted" and res["completed"] is False
     assert res["pids"]["fork_server"] == server and sorted(res["pids"]["agents"]) == sorted(robots)
+    assert sorted(nodes) == sorted([res["pids"]["world"], res["pids"]["netem"]])
     with open(out / "run.mcap", "rb") as f:
         summary = make_reader(f).get_summary()
     assert summary is not None and sum(summary.statistics.channel_message_counts.values()) == \
@@ -87,18 +102,22 @@ def test_robots_are_forked_each_in_its_own_session_and_sigint_tears_the_fleet_do
     nothing_left([server, *robots, *all_pids(res)], timeout=10)
 
 
-def test_a_killed_fork_server_fails_its_robots_and_leaves_nothing(tmp_path: Path) -> None:
+def test_a_killed_fork_server_fails_the_run_and_leaves_nothing(tmp_path: Path) -> None:
+    """The server forked every node: killed, it takes the robots, the world and netem with it. The run ends as an
+    error naming the world (exit 1, one line), its files written."""
     out = tmp_path / "run"
     proc = _start(out, robots=2)
-    server, robots = _server_and_robots(proc.pid, 2)
+    server, _ = _server_and_robots(proc.pid, 2)
     wait_for(lambda: (out / "run.mcap").exists() and (out / "run.mcap").stat().st_size > 20000, 90)
+    nodes = children_of(server)
     os.kill(server, signal.SIGKILL)
-    nothing_left(robots)  # the robots go with it, at once
+    nothing_left(nodes)  # the robots, the world and netem go with it, at once
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 1, err[-2000:]
     assert "Traceback" not in err
+    assert err.strip().splitlines()[-1].startswith("fleet: error: the world process exited with code -9"), err
     res = result(out)
-    assert res["failed"] == ["r0", "r1"]
+    assert res["reason"] == "error" and res["error"].startswith("the world process exited")
     nothing_left(all_pids(res))
 
 

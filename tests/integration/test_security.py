@@ -163,7 +163,8 @@ def test_every_attack_leaves_the_seeded_result_unchanged(router, small_map: Path
 def test_the_embedded_router_refuses_outsiders_and_sigterm_keeps_the_files(small_map: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "fleet_emu.launch", "run", *ENDLESS.args(robots=3), "--out", str(out), "--quiet"],
+        [sys.executable, "-m", "fleet_emu.launch", "run", *ENDLESS.args(robots=1), "--out", str(out), "--quiet",
+         "--no-fork-server"],  # nodes started afresh: a command line that ps shows (a forked one has the server's)
         cwd=ROOT, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     cmdline: list[str] = []

@@ -27,17 +27,21 @@ def _gone(pid: int) -> bool:
     return state == "Z"
 
 
-def test_a_robot_that_fails_at_once_is_reported_with_its_code_and_log(tmp_path: Path) -> None:
-    server = ForkServer(tmp_path / "forkserver.log")
+def test_a_node_that_fails_at_once_is_reported_with_its_code_and_log(tmp_path: Path) -> None:
+    """A robot, and another node named by its module (``python -m fleet_emu.world ARGV`` in the fork)."""
+    server = ForkServer(tmp_path / "forkserver.log", modules=("fleet_emu.world.node",))
     try:
         robot = server.spawn("r0", ["--robot", "r0"], tmp_path / "r0.log", "secret")  # no --run: usage error
-        assert robot.pid > 0
-        assert robot.wait(60) == 2
+        world = server.spawn("world", ["--run", "x"], tmp_path / "world.log", None, "fleet_emu.world")
+        assert robot.pid > 0 and world.pid > 0
+        assert robot.wait(60) == 2 and world.wait(60) == 2
         assert "the following arguments are required" in (tmp_path / "r0.log").read_text()
+        log = (tmp_path / "world.log").read_text()
+        assert log.startswith("usage: world ") and "the following arguments are required: --connect" in log, log
     finally:
         server.close()
     assert server.proc.returncode == 0
-    assert _gone(server.pid) and _gone(robot.pid)
+    assert _gone(server.pid) and _gone(robot.pid) and _gone(world.pid)
 
 
 def _memory(pid: int) -> bytes:
