@@ -7,6 +7,7 @@ that lock file; without node, npm or the registry these tests are skipped with t
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import os
 import queue
@@ -258,7 +259,7 @@ def test_the_recording_clock_counts_the_scenarios_tick_s(small_map: Path, tmp_pa
     with (tmp_path / "run" / "run.mcap").open("rb") as f:
         reader = make_reader(f)
         meta = next(m.metadata for m in reader.iter_metadata() if m.name == "scenario")
-        times = [m.log_time for _, ch, m in reader.iter_messages(topics=["/viz/stats"])]
+        times = [m.log_time for _, _, m in reader.iter_messages(topics=["/viz/stats"])]
     assert float(meta["tick_s"]) == 0.25 and res.data["scenario"]["tick_s"] == 0.25
-    assert len(times) == res.data["ticks"] + 1 and {b - a for a, b in zip(times, times[1:])} == {250_000_000}
+    assert len(times) == res.data["ticks"] + 1 and {b - a for a, b in itertools.pairwise(times)} == {250_000_000}
     assert times[0] == int(meta["start_ns"])
