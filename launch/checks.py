@@ -54,11 +54,17 @@ def check(scenario: Scenario) -> MapData:
 
 def check_map_size(scenario: Scenario) -> None:
     """The map's grid, sized from its extent or its image's header, against the memory budget before it is built:
-    the memory engine's estimate, the least of any engine's (``check_machine`` checks the run's own later)."""
+    a map whose own part of the memory engine's estimate (the least of any engine's) does not fit is refused
+    naming the map (``check_machine`` checks the run's own fleet once the grid is built)."""
     shape = map_shape(scenario.map, scenario.cell_size)
-    if shape is not None:
-        budget.check_memory(scenario.robots, shape[0] * shape[1], "memory", False, False, budget.available_mb(),
-                            base=scenario.has_base, what=f"map {scenario.map} ({shape[0]} x {shape[1]} cells)")
+    if shape is None:
+        return
+    cells, available = shape[0] * shape[1], budget.available_mb()
+    grid = (budget.estimate(1, cells, "memory", False, base=scenario.has_base)["total"]
+            - budget.estimate(1, 1, "memory", False, base=scenario.has_base)["total"])
+    if grid > available:  # the map alone does not fit: it is the cause (else check_machine names the fleet)
+        budget.check_memory(scenario.robots, cells, "memory", False, False, available, base=scenario.has_base,
+                            what=f"map {scenario.map} ({shape[0]} x {shape[1]} cells)")
 
 
 def check_machine(scenario: Scenario, map_data: MapData, engine: str, fork_server: bool = False) -> None:

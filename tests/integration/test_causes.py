@@ -17,7 +17,7 @@ from fleet_emu.core.bus import client_config, router_config, router_locators
 from fleet_emu.core.messages import Stop, WorldState
 from fleet_emu.launch.causes import flood, froze, silent_world, state_timeout
 from fleet_emu.recording.monitor import Monitor
-from tests.conftest import ROOT, children_of, result, run_cli
+from tests.conftest import ROOT, fleet_processes, result, run_cli
 
 
 def _state(tick: int, done: bool = False) -> WorldState:
@@ -58,8 +58,8 @@ def test_a_frozen_world_is_named_with_its_tick(small_map: Path, tmp_path: Path) 
         try:
             while len(ticks) < 5 and proc.poll() is None:
                 threading.Event().wait(0.1)
-            world = next(p for p in children_of(proc.pid) if b"fleet_emu.world" in Path(f"/proc/{p}/cmdline")
-                         .read_bytes())
+            world = next(p for p in fleet_processes(proc.pid)  # forked by the fork server, named "fleet world"
+                         if Path(f"/proc/{p}/comm").read_text().strip() == "fleet world")
             os.kill(world, signal.SIGSTOP)
             _, err = proc.communicate(timeout=120)
         finally:
