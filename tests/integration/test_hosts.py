@@ -214,7 +214,9 @@ def test_a_host_killed_mid_run_fails_its_robots_and_the_run_ends_with_a_result(
                 os.killpg(p.pid, signal.SIGKILL)
     res = result(out)
     assert code == 1, err
-    assert res["failed"] == ["r1", "r3"] and res["reason"] in ("max_ticks", "coverage") and res["ticks"] > 0
+    # the run went on with r0 and r2 to its own end (a stall too: the maze's target of 1.0 may be out of reach)
+    assert res["failed"] == ["r1", "r3"] and res["reason"] in ("max_ticks", "coverage", "stall") and res["ticks"] > 0
+    assert res["ticks"] > 50 and res["coverage"] > 0.3, res
     wait_for(lambda: not any(pid_alive(p) for p in robots), 10)  # the host's robots did not outlive it
 
 

@@ -174,7 +174,7 @@ def test_bautin_fig5_sweeps_after_fetching_its_map(tmp_path: Path, mirror: Path)
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "xdg")}
 
     def fleet_(*args: str) -> subprocess.CompletedProcess[str]:
-        return subprocess.run([sys.executable, "-m", "fleet_emu.launch", *args], capture_output=True, text=True,
+        return subprocess.run([sys.executable, "-m", "fleet_emu", *args], capture_output=True, text=True,
                               timeout=600, cwd=tmp_path, env=env)
 
     assert fleet_("maps", "fetch", "hospital_section", "--mirror", str(mirror)).returncode == 0
