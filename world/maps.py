@@ -400,9 +400,16 @@ def load_map(name_or_path: str, cell_size: float, seed: int, *, cell_size_given:
         if not cell_size_given:
             raise no_scale_error(name_or_path)
         return load_bitmap(path, cell_size, name=name_or_path)
+    raise missing_map(name_or_path)
+
+
+def missing_map(name_or_path: str) -> MapError:
+    """Why ``name_or_path`` names no map (neither a built-in's nor a registry map's name, nor a file): a path that
+    is not a file, a file not found, or an unknown name with the names there are."""
+    path = Path(name_or_path).expanduser()
     if path.exists():
-        raise MapError(f"map path is not a file: {name_or_path}")
+        return MapError(f"map path is not a file: {name_or_path}")
     if "/" in name_or_path or "\\" in name_or_path or path.suffix:
-        raise MapError(f"map file not found: {name_or_path}")
-    raise MapError(f"unknown map {name_or_path!r} (built-in: {', '.join(BUILTIN_MAPS)}; registry: "
-                   f"{', '.join(registry())} (`fleet maps`); or a PNG/PGM/YAML path)")
+        return MapError(f"map file not found: {name_or_path}")
+    return MapError(f"unknown map {name_or_path!r} (built-in: {', '.join(BUILTIN_MAPS)}; registry: "
+                    f"{', '.join(registry())} (`fleet maps`); or a PNG/PGM/YAML path)")

@@ -5,9 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fleet_emu.core.errors import MapError
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.world.maps import BUILTIN_MAPS
+from fleet_emu.world.maps import BUILTIN_MAPS, missing_map
 from fleet_emu.world.registry import registry
 
 
@@ -15,14 +14,6 @@ def check_map(scenario: Scenario) -> None:
     """MapError (as loading it would raise) unless the map is a built-in's or a registry map's name, or a file
     (``load_map``'s cases)."""
     name = scenario.map
-    if name in BUILTIN_MAPS or name in registry():
+    if name in BUILTIN_MAPS or name in registry() or Path(name).expanduser().is_file():
         return
-    path = Path(name).expanduser()
-    if path.is_file():
-        return
-    if path.exists():
-        raise MapError(f"map path is not a file: {name}")
-    if "/" in name or "\\" in name or path.suffix:
-        raise MapError(f"map file not found: {name}")
-    raise MapError(f"unknown map {name!r} (built-in: {', '.join(BUILTIN_MAPS)}; registry: "
-                      f"{', '.join(registry())} (`fleet maps`); or a PNG/PGM/YAML path)")
+    raise missing_map(name)
