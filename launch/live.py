@@ -7,7 +7,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import sys
-import time
 from collections.abc import Callable
 
 from fleet_emu.core.errors import ConfigError
@@ -39,22 +38,6 @@ def open_live(stack: contextlib.ExitStack, opts: LiveOptions | None, clock: RunC
     if opts.on_url is not None:
         opts.on_url(server.url)
     return server
-
-
-class Pacer:
-    """At most ``hz`` ticks per wall-clock second (``hz`` None: no cap): :meth:`wait` before each tick."""
-
-    def __init__(self, hz: float | None) -> None:
-        self.period = 1.0 / hz if hz else 0.0
-        self.next = 0.0
-
-    def wait(self) -> None:
-        if not self.period:
-            return
-        now = time.monotonic()
-        if self.next > now:
-            time.sleep(self.next - now)
-        self.next = max(now, self.next) + self.period
 
 
 def say_url(url: str) -> None:

@@ -32,9 +32,10 @@ from fleet_emu.core.errors import RunError
 from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import Envelope, Message, Observation, WorldState, ready
+from fleet_emu.core.pace import Pacer
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.launch.live import LiveOptions, Pacer, open_live
+from fleet_emu.launch.live import LiveOptions, open_live
 from fleet_emu.launch.result import Result
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.netem.channel import make_channel, radio_tick

@@ -29,6 +29,7 @@ from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import STALE, Command, Failed, Ready, Stop, WorldClock
 from fleet_emu.core.node import Declared, NodeBase, node_main, undeclare
+from fleet_emu.core.pace import Pacer
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.world.build import build_world
 from fleet_emu.world.messages import hello, stop, tick_messages
@@ -59,7 +60,7 @@ class WorldNode(NodeBase):
         self.interrupted = False
         self.lost_at_start: set[str] = set()
         self.realtime_hz = realtime_hz
-        self.pace = 1.0 / pace_hz if pace_hz else 0.0  # lockstep: at least this many seconds per tick (a viewer's)
+        self.pacer = Pacer(pace_hz)  # lockstep: at most this many ticks a wall-clock second (a viewer's)
         self.known: dict[str, int] = {}  # each robot's last command's ``known`` cells (the stall rule's signal)
 
     async def run(self, session: zenoh.Session) -> str:
@@ -164,15 +165,13 @@ class WorldNode(NodeBase):
 
     async def _lockstep(self, inbox: Inbox, readings: dict[str, Reading]) -> None:
         """Tick when every live robot has answered, until the run is done (or the launcher stops it)."""
-        due = time.monotonic()
         while True:
             self._publish(readings)
             if self.world.done:
                 return
             moves = await self._barrier(inbox)
-            if self.pace:  # the wall clock only: the tick's moves are already decided
-                due += self.pace
-                await asyncio.sleep(max(0.0, due - time.monotonic()))
+            if (wait := self.pacer.delay()) > 0:  # the wall clock only: the tick's moves are already decided
+                await asyncio.sleep(wait)
             if self.interrupted:
                 return
             readings = self.world.step(moves, self.known)
