@@ -58,7 +58,9 @@ class BrainConfig:
     after which a teammate heard again gets the whole known map; ``map_sync``: recover
     lost map deltas (``agents/mapsync.py``, with ``sync``'s parameters), off by default and on in a run whose
     radio can lose a message (:func:`brain_config`); ``relay``: the relaying policy (``none``, or one of
-    ``agents/relay.py``), and ``relay_ttl`` the hops left after the first on the messages the robot makes."""
+    ``agents/relay.py``), and ``relay_ttl`` the hops left after the first on the messages the robot makes;
+    ``deflate_maps``: send map data compact (:func:`~fleet_emu.core.envelope.seal`), on when the radio charges
+    airtime."""
 
     cluster_max: int = 16
     resync_after: int = 10
@@ -67,6 +69,7 @@ class BrainConfig:
     sync: SyncConfig = dataclasses.field(default_factory=SyncConfig)
     relay: str = "none"
     relay_ttl: int = 0
+    deflate_maps: bool = False
 
 
 @dataclasses.dataclass
@@ -107,7 +110,7 @@ def brain_config(scenario: Scenario) -> BrainConfig:
     r = scenario.radio
     lossless = r.comm == "ideal" or (r.comm == "full" and r.loss == 0)
     return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_sync=not lossless,
-                       relay=scenario.relay, relay_ttl=scenario.relay_ttl)
+                       relay=scenario.relay, relay_ttl=scenario.relay_ttl, deflate_maps=r.limited)
 
 
 def radio_team(scenario: Scenario) -> frozenset[str]:
@@ -405,7 +408,8 @@ class Brain:
                                     maps=sync.sent if sync is not None else None, want=want))]
         if len(cells):
             news.append(RadioMsg(delta))
-        sealed = tuple(seal(m, self.me, obs.tick, self.next_seq()) for m in news + outbox)
+        deflate = self.config.deflate_maps
+        sealed = tuple(seal(m, self.me, obs.tick, self.next_seq(), deflate) for m in news + outbox)
         if self.relay is not None:
             ttl = self.config.relay_ttl
             sealed = tuple(e if e.ttl >= ttl else dataclasses.replace(e, ttl=ttl) for e in sealed)

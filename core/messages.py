@@ -17,12 +17,15 @@ import numpy as np
 
 from fleet_emu.core.codec import Context, DecodeError, Message, Payload, decode, decode_payload, peek_tick
 from fleet_emu.core.envelope import (
+    BULK_KINDS,
     MAX_PAYLOAD_BYTES,
     MAX_TTL,
     Envelope,
     RadioMsg,
     RxBundle,
     TxBundle,
+    compact,
+    expand,
     open_envelope,
     seal,
 )
@@ -43,8 +46,9 @@ from fleet_emu.core.lobby import (
 
 __all__ = [
     "Context", "DecodeError", "Message", "Payload", "decode", "decode_payload", "peek_tick",
-    "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope", "MAX_TTL",
-    "MAX_PAYLOAD_BYTES", "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links",
+    "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope", "compact", "expand",
+    "BULK_KINDS", "MAX_TTL", "MAX_PAYLOAD_BYTES", "check_cell", "check_cells", "check_robot_cells", "TxBundle",
+    "RxBundle", "Links",
     "Hello", "Ready", "ready", "Failed", "Stop", "AgentReport", "BaseReport", "BeliefSnapshot", "HostAssign",
     "HostStatus", "HOST_EVENTS", "MAX_REALTIME_HZ", "WorldClock", "AgentTiming", "STALE",
 ]

@@ -25,10 +25,7 @@ import dataclasses
 
 import numpy as np
 
-from fleet_emu.core.messages import Envelope
-
-#: Payload kinds that are bulk map data, sent after everything else a robot queued.
-BULK_KINDS = frozenset({"map", "mapfill"})
+from fleet_emu.core.messages import BULK_KINDS, Envelope
 
 
 @dataclasses.dataclass

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import zlib
 
 import msgpack
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 
 from fleet_emu.agents.protocol import MapDelta, PoseBeacon
 from fleet_emu.core.messages import (
+    MAX_PAYLOAD_BYTES,
     AgentReport,
     Command,
     Context,
@@ -24,7 +26,9 @@ from fleet_emu.core.messages import (
     Stop,
     TxBundle,
     WorldState,
+    compact,
     decode,
+    expand,
     open_envelope,
     peek_tick,
     seal,
@@ -136,6 +140,40 @@ def test_envelope_payload_is_opaque_until_opened() -> None:
     with pytest.raises(DecodeError, match="origin"):
         decode(Envelope(src="r0", tick=1, seq=1, origin="r7", dst="*", ttl=0, payload_kind="pose",
                         payload=b"").encode(), CTX)
+
+
+@pytest.mark.parametrize("cells", [np.arange(0, 20, dtype=np.int32), np.array([19, 0, 7, 3, 2**31 - 1], np.int64),
+                                   np.array([2**31 - 1, -2**31, 5], np.int32)])  # unsorted; differences that wrap
+def test_a_limited_radio_sends_map_data_compact_and_only_when_smaller(cells: np.ndarray) -> None:
+    big = MapDelta(cells=cells, values=np.zeros(len(cells), np.int8), n=3, covers=(1,))
+    plain = seal(RadioMsg(big), "r0", 5, 9)
+    packed = seal(RadioMsg(big), "r0", 5, 9, deflate=True)
+    assert expand(plain.payload) == plain.payload  # a plain payload is its own msgpack
+    assert len(packed.payload) < len(plain.payload) and expand(packed.payload) == plain.payload
+    assert packed.payload[0] == zlib.compress(b"")[0] and plain.payload[0] in (0x80 + 4, 0xDE)
+    if cells.min() >= 0:  # negative cells (differences that wrap) round-trip, and are then refused as cells
+        back = open_envelope(decode(packed.encode(), Context(), Envelope)).body
+        assert back.cells.tolist() == cells.tolist() and back.cells.dtype == cells.dtype and back.n == 3
+    beacon = RadioMsg(PoseBeacon(cell=(1, 2)))  # not map data: never deflated
+    assert seal(beacon, "r0", 5, 9, deflate=True).payload == seal(beacon, "r0", 5, 9).payload
+    noise = np.random.default_rng(0).integers(0, 2**62, 400)  # nothing to deflate: sent as it is
+    dense = RadioMsg(MapDelta(cells=noise, values=noise.astype(np.int8)))
+    assert seal(dense, "r0", 5, 9, deflate=True).payload == seal(dense, "r0", 5, 9).payload
+
+
+@pytest.mark.parametrize("payload, why", [
+    (zlib.compress(b"\x00" * (MAX_PAYLOAD_BYTES + 1), 9), "beyond the payload limit"),  # a 16 KiB bomb
+    (zlib.compress(msgpack.packb({"cells": 1}))[:-6], "cut short"),
+    (b"\x78\x9c" + b"\xff" * 20, "corrupt"),
+    (zlib.compress(b"\xc1"), "not msgpack"),
+    (compact(seal(RadioMsg(MapDelta(cells=np.array([3, 30, 1], np.int32), values=np.zeros(3, np.int8))),
+                  "r0", 5, 9).payload), "out of range"),  # cells restored and checked against the 4 x 5 grid
+])
+def test_a_bad_deflated_payload_is_a_decode_error(payload: bytes, why: str) -> None:
+    env = Envelope(src="r0", tick=5, seq=9, origin="r0", dst="*", ttl=0, payload_kind="map", payload=payload)
+    assert len(payload) < 20_000
+    with pytest.raises(DecodeError, match=why):
+        open_envelope(env, CTX)
 
 
 def test_schema_version_is_stamped_and_a_newer_one_refused() -> None:

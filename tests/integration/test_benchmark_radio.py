@@ -15,12 +15,13 @@ def test_radio_splits_each_allocators_bytes_by_kind(small_map: Path, capsys: pyt
     assert code == 0, err[-2000:]
     lines = [ln for ln in out.splitlines() if not ln.startswith("#")]
     header, rows = lines[0], lines[1:]
-    labels = ["allocator", "ticks", "map", "beacons", "protocol", "total", "zlib", "delay", "max", "qdrop"]
+    labels = ["allocator", "ticks", "map", "beacons", "protocol", "total", "compact", "delay", "max", "qdrop"]
     got = {r["allocator"]: r for r in (fields(header, ln, labels) for ln in rows)}
     assert set(got) == {"nearest", "hungarian"}
     for r in got.values():
         assert float(r["map"]) > 0 and float(r["beacons"]) > 0
         assert float(r["total"]) == pytest.approx(float(r["map"]) + float(r["beacons"]) + float(r["protocol"]), abs=2)
+        assert 0 < float(r["compact"].rstrip("%")) < 100  # the limited radio sends map data compact, smaller
     assert float(got["nearest"]["protocol"]) == 0 < float(got["hungarian"]["protocol"])  # assignments
 
 

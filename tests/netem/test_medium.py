@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fleet_emu.agents.protocol import MapDelta, PoseBeacon
-from fleet_emu.core.messages import Envelope, Links, Message, RadioMsg, seal
+from fleet_emu.core.messages import Envelope, Links, Message, RadioMsg, TxBundle, expand, seal
 from fleet_emu.core.radio import RadioConfig
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
@@ -120,13 +120,18 @@ def test_an_unlimited_radio_builds_no_medium() -> None:
 def limited_links(small_map) -> tuple[list[Links], dict]:
     """A memory run at 16 kbit/s on the full radio (2000 bytes a tick), and every links message it published."""
     links: list[Links] = []
+    maps: list[Envelope] = []
 
     def tap(_key: str, msg: Message, _ns: int) -> None:
         if isinstance(msg, Links):
             links.append(msg)
+        elif isinstance(msg, TxBundle):
+            maps.extend(e for e in msg.msgs if e.payload_kind == "map")
 
     s = Scenario().override(map=str(small_map), robots=3, comm="full", bandwidth=16.0, seed=1, max_ticks=120)
-    return links, Fleet(s, tap=tap).run().data
+    res = Fleet(s, tap=tap).run().data
+    assert len(maps) > 20 and all(expand(e.payload) != e.payload for e in maps)  # map data goes compact
+    return links, res
 
 
 def test_bytes_on_the_air_per_tick_never_exceed_a_medium_capacity(limited_links) -> None:
@@ -142,11 +147,14 @@ def test_bytes_on_the_air_per_tick_never_exceed_a_medium_capacity(limited_links)
 
 def test_a_limit_that_never_binds_gives_the_unlimited_run(small_map) -> None:
     """Messages on the air in their own tick are sent in the unlimited radio's order (sender, then bundle): the
-    same loss draws and deliveries, so only the queue's size tells the runs apart."""
+    same loss draws and deliveries, so only the queue's size and the bytes (map data deflated) tell the runs
+    apart."""
     from fleet_emu.launch.result import deterministic
 
     s = Scenario().override(map=str(small_map), robots=3, allocator="trade", seed=2, max_ticks=80)
     free, wide = (deterministic(Fleet(x).run().data) for x in (s, s.override(bandwidth=1e6)))
     assert free["radio"].pop("queued_max_bytes") == 0 < wide["radio"].pop("queued_max_bytes")
+    for key in ("bytes_sent", "airtime_bytes"):
+        assert free["radio"].pop(key) > wide["radio"].pop(key) > 0
     assert free.pop("scenario") != wide.pop("scenario")  # the bandwidth
     assert free == wide and free["radio"]["dropped_loss"] > 0
