@@ -420,10 +420,16 @@ def decode(data: bytes, ctx: Context | None = None, expected: type[M] | None = N
 
 def decode_payload(kind: str, data: bytes, ctx: Context | None = None) -> Payload:
     """Decode a radio payload of ``kind``; only ever raises DecodeError (an unknown kind included)."""
+    if kind not in Payload.REGISTRY:
+        raise DecodeError(f"unknown payload kind {kind!r}")
+    return decode_payload_obj(kind, _unpack(data), ctx)
+
+
+def decode_payload_obj(kind: str, obj: Any, ctx: Context | None = None) -> Payload:
+    """:func:`decode_payload` of a payload already unpacked from msgpack (``obj``)."""
     cls = Payload.REGISTRY.get(kind)
     if cls is None:
         raise DecodeError(f"unknown payload kind {kind!r}")
-    obj = _unpack(data)
     if type(obj) is not dict:
         raise DecodeError(f"{kind}: payload is not a map")
     fast = _FAST.get(cls)

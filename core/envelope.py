@@ -22,7 +22,7 @@ from fleet_emu.core.codec import (
     DecodeError,
     Message,
     Payload,
-    decode_payload,
+    decode_payload_obj,
     fast_decoder,
 )
 from fleet_emu.core.codec import _to_obj as to_obj
@@ -133,16 +133,20 @@ def seal(msg: RadioMsg, src: str, tick: int, seq: int, deflate: bool = False) ->
                     payload=payload)
 
 
+_CELL_DTYPES: dict[Any, np.dtype] = {"int32": np.dtype(np.int32), "int64": np.dtype(np.int64)}
+
+
 def _cells_of(obj: Any) -> tuple[dict[str, Any], np.dtype] | None:
     """A payload map's ``cells`` when they are a packed 1-D array of flat indices (int32 or int64), with its
     dtype: the array :func:`compact` delta-codes."""
     cells = obj.get("cells") if type(obj) is dict else None
-    if type(cells) is not dict or cells.get("dtype") not in ("int32", "int64"):
+    if type(cells) is not dict:
         return None
-    dt, shape, data = np.dtype(cells["dtype"]), cells.get("shape"), cells.get("data")
-    if type(shape) is not list or len(shape) != 1 or type(data) is not bytes or len(data) != shape[0] * dt.itemsize:
+    dt = _CELL_DTYPES.get(cells.get("dtype"))
+    shape, data = cells.get("shape"), cells.get("data")
+    if dt is None or type(shape) is not list or len(shape) != 1 or type(data) is not bytes:
         return None
-    return cells, dt
+    return (cells, dt) if len(data) == shape[0] * dt.itemsize else None
 
 
 def compact(payload: bytes) -> bytes:
@@ -161,12 +165,13 @@ def compact(payload: bytes) -> bytes:
     return packed if len(packed) < len(payload) else payload
 
 
-def expand(payload: bytes) -> bytes:
-    """A payload as :func:`seal` encoded it, compact or not, in its plain msgpack form. DecodeError for a
-    compact one that is corrupt or would inflate beyond :data:`MAX_PAYLOAD_BYTES` (checked while inflating, so
-    a small bomb never grows in memory); the plain form is then checked like any payload."""
+def unpack_payload(payload: bytes) -> Any:
+    """A payload as :func:`seal` encoded it, compact or not, unpacked from msgpack (the compact form's cells
+    restored). DecodeError for one that is not msgpack, or a compact one that is corrupt or would inflate
+    beyond :data:`MAX_PAYLOAD_BYTES` (checked while inflating, so a small bomb never grows in memory); what
+    it holds is then checked like any payload."""
     if not payload or payload[0] != _ZLIB_HEAD:
-        return payload
+        return unpack(payload)
     unzip = zlib.decompressobj()
     try:
         data = unzip.decompress(payload, MAX_PAYLOAD_BYTES)
@@ -178,11 +183,18 @@ def expand(payload: bytes) -> bytes:
         raise DecodeError("radio: compact payload is cut short")
     obj = unpack(data)
     found = _cells_of(obj)
-    if found is None:
-        return data
-    cells, dt = found
-    obj["cells"] = {**cells, "data": np.cumsum(np.frombuffer(cells["data"], dt), dtype=dt).tobytes()}
-    return msgpack.packb(obj, use_bin_type=True)
+    if found is not None:
+        cells, dt = found
+        obj["cells"] = {**cells, "data": np.cumsum(np.frombuffer(cells["data"], dt), dtype=dt).tobytes()}
+    return obj
+
+
+def expand(payload: bytes) -> bytes:
+    """A payload as :func:`seal` encoded it, compact or not, in its plain msgpack form (see
+    :func:`unpack_payload`)."""
+    if not payload or payload[0] != _ZLIB_HEAD:
+        return payload
+    return msgpack.packb(unpack_payload(payload), use_bin_type=True)
 
 
 def open_envelope(env: Envelope, ctx: Context | None = None) -> RadioMsg:
@@ -196,7 +208,7 @@ def open_envelope(env: Envelope, ctx: Context | None = None) -> RadioMsg:
     if cached is not None and cached[0] == ctx:
         body = cached[1]
     else:
-        body = decode_payload(env.payload_kind, expand(env.payload), ctx)
+        body = decode_payload_obj(env.payload_kind, unpack_payload(env.payload), ctx)
         object.__setattr__(env, "_opened", (ctx, body))
     msg = object.__new__(RadioMsg)  # RadioMsg(...) without the frozen dataclass's setattr per field
     msg.__dict__.update(body=body, dst=env.dst, ttl=env.ttl, src=env.src, origin=env.origin, tick=env.tick,

@@ -28,7 +28,7 @@ import numpy as np
 from fleet_emu.core.messages import BULK_KINDS, Envelope
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(slots=True)
 class Queued:
     """A message waiting in its sender's queue (``src``): its encoded ``size``, the tick it was handed to the
     radio, and the bytes still to go on the air."""
