@@ -96,8 +96,8 @@ def cpu_seconds(pid: int) -> float | None:
 @dataclasses.dataclass
 class Sampler:
     """Samples the fleet's processes from the launcher's progress callback: CPU times at the first
-    tick seen and at every later tick before the stop; PSS at the first tick and over the last three before
-    the stop, keeping the last sample that found every process (one that exits has no PSS left to read)."""
+    tick seen and at every later tick before the stop; PSS near the end, sampled again at each later tick
+    until one sample finds every process (under load one may already have exited)."""
 
     ticks: int
     pids: dict[str, Any] = dataclasses.field(default_factory=dict)
@@ -125,9 +125,10 @@ class Sampler:
             if len(cpu) == len(self.pids):  # not once a process has exited: its CPU would drop out of ``cores``
                 self.last = (tick, time.monotonic(), cpu)
                 self.first = self.first or self.last
-        if (monitor.stop is None and tick >= self.ticks - 3) or not self.pss:  # the last whole sample before the end
+        whole = len(self.pss) == len(self.pids)
+        if not whole and (tick >= self.ticks - 2 or monitor.stop is not None):
             pss = {k: v for k, p in self.pids.items() if (v := (smaps_rollup(p) or {}).get("Pss")) is not None}
-            if len(pss) == len(self.pids) or not self.pss:  # a process that has exited has no PSS left to read
+            if len(pss) >= len(self.pss):  # a process that has exited has no PSS left to read
                 self.pss = pss
 
 

@@ -125,7 +125,7 @@ def test_scale_reports_a_row_per_fleet(capsys: pytest.CaptureFixture[str]) -> No
     """A row per robot count, positive figures; a ``start`` row for a fleet larger than the map's free
     area (161 cells here), a ``cap`` row above the robot cap. (A map file, fitted by the same functions:
     ``test_brain_step_reports_a_row_per_map``.)"""
-    code, out, err = bench("scale", "--robots", "2", "250", "300", "--cells", "20", "--ticks", "6", "--sensor-cells",
+    code, out, err = bench("scale", "--robots", "2", "250", "300", "--cells", "20", "--ticks", "10", "--sensor-cells",
                            "2", "--maps", "maze", capsys=capsys)
     assert code == 0, err[-2000:]
     lines = out.strip().splitlines()
@@ -140,7 +140,7 @@ def test_scale_reports_a_row_per_fleet(capsys: pytest.CaptureFixture[str]) -> No
     measured, start, cap = lines[4:stage_at]
     r = fields(header, measured, labels)
     assert set(r) == {k if isinstance(k, str) else k[0] for k in labels}, r
-    assert (r["map"], r["robots"], r["ticks"]) == ("maze", "2", "6") and r["cells"].startswith(("19x", "20x", "21x"))
+    assert (r["map"], r["robots"], r["ticks"]) == ("maze", "2", "10") and r["cells"].startswith(("19x", "20x", "21x"))
     assert all(float(r[k]) > 0 for k in ("start s", "ticks/s", "total", "cores")), r
     # PSS of agents, world, netem, the router and the launcher
     assert all(float(r[k]) > 0 for k in ("a.mean", "a.max", "pss world", "pss netem", "pss router", "pss launch")), r
