@@ -76,18 +76,19 @@ class SenderQueue:
 
 def components(link: np.ndarray) -> list[list[int]]:
     """The connected components of an undirected link graph, each in index order, ordered by their first
-    index: the media of a tick."""
-    n = len(link)
-    label = [-1] * n
+    index: the media of a tick. (Plain lists: a team is a few dozen endpoints, where one numpy call per
+    endpoint cost more than the search.)"""
+    rows = link.tolist()
+    label = [-1] * len(rows)
     media: list[list[int]] = []
-    for i in range(n):
+    for i in range(len(rows)):
         if label[i] >= 0:
             continue
         label[i] = len(media)
         members, stack = [i], [i]
         while stack:
-            for j in np.flatnonzero(link[stack.pop()]).tolist():
-                if label[j] < 0:
+            for j, linked in enumerate(rows[stack.pop()]):
+                if linked and label[j] < 0:
                     label[j] = label[i]
                     members.append(j)
                     stack.append(j)

@@ -28,3 +28,15 @@ def test_radio_splits_each_allocators_bytes_by_kind(small_map: Path, capsys: pyt
 def test_radio_bad_allocator_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = bench("radio", "--allocators", "nope", capsys=capsys)
     assert code == 2 and err.strip().startswith("radio: error: unknown allocator(s) nope")
+
+
+def test_radio_cost_times_the_limited_radio_s_own_code(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("radio_cost", "--seeds", "1", "--max-ticks", "12", "--bandwidths", "16", capsys=capsys)
+    assert code == 0, err[-2000:]
+    lines = [ln for ln in out.splitlines() if not ln.startswith("#")]
+    labels = ["kbit/s", "ticks", "calls", "radio s", "rest s", "share"]
+    r = fields(lines[0], lines[1], labels)
+    assert r["kbit/s"] == "16" and int(r["ticks"]) == 24 and int(r["calls"]) > 48  # enqueue and serve each tick
+    assert 0 < float(r["radio s"]) < float(r["rest s"])
+    code, _, err = bench("radio_cost", "--bandwidths", "0", capsys=capsys)
+    assert code == 2 and err.strip().startswith("radio_cost: error:")
