@@ -1,7 +1,7 @@
 """Incremental frontier clustering (MinPos section 4.1), exactly :func:`agents.frontiers.find_clusters`.
 
 A robot's belief changes each tick only around its own observation and the map deltas it merged, so instead
-of labelling the whole grid every tick (``scipy.ndimage.label`` and a breadth-first walk per large group),
+of labelling the whole grid every tick (:func:`~fleet_emu.core.kernels.label` and a breadth-first walk per large group),
 :class:`FrontierClusters` keeps the frontier mask, each frontier cell's group label and each group's pieces,
 and on :meth:`update` with the cells whose value changed:
 

@@ -1,4 +1,4 @@
-"""The fleet's fork server: imports the agent code (numpy, numba, scipy) and loads the compiled kernels once,
+"""The fleet's fork server: imports the agent code (numpy, numba) and loads the compiled kernels once,
 then forks one process per node on the launcher's request, so that the nodes share those pages and none pays
 the interpreter's start-up (the imports and the kernels' loading: about a CPU second each).
 
@@ -45,7 +45,7 @@ import time
 import traceback
 from typing import Any
 
-# What a robot runs, imported here once, before any fork (numpy, numba and scipy come with it; zenoh is only
+# What a robot runs, imported here once, before any fork (numpy and numba come with it; zenoh is only
 # imported: no session, no runtime thread exists until a robot opens one).
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import allocator_config
@@ -54,7 +54,9 @@ from fleet_emu.core.errors import FleetError
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.scenario import Scenario
 
-PRELOAD = {"hungarian": ("scipy.optimize",)}  # imported on use in a robot: loaded here when the run needs it
+#: Modules a node imports on use, loaded here only when the run's allocator needs them (mhm: the base planner's
+#: distance transform).
+PRELOAD = {"hungarian": ("scipy.optimize",), "mhm": ("scipy.ndimage",)}
 AGENTS = "fleet_emu.agents"  # a request's module when it names none: a robot
 POLL = 0.05  # seconds between looks for exited robots
 KILL_GRACE = 2.0  # seconds the robots left at the end get between SIGTERM and SIGKILL

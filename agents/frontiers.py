@@ -1,7 +1,7 @@
 """Frontier identification and clustering (MinPos section 4.1).
 
 A frontier cell is a known-free cell 4-adjacent to an unknown one. Contiguous frontier cells (8-connected,
-``scipy.ndimage.label``) are grouped, and a group larger than what one sensing covers (``cluster_max``
+``core.kernels.label``) are grouped, and a group larger than what one sensing covers (``cluster_max``
 cells) is split into consecutive pieces along a breadth-first walk of the group, so that each piece is
 contiguous. Each cluster's ``target`` is its cell nearest the cluster's mean. Cluster order is by smallest
 flat index, so every robot holding the same belief finds the same clusters in the same order.
@@ -16,11 +16,9 @@ import dataclasses
 from collections import deque
 
 import numpy as np
-from scipy import ndimage
 
 from fleet_emu.core.grid import FREE, UNKNOWN, Cell
-
-EIGHT = np.ones((3, 3), dtype=bool)
+from fleet_emu.core.kernels import label
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -49,7 +47,7 @@ def frontier_mask(grid: np.ndarray) -> np.ndarray:
 def find_clusters(grid: np.ndarray, cluster_max: int) -> list[Cluster]:
     """The frontier clusters of a belief grid, each at most ``cluster_max`` cells."""
     mask = frontier_mask(grid)
-    labels, n = ndimage.label(mask, structure=EIGHT)
+    labels, n = label(mask, eight=True)
     if n == 0:
         return []
     cols = grid.shape[1]

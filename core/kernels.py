@@ -220,6 +220,7 @@ def warm_up() -> None:
     wavefront(~occ, sources, -1)
     visible_cells(occ, 1, 1, 1.5)
     count_walls(occ, 0, 0, 2, 2)
+    label(occ, eight=True)
     cluster_kernels.warm_up()
 
 
@@ -366,3 +367,45 @@ def minpos_parallel(passable: np.ndarray, sources: np.ndarray, offsets: np.ndarr
         size[j] = fresh
         key[j] = met[j] * stride + depth[j] if fresh > 0 else _NO_KEY
     return -1, -1, -1
+
+
+@numba.njit(cache=True)
+def _label(flat: np.ndarray, rows: int, cols: int, eight: bool) -> tuple[np.ndarray, int]:
+    labels = np.zeros(rows * cols, dtype=np.int32)
+    queue = np.empty(rows * cols, dtype=np.int64)
+    count = 0
+    for start in range(rows * cols):
+        if not flat[start] or labels[start] != 0:
+            continue
+        count += 1
+        labels[start] = count
+        queue[0] = start
+        head, tail = 0, 1
+        while head < tail:
+            cur = queue[head]
+            head += 1
+            r = cur // cols
+            c = cur - r * cols
+            for dr in range(-1, 2):
+                for dc in range(-1, 2):
+                    if (dr == 0 and dc == 0) or (not eight and dr != 0 and dc != 0):
+                        continue
+                    rr, cc = r + dr, c + dc
+                    if 0 <= rr < rows and 0 <= cc < cols:
+                        nxt = rr * cols + cc
+                        if flat[nxt] and labels[nxt] == 0:
+                            labels[nxt] = count
+                            queue[tail] = nxt
+                            tail += 1
+    return labels, count
+
+
+def label(mask: np.ndarray, eight: bool = False) -> tuple[np.ndarray, int]:
+    """The connected components of a 2-D bool mask (4-connected, or 8-connected with ``eight``): an int32
+    array of labels 1..n (0 off the mask), numbered in the raster order of each component's first cell, and
+    n. The same labels as ``scipy.ndimage.label`` with a cross or a full 3 x 3 structure (tested), without
+    importing scipy.ndimage, about 0.4 s of every process's start."""
+    m = np.ascontiguousarray(mask, dtype=np.bool_)
+    rows, cols = m.shape
+    labels, n = _label(m.ravel(), rows, cols, eight)
+    return labels.reshape(rows, cols), int(n)

@@ -23,7 +23,6 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image
-from scipy import ndimage
 
 from fleet_emu.core.errors import MapError
 from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell, MapData
@@ -47,8 +46,6 @@ START_RADIUS = 4
 #: How many of those cells (at most 41) a start needs, when some cell of the component has that many.
 START_ROOM = 24
 
-_FOUR = ndimage.generate_binary_structure(2, 1)
-
 
 def _cells(metres: float, cell_size: float, minimum: int = 1) -> int:
     return max(minimum, round(metres / cell_size))
@@ -63,10 +60,25 @@ def _bordered(grid: np.ndarray) -> np.ndarray:
 
 def _components(free: np.ndarray) -> tuple[np.ndarray, int]:
     """Labels of the 4-connected free components and the label of the largest (lowest label on ties)."""
-    labels, n = ndimage.label(free, structure=_FOUR)
+    from fleet_emu.core.kernels import label  # numba: imported on first use, not with ``fleet maps``
+
+    labels, n = label(free)
     if n == 0:
         return labels, 0
     return labels, int(np.argmax(np.bincount(labels.ravel())[1:])) + 1
+
+
+def diamond_sums(mask: np.ndarray, k: int) -> np.ndarray:
+    """For every cell, how many ``mask`` cells lie within Manhattan distance ``k`` of it (none off the grid):
+    a convolution with a diamond, as shifted sums."""
+    rows, cols = mask.shape
+    padded = np.pad(mask.astype(np.int32), k)
+    out = np.zeros((rows, cols), dtype=np.int32)
+    for dr in range(-k, k + 1):
+        w = k - abs(dr)
+        for dc in range(-w, w + 1):
+            out += padded[k + dr:k + dr + rows, k + dc:k + dc + cols]
+    return out
 
 
 def _ball(mask: np.ndarray, cell: Cell, radius: int) -> int:
@@ -100,8 +112,7 @@ def choose_start(grid: np.ndarray, room: int | None = None, tries: int = 2000) -
         raise MapError("the map has no free cell")
     comp = labels == best
     k, need = START_RADIUS, START_ROOM if room is None else room
-    yy, xx = np.mgrid[-k:k + 1, -k:k + 1]
-    bound = ndimage.convolve(comp.astype(np.int32), (abs(yy) + abs(xx) <= k).astype(np.int32), mode="constant")
+    bound = diamond_sums(comp, k)
     rows, cols = np.nonzero(comp)
     bound = bound[rows, cols]
     d2 = (rows - rows.mean()) ** 2 + (cols - cols.mean()) ** 2

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from fleet_emu.core.grid import OCCUPIED, flat, from_ascii, to_ascii, unflat
-from fleet_emu.core.kernels import count_walls, visible_cells, wavefront
+from fleet_emu.core.kernels import count_walls, label, visible_cells, wavefront
 
 
 def test_ascii_round_trip() -> None:
@@ -132,3 +132,21 @@ def test_warm_up_loads_the_frontier_cluster_kernels() -> None:
             "print(all(f.signatures for f in (k.update_mask, k.touched_labels, k.relabel, k.target)))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "True"
+
+
+def test_label_numbers_components_as_scipy_does() -> None:
+    """The reference is scipy.ndimage.label (cross and full 3 x 3 structures): the same labels, dtype and count
+    on random masks of every density and shape, empty and single-row ones included."""
+    from scipy import ndimage
+
+    rng = np.random.default_rng(0)
+    cross, full = ndimage.generate_binary_structure(2, 1), np.ones((3, 3), dtype=bool)
+    shapes = [(1, 1), (1, 9), (9, 1), *(tuple(rng.integers(2, 30, 2)) for _ in range(150))]
+    for shape in shapes:
+        mask = rng.random(shape) < rng.random()
+        for eight, structure in ((False, cross), (True, full)):
+            ours, n = label(mask, eight)
+            theirs, m = ndimage.label(mask, structure=structure)
+            assert n == m and ours.dtype == theirs.dtype and np.array_equal(ours, theirs), (shape, eight)
+    diagonal = np.eye(4, dtype=bool)
+    assert label(diagonal)[1] == 4 and label(diagonal, eight=True)[1] == 1

@@ -10,7 +10,16 @@ from PIL import Image
 from scipy import ndimage
 
 from fleet_emu.core.grid import FREE, OCCUPIED, from_ascii
-from fleet_emu.world.maps import BUILTIN_MAPS, START_RADIUS, MapData, MapError, _ball, load_bitmap, load_map
+from fleet_emu.world.maps import (
+    BUILTIN_MAPS,
+    START_RADIUS,
+    MapData,
+    MapError,
+    _ball,
+    diamond_sums,
+    load_bitmap,
+    load_map,
+)
 
 FOUR = ndimage.generate_binary_structure(2, 1)
 
@@ -311,3 +320,12 @@ def test_all_wall_image_and_bad_cell_size(tmp_path: Path) -> None:
     assert_one_line(exc, "no free cell")
     with pytest.raises(MapError):
         load_map("office", 0.0, 0)
+
+
+def test_diamond_sums_are_a_convolution_with_a_diamond() -> None:
+    rng = np.random.default_rng(1)
+    for shape, k in (((1, 1), 0), ((7, 3), 2), ((30, 41), START_RADIUS), ((5, 5), 9)):
+        mask = rng.random(shape) < 0.6
+        yy, xx = np.mgrid[-k:k + 1, -k:k + 1]
+        want = ndimage.convolve(mask.astype(np.int32), (abs(yy) + abs(xx) <= k).astype(np.int32), mode="constant")
+        assert np.array_equal(diamond_sums(mask, k), want)

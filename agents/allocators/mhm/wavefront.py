@@ -33,12 +33,10 @@ import math
 from collections.abc import Iterable, Sequence
 
 import numpy as np
-from scipy import ndimage
 
 from fleet_emu.agents.frontiers import frontier_mask
 from fleet_emu.core.grid import FREE, Cell
-
-FOUR = ndimage.generate_binary_structure(2, 1)
+from fleet_emu.core.kernels import label
 
 
 def _window(shape: tuple[int, int], center: Cell, radius: float) -> tuple[slice, slice]:
@@ -66,7 +64,7 @@ def cell_area(grid: np.ndarray, center: Cell, r_comm: float) -> np.ndarray:
     inside = (grid[rs, cs] == FREE) & ((rows - center[0]) ** 2 + (cols - center[1]) ** 2 < r_comm * r_comm)
     local = (center[0] - rs.start, center[1] - cs.start)
     inside[local] = True
-    labels, _ = ndimage.label(inside, structure=FOUR)
+    labels, _ = label(inside)
     out[rs, cs] = labels == labels[local]
     return out
 
@@ -85,6 +83,8 @@ def frontier_distance(grid: np.ndarray, where: np.ndarray | None = None) -> np.n
     mask = frontier_mask(grid) if where is None else frontier_mask(grid) & where
     if not mask.any():
         return np.full(grid.shape, np.inf)
+    from scipy import ndimage  # imported on use: only the MHM planner needs it, and it costs 0.4 s to load
+
     return ndimage.distance_transform_edt(~mask)
 
 
