@@ -56,10 +56,15 @@ def update_mask(grid: np.ndarray, rows: int, cols: int, mask: np.ndarray, change
     return out[:k]
 
 
-@numba.njit(cache=True)
 def touched_labels(labels: np.ndarray, rows: int, cols: int, flips: np.ndarray) -> np.ndarray:
     """The (old) group labels of the flipped cells and of their 8-neighbours: every group that lost a cell or
-    is 8-adjacent to a new frontier cell (unique, ascending)."""
+    is 8-adjacent to a new frontier cell (unique, ascending: numpy's ``unique`` here, not compiled, since a
+    compiled sort costs seconds to build in every fresh checkout)."""
+    return np.unique(_touched_labels(labels, rows, cols, flips))
+
+
+@numba.njit(cache=True)
+def _touched_labels(labels: np.ndarray, rows: int, cols: int, flips: np.ndarray) -> np.ndarray:
     out = np.empty(9 * len(flips), dtype=np.int32)
     k = 0
     for i in range(len(flips)):
@@ -75,7 +80,7 @@ def touched_labels(labels: np.ndarray, rows: int, cols: int, flips: np.ndarray) 
                     if lab != 0:
                         out[k] = lab
                         k += 1
-    return np.unique(out[:k])
+    return out[:k]
 
 
 @numba.njit(cache=True)

@@ -127,7 +127,14 @@ def visible_cells(occupied: np.ndarray, row: int, col: int, radius: float) -> np
         count = _trace(occupied, row, col, row + R, col + k, radius2, mark, out, count)
         count = _trace(occupied, row, col, row + k, col - R, radius2, mark, out, count)
         count = _trace(occupied, row, col, row + k, col + R, radius2, mark, out, count)
-    return np.sort(out[:count])
+    seen = np.empty(count, dtype=np.int64)  # the marked cells in raster order: ascending, without a sort
+    k = 0
+    for r in range(max(0, row - R), min(rows, row + R + 1)):
+        for c in range(max(0, col - R), min(cols, col + R + 1)):
+            if mark[r * cols + c]:
+                seen[k] = r * cols + c
+                k += 1
+    return seen
 
 
 @numba.njit(cache=True)
@@ -230,7 +237,8 @@ _NO_KEY = np.int64(1) << np.int64(62)
 @numba.njit(cache=True)
 def _grown(a: np.ndarray, cap: int) -> np.ndarray:
     out = np.empty(cap, dtype=a.dtype)
-    out[:len(a)] = a
+    for i in range(len(a)):  # not out[:len(a)] = a: its shape check compiles numba's string formatting (seconds)
+        out[i] = a[i]
     return out
 
 

@@ -129,7 +129,7 @@ def test_warm_up_loads_the_frontier_cluster_kernels() -> None:
 
     code = ("from fleet_emu.core import cluster_kernels as k; from fleet_emu.core.kernels import warm_up; "
             "assert not k.update_mask.signatures; warm_up(); "
-            "print(all(f.signatures for f in (k.update_mask, k.touched_labels, k.relabel, k.target)))")
+            "print(all(f.signatures for f in (k.update_mask, k._touched_labels, k.relabel, k.target)))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "True"
 
