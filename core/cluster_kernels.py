@@ -84,10 +84,11 @@ def _touched_labels(labels: np.ndarray, rows: int, cols: int, flips: np.ndarray)
 
 
 @numba.njit(cache=True)
-def _walk(mask: np.ndarray, labels: np.ndarray, rows: int, cols: int, start: int, lab: int,
-          out: np.ndarray, at: int) -> int:
-    """Breadth-first (8-connected, neighbours row-major) from ``start`` over frontier cells not yet
-    labelled, labelling them ``lab`` and writing them to ``out`` from ``at``; the end in ``out``."""
+def walk(mask: np.ndarray, labels: np.ndarray, rows: int, cols: int, start: int, lab: int,
+         out: np.ndarray, at: int, eight: bool) -> int:
+    """Breadth-first (8-connected, or 4-connected without ``eight``; neighbours row-major) from ``start`` over
+    ``mask`` cells not yet labelled, labelling them ``lab`` and writing them to ``out`` from ``at``; the end in
+    ``out``. The frontier groups' walk here, and :func:`~fleet_emu.core.kernels.label`'s."""
     labels[start] = lab
     out[at] = start
     head = at
@@ -103,7 +104,7 @@ def _walk(mask: np.ndarray, labels: np.ndarray, rows: int, cols: int, start: int
                 continue
             for dc in range(-1, 2):
                 cc = c + dc
-                if (dr == 0 and dc == 0) or cc < 0 or cc >= cols:
+                if (dr == 0 and dc == 0) or cc < 0 or cc >= cols or (not eight and dr != 0 and dc != 0):
                     continue
                 nxt = rr * cols + cc
                 if mask[nxt] and labels[nxt] == 0:
@@ -131,14 +132,14 @@ def relabel(mask: np.ndarray, labels: np.ndarray, rows: int, cols: int, seeds: n
         if not mask[s] or labels[s] != 0:
             continue
         lab = first + groups
-        stop = _walk(mask, labels, rows, cols, s, lab, out, end)
+        stop = walk(mask, labels, rows, cols, s, lab, out, end, True)
         if stop - end > cluster_max:
             low = out[end]
             for j in range(end + 1, stop):
                 low = min(low, out[j])
             for j in range(end, stop):
                 labels[out[j]] = 0
-            _walk(mask, labels, rows, cols, low, lab, out, end)
+            walk(mask, labels, rows, cols, low, lab, out, end, True)
         end = stop
         groups += 1
         bounds[groups] = end

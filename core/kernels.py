@@ -383,28 +383,9 @@ def _label(flat: np.ndarray, rows: int, cols: int, eight: bool) -> tuple[np.ndar
     queue = np.empty(rows * cols, dtype=np.int64)
     count = 0
     for start in range(rows * cols):
-        if not flat[start] or labels[start] != 0:
-            continue
-        count += 1
-        labels[start] = count
-        queue[0] = start
-        head, tail = 0, 1
-        while head < tail:
-            cur = queue[head]
-            head += 1
-            r = cur // cols
-            c = cur - r * cols
-            for dr in range(-1, 2):
-                for dc in range(-1, 2):
-                    if (dr == 0 and dc == 0) or (not eight and dr != 0 and dc != 0):
-                        continue
-                    rr, cc = r + dr, c + dc
-                    if 0 <= rr < rows and 0 <= cc < cols:
-                        nxt = rr * cols + cc
-                        if flat[nxt] and labels[nxt] == 0:
-                            labels[nxt] = count
-                            queue[tail] = nxt
-                            tail += 1
+        if flat[start] and labels[start] == 0:
+            count += 1
+            cluster_kernels.walk(flat, labels, rows, cols, start, count, queue, 0, eight)
     return labels, count
 
 
