@@ -7,14 +7,15 @@ frontier cell's group label (0 off the frontier).
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from fleet_emu.core.jit import njit
 
 FREE = 0
 UNKNOWN = -1
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _is_frontier(grid: np.ndarray, x: int, rows: int, cols: int) -> bool:
     if grid[x] != FREE:
         return False
@@ -24,7 +25,7 @@ def _is_frontier(grid: np.ndarray, x: int, rows: int, cols: int) -> bool:
             or (c > 0 and grid[x - 1] == UNKNOWN) or (c < cols - 1 and grid[x + 1] == UNKNOWN))
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def update_mask(grid: np.ndarray, rows: int, cols: int, mask: np.ndarray, changed: np.ndarray) -> np.ndarray:
     """Recompute the frontier ``mask`` (flat bool, updated in place) on the ``changed`` cells and their
     4-neighbours, the only cells whose frontier status a change of ``changed`` can alter; the cells whose
@@ -63,7 +64,7 @@ def touched_labels(labels: np.ndarray, rows: int, cols: int, flips: np.ndarray) 
     return np.unique(_touched_labels(labels, rows, cols, flips))
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _touched_labels(labels: np.ndarray, rows: int, cols: int, flips: np.ndarray) -> np.ndarray:
     out = np.empty(9 * len(flips), dtype=np.int32)
     k = 0
@@ -83,7 +84,7 @@ def _touched_labels(labels: np.ndarray, rows: int, cols: int, flips: np.ndarray)
     return out[:k]
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def walk(mask: np.ndarray, labels: np.ndarray, rows: int, cols: int, start: int, lab: int,
          out: np.ndarray, at: int, eight: bool) -> int:
     """Breadth-first (8-connected, or 4-connected without ``eight``; neighbours row-major) from ``start`` over
@@ -114,7 +115,7 @@ def walk(mask: np.ndarray, labels: np.ndarray, rows: int, cols: int, start: int,
     return tail
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def relabel(mask: np.ndarray, labels: np.ndarray, rows: int, cols: int, seeds: np.ndarray, first: int,
             cluster_max: int) -> tuple[np.ndarray, np.ndarray]:
     """Label the groups of the unlabelled frontier cells reachable from ``seeds`` (labels ``first``, ``first``
@@ -146,7 +147,7 @@ def relabel(mask: np.ndarray, labels: np.ndarray, rows: int, cols: int, seeds: n
     return out[:end], bounds[:groups + 1]
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def target(cells: np.ndarray, cols: int) -> tuple[int, int]:
     """A piece's cell nearest its mean, the first on ties: ``agents.frontiers._target`` bit for bit (the sums
     of integer coordinates are exact in float64 whatever the order, so the mean is the same one rounding of

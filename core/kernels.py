@@ -1,18 +1,19 @@
 """Compiled grid kernels: BFS wavefront, 360-degree ray casting, wall counting along a segment.
 
 Compiled with numba (``cache=True``, so each process loads the machine code from ``__pycache__``
-instead of recompiling). All kernels take plain numpy arrays and flat row-major indices.
+instead of recompiling), on the first call of any kernel (:mod:`core.jit`). All kernels take plain numpy
+arrays and flat row-major indices.
 """
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from fleet_emu.core import cluster_kernels
+from fleet_emu.core.jit import njit
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _neighbour(cur: int, k: int, rows: int, cols: int) -> int:
     """Flat index of the k-th 4-neighbour of ``cur`` (up, down, left, right: :data:`core.grid.MOVES`), or -1
     off the grid."""
@@ -27,7 +28,7 @@ def _neighbour(cur: int, k: int, rows: int, cols: int) -> int:
     return cur + 1 if c < cols - 1 else -1
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def wavefront(passable: np.ndarray, sources: np.ndarray, stop: int = -1) -> np.ndarray:
     """BFS distance (4-connected, unit cost) from every source over ``passable`` cells.
 
@@ -67,7 +68,7 @@ def wavefront(passable: np.ndarray, sources: np.ndarray, stop: int = -1) -> np.n
     return dist.reshape(rows, cols)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _trace(occupied: np.ndarray, r0: int, c0: int, r1: int, c1: int, radius2: float, mark: np.ndarray,
            out: np.ndarray, count: int) -> int:
     """Bresenham from (r0, c0) toward (r1, c1); marks cells until the first occupied one (included)."""
@@ -102,7 +103,7 @@ def _trace(occupied: np.ndarray, r0: int, c0: int, r1: int, c1: int, radius2: fl
             r += sr
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def visible_cells(occupied: np.ndarray, row: int, col: int, radius: float) -> np.ndarray:
     """Flat indices of the cells a 360-degree range sensor at ``(row, col)`` sees.
 
@@ -137,7 +138,7 @@ def visible_cells(occupied: np.ndarray, row: int, col: int, radius: float) -> np
     return seen
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def count_walls(occupied: np.ndarray, r0: int, c0: int, r1: int, c1: int) -> int:
     """Number of walls the straight segment between two cells crosses.
 
@@ -172,7 +173,7 @@ def count_walls(occupied: np.ndarray, r0: int, c0: int, r1: int, c1: int) -> int
             r += sr
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def cells_valid(cells: np.ndarray, values: np.ndarray, size: int) -> bool:
     """Whether every index of ``cells`` lies in ``[0, size)`` and every value of ``values`` (as long) is -1, 0
     or 100: :func:`fleet_emu.core.messages.check_cells`'s verdict on 1-D arrays of equal length, in one pass
@@ -187,7 +188,7 @@ def cells_valid(cells: np.ndarray, values: np.ndarray, size: int) -> bool:
     return True
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def merge_parts(flat: np.ndarray, cells: np.ndarray, values: np.ndarray, bounds: np.ndarray,
                 unknown: int) -> tuple[np.ndarray, int]:
     """Merge parts ``bounds[p]:bounds[p + 1]`` of ``cells`` and ``values`` into the grid ``flat`` in turn, as
@@ -234,7 +235,7 @@ def warm_up() -> None:
 _NO_KEY = np.int64(1) << np.int64(62)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _grown(a: np.ndarray, cap: int) -> np.ndarray:
     out = np.empty(cap, dtype=a.dtype)
     for i in range(len(a)):  # not out[:len(a)] = a: its shape check compiles numba's string formatting (seconds)
@@ -242,7 +243,7 @@ def _grown(a: np.ndarray, cap: int) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _push(cell: np.ndarray, link: np.ndarray, head: np.ndarray, tail: np.ndarray, j: int, slot: int,
           value: int) -> None:
     """Append ``value`` in pool slot ``slot`` to the tail of wavefront j's linked queue."""
@@ -255,7 +256,7 @@ def _push(cell: np.ndarray, link: np.ndarray, head: np.ndarray, tail: np.ndarray
     tail[j] = slot
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _first_visit(seen: np.ndarray, key: int) -> bool:
     """Mark bit ``key`` of the bitset ``seen`` (uint64 words); whether it was clear. One bit per (wavefront,
     cell): eight times less memory to clear and walk than a byte each (m wavefronts on a 512 x 512 map)."""
@@ -267,7 +268,7 @@ def _first_visit(seen: np.ndarray, key: int) -> bool:
     return True
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _expand_layer(flat_pass: np.ndarray, rows: int, cols: int, seen: np.ndarray, base: int, crowd: np.ndarray,
                   me: int, cell: np.ndarray, link: np.ndarray, spare: np.ndarray, head: np.ndarray, tail: np.ndarray,
                   j: int, count: int, used: int, nspare: int) -> tuple[bool, int, int, int, int]:
@@ -300,7 +301,7 @@ def _expand_layer(flat_pass: np.ndarray, rows: int, cols: int, seen: np.ndarray,
     return False, found, fresh, used, nspare
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _seed_wavefronts(sources: np.ndarray, offsets: np.ndarray, n: int, seen: np.ndarray, cell: np.ndarray,
                      link: np.ndarray, head: np.ndarray, tail: np.ndarray, size: np.ndarray, key: np.ndarray) -> int:
     """Queue each wavefront's layer 0 (:func:`minpos_parallel`): cluster j's cells, each once and on the map,
@@ -319,7 +320,7 @@ def _seed_wavefronts(sources: np.ndarray, offsets: np.ndarray, n: int, seen: np.
     return used
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def minpos_parallel(passable: np.ndarray, sources: np.ndarray, offsets: np.ndarray, me: int,
                     robots: np.ndarray) -> tuple[int, int, int]:
     """MinPos with parallel wavefronts (Bautin et al. 2012, section 4.3, "Parallel computation of wavefronts").
@@ -377,7 +378,7 @@ def minpos_parallel(passable: np.ndarray, sources: np.ndarray, offsets: np.ndarr
     return -1, -1, -1
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _label(flat: np.ndarray, rows: int, cols: int, eight: bool) -> tuple[np.ndarray, int]:
     labels = np.zeros(rows * cols, dtype=np.int32)
     queue = np.empty(rows * cols, dtype=np.int64)

@@ -134,7 +134,7 @@ def after_preload(path, ticks):
     fleet.reset()
     for _ in range(ticks):
         fleet.step()
-    return {k: sorted(s - before[k]) for k, s in signatures().items() if s - before[k]}
+    return {k: sorted(s - before.get(k, set())) for k, s in signatures().items() if s - before.get(k, set())}
 
 assert not any(signatures().values())
 found = {}
