@@ -47,7 +47,7 @@ def check(scenario: Scenario) -> MapData:
     check_map_size(scenario)
     md = load_map(scenario.map, scenario.cell_size, scenario.seed, cell_size_given=scenario.cell_size_given)
     world = build_world(scenario, md)
-    world.reset()  # raises StartAreaError when the robots do not fit
+    world.place()  # raises StartAreaError when the robots do not fit (no kernel runs: numba stays unloaded)
     base_cell(scenario, md, world)  # a ConfigError for a base cell off the map or on a wall
     return md
 

@@ -35,9 +35,9 @@ def build_world(scenario: Scenario, map_data: MapData, placement: tuple[Cell, ..
 
 def base_cell(scenario: Scenario, map_data: MapData, world: World | None = None) -> Cell | None:
     """The base station's cell (None without one): the scenario's ``base`` cell, or with ``base = true`` the
-    start cell the world places the fleet around (``world``: one already reset, whose start it takes; else a
-    world is built and reset here, so that a ``random`` start is drawn as the world draws it). A cell off the
-    map or not free is a one-line ConfigError. The base has no body: robots may drive over its cell."""
+    start cell the world places the fleet around (``world``: one already placed or reset, whose start it takes;
+    else a world is built and placed here, so that a ``random`` start is drawn as the world draws it). A cell off
+    the map or not free is a one-line ConfigError. The base has no body: robots may drive over its cell."""
     if not scenario.has_base:
         return None
     if isinstance(scenario.base, tuple):
@@ -50,5 +50,5 @@ def base_cell(scenario: Scenario, map_data: MapData, world: World | None = None)
         return cell
     if world is None:
         world = build_world(scenario, map_data)
-        world.reset()
+        world.place()
     return (int(world.start[0]), int(world.start[1]))

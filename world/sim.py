@@ -26,6 +26,31 @@ class StartAreaError(ConfigError):
 STALL_DIAMETERS = 2
 
 
+def nearest_cells(passable: np.ndarray, free: np.ndarray, source: int, n: int | None = None,
+                  radius: int | None = None) -> np.ndarray:
+    """Flat indices of the ``free`` cells reachable from ``source`` through ``passable`` cells (4-connected), by
+    BFS distance then row-major: the first ``n`` of them, within ``radius`` steps. A breadth-first search ring by
+    ring in numpy, which stops as soon as it has ``n`` (the kernels' wavefront gives the same distances, but
+    would load numba in a process that only checks a scenario)."""
+    rows, cols = passable.shape
+    can, good = passable.ravel(), free.ravel()
+    seen = np.zeros(can.size, dtype=bool)
+    seen[source] = True
+    ring, found, count, steps = np.array([source], dtype=np.int64), [], 0, 0
+    while ring.size:
+        found.append(ring[good[ring]])
+        count += found[-1].size
+        if (n is not None and count >= n) or (radius is not None and steps >= radius):
+            break
+        r, c = ring // cols, ring % cols
+        nxt = np.unique(np.concatenate((ring[r > 0] - cols, ring[r < rows - 1] + cols, ring[c > 0] - 1,
+                                        ring[c < cols - 1] + 1)))  # sorted: each ring is row-major
+        ring = nxt[can[nxt] & ~seen[nxt]]
+        seen[ring] = True
+        steps += 1
+    return np.concatenate(found)[:n]
+
+
 def diamond_cells(radius: int) -> int:
     """Cells within ``radius`` 4-connected steps of a cell on an open grid: 2r(r + 1) + 1."""
     return 2 * radius * (radius + 1) + 1
@@ -104,27 +129,28 @@ class World:
         s = self.start
         if not (0 <= s[0] < self.shape[0] and 0 <= s[1] < self.shape[1]) or self.grid[s] != FREE:
             raise StartAreaError(f"start cell {tuple(s)} is not a free cell of the map")
-        dist = wavefront(~self.occupied, np.array([flat(self.shape, s)], np.int64), -1).ravel()
-        reach = (dist >= 0) & (self.grid.ravel() == FREE)
-        if radius is not None:
-            reach &= dist <= radius
-        area = np.flatnonzero(reach)
-        area = area[np.lexsort((area, dist[area]))][:n]
+        area = nearest_cells(~self.occupied, self.grid == FREE, flat(self.shape, s), n, radius)
         return [(int(i) // self.shape[1], int(i) % self.shape[1]) for i in area]
+
+    def place(self) -> list[Cell]:
+        """The robots' start cells (the explicit ones checked, or the free cells nearest the start, drawn first
+        for a ``random`` start): what :meth:`reset` does first, without sensing, so that a launcher checks a
+        scenario without running a compiled kernel. A :class:`StartAreaError` when the fleet does not fit."""
+        if self.config.placement is not None:
+            return self._placement()
+        if self.config.start == "random":
+            self.start = self._random_start()
+        cells = self.start_cells(len(self.robots))
+        if len(self.robots) > len(cells):
+            raise StartAreaError(
+                f"{len(self.robots)} robots do not fit the free area reachable from the start cell "
+                f"{tuple(self.start)} of map {self.map.name!r}: it has {len(cells)} free cells")
+        return cells
 
     def reset(self, failed: frozenset[str] | set[str] = frozenset()) -> dict[str, Reading]:
         """Place the robots around the start (or on ``placement``) and sense; the readings of tick 0. Robots in
         ``failed`` (their process died before the first tick) are placed but neither sense nor act."""
-        if self.config.placement is not None:
-            cells = self._placement()
-        else:
-            if self.config.start == "random":
-                self.start = self._random_start()
-            cells = self.start_cells(len(self.robots))
-            if len(self.robots) > len(cells):
-                raise StartAreaError(
-                    f"{len(self.robots)} robots do not fit the free area reachable from the start cell "
-                    f"{tuple(self.start)} of map {self.map.name!r}: it has {len(cells)} free cells")
+        cells = self.place()
         self.tick = 0
         self.poses = dict(zip(self.robots, cells, strict=True))
         self.live = [r for r in self.robots if r not in failed]
@@ -176,8 +202,7 @@ class World:
         radius = self.config.start_radius
         while diamond_cells(radius) < n:
             radius += 1
-        main = wavefront(~self.occupied, np.array([flat(self.shape, self.map.start)], np.int64), -1) >= 0
-        candidates = np.flatnonzero(main.ravel() & (self.grid.ravel() == FREE))
+        candidates = np.sort(nearest_cells(~self.occupied, self.grid == FREE, flat(self.shape, self.map.start)))
         for k in self.rng.permutation(len(candidates))[:200]:
             cell = (int(candidates[k]) // self.shape[1], int(candidates[k]) % self.shape[1])
             self.start = cell

@@ -9,7 +9,7 @@ import pytest
 
 from fleet_emu.core.grid import FREE, OCCUPIED, flat, from_ascii
 from fleet_emu.world.maps import MapData
-from fleet_emu.world.sim import STALL_DIAMETERS, StartAreaError, World, WorldConfig
+from fleet_emu.world.sim import STALL_DIAMETERS, StartAreaError, World, WorldConfig, nearest_cells
 
 ROOMS = """
 ###########
@@ -35,6 +35,28 @@ def test_start_placement_is_deterministic_and_around_the_start() -> None:
     with pytest.raises(StartAreaError, match="26 robots do not fit the free area reachable from the start cell "
                                              r"\(2, 2\) of map 'test': it has 25 free cells"):
         _world(ROOMS, 26).reset()
+
+
+def test_nearest_cells_is_the_wavefronts_order() -> None:
+    """``nearest_cells`` (numpy, so that a launcher's check loads no kernel) against the compiled wavefront's BFS
+    distances, ordered by distance then row-major: every count and radius, on random grids with cells that are
+    passable but not free (unknown), from free and from unknown sources."""
+    from fleet_emu.core.kernels import wavefront
+
+    rng = np.random.default_rng(7)
+    for trial in range(60):
+        shape = (int(rng.integers(1, 30)), int(rng.integers(1, 30)))
+        passable = rng.random(shape) > rng.uniform(0.0, 0.6)
+        free = passable & (rng.random(shape) > 0.1)
+        source = int(rng.integers(passable.size))
+        passable.ravel()[source] = True
+        dist = wavefront(passable, np.array([source], np.int64), -1).ravel()
+        for n, radius in ((None, None), (1, None), (int(rng.integers(1, 40)), None), (None, int(rng.integers(0, 9))),
+                          (int(rng.integers(1, 40)), int(rng.integers(0, 9)))):
+            area = np.flatnonzero((dist >= 0) & free.ravel() & (dist <= (radius if radius is not None else dist.max())))
+            want = area[np.lexsort((area, dist[area]))][:n]
+            got = nearest_cells(passable, free, source, n, radius)
+            assert got.tolist() == want.tolist(), (trial, n, radius)
 
 
 _ROW = "#" + "." * 14 + "#"
