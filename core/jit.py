@@ -6,14 +6,21 @@ kernel call (or :func:`load`, which ``kernels.warm_up`` calls) turns every kerne
 so that a kernel calling another is compiled against a dispatcher, and the module attribute of each kernel becomes
 that dispatcher. Code that imported a kernel before then holds its :class:`Kernel`, which forwards every call (and
 every attribute: ``signatures``, ``py_func``...) to the dispatcher.
+
+A kernel with ``cache=True`` keeps its machine code in the user's cache (:func:`cache_dir`), keyed by the kernels'
+source, not beside the source: a new clone, a new environment or a checkout of another branch and back loads
+what an earlier one compiled (about 20 CPU seconds) instead of compiling again.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
+import os
 import sys
 import threading
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar, cast
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -75,12 +82,90 @@ def load() -> None:
 
         _load_array_math()
         for kernel in _KERNELS:
-            fn = kernel._py_func
-            kernel._dispatcher = numba.njit(**kernel.options)(fn)
+            kernel._dispatcher = _dispatcher(numba, kernel._py_func, kernel.options)
         for kernel in _KERNELS:  # after all of them: no kernel is compiled against a stand-in
             fn = kernel._py_func
             setattr(sys.modules[fn.__module__], fn.__name__, kernel._dispatcher)
         _loaded = True
+
+
+def _dispatcher(numba: Any, fn: Callable[..., Any], options: dict[str, Any]) -> Any:
+    """``numba.njit(**options)(fn)``, its cache (with ``cache=True``) in :func:`cache_dir` when that is writable."""
+    cached = bool(options.get("cache"))
+    dispatcher = numba.njit(**{k: v for k, v in options.items() if k != "cache"})(fn)
+    if cached:
+        dispatcher.enable_caching()  # numba's own: beside the source (its fallback)
+        shared = _shared_cache(fn)
+        if shared is not None:
+            dispatcher._cache = shared
+    return dispatcher
+
+
+def cache_dir() -> Path:
+    """Where the kernels' machine code is kept: ``$FLEET_KERNEL_CACHE``, else the user's cache
+    (``$XDG_CACHE_HOME/fleet-emu/kernels``, by default ``~/.cache/fleet-emu/kernels``)."""
+    if os.environ.get("FLEET_KERNEL_CACHE"):
+        return Path(os.environ["FLEET_KERNEL_CACHE"])
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir("fleet-emu", appauthor=False)) / "kernels"
+
+
+@functools.cache
+def _source_stamp() -> str:
+    """The sha256 of every module that defines kernels, together: a kernel inlines others (from its own module
+    or another), so a change in any of them recompiles them all."""
+    files = sorted({sys.modules[k._py_func.__module__].__file__ or "" for k in _KERNELS} | {__file__})
+    digest = hashlib.sha256()
+    for name in files:
+        digest.update(Path(name).read_bytes())
+    return digest.hexdigest()
+
+
+def _shared_cache(fn: Callable[..., Any]) -> Any:
+    """numba's function cache for ``fn`` located in :func:`cache_dir` and stamped with :func:`_source_stamp`;
+    None when numba's caching internals are not the ones known here (numba's own cache then stays)."""
+    try:
+        from numba.core import caching
+    except ImportError:
+        return None
+    base = getattr(caching, "_CacheLocator", None)
+    if base is None or not hasattr(caching, "CompileResultCacheImpl") or not hasattr(caching, "FunctionCache"):
+        return None
+
+    class Locator(base):  # type: ignore[misc,valid-type]
+        def __init__(self, py_func: Callable[..., Any], py_file: str) -> None:
+            self._lineno = py_func.__code__.co_firstlineno
+            self._path = str(cache_dir())
+
+        def get_cache_path(self) -> str:
+            return self._path
+
+        def get_source_stamp(self) -> str:
+            return _source_stamp()
+
+        def get_disambiguator(self) -> str:
+            return str(self._lineno)
+
+        @classmethod
+        def from_function(cls, py_func: Callable[..., Any], py_file: str) -> Any:
+            locator = cls(py_func, py_file)
+            try:
+                locator.ensure_cache_path()
+            except OSError:  # not writable: numba's next locator (beside the source)
+                return None
+            return locator
+
+    class Impl(caching.CompileResultCacheImpl):
+        _locator_classes = [Locator, *caching.CompileResultCacheImpl._locator_classes]
+
+    class Cache(caching.FunctionCache):
+        _impl_class = Impl
+
+    try:
+        return Cache(fn)
+    except Exception:  # any failure here leaves numba's own cache
+        return None
 
 
 def loaded() -> bool:

@@ -58,10 +58,14 @@ def draw_map(ascii_map: str, path: Path) -> Path:
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """The suite starts a few hundred interpreters (fleets, CLIs, fork servers). Where ``PYTHONDONTWRITEBYTECODE``
-    keeps bytecode out of the tree, each of them would compile the package from source again (about 0.2 CPU s):
-    they share one bytecode cache in a folder of the session's instead (``PYTHONPYCACHEPREFIX``), and the tree
-    stays as clean as the variable asks."""
+    """The suite starts a few hundred interpreters (fleets, CLIs, fork servers). They all load the kernels from the
+    user's kernel cache, also those whose test gives them a user cache of their own (``XDG_CACHE_HOME``, for maps):
+    ``FLEET_KERNEL_CACHE`` is set to it. Where ``PYTHONDONTWRITEBYTECODE`` keeps bytecode out of the tree, each
+    would also compile the package from source again (about 0.2 CPU s): they share one bytecode cache in a folder
+    of the session's instead (``PYTHONPYCACHEPREFIX``), and the tree stays as clean as the variable asks."""
+    from fleet_emu.core.jit import cache_dir
+
+    os.environ.setdefault("FLEET_KERNEL_CACHE", str(cache_dir()))
     if not os.environ.get("PYTHONDONTWRITEBYTECODE") or os.environ.get("PYTHONPYCACHEPREFIX"):
         return
     prefix = tempfile.mkdtemp(prefix="fleet-tests-pycache-")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from fleet_emu.core.grid import OCCUPIED, flat, from_ascii, to_ascii, unflat
@@ -154,6 +156,39 @@ def test_kernels_load_numba_on_first_use_and_warm_up_loads_them_all() -> None:
 
     out = subprocess.run([sys.executable, "-c", _LAZY], capture_output=True, text=True)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+_CACHED = """
+from fleet_emu.core.jit import njit
+
+@njit(cache=True)
+def plus_one(x):
+    return x + 1
+
+assert plus_one(1) == 2
+print(sum(plus_one.stats.cache_hits.values()), sum(plus_one.stats.cache_misses.values()))
+"""
+
+
+def test_a_kernel_is_cached_in_the_kernel_cache_and_loaded_from_another_checkout(tmp_path: Path) -> None:
+    """A ``cache=True`` kernel's machine code goes to ``FLEET_KERNEL_CACHE`` (not beside its source), keyed by the
+    source: the same module in another folder (a new clone) loads it instead of compiling."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "FLEET_KERNEL_CACHE": str(tmp_path / "cache")}
+    runs = []
+    for clone in ("a", "b"):
+        (tmp_path / clone).mkdir()
+        (tmp_path / clone / "cached_kernel.py").write_text(_CACHED)
+        out = subprocess.run([sys.executable, "-c", "import cached_kernel"], cwd=tmp_path / clone, env=env,
+                             capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr[-2000:]
+        runs.append(out.stdout.split())
+    assert runs == [["0", "1"], ["1", "0"]]  # compiled once, then loaded (hits, misses)
+    assert any(p.suffix == ".nbi" for p in (tmp_path / "cache").iterdir())
+    assert not (tmp_path / "a" / "__pycache__").exists() or not any((tmp_path / "a" / "__pycache__").glob("*.nb*"))
 
 
 def test_label_numbers_components_as_scipy_does() -> None:
