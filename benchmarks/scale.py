@@ -96,14 +96,16 @@ def cpu_seconds(pid: int) -> float | None:
 @dataclasses.dataclass
 class Sampler:
     """Samples the fleet's processes from the launcher's progress callback: CPU times at the first
-    tick seen and at every later tick before the stop; PSS near the end, sampled again at each later tick
-    until one sample finds every process (under load one may already have exited)."""
+    tick seen and at every later tick before the stop; PSS at the first tick seen, then near the end, sampled
+    again at each later tick until one sample finds every process (a short run may end, and a process exit,
+    between two progress calls: the first sample then stands)."""
 
     ticks: int
     pids: dict[str, Any] = dataclasses.field(default_factory=dict)
     first: tuple[int, float, dict[str, float]] | None = None  # (tick, monotonic time, CPU seconds by process)
     last: tuple[int, float, dict[str, float]] | None = None
     pss: dict[str, int] = dataclasses.field(default_factory=dict)
+    late: bool = False  # whether ``pss`` is a late sample that found every process
     monitor: Any = None
 
     def spawned(self, pids: dict[str, Any]) -> None:
@@ -125,11 +127,12 @@ class Sampler:
             if len(cpu) == len(self.pids):  # not once a process has exited: its CPU would drop out of ``cores``
                 self.last = (tick, time.monotonic(), cpu)
                 self.first = self.first or self.last
-        whole = len(self.pss) == len(self.pids)
-        if not whole and (tick >= self.ticks - 2 or monitor.stop is not None):
+        late = tick >= self.ticks - 2 or monitor.stop is not None
+        if not self.pss or (late and not self.late):
             pss = {k: v for k, p in self.pids.items() if (v := (smaps_rollup(p) or {}).get("Pss")) is not None}
             if len(pss) >= len(self.pss):  # a process that has exited has no PSS left to read
                 self.pss = pss
+                self.late = late and len(pss) == len(self.pids)
 
 
 def scenario_for(m: FittedMap, robots: int, a: argparse.Namespace) -> Any:
