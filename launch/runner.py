@@ -281,11 +281,17 @@ class _Run:
         monitor, sup, hurry = self.monitor, self.sup, self.hurry
         # a disk fault stays the run's end, whatever signal comes with it (the signal sets only the exit code)
         self.interrupted = self.requested.is_set() and monitor.stop is None and self.consumer.fault is None
+        again = None
         if monitor.stop is None or self.interrupted:
-            with contextlib.suppress(zenoh.ZError):
-                self.pub_stop.put(Stop(src="launcher", tick=monitor.tick, seq=1,
-                                       reason="interrupted" if self.interrupted else "aborted").encode())
-        if not sup.wait_all(STOP_GRACE, hurry):
+            stop = Stop(src="launcher", tick=monitor.tick, seq=1,
+                        reason="interrupted" if self.interrupted else "aborted").encode()
+
+            def again() -> None:  # a node still starting subscribes after the first put: it takes a later one
+                with contextlib.suppress(zenoh.ZError):
+                    self.pub_stop.put(stop)
+
+            again()
+        if not sup.wait_all(STOP_GRACE, hurry, again):
             sup.kill_all(grace=0.5 if hurry.is_set() else 2.0)
         sup.kill_all()
         if self.nodes_thread is not None:

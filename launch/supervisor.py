@@ -12,12 +12,14 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Protocol
 
 from fleet_emu.launch.forked import ForkServer
 
 AGENTS = "fleet_emu.agents"
+AGAIN = 0.25  # seconds between the calls of wait_all's ``again``
 #: The other nodes the fork server forks too (their package: what ``python -m`` runs), with the module each
 #: imports, which the server loads before any fork: none of them pays an interpreter's start-up.
 FORKED = {"fleet_emu.world": "fleet_emu.world.node", "fleet_emu.netem": "fleet_emu.netem.node",
@@ -90,13 +92,19 @@ class Supervisor:
         """Children that exited, with their exit codes."""
         return {n: code for n, p in self.children.items() if (code := p.poll()) is not None}
 
-    def wait_all(self, timeout: float, hurry: threading.Event | None = None) -> bool:
+    def wait_all(self, timeout: float, hurry: threading.Event | None = None,
+                 again: Callable[[], None] | None = None) -> bool:
         """Wait for every child to exit by itself; True if they all did. Setting ``hurry`` (a second Ctrl-C)
-        cuts the wait short."""
-        deadline = time.monotonic() + timeout
+        cuts the wait short; ``again`` is called every :data:`AGAIN` seconds meanwhile (the stop, put again for a
+        node that subscribed after it was first put)."""
+        start = time.monotonic()
+        deadline, next_again = start + timeout, start + AGAIN
         while time.monotonic() < deadline and not (hurry is not None and hurry.is_set()):
             if all(p.poll() is not None for p in self.children.values()):
                 return True
+            if again is not None and time.monotonic() >= next_again:
+                again()
+                next_again += AGAIN
             time.sleep(0.05)
         return all(p.poll() is not None for p in self.children.values())
 

@@ -124,3 +124,30 @@ def test_the_summary_names_the_failed_robots() -> None:
     assert rows["failed robots"] == "r1, r2"
     assert rows["radio"] == "ideal, no loss"
     assert _rows(summary_table(_result(), "o"))["failed robots"] == "none"
+
+
+def test_the_stop_is_put_again_until_every_node_exits() -> None:
+    """A node that subscribed after the launcher's stop was put (one still starting when Ctrl-C came) takes a
+    later put: ``wait_all`` calls ``again`` every :data:`AGAIN` seconds until the children are gone, and then
+    no more."""
+    import subprocess
+    import sys
+
+    from fleet_emu.launch.supervisor import AGAIN, Supervisor
+
+    sup = Supervisor()
+    child = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.readline(); sys.stdin.readline()"],
+                             stdin=subprocess.PIPE, text=True)
+    sup.children["world"] = child
+    puts: list[float] = []
+
+    def again() -> None:  # the child "subscribes" late: it ends on the second put it reads
+        puts.append(time.monotonic())
+        assert child.stdin is not None
+        child.stdin.write("stop\n")
+        child.stdin.flush()
+
+    assert sup.wait_all(30 * AGAIN, again=again)
+    assert child.returncode == 0 and len(puts) >= 2
+    n = len(puts)
+    assert sup.wait_all(30 * AGAIN, again=again) and len(puts) == n  # nothing left to stop: no more puts
