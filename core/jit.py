@@ -111,19 +111,21 @@ def cache_dir() -> Path:
     return Path(platformdirs.user_cache_dir("fleet-emu", appauthor=False)) / "kernels"
 
 
+_CORE = tuple(Path(__file__).with_name(n) for n in ("jit.py", "kernels.py", "cluster_kernels.py"))
+
+
 @functools.cache
-def _source_stamp() -> str:
-    """The sha256 of every module that defines kernels, together: a kernel inlines others (from its own module
-    or another), so a change in any of them recompiles them all."""
-    files = sorted({sys.modules[k._py_func.__module__].__file__ or "" for k in _KERNELS} | {__file__})
+def _source_stamp(py_file: str) -> str:
+    """The sha256 of a kernel's module and of the core kernel modules, together: a kernel inlines others (from its
+    own module or the core's), so a change in any of them recompiles it."""
     digest = hashlib.sha256()
-    for name in files:
-        digest.update(Path(name).read_bytes())
+    for path in sorted({Path(py_file), *_CORE}):
+        digest.update(path.read_bytes())
     return digest.hexdigest()
 
 
 def _shared_cache(fn: Callable[..., Any]) -> Any:
-    """numba's function cache for ``fn`` located in :func:`cache_dir` and stamped with :func:`_source_stamp`;
+    """numba's function cache for ``fn`` in :func:`cache_dir`, stamped with :func:`_source_stamp` of its file;
     None when numba's caching internals are not the ones known here (numba's own cache then stays)."""
     try:
         from numba.core import caching
@@ -136,13 +138,14 @@ def _shared_cache(fn: Callable[..., Any]) -> Any:
     class Locator(base):  # type: ignore[misc,valid-type]
         def __init__(self, py_func: Callable[..., Any], py_file: str) -> None:
             self._lineno = py_func.__code__.co_firstlineno
+            self._file = py_file
             self._path = str(cache_dir())
 
         def get_cache_path(self) -> str:
             return self._path
 
         def get_source_stamp(self) -> str:
-            return _source_stamp()
+            return _source_stamp(self._file)
 
         def get_disambiguator(self) -> str:
             return str(self._lineno)
