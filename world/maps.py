@@ -25,7 +25,7 @@ import numpy as np
 from PIL import Image
 
 from fleet_emu.core.errors import MapError
-from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell, MapData
+from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell, MapData, nearest_cells
 from fleet_emu.world.mapsize import builtin_shape, check_cells, image_size, pooled_shape, read_ros_yaml, snapped
 from fleet_emu.world.registry import local_map, registry
 
@@ -68,6 +68,37 @@ def _components(free: np.ndarray) -> tuple[np.ndarray, int]:
     return labels, int(np.argmax(np.bincount(labels.ravel())[1:])) + 1
 
 
+def largest_component(free: np.ndarray, tries: int = 4) -> np.ndarray | None:
+    """The mask of the largest 4-connected component of ``free`` (the lowest-labelled on ties, as
+    :func:`_components`), None when there is no free cell.
+
+    A numpy search from the first free cell not yet reached finds it when it holds more than half of the free
+    cells, as a map's floor does, in at most ``tries`` searches: then no kernel runs, and a launcher that builds a
+    bitmap map never loads numba. Otherwise the compiled labels decide."""
+    total = int(free.sum())
+    if total == 0:
+        return None
+    inside, reached = free.ravel(), np.zeros(free.size, dtype=bool)
+    for _ in range(tries):
+        left = np.flatnonzero(inside & ~reached)
+        if left.size == 0:
+            break
+        cells = nearest_cells(free, free, int(left[0]))
+        if 2 * cells.size > total:
+            mask = np.zeros(free.size, dtype=bool)
+            mask[cells] = True
+            return mask.reshape(free.shape)
+        reached[cells] = True
+    labels, best = _components(free)
+    return labels == best
+
+
+def _connected(free: np.ndarray) -> bool:
+    """Whether the free cells form one 4-connected component (at least one cell)."""
+    first = np.flatnonzero(free.ravel())
+    return first.size > 0 and nearest_cells(free, free, int(first[0])).size == first.size
+
+
 def diamond_sums(mask: np.ndarray, k: int) -> np.ndarray:
     """For every cell, how many ``mask`` cells lie within Manhattan distance ``k`` of it (none off the grid):
     a convolution with a diamond, as shifted sums."""
@@ -107,10 +138,9 @@ def choose_start(grid: np.ndarray, room: int | None = None, tries: int = 2000) -
     room, 24 of at most 41 cells, is met at the crossing of two 3-cell-wide corridors or in any open
     area, so the world can place ~16 robots around the start by BFS.
     """
-    labels, best = _components(grid == FREE)
-    if best == 0:
+    comp = largest_component(grid == FREE)
+    if comp is None:
         raise MapError("the map has no free cell")
-    comp = labels == best
     k, need = START_RADIUS, START_ROOM if room is None else room
     bound = diamond_sums(comp, k)
     rows, cols = np.nonzero(comp)
@@ -238,7 +268,7 @@ def _hall(cs: float, rng: np.random.Generator) -> tuple[np.ndarray, Cell | None]
             continue  # keep a free margin around every obstacle
         trial = g.copy()
         trial[r:r + oh, c:c + ow] = OCCUPIED
-        if _components(trial == FREE)[0].max() == 1:  # never disconnect free space
+        if _connected(trial == FREE):  # never disconnect free space
             g, placed = trial, placed + 1
     return g, None
 

@@ -12,7 +12,7 @@ import dataclasses
 import numpy as np
 
 from fleet_emu.core.errors import ConfigError
-from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, STAY, Cell, MapData, flat
+from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, STAY, Cell, MapData, flat, nearest_cells
 from fleet_emu.core.kernels import visible_cells, wavefront
 
 
@@ -24,31 +24,6 @@ class StartAreaError(ConfigError):
 #: The belief stall window in diameters of the map: a robot may cross the known map twice to reach a frontier
 #: without learning anything on its way.
 STALL_DIAMETERS = 2
-
-
-def nearest_cells(passable: np.ndarray, free: np.ndarray, source: int, n: int | None = None,
-                  radius: int | None = None) -> np.ndarray:
-    """Flat indices of the ``free`` cells reachable from ``source`` through ``passable`` cells (4-connected), by
-    BFS distance then row-major: the first ``n`` of them, within ``radius`` steps. A breadth-first search ring by
-    ring in numpy, which stops as soon as it has ``n`` (the kernels' wavefront gives the same distances, but
-    would load numba in a process that only checks a scenario)."""
-    rows, cols = passable.shape
-    can, good = passable.ravel(), free.ravel()
-    seen = np.zeros(can.size, dtype=bool)
-    seen[source] = True
-    ring, found, count, steps = np.array([source], dtype=np.int64), [], 0, 0
-    while ring.size:
-        found.append(ring[good[ring]])
-        count += found[-1].size
-        if (n is not None and count >= n) or (radius is not None and steps >= radius):
-            break
-        r, c = ring // cols, ring % cols
-        nxt = np.unique(np.concatenate((ring[r > 0] - cols, ring[r < rows - 1] + cols, ring[c > 0] - 1,
-                                        ring[c < cols - 1] + 1)))  # sorted: each ring is row-major
-        ring = nxt[can[nxt] & ~seen[nxt]]
-        seen[ring] = True
-        steps += 1
-    return np.concatenate(found)[:n]
 
 
 def diamond_cells(radius: int) -> int:

@@ -329,3 +329,22 @@ def test_diamond_sums_are_a_convolution_with_a_diamond() -> None:
         yy, xx = np.mgrid[-k:k + 1, -k:k + 1]
         want = ndimage.convolve(mask.astype(np.int32), (abs(yy) + abs(xx) <= k).astype(np.int32), mode="constant")
         assert np.array_equal(diamond_sums(mask, k), want)
+
+
+def test_the_largest_component_is_the_labels_one_with_or_without_a_kernel() -> None:
+    """``largest_component`` (a numpy search when one component holds most free cells) against the compiled
+    labels' largest (lowest label on ties): random masks, sparse ones (many small components: the labels decide)
+    and dense ones; ``_connected`` is "one label"."""
+    from fleet_emu.world.maps import _components, _connected, largest_component
+
+    rng = np.random.default_rng(11)
+    for density in (0.2, 0.45, 0.6, 0.8, 0.95):
+        for _ in range(12):
+            free = rng.random((int(rng.integers(1, 40)), int(rng.integers(1, 40)))) < density
+            labels, best = _components(free)
+            got = largest_component(free)
+            if best == 0:
+                assert got is None
+            else:
+                assert got is not None and np.array_equal(got, labels == best)
+            assert _connected(free) == (labels.max() == 1)

@@ -7,9 +7,9 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from fleet_emu.core.grid import FREE, OCCUPIED, flat, from_ascii
+from fleet_emu.core.grid import FREE, OCCUPIED, flat, from_ascii, nearest_cells
 from fleet_emu.world.maps import MapData
-from fleet_emu.world.sim import STALL_DIAMETERS, StartAreaError, World, WorldConfig, nearest_cells
+from fleet_emu.world.sim import STALL_DIAMETERS, StartAreaError, World, WorldConfig
 
 ROOMS = """
 ###########
