@@ -72,14 +72,17 @@ def largest_component(free: np.ndarray, tries: int = 4) -> np.ndarray | None:
     """The mask of the largest 4-connected component of ``free`` (the lowest-labelled on ties, as
     :func:`_components`), None when there is no free cell.
 
-    A numpy search from the first free cell not yet reached finds it when it holds more than half of the free
-    cells, as a map's floor does, in at most ``tries`` searches: then no kernel runs, and a launcher that builds a
-    bitmap map never loads numba. Otherwise the compiled labels decide."""
+    In a process that has not loaded the kernels (a launcher checking a scenario), a numpy search from the first
+    free cell not yet reached finds it when it holds more than half of the free cells, as a map's floor does, in at
+    most ``tries`` searches, so that building a map never loads numba there. Otherwise (or once the kernels are
+    loaded: they are several times faster) the compiled labels decide."""
+    from fleet_emu.core import jit
+
     total = int(free.sum())
     if total == 0:
         return None
     inside, reached = free.ravel(), np.zeros(free.size, dtype=bool)
-    for _ in range(tries):
+    for _ in range(0 if jit.loaded() else tries):
         left = np.flatnonzero(inside & ~reached)
         if left.size == 0:
             break
@@ -91,12 +94,6 @@ def largest_component(free: np.ndarray, tries: int = 4) -> np.ndarray | None:
         reached[cells] = True
     labels, best = _components(free)
     return labels == best
-
-
-def _connected(free: np.ndarray) -> bool:
-    """Whether the free cells form one 4-connected component (at least one cell)."""
-    first = np.flatnonzero(free.ravel())
-    return first.size > 0 and nearest_cells(free, free, int(first[0])).size == first.size
 
 
 def diamond_sums(mask: np.ndarray, k: int) -> np.ndarray:
@@ -268,7 +265,7 @@ def _hall(cs: float, rng: np.random.Generator) -> tuple[np.ndarray, Cell | None]
             continue  # keep a free margin around every obstacle
         trial = g.copy()
         trial[r:r + oh, c:c + ow] = OCCUPIED
-        if _connected(trial == FREE):  # never disconnect free space
+        if _components(trial == FREE)[0].max() == 1:  # never disconnect free space (the kernel: many checks)
             g, placed = trial, placed + 1
     return g, None
 
