@@ -48,6 +48,9 @@ TOPIC_COVERAGE = "/viz/map/coverage"
 TOPIC_SCENE = "/viz/scene"
 TOPIC_LOG = "/viz/log"
 MILESTONES = (0.25, 0.5, 0.75, 0.9, 0.99, 1.0)
+#: Ticks a tick's scene and stats may wait for its commands and links, which travel from other processes than the
+#: world's states and may reach the launcher after the next state: after that, the tick is drawn as it stands.
+LAG = 3
 
 # foxglove enums (from the schemas)
 UINT8, INT8 = 1, 2
@@ -215,9 +218,11 @@ class FoxgloveFold:
         elif isinstance(msg, Links) and msg.src == "netem":
             self.links[msg.tick] = msg
             out += self._connectivity(msg)
+            out += self._advance()
         elif isinstance(msg, Command):
             if msg.tick > self.flushed:
                 self.cmds.setdefault(msg.tick, {})[msg.src] = msg
+                out += self._advance()
         elif isinstance(msg, BeliefSnapshot):
             out += self._belief(msg)
         elif isinstance(msg, Stop):
@@ -256,8 +261,28 @@ class FoxgloveFold:
             out.append(self._log(st.tick, INFO, "world", f"coverage {m:.0%} reached at tick {st.tick} "
                                                          f"({st.coverage:.1%})"))
         self.states[st.tick] = st
-        out += self._flush(st.tick - 1)
+        out += self._advance()
         return out
+
+    def _ready(self, t: int) -> bool:
+        """Whether tick ``t`` is complete: the next state is in (the world finished ``t``), and so are the links
+        of ``t`` and the command of ``t`` of every robot the world still had next, the same in every engine and
+        whatever order the processes' messages arrived in; or ``t`` is :data:`LAG` ticks old."""
+        after = self.states.get(t + 1)
+        if after is None:
+            return False
+        if max(self.states) - t >= LAG:
+            return True
+        return t in self.links and set(after.live) <= set(self.cmds.get(t, {}))
+
+    def _advance(self) -> list[Derived]:
+        """The scenes of the ticks now complete, in order (a tick waits for the ones before it)."""
+        upto = self.flushed
+        for t in sorted(t for t in self.states if t > self.flushed):
+            if not self._ready(t):
+                break
+            upto = t
+        return self._flush(upto) if upto > self.flushed else []
 
     def _connectivity(self, lk: Links) -> list[Derived]:
         if self.connected is None or bool(lk.connected) != self.connected:
@@ -283,9 +308,9 @@ class FoxgloveFold:
             if self.ended:
                 return []
             self.ended = True
-            # the last tick's scene waits for finish(): netem's links of that tick travel apart from the stop and
-            # may reach the launcher after it
-            out = self._flush(max(self.states, default=s.tick) - 1)
+            # what is complete now; the last tick's scene (and any still missing a command or links, which travel
+            # apart from the stop and may reach the launcher after it) waits for finish()
+            out = self._advance()
             cov = self.states[max(self.states)].coverage if self.states else 0.0
             level = INFO if s.reason == "coverage" else WARNING
             out.append(self._log(s.tick, level, "world", f"run ended at tick {s.tick}: {s.reason} "

@@ -6,6 +6,7 @@ from __future__ import annotations
 import base64
 import json
 from pathlib import Path
+from typing import Any
 
 import jsonschema
 import numpy as np
@@ -16,6 +17,7 @@ from fleet_emu.core.grid import from_ascii
 from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Observation, Stop, WorldState
 from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.foxglove import (
+    LAG,
     SCHEMAS,
     TOPIC_COVERAGE,
     TOPIC_LOG,
@@ -170,13 +172,37 @@ def test_fold_on_hand_made_messages() -> None:
 
 def test_late_cmd_and_missing_truth_do_not_break_the_fold() -> None:
     fold = FoxgloveFold(scenario(), None)
-    out = fold.feed(state(0, {"r0": (1, 1), "r1": (1, 2)}, ("r0", "r1"), 0.1))
-    out += fold.feed(state(1, {"r0": (1, 1), "r1": (1, 2)}, ("r0", "r1"), 0.1))
+    out = []
+    for t in range(LAG + 2):
+        out += fold.feed(state(t, {"r0": (1, 1), "r1": (1, 2)}, ("r0", "r1"), 0.1))
+    assert {d.tick for d in out if d.topic == TOPIC_SCENE} == {0, 1}  # no command nor links came: drawn LAG late
     out += fold.feed(cmd("r0", 0, (3, 3)))  # after its tick's scene went out: ignored
     out += fold.finish()
     for d in out:
         validate(d.schema, d.obj())
     assert TOPIC_TRUTH not in {d.topic for d in out}
+
+
+def test_the_scenes_do_not_depend_on_the_order_commands_and_links_arrive_in() -> None:
+    """Over processes, a tick's commands and links come from other processes than the world's states and may
+    reach the launcher after the next state (or two): the scenes and stats are those of the engine's order."""
+    truth, _ = from_ascii(ART)
+    ticks: list[list] = []
+    for t in range(6):
+        poses = {"r0": (1, 1 + t % 3), "r1": (3, 5)}
+        ticks.append([obs("r0", t, poses["r0"], [8, 9, 15], truth), state(t, poses, ("r0", "r1"), 0.1 * t),
+                      links(t, ("r0", "r1"), t % 2 == 0), cmd("r0", t, (1, 5)), cmd("r1", t, None)])
+
+    def fold(messages: list) -> list[tuple[str, int, Any]]:
+        f = FoxgloveFold(scenario(), truth, grid_every=2, run_id="t")
+        out = [d for m in messages for d in f.feed(m)] + f.finish()
+        return sorted(((d.topic, d.tick, json.dumps(d.obj(), sort_keys=True)) for d in out), key=lambda x: x[:2])
+
+    in_order = [m for tick in ticks for m in tick]
+    late = [m for t, tick in enumerate(ticks) for m in tick[:2] + (ticks[t - 2][2:] if t >= 2 else [])]
+    late += [m for tick in ticks[-2:] for m in tick[2:]]  # the last two ticks' commands and links, after the rest
+    assert sorted(map(id, late)) == sorted(map(id, in_order))
+    assert fold(late) == fold(in_order)
 
 
 def test_every_foxglove_message_of_a_real_run_validates(small_run: Path) -> None:
