@@ -66,7 +66,7 @@ def njit(**options: Any) -> Callable[[F], F]:
                 return cast(F, kernel)
         import numba
 
-        return cast(F, numba.njit(**options)(py_func))
+        return cast(F, _dispatcher(numba, py_func, options))  # a kernel defined after the load: at once
 
     return wrap
 
@@ -90,14 +90,15 @@ def load() -> None:
 
 
 def _dispatcher(numba: Any, fn: Callable[..., Any], options: dict[str, Any]) -> Any:
-    """``numba.njit(**options)(fn)``, its cache (with ``cache=True``) in :func:`cache_dir` when that is writable."""
-    cached = bool(options.get("cache"))
+    """``numba.njit(**options)(fn)``, its cache (with ``cache=True``) in :func:`cache_dir` when that is writable
+    (else beside the source, numba's own place)."""
     dispatcher = numba.njit(**{k: v for k, v in options.items() if k != "cache"})(fn)
-    if cached:
-        dispatcher.enable_caching()  # numba's own: beside the source (its fallback)
+    if options.get("cache"):
         shared = _shared_cache(fn)
         if shared is not None:
-            dispatcher._cache = shared
+            dispatcher._cache = shared  # what numba's enable_caching() sets, with our locator first
+        else:
+            dispatcher.enable_caching()
     return dispatcher
 
 
@@ -125,8 +126,21 @@ def _source_stamp(py_file: str) -> str:
 
 
 def _shared_cache(fn: Callable[..., Any]) -> Any:
-    """numba's function cache for ``fn`` in :func:`cache_dir`, stamped with :func:`_source_stamp` of its file;
-    None when numba's caching internals are not the ones known here (numba's own cache then stays)."""
+    """numba's function cache for ``fn`` in :func:`cache_dir`, stamped with :func:`_source_stamp` of its file
+    (numba's own locators after ours: beside the source when the cache folder is not writable); None when
+    numba's caching internals are not the ones known here."""
+    cache_class = _cache_class()
+    if cache_class is None:
+        return None
+    try:
+        return cache_class(fn)
+    except Exception:  # any failure here leaves numba's own cache
+        return None
+
+
+@functools.cache
+def _cache_class() -> Any:
+    """The ``FunctionCache`` subclass that looks in :func:`cache_dir` first (built once), or None."""
     try:
         from numba.core import caching
     except ImportError:
@@ -165,10 +179,7 @@ def _shared_cache(fn: Callable[..., Any]) -> Any:
     class Cache(caching.FunctionCache):
         _impl_class = Impl
 
-    try:
-        return Cache(fn)
-    except Exception:  # any failure here leaves numba's own cache
-        return None
+    return Cache
 
 
 def loaded() -> bool:

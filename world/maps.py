@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from fleet_emu.core import jit
 from fleet_emu.core.errors import MapError
 from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell, MapData, nearest_cells
 from fleet_emu.world.mapsize import builtin_shape, check_cells, image_size, pooled_shape, read_ros_yaml, snapped
@@ -76,8 +77,6 @@ def largest_component(free: np.ndarray, tries: int = 4) -> np.ndarray | None:
     free cell not yet reached finds it when it holds more than half of the free cells, as a map's floor does, in at
     most ``tries`` searches, so that building a map never loads numba there. Otherwise (or once the kernels are
     loaded: they are several times faster) the compiled labels decide."""
-    from fleet_emu.core import jit
-
     total = int(free.sum())
     if total == 0:
         return None
