@@ -72,16 +72,48 @@ def pytest_configure(config: pytest.Config) -> None:
     del os.environ["PYTHONDONTWRITEBYTECODE"]
     os.environ["PYTHONPYCACHEPREFIX"] = prefix
     config.add_cleanup(lambda: shutil.rmtree(prefix, ignore_errors=True))
+    config.stash[_PYCACHE] = Path(prefix)
+
+
+_PYCACHE = pytest.StashKey[Path]()
+OWN = {"fleet_emu", "tests", "benchmarks"}  # the repository's modules: compiled by the children themselves
+
+
+def _share_installed_bytecode(prefix: Path) -> int:
+    """Link the installed bytecode of every module this process imported (the standard library, numpy, numba,
+    zenoh...) into the children's bytecode cache, where each would otherwise be compiled from source once more
+    (about 4 CPU s for the first interpreter that loads the kernels). The package's own modules are left to the
+    children: this process wrote none. Returns how many were linked."""
+    linked = 0
+    for name, module in list(sys.modules.items()):
+        cached, source = getattr(module, "__cached__", None), getattr(module, "__file__", None)
+        if name.partition(".")[0] in OWN or not cached or not source or not os.path.isfile(cached):
+            continue
+        target = prefix / os.path.dirname(os.path.abspath(source)).lstrip(os.sep) / os.path.basename(cached)
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.symlink_to(cached)
+            linked += 1
+        except OSError:
+            pass
+    return linked
 
 
 @pytest.fixture(scope="session", autouse=True)
-def _compiled_kernels() -> None:
+def _compiled_kernels(request: pytest.FixtureRequest) -> None:
     """Compile (or load) the numba kernels once, before any test: in a fresh checkout the cache is empty, and
     the first fleet's world, netem and fork server would each compile every kernel at once (three times the
-    work of one compile); after this they all load the cached machine code."""
+    work of one compile); after this they all load the cached machine code. Then the children's bytecode
+    cache, if this session made one, gets what this process has imported by then (a launcher's too)."""
     from fleet_emu.core.kernels import warm_up
 
     warm_up()
+    prefix = request.config.stash.get(_PYCACHE, None)
+    if prefix is not None:
+        import fleet_emu.launch.runner  # (what a launcher imports besides the kernels)
+        import fleet_emu.recording.live  # noqa: F401
+
+        _share_installed_bytecode(prefix)
 
 
 @pytest.fixture(scope="session")

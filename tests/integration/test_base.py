@@ -111,7 +111,7 @@ def test_a_killed_base_fails_the_run_and_leaves_nothing_behind(small_map: Path, 
     assert not [p for p in all_pids(res) if pid_alive(p)]
 
 
-@pytest.mark.parametrize("i", range(2))
+@pytest.mark.parametrize("i", [0, pytest.param(1, marks=pytest.mark.slow)])  # a second draw: -m slow
 def test_sigint_at_a_random_moment_with_a_base_leaves_no_process(tmp_path: Path, i: int) -> None:
     """The fault trials' invariants (``tests/harness/faults.py``: no orphan among every descendant of the
     launcher, the base's process included; no death; result.json and run.mcap whole) with a base."""

@@ -53,7 +53,7 @@ def test_open_fuzz_is_never_a_message_a_node_may_accept() -> None:
     assert mutations >= {"bytes", "shape", "field", "kind", "version", "spoof", "unknown", "oversized"}
 
 
-@pytest.mark.parametrize("i", range(2))
+@pytest.mark.parametrize("i", [0, pytest.param(1, marks=pytest.mark.slow)])  # a second draw: -m slow
 def test_kill9_of_a_random_robot_at_a_random_tick(small_map: Path, tmp_path: Path, i: int) -> None:
     """The robot is failed and the run goes on to its own end without it; exit 1 and one line naming it."""
     t = kill_trial(_spec(small_map), tmp_path, np.random.default_rng([SEED, 1, i]), f"kill{i}", window=30)
@@ -66,7 +66,7 @@ def test_kill9_of_a_random_robot_at_a_random_tick(small_map: Path, tmp_path: Pat
         err[-2000:]
 
 
-@pytest.mark.parametrize("i", range(2))
+@pytest.mark.parametrize("i", [0, pytest.param(1, marks=pytest.mark.slow)])  # a second draw: -m slow
 def test_sigint_at_a_random_moment(tmp_path: Path, i: int) -> None:
     long_run = dataclasses.replace(ENDLESS, robots=2, seed=SEED)
     t = sigint_trial(long_run, tmp_path, np.random.default_rng([SEED, 2, i]), f"sigint{i}", window=5.0)

@@ -122,7 +122,9 @@ def test_too_few_hosts_is_one_line_and_a_result(users: tuple[Path, Path], small_
     assert code == 1
     assert err.strip().splitlines()[-1] == "fleet: error: --hosts 1: waited 2 s for 1 host(s) " \
                                            "(`fleet host --connect ...`), 0 came (none)"
-    assert result(out)["reason"] == "error"
+    failed = result(out)
+    assert failed["reason"] == "error" and failed["error"].startswith("--hosts 1")
+    assert failed["scenario"]["hosts"] == {"count": 1}
     code, _, err = run_cli([*RUN, "--map", str(small_map), "--out", str(tmp_path / "x")])
     assert code == 2 and "--hosts (or a scenario's [hosts]) with the embedded router needs " \
         "--credentials USERS" in err

@@ -29,10 +29,12 @@ def _scenario(small_map: Path, robots: int, max_ticks: int, **kw: object) -> Sce
 def test_a_real_time_run_writes_the_real_time_keys(small_map: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
     _, _, err = run_cli(["run", "--map", str(small_map), "--robots", "3", "--realtime", "20", "--max-ticks", "400",
-                         "--out", str(out), "--quiet"], check=True)
+                         "--base", "--relay", "flood", "--relay-ttl", "1", "--out", str(out), "--quiet"], check=True)
     assert "Traceback" not in err
-    res = result(out)
+    res = result(out)  # the schema's real-time, base and relay keys together
     assert res["realtime_hz"] == 20.0 and res["failed"] == [] and res["reason"] in ("coverage", "max_ticks", "stall")
+    assert res["engine"] == "processes" and res["authenticated"] is True
+    assert res["base"]["ticks"] == res["ticks"] and set(res["relay"]["kinds"]) >= {"pose", "map"}
     rt = res["realtime"]
     assert set(rt["robots"]) == {"r0", "r1", "r2"}
     assert rt["world_overruns"] >= 0 and rt["ticks_per_second"] > 0
