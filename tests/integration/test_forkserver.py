@@ -141,13 +141,16 @@ def test_a_killed_robot_is_reported_and_a_killed_launcher_leaves_nothing(tmp_pat
     nothing_left([*started, *robots])
 
 
-def test_forked_robots_give_the_same_result_as_fresh_ones(small_run: Path, tmp_path: Path) -> None:
-    """The suite's plain run (forked robots, the default) again with robots started afresh."""
+def test_fresh_robots_give_the_same_result_as_forked_ones(small_run: Path, tmp_path: Path) -> None:
+    """The suite's plain run's scenario with every node started afresh (one robot: each fresh node is an
+    interpreter of its own, a CPU second or more): the memory engine's result, as the forked run is (the
+    suite's plain run, forked, against the memory engine: ``test_fleet_run.py``)."""
     forked = result(small_run)
-    run_cli(["run", str(small_run / "scenario.json"), "--quiet", "--no-record", "--out", str(tmp_path / "fresh"),
-             "--no-fork-server"], check=True)
+    args = ["run", str(small_run / "scenario.json"), "--robots", "1", "--quiet", "--no-record"]
+    run_cli([*args, "--out", str(tmp_path / "fresh"), "--no-fork-server"], check=True)
+    run_cli([*args, "--out", str(tmp_path / "memory"), "--engine", "memory"], check=True)
     fresh = result(tmp_path / "fresh")
     assert "fork_server" in forked["pids"] and "fork_server" not in fresh["pids"]
-    assert deterministic(forked) == deterministic(fresh)
+    assert deterministic(fresh) == deterministic(result(tmp_path / "memory"))
     for res in (forked, fresh):
         nothing_left(all_pids(res))
