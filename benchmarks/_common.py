@@ -52,6 +52,22 @@ def parser(module: str, doc: str | None, full: bool = True) -> OneLineParser:
                          formatter_class=argparse.RawDescriptionHelpFormatter)
 
 
+def engine_arguments(p: argparse.ArgumentParser) -> None:
+    """``--in-process`` and ``--engine`` for a script whose runs are ``fleet run`` subprocesses (``engine_flags``)."""
+    p.add_argument("--in-process", action="store_true", help="all nodes of a run in one process, over Zenoh")
+    p.add_argument("--engine", choices=("processes", "memory"), default="processes",
+                   help="memory: the memory engine, the processes engine's results for a seed at a fraction of "
+                        "the CPU (no Zenoh, no processes)")
+
+
+def engine_flags(a: argparse.Namespace) -> list[str]:
+    """The ``fleet run`` flags of ``engine_arguments``' choice (``--in-process`` and ``--engine memory`` are one
+    engine each: the memory engine wins)."""
+    if a.engine == "memory":
+        return ["--engine", "memory"]
+    return ["--in-process"] if a.in_process else []
+
+
 def machine() -> str:
     """Cores, memory, CPU model and load: the header line of a table."""
     model = next((ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()

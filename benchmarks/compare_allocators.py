@@ -2,9 +2,10 @@
 
     python -m benchmarks.compare_allocators [--allocators nearest greedy utility minpos hungarian]
         [--robots 2 4 8] [--seeds 5] [--maps office hospital_section]
-        [--loss 0] [--start random] [--jobs 2] [--in-process]
+        [--loss 0] [--start random] [--jobs 2] [--in-process | --engine memory]
 
-Each cell runs ``fleet run`` as a subprocess (``--no-record --quiet``) and reads its ``result.json``. A run that
+Each cell runs ``fleet run`` as a subprocess (``--no-record --quiet``; ``--engine memory`` for the memory engine:
+the same results for a seed at a fraction of the CPU) and reads its ``result.json``. A run that
 does not reach the target counts as its last tick and is flagged with ``*`` (and the count of such runs); a run
 that failed (an exit code other than 0 or 3: bad input, or a process of the fleet, a robot too, failed) is left
 out and counted as ``E``. One line per finished run goes to stderr; the exit code is 1 when any run failed.
@@ -20,7 +21,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
-from benchmarks._common import HOSPITAL, fleet_run, parser
+from benchmarks._common import HOSPITAL, engine_arguments, engine_flags, fleet_run, parser
 
 
 def run_one(allocator: str, robots: int, seed: int, map_name: str, loss: float, extra: list[str]) -> dict[str, Any]:
@@ -46,9 +47,9 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--loss", type=float, default=0.0)
     p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--in-process", action="store_true", help="all nodes of a run in one process")
+    engine_arguments(p)
     a = p.parse_args(argv)
-    extra = ["--in-process"] if a.in_process else []
+    extra = engine_flags(a)
     if a.start != "map":
         extra += ["--start", a.start]
     jobs = [(al, n, s, m) for m in a.maps for n in a.robots for al in a.allocators for s in range(a.seeds)]

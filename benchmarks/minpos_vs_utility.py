@@ -2,7 +2,7 @@
 paired difference to utility (Bautin et al. 2012, Fig. 5(a), is the figure this approaches).
 
     python -m benchmarks.minpos_vs_utility [--robots 2 4] [--seeds 8] [--allocators nearest utility minpos]
-        [--map hospital_section] [--jobs 2] [--in-process]
+        [--map hospital_section] [--jobs 2] [--in-process | --engine memory]
 
 Every run is ``fleet run --comm ideal --loss 0 --start random --target-coverage 1.0`` (a subprocess, as in
 compare_allocators.py), seeds ``0 .. seeds-1``; a seed draws the same start for every allocator, so the
@@ -19,7 +19,7 @@ import sys
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
-from benchmarks._common import HOSPITAL, mean_sd, parser
+from benchmarks._common import HOSPITAL, engine_arguments, engine_flags, mean_sd, parser
 from benchmarks.compare_allocators import describe, run_one
 
 
@@ -42,10 +42,10 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--map", default=HOSPITAL)
     p.add_argument("--max-ticks", type=int, default=2000)
     p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--in-process", action="store_true", help="all nodes of a run in one process")
+    engine_arguments(p)
     a = p.parse_args(argv)
     extra = ["--comm", "ideal", "--start", "random", "--target-coverage", "1.0", "--max-ticks", str(a.max_ticks)]
-    extra += ["--in-process"] if a.in_process else []
+    extra += engine_flags(a)
     jobs = [(al, n, s) for n in a.robots for al in a.allocators for s in range(a.seeds)]
     ticks: dict[tuple[int, str], dict[int, float]] = {}
     short: dict[tuple[int, str], int] = {}

@@ -2,7 +2,7 @@
 
     python -m benchmarks.trade_idle [--allocators hungarian trade trade:explore_in_round=false] [--robots 4]
         [--seeds 5] [--maps office hospital_section autolab]
-        [--loss 0 0.1 0.3 0.5] [--comm wall] [--start random] [--jobs 2] [--in-process]
+        [--loss 0 0.1 0.3 0.5] [--comm wall] [--start random] [--jobs 2] [--in-process | --engine memory]
 
 Yan et al. 2011 compare their trade-based allocation with a Hungarian-method central planner (section 5,
 Tables 1-2: +3.9 % and +7.4 % runtime with 4 robots) and run it under 10/30/50 % message loss (Tables 3-4).
@@ -14,8 +14,9 @@ for every allocator after the first, the mean paired difference in ticks to the 
 and seed). An allocator is ``NAME`` or ``NAME:PARAM=VALUE,...`` (its parameters, given through a scenario
 file: ``trade:explore_in_round=false`` is the first version, robots standing still during a round). Each run
 is ``fleet run --no-record --quiet`` in a subprocess (with ``--in-process``, every node of a run in that one
-process: the same results at a fraction of the CPU). One line per finished run goes to stderr; the exit code
-is 1 when a run failed (exit other than 0 or 3; left out of the table, counted as ``E``).
+process; with ``--engine memory``, the memory engine, no Zenoh: the same results at a fraction of the CPU).
+One line per finished run goes to stderr; the exit code is 1 when a run failed (exit other than 0 or 3; left
+out of the table, counted as ``E``).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
-from benchmarks._common import HOSPITAL, parser
+from benchmarks._common import HOSPITAL, engine_arguments, engine_flags, parser
 from benchmarks.compare_allocators import run_one as fleet_run
 
 MAPS = ["office", HOSPITAL, "autolab"]  # the latter two from the registry (`fleet maps fetch NAME`)
@@ -83,10 +84,10 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--comm", default="wall")
     p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--in-process", action="store_true", help="all nodes of a run in one process")
+    engine_arguments(p)
     a = p.parse_args(argv)
     extra = ["--comm", a.comm] + (["--start", a.start] if a.start != "map" else [])
-    extra += ["--in-process"] if a.in_process else []
+    extra += engine_flags(a)
     for al in a.allocators:
         try:
             _spec(al)  # a malformed spec stops here (one line, exit 2), before any run

@@ -58,7 +58,7 @@ def markdown(text: str) -> list[dict[str, str]]:
 def test_compare_allocators_reports_each_run_and_fails_when_one_fails(small_map: Path,
                                                                       capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = bench("compare_allocators", "--allocators", "nearest", "--robots", "2", "--seeds", "1",
-                           "--maps", str(small_map), "/no/such/map.png", "--start", "map", "--in-process",
+                           "--maps", str(small_map), "/no/such/map.png", "--start", "map", "--engine", "memory",
                            capsys=capsys)
     assert code == 1
     lines = err.strip().splitlines()
@@ -89,7 +89,8 @@ def test_ticks_per_second_reports_each_run_and_fails_when_one_fails(capsys: pyte
 
 def test_trade_idle_reports_each_run_and_the_idle_ticks(small_map: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = bench("trade_idle", "--allocators", "hungarian", "trade:explore_in_round=false", "--seeds", "1",
-                           "--maps", str(small_map), "--start", "map", "--comm", "full", "--in-process", capsys=capsys)
+                           "--maps", str(small_map), "--start", "map", "--comm", "full", "--engine", "memory",
+                           capsys=capsys)
     assert code == 0, err[-2000:]
     lines = err.strip().splitlines()
     assert len(lines) == 2 and all(" idle " in ln for ln in lines), err
