@@ -84,7 +84,11 @@ def test_fuzz_on_every_key_kills_nothing_and_changes_nothing(small_map: Path, tm
     t = fuzz_trial(spec, tmp_path, np.random.default_rng([SEED, 3]), "fuzz", 3000, None, result(tmp_path / "base"))
     _ok(t)  # "changed" included: the seeded result is the baseline's
     assert t.result["malformed_dropped"] > 0
-    assert set(t.result["malformed_dropped_by"]) >= {"world", "netem", "r0", "launcher"}
+    nodes = {"world", "netem", "r0", "r1", "r2"}
+    assert set(t.result["malformed_dropped_by"]) >= nodes | {"launcher"}, t.result["malformed_dropped_by"]
+    for name in nodes:  # each said so in its log (and none died: the trial's invariants)
+        assert "dropped message" in (tmp_path / "fuzz" / f"{name}.log").read_text(), name
+    assert "fleet: warning: --connect without --credentials" in (tmp_path / "fuzz.stderr").read_text()
 
 
 def test_fuzz_from_a_robot_with_credentials_kills_nothing(small_map: Path, tmp_path: Path) -> None:
