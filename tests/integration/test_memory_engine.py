@@ -1,9 +1,11 @@
 """The memory engine gives the multi-process fleet's result (DESIGN.md "Engines": all engines agree for a seed):
-the deterministic keys of ``result.json`` are equal. Over processes once per transport concern (here a protocol
-allocator, whose auction crosses the bus each round; a plain fleet at loss in ``test_fleet_run.py``, a base and
-relaying in ``test_base.py``, ``test_mhm.py`` and ``test_relay.py``), and for every allocator across
-interpreters, as a robot's own process would show: another hash seed (state that one fleet leaves behind for
-the next is ``seed_test``'s, in ``tests/launch/test_memory.py``)."""
+the deterministic keys of ``result.json`` are equal. Over processes once per transport concern (here the radio at
+its hardest: a protocol allocator, whose auction crosses the bus each round, at loss, on a bandwidth-limited
+shared medium with queues and jitter, on a short disk radio that robots flood-relay over; a plain fleet at loss in
+``test_fleet_run.py``, a base in ``test_base.py``, a planning base relaying over its tree in
+``test_engine_messages.py``), and for every allocator across interpreters, as a robot's own process would show:
+another hash seed (state that one fleet leaves behind for the next is ``seed_test``'s, in
+``tests/launch/test_memory.py``)."""
 
 from __future__ import annotations
 
@@ -27,16 +29,29 @@ def _scenario(small_map: Path, allocator: str, loss: float) -> fe.Scenario:
                                   max_ticks=150, **base)
 
 
-def test_memory_equals_processes_for_a_protocol_allocator(small_map: Path) -> None:
-    s = _scenario(small_map, "trade", 0.3)
-    over_zenoh = fe.run(s)  # world, netem and one process per robot, over a Zenoh router
+def test_memory_equals_processes_for_a_protocol_allocator_on_a_shared_relayed_radio(small_map: Path,
+                                                                                    tmp_path: Path) -> None:
+    s = fe.Scenario().override(map=str(small_map), robots=3, allocator="trade", loss=0.2, seed=4, max_ticks=120,
+                               bandwidth=4.0, jitter=1,  # 500 bytes a tick: queues, airtime and jitter all matter
+                               comm="disk", comm_range=2.0, relay="flood", relay_ttl=2)
+    over_zenoh = fe.run(s, tmp_path / "p")  # world, netem and one process per robot, over a Zenoh router
     in_memory = Fleet(s).run()
     assert over_zenoh["engine"] == "processes" and in_memory["engine"] == "memory"
     assert set(over_zenoh) == set(in_memory) | {"bus"}  # the memory engine has no bus, no nonce to drop by
     assert over_zenoh["bus"]["foreign_dropped"] == 0
     assert deterministic(in_memory.data) == deterministic(over_zenoh.data)
     assert in_memory.curve == over_zenoh.curve
-    assert over_zenoh["radio"]["sent"] > 0 and over_zenoh["radio"]["dropped_loss"] > 0
+    radio = over_zenoh["radio"]
+    assert radio["sent"] > 0 and radio["dropped_loss"] > 0
+    assert radio["queued_max_bytes"] > 0 and radio["delay_ticks"]["max"] > 2  # the medium queued and delayed
+    relay = over_zenoh["relay"]
+    assert relay["policy"] == "flood" and relay["ttl"] == 2
+    pose = relay["kinds"]["pose"]
+    assert pose["delivered"] > 0 and 0 < pose["delivery_ratio"] <= 1
+    assert pose["hops"].get("2", 0) > 0  # some beacons crossed a relay
+    assert pose["transmissions"] > pose["sent"]  # the forwarded copies were transmitted
+    code, out, err = run_cli(["report", str(tmp_path / "p"), "--no-plots"])  # recomputed from the recording
+    assert code == 0 and "matches result.json" in out + err and "relay flood ttl 2" in out + err
 
 
 # Runs every allocator's fleets of this module in a fresh interpreter, and prints their deterministic keys.
