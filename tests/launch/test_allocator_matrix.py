@@ -1,8 +1,8 @@
 """Every registered allocator drives a fleet to the target under loss, on the memory engine: the same World,
 Channel and Brain objects the node processes run (their transport is proved once per concern in
 ``tests/integration``: ``test_memory_engine.py`` for a protocol allocator over processes,
-``test_engine_messages.py`` for the base's planner; MHM to its target in ``test_mhm.py``). Every message of each run also survives the bus's encoding: it decodes to what re-encodes to
-the same bytes."""
+``test_engine_messages.py`` for the base's planner; MHM to its target in ``test_mhm.py``). Every message of each
+run also survives the bus's encoding: it decodes to what re-encodes to the same bytes."""
 
 from __future__ import annotations
 
