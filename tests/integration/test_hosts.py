@@ -3,6 +3,7 @@ this machine over loopback, and across two network namespaces joined by a veth p
 
 from __future__ import annotations
 
+import collections
 import os
 import shutil
 import signal
@@ -13,6 +14,7 @@ from pathlib import Path
 
 import pytest
 import zenoh
+from mcap.reader import make_reader
 
 from fleet_emu.core.access import Credential, read_dictionary
 from fleet_emu.core.bus import client_config, publisher, router_locators
@@ -201,9 +203,14 @@ def test_a_host_killed_mid_run_fails_its_robots_and_the_run_ends_with_a_result(
                 os.killpg(p.pid, signal.SIGKILL)
     res = result(out)
     assert code == 1, err
-    # the run went on with r0 and r2 to its own end (a stall too: the maze's target of 1.0 may be out of reach)
+    # the run went on with r0 and r2 to its own end (a stall too: the maze's target of 1.0 may be out of reach,
+    # and a failed robot's body stays on its cell, where it may wall a survivor in for good in the maze's
+    # corridors: how far the survivors get is not this test's)
     assert res["failed"] == ["r1", "r3"] and res["reason"] in ("max_ticks", "coverage", "stall") and res["ticks"] > 0
-    assert res["ticks"] > 50 and res["coverage"] > 0.3, res
+    with open(out / "run.mcap", "rb") as f:  # the survivors decided on ticks after the host's robots stopped
+        cmds = collections.Counter(ch.topic.split("/")[-2] for _, ch, _ in make_reader(f).iter_messages()
+                                   if ch.topic.endswith("/cmd"))
+    assert min(cmds["r0"], cmds["r2"]) > max(cmds["r1"], cmds["r3"]) > 0, cmds
     wait_for(lambda: not any(pid_alive(p) for p in robots), 10)  # the host's robots did not outlive it
 
 
