@@ -1,8 +1,8 @@
 """Compiled grid kernels: BFS wavefront, 360-degree ray casting, wall counting along a segment.
 
-Compiled with numba (``cache=True``, so each process loads the machine code from ``__pycache__``
-instead of recompiling), on the first call of any kernel (:mod:`core.jit`). All kernels take plain numpy
-arrays and flat row-major indices.
+Compiled with numba (``cache=True``, so each process loads the machine code from the kernel cache,
+:func:`core.jit.cache_dir`, instead of recompiling), on the first call of any kernel (:mod:`core.jit`). All
+kernels take plain numpy arrays and flat row-major indices.
 """
 
 from __future__ import annotations
