@@ -1,8 +1,5 @@
 """MkDocs hooks of the documentation site (mkdocs.yml ``hooks``).
 
-- The API reference reads the source with griffe, which finds a package by its folder; this repository installs
-  its top-level folders under ``fleet_emu`` (pyproject's ``package-dir``), so the hook lays out that import
-  tree as symbolic links under ``build/api-src`` before mkdocstrings reads it.
 - ``<!-- cli-help: run -->`` in a page becomes the help text of ``fleet run`` (``<!-- cli-help: -->``: of
   ``fleet``), from the parser itself, so that the CLI reference cannot drift from the code.
 - ``<!-- api -->`` becomes a section per name of ``fleet_emu.__all__``, grouped as its source groups them
@@ -16,41 +13,12 @@ import contextlib
 import io
 import os
 import re
-import tomllib
 from pathlib import Path
 from typing import Any
 
-from mkdocs.plugins import event_priority
-
 ROOT = Path(__file__).resolve().parents[1]
-API_SRC = ROOT / "build" / "api-src"
 CLI_HELP = re.compile(r"<!--\s*cli-help:\s*(?P<cmd>[\w-]*)\s*-->")
 API = re.compile(r"<!--\s*api\s*-->")
-
-
-def api_tree(root: Path = ROOT, dest: Path = API_SRC) -> Path:
-    """Symbolic links laying out the installed package under ``dest`` from pyproject's ``package-dir``."""
-    mapping = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"]
-    for name, folder in sorted(mapping.items()):
-        link = dest.joinpath(*name.split("."))
-        if link.is_symlink():
-            link.unlink()
-        link.parent.mkdir(parents=True, exist_ok=True)
-        if name.count(".") == 0:  # the top package: a real folder holding its own files and the subpackages' links
-            link.mkdir(exist_ok=True)
-            for f in (root / folder).iterdir():
-                target = link / f.name
-                if f.suffix == ".py" and not target.exists():
-                    target.symlink_to(f)
-        else:
-            link.symlink_to(root / folder, target_is_directory=True)
-    return dest
-
-
-@event_priority(100)  # before mkdocstrings reads the source
-def on_config(config: Any) -> Any:
-    api_tree()
-    return config
 
 
 def cli_help(command: str) -> str:

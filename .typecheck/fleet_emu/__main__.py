@@ -1,1 +1,0 @@
-../../fleet_emu/__main__.py
