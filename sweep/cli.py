@@ -70,8 +70,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from fleet_emu.sweep.study import shipped
 
     if args.list:
-        for name, desc in shipped().items():
-            print(f"{name:14s} {desc}")
+        studies = shipped()
+        width = max(map(len, studies), default=0)
+        for name, desc in studies.items():
+            print(f"{name:{width}s}  {desc}")
         return 0
     action = args.args[0] if args.args[:1] in (["report"], ["rerun"]) else "sweep"
     refuse_unused(args, action)

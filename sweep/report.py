@@ -25,6 +25,15 @@ from fleet_emu.core.errors import ConfigError
 from fleet_emu.sweep.execute import PARQUET
 
 GROUP = ("map", "comm", "loss_applied", "bandwidth", "robots")
+#: Grid keys the columns of :data:`GROUP` already show (or that every line splits by: allocator, seed).
+_SHOWN = {"map", "comm", "loss", "bandwidth", "robots", "allocator", "seed"}
+
+
+def axes(rows: Iterable[dict[str, Any]], replicates: Iterable[str] = ()) -> tuple[str, ...]:
+    """The other grid keys that split the lines (``param.threshold``...): every ``param.*`` column but the
+    ones :data:`GROUP` shows, the allocator, the seed and the study's ``replicates`` (pooled, as seeds are)."""
+    pooled = _SHOWN | set(replicates)
+    return tuple(sorted({k for r in rows for k in r if k.startswith("param.") and k[6:] not in pooled}))
 
 
 def load(results: Path) -> tuple[list[dict[str, Any]], dict[str, Any], Path]:
@@ -48,6 +57,8 @@ def load(results: Path) -> tuple[list[dict[str, Any]], dict[str, Any], Path]:
     rows = table.to_pylist()
     for r in rows:  # the radio's rate: absent from an unlimited run's scenario
         r["bandwidth"] = float(r.get("scenario.radio.bandwidth") or 0.0)
+        if "param.allocator" not in r and r.get("allocator") is not None:  # set in [fleet], not a grid axis
+            r["param.allocator"] = r["allocator"]
     return rows, study, out
 
 
@@ -128,11 +139,17 @@ def pct(a: float, b: float) -> float:
     return 100.0 * (a - b) / b if b and not math.isnan(a) and not math.isnan(b) else math.nan
 
 
+def _twin(row: dict[str, Any]) -> tuple[Any, ...]:
+    """What pairs a run with the baseline's: every grid value but the allocator (the seed, a replicate)."""
+    return tuple(sorted((k, str(v)) for k, v in row.items() if k.startswith("param.") and k != "param.allocator"))
+
+
 def paired(runs: list[dict[str, Any]], base: list[dict[str, Any]]) -> tuple[float, float, int]:
-    """Mean and standard error (sd / sqrt(n)) of the time difference ``run - base`` paired by seed (a seed
-    draws the same start for every allocator), over the seeds where both reached the target; and n."""
-    mine = {r.get("param.seed"): time_to_target(r) for r in runs}
-    theirs = {r.get("param.seed"): time_to_target(r) for r in base}
+    """Mean and standard error (sd / sqrt(n)) of the time difference ``run - base`` paired by seed and by the
+    other grid values (a seed draws the same start for every allocator; a replicate is the same point), over the
+    pairs where both reached the target; and n."""
+    mine = {_twin(r): time_to_target(r) for r in runs}
+    theirs = {_twin(r): time_to_target(r) for r in base}
     d = np.array([mine[s] - theirs[s] for s in mine.keys() & theirs.keys()], dtype=float)
     d = d[~np.isnan(d)]
     if len(d) < 2:
@@ -140,19 +157,21 @@ def paired(runs: list[dict[str, Any]], base: list[dict[str, Any]]) -> tuple[floa
     return float(d.mean()), float(d.std(ddof=1) / math.sqrt(len(d))), len(d)
 
 
-def summary(rows: list[dict[str, Any]], baseline: str | None) -> list[dict[str, Any]]:
-    """One line per point (group, allocator), failed runs included: the metrics' mean and std over the runs
-    that succeeded, the runs that reached the target, failed, and the final coverage of those that missed it;
-    the time's % difference to baseline, and its difference to baseline paired by seed (mean ± standard error)."""
+def summary(rows: list[dict[str, Any]], baseline: str | None, replicates: Iterable[str] = ()) -> list[dict[str, Any]]:
+    """One line per point (group, the other grid axes, allocator), failed runs included: the metrics' mean and
+    std over the runs that succeeded, the runs that reached the target, failed, and the final coverage of those
+    that missed it; the time's % difference to baseline, and its difference to baseline paired by seed (mean ±
+    standard error). ``replicates``: grid keys pooled like seeds."""
     lines = []
-    for group, members in by(rows, *GROUP).items():
+    keys = GROUP + axes(rows, replicates)
+    for group, members in by(rows, *keys).items():
         per_alloc = by(members, "param.allocator")
         ok_of = {k: [r for r in v if r.get("status") == "ok"] for k, v in per_alloc.items()}
         base = ok_of.get((baseline,))
         base_mean = stats(base, "ticks")[0] if base else math.nan
         for (alloc,), every in per_alloc.items():
             runs = ok_of[(alloc,)]
-            line: dict[str, Any] = dict(zip(GROUP, group, strict=True)) | {
+            line: dict[str, Any] = dict(zip(keys, group, strict=True)) | {
                 "allocator": alloc, "runs": len(every), "failed": len(every) - len(runs),
                 "reached": sum(bool(r.get("completed")) for r in runs)}
             for m in METRICS:
@@ -184,13 +203,14 @@ def report(results: Path, baseline: str | None = None, plots: bool = True, seeds
         console = Console(width=180)
     console.print(f"[bold]{head.get('name', out.name)}[/bold]: {len(rows)} runs, {failed} failed; "
                   f"baseline {baseline}" + (f"; the first {seeds} seeds" if seeds else ""))
-    lines = summary(rows, baseline)
-    console.print(_summary_table(lines, baseline))
+    replicates = head.get("replicates", [])
+    lines = summary(rows, baseline, replicates)
+    console.print(_summary_table(lines, baseline, axes(rows, replicates)))
     _odd_runs(console, rows, out)
     paper = study.get("paper", {})
     if paper:  # the paper's rows compare with the study's own baseline (the paper's), whatever --baseline says
         base = head.get("baseline") or baseline
-        console.print(_paper_table(paper, ok, lines if base == baseline else summary(rows, base), base))
+        console.print(_paper_table(paper, ok, lines if base == baseline else summary(rows, base, replicates), base))
     if plots and ok:
         from fleet_emu.sweep.plots import draw
 
@@ -225,7 +245,8 @@ def _fmt(mean_std: tuple[float, float, int], digits: int = 1) -> str:
     return f"{mean:.{digits}f}, n = 1" if n == 1 else f"{mean:.{digits}f} ± {std:.{digits}f}"
 
 
-def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
+def _summary_table(lines: list[dict[str, Any]], baseline: str | None, extra: tuple[str, ...] = ()) -> Any:
+    """The summary lines as a table; ``extra``: the other grid axes (:func:`axes`), a column each."""
     from rich.table import Table
 
     base = any(ln["base_connected_pct"][2] for ln in lines)  # a column only for studies with a base station
@@ -234,13 +255,14 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
     t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it; missed: the "
                     "final coverage of the runs that did not" + ("; air kB: kilobytes on the air per robot-tick)"
                                                                  if rated else ")"))
-    for col in ("map", "radio", "robots", "allocator", "reached", *(["failed"] if failed else []), "time",
+    for col in ("map", "radio", "robots", *(k[6:] for k in extra), "allocator", "reached", *(["failed"] if failed else []), "time",
                 f"vs {baseline}", "paired Δ ± s.e.", "missed: coverage %", "moves", "connected %",
                 *(["air kB"] if rated else []), *(["base connected %"] if base else [])):
         t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left",
                      no_wrap=col == "radio")
     for ln in lines:
-        t.add_row(Path(str(ln["map"])).stem, _radio(ln), str(ln["robots"]), str(ln["allocator"]),
+        t.add_row(Path(str(ln["map"])).stem, _radio(ln), str(ln["robots"]), *(str(ln[k]) for k in extra),
+                  str(ln["allocator"]),
                   f"{ln['reached']} / {ln['runs']}", *([str(ln["failed"])] if failed else []), _fmt(ln["ticks"]),
                   "-" if math.isnan(ln["vs_baseline_pct"]) else f"{ln['vs_baseline_pct']:+.1f} %",
                   "-" if math.isnan(ln["paired"][0]) else f"{ln['paired'][0]:+.1f} ± {ln['paired'][1]:.1f}",

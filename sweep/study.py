@@ -7,6 +7,7 @@ name = "tiny"
 engine = "memory"          # or "processes": each point a real fleet over Zenoh
 seeds = 2                  # seeds 0..1, or a list [0, 5, 7]
 baseline = "nearest"       # the allocator `fleet sweep report` compares the others with
+replicates = []            # grid keys whose values are repetitions, like seeds: the report pools them
 record = "failed"          # keep the recordings of the runs that failed or missed the target; "all"; "none"
 [grid]                     # every key a list; the points are their product
 allocator = ["nearest", {type = "minpos", wavefront = "stop"}]
@@ -45,7 +46,7 @@ from fleet_emu.core.scenario import Scenario
 
 STUDIES = Path(__file__).resolve().parent / "studies"
 ENGINES = ("memory", "processes")
-_STUDY_KEYS = {"name", "description", "engine", "seeds", "baseline", "maps", "record"}
+_STUDY_KEYS = {"name", "description", "engine", "seeds", "baseline", "maps", "record", "replicates"}
 #: ``[study] record``: which runs keep their folder (``run.mcap``, ``result.json``...) under ``DIR/runs/ID``.
 RECORD = ("failed", "all", "none")
 
@@ -75,6 +76,7 @@ class Study:
     paper: dict[str, Any] = dataclasses.field(default_factory=dict)
     path: Path | None = None
     text: str = ""
+    replicates: tuple[str, ...] = ()
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> Study:
@@ -121,10 +123,14 @@ class Study:
         for k, v in grid.items():
             if not isinstance(v, list) or not v:
                 raise ConfigError(f"{where}: [grid] {k} must be a non-empty list")
+        replicates = head.get("replicates", [])
+        if not (isinstance(replicates, list) and all(isinstance(k, str) and k in grid for k in replicates)):
+            raise ConfigError(f"{where}: replicates must be a list of [grid] keys (got {replicates!r})")
         name = head.get("name") or (path.stem if path else "study")
         study = cls(name=str(name), grid=dict(grid), seeds=list(seeds), fleet=dict(fleet), engine=engine,
                     record=record, baseline=head.get("baseline"), description=str(head.get("description", "")),
-                    maps_hint=str(head.get("maps", "")), paper=dict(raw.get("paper", {})), path=path, text=text)
+                    maps_hint=str(head.get("maps", "")), paper=dict(raw.get("paper", {})), path=path, text=text,
+                    replicates=tuple(replicates))
         first = {k: v[0] for k, v in grid.items()}  # bad values fail now, each with the other keys' first
         for params in [first, *(first | {k: v} for k, values in grid.items() for v in values[1:])]:
             study.scenario(params, seeds[0], resolve=False)
@@ -243,7 +249,7 @@ def resolve_map(name: str, study: Study, maps_dir: Path | None) -> str:
 def shipped() -> dict[str, str]:
     """The studies shipped in the package: name -> description."""
     out = {}
-    for p in sorted(STUDIES.glob("*.toml")):
+    for p in sorted(STUDIES.glob("*.toml"), key=lambda p: p.stem):
         head = tomllib.loads(p.read_text()).get("study", {})
         out[p.stem] = str(head.get("description", ""))
     return out

@@ -35,19 +35,19 @@ Choices the paper leaves open, as parameters:
   Fig. 4) or the target MinPos's rule gives it on the deciding robot's data (``"target"``).
 - ``replan``: when the allocation is recomputed. Benavides adopts "the same allocation criterion as in the
   minPos approach" (section III-E-2), and MinPos (Bautin et al. 2012, section 2) says the assignment "has to be
-  reevaluated at each time step or at least every time the robot observes the targeted frontier". ``"tick"``
-  recomputes at every decision; ``"observed"`` (default) keeps the previous target until the robot has observed
-  it, or can no longer reach it, exactly as ``minpos``'s option of the same name (see its module docstring: observed
-  means the target cell is no longer a frontier cell of the robot's belief, known free beside an unknown cell,
-  so that no cluster holds it; reachable means the robot can step toward it, a teammate heard last tick
-  holding the cell of the step counting as an obstacle, and the fresh decision ranks only the clusters so
-  reachable). Eq. 8 and 9 are untouched; only when they are applied changes. With ``"tick"``, a heavy ``beta``
-  lets two robots abreast between two frontiers swap targets every tick and sense nothing (tests); with
-  ``"observed"`` each keeps its target until it has seen it. Measured (``benchmarks/connectivity_table.py``, 2
-  robots, 5 maps, seeds 0-5, loss 0.1 and 0): ``"observed"`` ended no run as a stall at any alpha/beta tried
-  (``"tick"``: 3 of 30 at the default, 2 of 30 with beta 0.6 at loss 0.1, 10 of 30 at loss 0), and took fewer
-  ticks than ``"tick"``, but its robots are connected about half as often as with ``"tick"`` (commitment
-  stops eq. 9 pulling them together at every tick); still more than MinPos's on every map.
+  reevaluated at each time step or at least every time the robot observes the targeted frontier": ``"tick"``
+  (default, as ``minpos``'s default) recomputes at every decision. ``"observed"`` keeps the previous target until
+  the robot has observed it, or can no longer reach it, exactly as ``minpos``'s option of the same name (see its
+  module docstring: observed means the target cell is no longer a frontier cell of the robot's belief, known free
+  beside an unknown cell, so that no cluster holds it; reachable means the robot can step toward it, a teammate
+  heard last tick holding the cell of the step counting as an obstacle, and the fresh decision ranks only the
+  clusters so reachable). Eq. 8 and 9 are untouched; only when they are applied changes. Re-planning every tick is
+  what lets eq. 9 pull the robots together at every step: on the paper's setting (``fleet sweep benavides``: the
+  hospital section, 3 m sensing, 6 m range) ``"tick"`` keeps the two robots linked about twice as often as
+  ``"observed"``, whose commitment leaves them apart until each has seen its target, at more ticks
+  (docs/performance/papers.md). With a heavy ``beta``, two robots abreast between two frontiers may swap targets
+  at every tick (tests); ``"observed"`` keeps each on its target until it has seen it, and ended no run as a
+  stall in ``benchmarks/connectivity_table.py``'s settings where ``"tick"`` ended a few.
 - ``beta`` and ``lam`` (below).
 
 What the robot can know (docs/design/architecture.md): the signal is predicted on its *belief* map from teammates'
@@ -201,7 +201,7 @@ class Connectivity(Allocator, plugin_name="connectivity"):
                   "comm_range": Param(10.0, gt=0), "cell_size": Param(0.5, gt=0), "path_loss": Param(2.0, ge=0),
                   "waf": Param(3.1, ge=0), "max_walls": Param(4, ge=0), "unknown_walls": Param(False),
                   "position": Param("without_self", choices=POSITIONS), "predict": Param("pose", choices=PREDICTIONS),
-                  "replan": Param("observed", choices=REPLANS)}
+                  "replan": Param("tick", choices=REPLANS)}
     # in a run the radio and the cell size are the scenario's, unless the [allocator] section sets its own
     scenario_fields = {"comm_range": "radio.comm_range", "path_loss": "radio.path_loss", "waf": "radio.waf",
                        "max_walls": "radio.max_walls", "cell_size": "cell_size"}

@@ -31,7 +31,7 @@ def test_conformance() -> None:
     assert make_allocator({"type": "connectivity"}).to_dict() == {
         "type": "connectivity", "alpha": 0.6, "beta": 0.4, "lam": 0.5, "comm_range": 10.0, "cell_size": 0.5,
         "path_loss": 2.0, "waf": 3.1, "max_walls": 4, "unknown_walls": False, "position": "without_self",
-        "predict": "pose", "replan": "observed"}
+        "predict": "pose", "replan": "tick"}
     for position in ("literal", "cost"):
         api_test({"type": "connectivity", "position": position, "predict": "target"})
         seed_test({"type": "connectivity", "position": position, "predict": "target"})

@@ -74,6 +74,23 @@ value = -13
     assert "│ minpos vs nearest │   -13 │ -22.5 │" in out
 
 
+def test_another_grid_axis_splits_the_lines_and_a_replicate_axis_is_pooled_and_paired_on() -> None:
+    """A grid key the table does not show (``threshold``) is a line of its own; one the study names in
+    ``replicates`` (``start``: base cells, like seeds) is pooled, and the baseline is paired on it."""
+    def point(alloc: str, threshold: float, start: str, ticks: int) -> dict:
+        return row(alloc, 2, ticks) | {"param.threshold": threshold, "param.start": start, "param.seed": 0}
+
+    rows = [point("minpos", thr, start, t) for thr, start, t in
+            ((0.0, "[1, 2]", 100), (0.0, "[1, 9]", 120), (-10.0, "[1, 2]", 80), (-10.0, "[1, 9]", 90))]
+    rows += [point("connectivity", -10.0, "[1, 2]", 90), point("connectivity", -10.0, "[1, 9]", 110)]
+    lines = {(ln["allocator"], ln["param.threshold"]): ln for ln in summary(rows, "minpos", replicates=["start"])}
+    assert set(lines) == {("minpos", 0.0), ("minpos", -10.0), ("connectivity", -10.0)}
+    assert lines[("minpos", 0.0)]["ticks"][:2] == (110.0, pytest.approx(14.142, abs=1e-3))
+    assert lines[("connectivity", -10.0)]["paired"] == pytest.approx((15.0, 5.0, 2))  # (+10, +20) by start
+    every = summary(rows, "minpos")  # without replicates, each start is a line of its own
+    assert len(every) == 6 and all(ln["runs"] == 1 for ln in every)
+
+
 def test_ci95_is_students_t_half_width() -> None:
     v = np.array([1.0, 2.0, 3.0, 4.0])
     assert ci95(v) == pytest.approx(3.182446 * v.std(ddof=1) / 2, rel=1e-5)

@@ -66,6 +66,10 @@ def test_the_shipped_studies_load() -> None:
     ben = Study.load("benavides")
     assert (ben.fleet["robots"], ben.fleet["sensor_range"], ben.fleet["comm_range"], ben.fleet["comm"]) == \
         (2, 3.0, 6.0, "wall") and ben.fleet["target_coverage"] == 0.95
+    assert ben.fleet["map"] == "hospital_section" and ben.replicates == ("start",) and len(ben.points()) == 20
+    calibration = Study.load("benavides-calibration")  # the same setting, minpos alone, the threshold free
+    assert {k: v for k, v in calibration.fleet.items() if k != "allocator"} == \
+        {k: v for k, v in ben.fleet.items() if k != "threshold"} and calibration.grid["start"] == ben.grid["start"]
     yan = Study.load("yan-loss")
     assert yan.grid["loss"] == [0.0, 0.1, 0.3, 0.5] and yan.fleet["comm"] == "full"
     assert len(yan.points()) == 3 * 3 * 4 * 10
