@@ -255,7 +255,8 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None, extra: tup
     t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it; missed: the "
                     "final coverage of the runs that did not" + ("; air kB: kilobytes on the air per robot-tick)"
                                                                  if rated else ")"))
-    for col in ("map", "radio", "robots", *(k[6:] for k in extra), "allocator", "reached", *(["failed"] if failed else []), "time",
+    for col in ("map", "radio", "robots", *(k[6:] for k in extra), "allocator", "reached",
+                *(["failed"] if failed else []), "time",
                 f"vs {baseline}", "paired Δ ± s.e.", "missed: coverage %", "moves", "connected %",
                 *(["air kB"] if rated else []), *(["base connected %"] if base else [])):
         t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left",
