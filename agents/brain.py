@@ -105,11 +105,13 @@ class Plan:
 
 
 def brain_config(scenario: Scenario) -> BrainConfig:
-    """The scenario's brain: map sync on unless the radio delivers every message (``ideal``, or ``full``
-    without loss), where it would only add bytes (and runs stay bit-identical to runs before it existed)."""
+    """The scenario's brain: map sync on when the scenario asks for it (``map_sync``, the default) and the radio
+    can lose a message: not on one that delivers every message (``ideal``, or ``full`` without loss), where it
+    would only add bytes (and runs stay bit-identical to runs before it existed)."""
     r = scenario.radio
     lossless = r.comm == "ideal" or (r.comm == "full" and r.loss == 0)
-    return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_sync=not lossless,
+    sync = scenario.map_sync and not lossless
+    return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_sync=sync,
                        relay=scenario.relay, relay_ttl=scenario.relay_ttl, deflate_maps=r.limited)
 
 
