@@ -4,9 +4,10 @@ Per tick (MinPos section 4: identify and cluster frontiers, compute distances, a
 merge the observation and delivered map deltas into the belief, update teammates' last known poses,
 cluster frontiers, run the allocator, and step down the wavefront of the assigned cluster. It then
 broadcasts a pose beacon and a map delta of what it newly learned; a teammate heard again after a silence
-also gets the whole known map. With map sync on (``agents/mapsync.py``: any radio that can lose a message),
-deltas are numbered, a receiver asks a teammate in contact for the ones it missed, and the teammate sends
-their cells again. No Zenoh, no files: the node shell does the I/O and passes a clock in.
+also gets the whole known map. With map sync on (``agents/mapsync.py``: any radio that can lose a message,
+unless the scenario's ``map_sync`` is false), deltas are numbered, a receiver asks a teammate in contact for
+the ones it missed, and the teammate sends their cells again. No Zenoh, no files: the node shell does the I/O
+and passes a clock in.
 
 Teammates' positions. MinPos (section 4.3) ranks robots by their costs at the moment of the decision, but a
 beacon arrives a tick after it was sent, and in that tick its sender has moved. So a beacon carries both the
@@ -55,12 +56,12 @@ STAGES = ("decision", "merge", "clusters", "decode", "navigation", "news")
 @dataclasses.dataclass(frozen=True)
 class BrainConfig:
     """``cluster_max``: frontier cells one sensing covers (MinPos 4.1); ``resync_after``: ticks of silence
-    after which a teammate heard again gets the whole known map; ``map_sync``: recover
-    lost map deltas (``agents/mapsync.py``, with ``sync``'s parameters), off by default and on in a run whose
-    radio can lose a message (:func:`brain_config`); ``relay``: the relaying policy (``none``, or one of
-    ``agents/relay.py``), and ``relay_ttl`` the hops left after the first on the messages the robot makes;
-    ``deflate_maps``: send map data compact (:func:`~fleet_emu.core.envelope.seal`), on when the radio charges
-    airtime."""
+    after which a teammate heard again gets the whole known map; ``map_sync``: recover lost map deltas
+    (``agents/mapsync.py``, with ``sync``'s parameters), off by default and on in a run whose radio can lose a
+    message unless its scenario turns it off (:func:`brain_config`); ``relay``: the relaying policy (``none``,
+    or one of ``agents/relay.py``), and ``relay_ttl`` the hops left after the first on the messages the robot
+    makes; ``deflate_maps``: send map data compact (:func:`~fleet_emu.core.envelope.seal`), on when the radio
+    charges airtime."""
 
     cluster_max: int = 16
     resync_after: int = 10
