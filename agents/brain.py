@@ -4,9 +4,10 @@ Per tick (MinPos section 4: identify and cluster frontiers, compute distances, a
 merge the observation and delivered map deltas into the belief, update teammates' last known poses,
 cluster frontiers, run the allocator, and step down the wavefront of the assigned cluster. It then
 broadcasts a pose beacon and a map delta of what it newly learned; a teammate heard again after a silence
-also gets the whole known map. With map sync on (``agents/mapsync.py``: any radio that can lose a message),
-deltas are numbered, a receiver asks a teammate in contact for the ones it missed, and the teammate sends
-their cells again. No Zenoh, no files: the node shell does the I/O and passes a clock in.
+also gets the whole known map. With map sync on (``agents/mapsync.py``: any radio that can lose a message,
+unless the scenario's ``map_sync`` is false), deltas are numbered, a receiver asks a teammate in contact for
+the ones it missed, and the teammate sends their cells again. No Zenoh, no files: the node shell does the I/O
+and passes a clock in.
 
 Teammates' positions. MinPos (section 4.3) ranks robots by their costs at the moment of the decision, but a
 beacon arrives a tick after it was sent, and in that tick its sender has moved. So a beacon carries both the
@@ -55,12 +56,12 @@ STAGES = ("decision", "merge", "clusters", "decode", "navigation", "news")
 @dataclasses.dataclass(frozen=True)
 class BrainConfig:
     """``cluster_max``: frontier cells one sensing covers (MinPos 4.1); ``resync_after``: ticks of silence
-    after which a teammate heard again gets the whole known map; ``map_sync``: recover
-    lost map deltas (``agents/mapsync.py``, with ``sync``'s parameters), off by default and on in a run whose
-    radio can lose a message (:func:`brain_config`); ``relay``: the relaying policy (``none``, or one of
-    ``agents/relay.py``), and ``relay_ttl`` the hops left after the first on the messages the robot makes;
-    ``deflate_maps``: send map data compact (:func:`~fleet_emu.core.envelope.seal`), on when the radio charges
-    airtime."""
+    after which a teammate heard again gets the whole known map; ``map_sync``: recover lost map deltas
+    (``agents/mapsync.py``, with ``sync``'s parameters), off by default and on in a run whose radio can lose a
+    message unless its scenario turns it off (:func:`brain_config`); ``relay``: the relaying policy (``none``,
+    or one of ``agents/relay.py``), and ``relay_ttl`` the hops left after the first on the messages the robot
+    makes; ``deflate_maps``: send map data compact (:func:`~fleet_emu.core.envelope.seal`), on when the radio
+    charges airtime."""
 
     cluster_max: int = 16
     resync_after: int = 10
@@ -105,11 +106,13 @@ class Plan:
 
 
 def brain_config(scenario: Scenario) -> BrainConfig:
-    """The scenario's brain: map sync on unless the radio delivers every message (``ideal``, or ``full``
-    without loss), where it would only add bytes (and runs stay bit-identical to runs before it existed)."""
+    """The scenario's brain: map sync on when the scenario asks for it (``map_sync``, the default) and the radio
+    can lose a message: not on one that delivers every message (``ideal``, or ``full`` without loss), where it
+    would only add bytes (and runs stay bit-identical to runs before it existed)."""
     r = scenario.radio
     lossless = r.comm == "ideal" or (r.comm == "full" and r.loss == 0)
-    return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_sync=not lossless,
+    sync = scenario.map_sync and not lossless
+    return BrainConfig(cluster_max=max(2, int(2 * scenario.sensor_cells)), map_sync=sync,
                        relay=scenario.relay, relay_ttl=scenario.relay_ttl, deflate_maps=r.limited)
 
 

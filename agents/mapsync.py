@@ -42,7 +42,11 @@ is lost):
 Choices the papers leave open, as parameters (:class:`SyncConfig`): ``retry_after`` (3 ticks: one round trip
 plus one tick), ``history`` (512 deltas kept per robot). Map sync is on when the radio can lose a message
 (``brain_config``: every model but ``ideal``, and ``full`` only with a loss): on a radio that delivers
-everything it would only add bytes, and runs there stay bit-identical to runs before it existed.
+everything it would only add bytes, and runs there stay bit-identical to runs before it existed. The
+scenario's ``map_sync = false`` turns it off on any radio: the papers' robots share map updates by message and
+a lost one is lost, which is what a study of loss (Yan et al. 2011, Tables 3-4) measures; the brain then
+still broadcasts its new cells every tick and pushes its whole map to a teammate heard again after
+``resync_after`` silent ticks, and nothing more.
 
 A functional core: the state below is plain data stepped by the brain; no clock, no I/O.
 """

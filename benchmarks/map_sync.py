@@ -3,6 +3,7 @@ recovery (``agents/mapsync.py``) spends on the radio, on the memory engine.
 
     python -m benchmarks.map_sync [--map office] [--robots 3] [--allocator minpos] [--loss 0.3]
         [--comm full] [--seeds 8] [--start random|map|ROW,COL] [--json out.json]
+    python -m benchmarks.map_sync --switch 0,0.1,0.3,0.5 [--robots 4] [--allocator trade] [--seeds 10]
 
 Per seed: one run of the memory engine (``fe.Fleet``), its ``ticks`` (to the target coverage, or the last
 tick when it was not reached: flagged ``*``), and two measures of map consistency from the robots' belief
@@ -17,6 +18,10 @@ count ``maps``, the requests ``want``) and to deltas (their number ``n``, the nu
 ``covers``); ``asks`` counts the beacons that carry a request, ``resent`` the deltas sent again. Run it with
 the project's environment before and after a change (it uses only ``fe.Fleet``), and compare the JSON files
 it writes.
+
+``--switch LOSSES``: what the scenario's ``map_sync`` switch changes, one row per loss (the same seeds with map
+sync on and off): the mean ticks to the target, their % change from the first loss listed (give 0 first), the
+kilobytes every robot emitted per run (``radio.bytes_sent``), and the mean belief gap (``gap_mean``).
 """
 
 from __future__ import annotations
@@ -113,6 +118,8 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--start", default="random", help="'random' (drawn per seed), 'map', or ROW,COL")
     p.add_argument("--max-ticks", type=int, default=3000)
     p.add_argument("--json", type=Path, help="write the per-seed rows here")
+    p.add_argument("--switch", type=_losses, metavar="L,L,...",
+                   help="one row per loss, map sync on against off (the scenario's map_sync), instead of --loss")
     a = p.parse_args(argv)
     start = None if a.start == "map" else a.start
     if isinstance(start, str) and "," in start:
@@ -122,7 +129,7 @@ def main(argv: list[str] | None = None) -> None:
         base = Scenario().override(map=a.map, robots=a.robots, allocator=a.allocator, loss=a.loss, comm=a.comm,
                                    start=start, max_ticks=a.max_ticks, belief_every=0)
         check(base)  # the map, the allocator, the start area: before the table's first line
-        run(a, base)
+        switch(a, base) if a.switch else run(a, base)
     except FleetError as exc:  # bad input: one line, exit 2
         print(f"map_sync: error: {exc}", file=sys.stderr)
         sys.exit(2)
@@ -154,6 +161,43 @@ def run(a: argparse.Namespace, base: Scenario) -> None:
         for k in kinds))
     if a.json:
         a.json.write_text(json.dumps({"args": vars(a) | {"json": str(a.json)}, "rows": rows}, indent=1))
+
+
+def _losses(text: str) -> list[float]:
+    """``--switch``: loss probabilities, comma-separated, each in [0, 1]."""
+    try:
+        out = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a list of numbers: {text!r}") from None
+    if not out or any(not 0 <= v <= 1 for v in out):
+        raise argparse.ArgumentTypeError(f"each loss must be in [0, 1] (got {text!r})")
+    return out
+
+
+def switch(a: argparse.Namespace, base: Scenario) -> None:
+    """``--switch``: per loss, the same seeds with map sync on and off; ticks, their change from the first
+    loss, kilobytes sent per run and the mean belief gap."""
+    print(f"{a.map}, {a.robots} robots, {a.allocator}, comm {a.comm}, {a.seeds} seeds, start {a.start}",
+          file=sys.stderr)
+    print("| loss | ticks, sync on | off | vs first loss, on | off | kB sent per run, on | off "
+          "| belief gap, on | off | runs short, on | off |")
+    print("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    mean = statistics.mean
+    first: dict[bool, float] = {}
+    for loss in a.switch:
+        cols: dict[bool, list[dict]] = {}
+        for on in (True, False):
+            s = base.override(loss=loss, map_sync=on)
+            cols[on] = [run_seed(s, seed) for seed in range(a.seeds)]
+        ticks = {on: mean(r["ticks"] for r in rows) for on, rows in cols.items()}
+        first = first or ticks
+        vs = {on: 100.0 * (ticks[on] - first[on]) / first[on] for on in cols}
+        kb = {on: mean(r["radio"]["bytes_sent"] for r in rows) / 1e3 for on, rows in cols.items()}
+        gap = {on: mean(r["gap_mean"] for r in rows) for on, rows in cols.items()}
+        short = {on: sum(not r["completed"] for r in rows) for on, rows in cols.items()}
+        print(f"| {loss:g} | {ticks[True]:.1f} | {ticks[False]:.1f} | {vs[True]:+.1f} % | {vs[False]:+.1f} % "
+              f"| {kb[True]:.0f} | {kb[False]:.0f} | {gap[True]:.0f} | {gap[False]:.0f} "
+              f"| {short[True]} | {short[False]} |", flush=True)
 
 
 if __name__ == "__main__":

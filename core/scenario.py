@@ -135,6 +135,7 @@ class Scenario:
     base: bool | tuple[int, int] = False  # a base station: False (none), True (at the start cell) or a cell
     relay: str = "none"  # multi-hop relaying in the robots (agents/relay.py): none, flood or tree
     relay_ttl: int = 0  # hops left after the first on the messages a robot makes (0: one hop)
+    map_sync: bool = True  # repair lost map deltas on a lossy radio (agents/mapsync.py); False: a lost one is lost
     hosts: HostPlan | None = None  # robots on other machines (``fleet host``); None: all here
 
     def __post_init__(self) -> None:
@@ -241,6 +242,8 @@ class Scenario:
                 del d[k]
         if self.tick_s == DEFAULT_TICK_S:  # absent at its default, as are the radio's airtime fields
             del d["tick_s"]
+        if self.map_sync is True:  # absent at its default (on): runs keep their scenario.json
+            del d["map_sync"]
         for name, quiet in _RADIO_QUIET.items():
             if d["radio"][name] == quiet:
                 del d["radio"][name]
@@ -347,6 +350,8 @@ class Scenario:
         if self.relay not in RELAY_POLICIES:
             raise ConfigError(f"--relay must be one of {', '.join(RELAY_POLICIES)} (got {self.relay!r})")
         _integer("--relay-ttl", self.relay_ttl, 0, MAX_TTL)
+        if not isinstance(self.map_sync, bool):
+            raise ConfigError(f"map_sync must be true or false (--map-sync / --no-map-sync; got {self.map_sync!r})")
         if self.plans_at_base and not self.has_base:
             raise ConfigError(f"--allocator {self.allocator['type']} plans at the base station: it needs --base "
                               "(or --base-cell ROW,COL; in a scenario base = true)")
@@ -358,7 +363,7 @@ class Scenario:
 
 
 _TOP = {"name", "base", "seed", "max_ticks", "tick_s", "target_coverage", "stall_ticks", "coverage_stall_ticks",
-        "barrier_timeout", "belief_every", "relay", "relay_ttl"}
+        "barrier_timeout", "belief_every", "relay", "relay_ttl", "map_sync"}
 _SECTIONS = ("map", "fleet", "radio", "allocator", "hosts")
 
 

@@ -115,6 +115,9 @@ def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
                    help="hops left after the first on the messages a robot makes (default 0: one hop)")
     r.add_argument("--max-ticks", type=int)
     r.add_argument("--target-coverage", type=float)
+    r.add_argument("--map-sync", action=argparse.BooleanOptionalAction, default=None,
+                   help="repair map deltas lost on a lossy radio (the default); --no-map-sync: a lost delta is lost "
+                        "(docs/guides/radio.md#map-sync)")
     from fleet_emu.launch.radio_flags import add_radio_flags
 
     add_radio_flags(r)
@@ -221,7 +224,7 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
         target_coverage=args.target_coverage, **radio_overrides(args),
         base=args.base_cell if args.base_cell is not None else args.base,
         relay=getattr(args, "relay", None), relay_ttl=getattr(args, "relay_ttl", None),
-        hosts=getattr(args, "hosts", None))
+        map_sync=getattr(args, "map_sync", None), hosts=getattr(args, "hosts", None))
 
 
 def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:

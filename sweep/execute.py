@@ -60,12 +60,13 @@ def run_point(point: Point, keep: Keep | None = None) -> dict[str, Any]:
 
 
 def group_of(point: Point) -> dict[str, Any]:
-    """The keys ``fleet sweep report`` groups by (map, radio, robots), for a row that holds no result."""
+    """The keys ``fleet sweep report`` groups by (map, radio, map sync, robots), for a row that holds no result."""
     from fleet_emu.core.radio import RadioConfig
 
     sc, radio = point.scenario, point.scenario.get("radio", {})
     loss = RadioConfig(comm=radio.get("comm", "wall"), loss=radio.get("loss", 0.0)).applied_loss
-    return {"map": sc.get("map"), "robots": sc.get("robots"), "comm": radio.get("comm"), "loss_applied": loss}
+    return {"map": sc.get("map"), "robots": sc.get("robots"), "comm": radio.get("comm"), "loss_applied": loss,
+            "map_sync": sc.get("map_sync", True)}
 
 
 def curve(result: Any) -> str:

@@ -30,9 +30,9 @@ def draw(rows: list[dict[str, Any]], out: Path) -> list[Path]:
         fig, ax = plt.subplots(figsize=(7, 4.5))
         xs = sorted({float(r[x_key]) for r in rows if isinstance(r.get(x_key), int | float)})
         step = min(np.diff(xs)) if len(xs) > 1 else 1.0 if x_key == "robots" else max(0.2, abs(xs[0]) if xs else 1)
-        groups = by(rows, "param.allocator")
-        drawn = sum(_time_line(ax, str(alloc), runs, x_key, (i - (len(groups) - 1) / 2) * 0.05 * step)
-                    for i, ((alloc,), runs) in enumerate(groups.items()))
+        groups = _series(rows)
+        drawn = sum(_time_line(ax, label, runs, x_key, (i - (len(groups) - 1) / 2) * 0.05 * step)
+                    for i, (label, runs) in enumerate(groups.items()))
         _x_axis(ax, xs, integer=x_key == "robots")
         ax.set_title(TITLES[name] + ("" if drawn else " (no run reached the target)"))
         ax.set_xlabel(x_label)
@@ -46,6 +46,16 @@ def draw(rows: list[dict[str, Any]], out: Path) -> list[Path]:
         written.append(_time_vs_bandwidth(rows, out, plt))
     written.append(_coverage(rows, out, plt))
     return written
+
+
+def _series(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
+    """The lines of a figure: one per allocator, and per map sync setting when the study has both."""
+    both = len({r.get("map_sync") is not False for r in rows}) > 1
+    out: dict[str, list[dict[str, Any]]] = {}
+    for (alloc, sync), runs in by(rows, "param.allocator", "map_sync").items():
+        label = f"{alloc}, map sync {'on' if sync is not False else 'off'}" if both else str(alloc)
+        out.setdefault(label, []).extend(runs)
+    return out
 
 
 def _time_line(ax: Any, alloc: str, runs: list[dict[str, Any]], x_key: str, dodge: float) -> bool:

@@ -24,9 +24,9 @@ import numpy as np
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.sweep.execute import PARQUET
 
-GROUP = ("map", "comm", "loss_applied", "bandwidth", "robots")
+GROUP = ("map", "comm", "loss_applied", "bandwidth", "map_sync", "robots")
 #: Grid keys the columns of :data:`GROUP` already show (or that every line splits by: allocator, seed).
-_SHOWN = {"map", "comm", "loss", "bandwidth", "robots", "allocator", "seed"}
+_SHOWN = {"map", "comm", "loss", "bandwidth", "map_sync", "robots", "allocator", "seed"}
 
 
 def axes(rows: Iterable[dict[str, Any]], replicates: Iterable[str] = ()) -> tuple[str, ...]:
@@ -55,11 +55,18 @@ def load(results: Path) -> tuple[list[dict[str, Any]], dict[str, Any], Path]:
         raise ConfigError(f"cannot read sweep results {path}: {exc}") from None
     study = tomllib.loads((out / "study.toml").read_text()) if (out / "study.toml").exists() else {}
     rows = table.to_pylist()
-    for r in rows:  # the radio's rate: absent from an unlimited run's scenario
+    for r in rows:  # the radio's rate: absent from an unlimited run's scenario; map sync, absent when on
         r["bandwidth"] = float(r.get("scenario.radio.bandwidth") or 0.0)
+        r["map_sync"] = map_sync(r)
         if "param.allocator" not in r and r.get("allocator") is not None:  # set in [fleet], not a grid axis
             r["param.allocator"] = r["allocator"]
     return rows, study, out
+
+
+def map_sync(row: dict[str, Any]) -> bool:
+    """Whether the run repaired lost map deltas (the scenario's ``map_sync``: in ``result.json`` only when
+    false; a row without a result has it from its point, :func:`~fleet_emu.sweep.execute.group_of`)."""
+    return all(row.get(key) is not False for key in ("scenario.map_sync", "map_sync"))
 
 
 def moves(row: dict[str, Any]) -> float:
@@ -210,12 +217,25 @@ def report(results: Path, baseline: str | None = None, plots: bool = True, seeds
     paper = study.get("paper", {})
     if paper:  # the paper's rows compare with the study's own baseline (the paper's), whatever --baseline says
         base = head.get("baseline") or baseline
-        console.print(_paper_table(paper, ok, lines if base == baseline else summary(rows, base, replicates), base))
+        base_lines = lines if base == baseline else summary(rows, base, replicates)
+        console.print(_paper_table(paper, ok, base_lines, base))
+        _claims(console, study, rows, base_lines, base, out)
     if plots and ok:
         from fleet_emu.sweep.plots import draw
 
         for path in draw(ok, out):
             console.print(f"wrote {path}")
+
+
+def _claims(console: Any, study: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict[str, Any]],
+            baseline: str | None, out: Path) -> None:
+    """The ``[[paper.claims]]`` judged (:mod:`fleet_emu.sweep.claims`): a table, and ``claims.json`` in ``out``."""
+    from fleet_emu.sweep import claims
+
+    judged = claims.evaluate(study, rows, lines, baseline)
+    if judged:
+        console.print(claims.table(judged, str(study.get("paper", {}).get("source", ""))))
+        console.print(f"wrote {claims.write_json(judged, out / 'claims.json')}")
 
 
 def _odd_runs(console: Any, rows: list[dict[str, Any]], out: Path, most: int = 10) -> None:
@@ -275,7 +295,8 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None, extra: tup
 
 def _radio(line: dict[str, Any]) -> str:
     loss, rate = line["loss_applied"], f", {line['bandwidth']:g} kbit/s" if line.get("bandwidth") else ""
-    return (f"{line['comm']}, loss {loss:g}" if isinstance(loss, int | float) else str(line["comm"])) + rate
+    sync = ", no map sync" if line.get("map_sync") is False else ""
+    return (f"{line['comm']}, loss {loss:g}" if isinstance(loss, int | float) else str(line["comm"])) + rate + sync
 
 
 def _paper_table(paper: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict[str, Any]],
@@ -290,7 +311,8 @@ def _paper_table(paper: dict[str, Any], rows: list[dict[str, Any]], lines: list[
     for col in ("what", "paper", "ours"):
         t.add_column(col, justify="left" if col == "what" else "right")
     for claim in paper.get("claims", []):
-        t.add_row(str(claim), "", "")
+        if isinstance(claim, str):  # a claim with a criterion is judged in the claims' table
+            t.add_row(claim, "", "")
     for pr in paper.get("rows", []):
         ours = paper_value(pr, rows, lines, baseline)
         t.add_row(str(pr.get("what", pr.get("metric"))), str(pr.get("value", "")),
@@ -301,7 +323,7 @@ def _paper_table(paper: dict[str, Any], rows: list[dict[str, Any]], lines: list[
 def paper_value(pr: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict[str, Any]],
                 baseline: str | None) -> float | None:
     """Our number for one ``[[paper.rows]]`` entry."""
-    keep: dict[str, Any] = {k: pr[k] for k in ("allocator", "robots", "loss") if k in pr}
+    keep: dict[str, Any] = {k: pr[k] for k in ("allocator", "robots", "loss", "map_sync") if k in pr}
     metric = pr.get("metric", "ticks")
     if metric == "vs_baseline_pct":
         vals = [ln["vs_baseline_pct"] for ln in lines if _matches(ln, keep, "allocator")]
@@ -325,6 +347,8 @@ def _matches(r: dict[str, Any], keep: dict[str, Any], alloc_key: str) -> bool:
     """Whether a row (or a summary line) is one a paper row is about; a list matches any of its values."""
     for k, want in keep.items():
         got = r.get(alloc_key if k == "allocator" else "loss_applied" if k == "loss" else k)
+        if k == "map_sync":  # absent: on
+            got = got is not False
         if not (got in want if isinstance(want, list) else got == want):
             return False
     return True

@@ -23,8 +23,8 @@ max_ticks = 3000
 
 A map is a built-in map's name, a registry map's name (``map = "hospital_section"``: fetched once with ``fleet
 maps fetch hospital_section``), or a path: relative to the study file, to ``--maps DIR`` (or ``$FLEET_MAPS``),
-or to the current directory. The ``[paper]`` table (``source``, ``claims``, ``rows``) is
-what ``fleet sweep report`` prints beside the study's numbers.
+or to the current directory. The ``[paper]`` table (``source``, ``rows``, ``claims``, ``beside``) is
+what ``fleet sweep report`` prints beside the study's numbers, each claim judged (:mod:`fleet_emu.sweep.claims`).
 """
 
 from __future__ import annotations
@@ -43,6 +43,7 @@ from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.limits import check_text
 from fleet_emu.core.radio import radio_settings
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.sweep import claims
 
 STUDIES = Path(__file__).resolve().parent / "studies"
 ENGINES = ("memory", "processes")
@@ -131,6 +132,10 @@ class Study:
                     record=record, baseline=head.get("baseline"), description=str(head.get("description", "")),
                     maps_hint=str(head.get("maps", "")), paper=dict(raw.get("paper", {})), path=path, text=text,
                     replicates=tuple(replicates))
+        paper = raw.get("paper", {})
+        if not isinstance(paper, dict):
+            raise ConfigError(f"{where}: [paper] must be a table")
+        claims.parse(paper, where, grid)  # a bad claim fails now, not when the sweep is reported
         first = {k: v[0] for k, v in grid.items()}  # bad values fail now, each with the other keys' first
         for params in [first, *(first | {k: v} for k, values in grid.items() for v in values[1:])]:
             study.scenario(params, seeds[0], resolve=False)

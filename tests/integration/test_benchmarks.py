@@ -255,10 +255,24 @@ def test_map_sync_reports_the_gaps_and_the_recovery(small_map: Path, capsys: pyt
     assert int(cells["conflict"]) == 0
 
 
+def test_map_sync_switch_prints_a_row_per_loss_on_against_off(small_map: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("map_sync", "--map", str(small_map), "--robots", "2", "--seeds", "1", "--start", "map",
+                           "--switch", "0,0.3", capsys=capsys)
+    assert code == 0, err[-2000:]
+    lines = out.strip().splitlines()
+    assert len(lines) == 4 and lines[2].startswith("| 0 |") and lines[3].startswith("| 0.3 |")
+    zero, lossy = ([c.strip() for c in ln.strip("|").split("|")] for ln in lines[2:])
+    assert zero[1] == zero[2] and zero[5] == zero[6]  # nothing lost at loss 0: one run, on or off
+    assert lossy[5] != lossy[6]  # at loss 0.3 the two send different bytes
+
+
 def test_map_sync_bad_map_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = bench("map_sync", "--map", "/no/such/map.png", "--seeds", "1", capsys=capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert err.startswith("map_sync: error: ")
+    code, _, err = bench("map_sync", "--switch", "0,2", capsys=capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "each loss must be in [0, 1]" in err, err
 
 
 def test_base_connectivity_prints_a_row_per_allocator(small_map: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -72,4 +72,7 @@ def test_the_shipped_studies_load() -> None:
         {k: v for k, v in ben.fleet.items() if k != "threshold"} and calibration.grid["start"] == ben.grid["start"]
     yan = Study.load("yan-loss")
     assert yan.grid["loss"] == [0.0, 0.1, 0.3, 0.5] and yan.fleet["comm"] == "full"
-    assert len(yan.points()) == 3 * 3 * 4 * 10
+    assert yan.grid["map_sync"] == [False, True] and yan.paper["beside"] == "map_sync"  # the paper's, then ours
+    points = yan.points()
+    assert len(points) == 3 * 3 * 4 * 2 * 10
+    assert {p.scenario.get("map_sync", True) for p in points} == {False, True}
