@@ -15,10 +15,11 @@ teammate does. After ``after`` such ticks the allocator gives the target up and 
 clusters it can step toward (:func:`open_costs`).
 
 ``after`` is chosen once (the papers give none): 4, one more than the closed ticks of one unsticking cycle
-in a head-on (a refused step, a tick waiting, the sidestep; the step back finds the way open), so the
-brain's own remedy gets one try before the target is given up, and a teammate that crosses the robot's way
-(closed for a tick or two, then the robot moves on) never counts to it. A teammate not heard for more than a
-tick (a dead robot, out of radio range) is not seen as in the way: it never closes a cluster.
+in a head-on (three: the refused step, a tick waiting, the tick the sidestep is decided; only from the side
+cell is the way open), so the brain's own remedy gets one try before the target is given up, and a teammate
+that crosses the robot's way (closed for a tick or two, then the robot moves on) never counts to it. A
+teammate not heard for more than a tick (a dead robot, out of radio range) is not seen as in the way: it never
+closes a cluster.
 """
 
 from __future__ import annotations
