@@ -30,6 +30,13 @@ Robustness under loss (our addition; the paper does not say how a robot recovers
   a seller that heard nobody would) and broadcasts that allocation;
 - a task held for ``task_timeout`` ticks is given up (broadcast as done).
 
+A teammate in the way (our addition; section 4.3 leaves local obstacle avoidance to the vector field histogram
+and never has a robot leave a task before it is complete). A robot in a task whose every step toward it is
+held by a teammate for ``blocked_after`` ticks without coming nearer (two robots head-on in a one-cell door;
+:mod:`.blocking`) gives the task up as at ``task_timeout``: it broadcasts it as done, so that the teammate can
+take it, and the next round's pick ranks only the tasks it can step toward now (MinPos's open clusters), all
+of them when it can step toward none. ``blocked_after = 0`` keeps the task until it is done or timed out.
+
 So a robot with a reachable frontier is in a task at most ``(retries + 1) * (time_max + award_timeout) +
 time_max`` ticks after it becomes free. With no reachable frontier it returns NO_FRONTIER but still takes part
 (it can sell to others). Ticks are the time unit. The paper gives no value for its timeMax or bidding period
@@ -59,6 +66,7 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, AllocStatus, Problem, robot_order
+from fleet_emu.agents.allocators.blocking import BLOCKED_AFTER, Blockage, open_costs
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.codec import Context, Payload
 from fleet_emu.core.errors import DecodeError
@@ -139,6 +147,8 @@ class _State:
     started: bool = False  # the task has been explored for at least a tick
     claims: dict[str, tuple[Cell, int]] = dataclasses.field(default_factory=dict)  # robot -> (task, tick)
     failures: int = 0
+    block: Blockage = dataclasses.field(default_factory=Blockage)  # a teammate in the way of the task
+    avoid: bool = False  # the last task was given up for a teammate in the way: pick among open clusters
 
 
 def near(a: Cell, b: Cell, radius: int) -> bool:
@@ -166,7 +176,8 @@ class Trade(Allocator, plugin_name="trade"):
 
     parameters = {"time_max": Param(2, ge=0), "bid_period": Param(2, ge=0), "award_timeout": Param(5, ge=1),
                   "retries": Param(1, ge=0), "task_radius": Param(3, ge=0), "claim_ttl": Param(100, ge=0),
-                  "task_timeout": Param(300, ge=1), "explore_in_round": Param(True)}  # ticks, but task_radius
+                  "task_timeout": Param(300, ge=1), "explore_in_round": Param(True),
+                  "blocked_after": Param(BLOCKED_AFTER, ge=0)}  # ticks, but task_radius
     time_max: int
     bid_period: int
     award_timeout: int
@@ -175,6 +186,7 @@ class Trade(Allocator, plugin_name="trade"):
     claim_ttl: int
     task_timeout: int
     explore_in_round: bool
+    blocked_after: int
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -227,7 +239,8 @@ class Trade(Allocator, plugin_name="trade"):
             self._enter(Phase.ELECT, problem.tick)
             return None
         j = self._track(problem, s.task)
-        if j is not None and problem.tick - s.since < self.task_timeout:
+        s.avoid = j is not None and s.block.held(problem, j, self.blocked_after)  # a teammate in the way
+        if j is not None and problem.tick - s.since < self.task_timeout and not s.avoid:
             s.failures, s.started = 0, True
             return Allocation.assigned(problem, j, tuple(out))
         if not s.started:  # the task's frontier vanished while we traded: a wasted round
@@ -326,7 +339,8 @@ class Trade(Allocator, plugin_name="trade"):
 
     def _take(self, task: Cell, tick: int) -> None:
         self._enter(Phase.TASK, tick)
-        self.s.task, self.s.started = task, False
+        self.s.task, self.s.started, self.s.avoid = task, False, False
+        self.s.block.clear()
         self.s.claims[self.s.me] = (task, tick)
 
     def _pick(self, problem: Problem, exclude: Sequence[Cell] = ()) -> tuple[Cell, float] | None:
@@ -334,7 +348,7 @@ class Trade(Allocator, plugin_name="trade"):
         if every reachable task is taken, the least-cost one anyway (a free robot never idles)."""
         if not problem.clusters:
             return None
-        costs = problem.costs[problem.index]
+        costs = open_costs(problem) if self.s.avoid else problem.costs[problem.index]
         reach = np.flatnonzero(np.isfinite(costs))
         if not len(reach):
             return None

@@ -337,6 +337,20 @@ def test_paper_setting_bad_input_is_one_line(capsys: pytest.CaptureFixture[str])
     assert err.startswith("paper_setting: error: map /no/such/map.png: ")
 
 
+def test_trade_lock_counts_runs_that_drag_on(small_map: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("trade_lock", "--map", str(small_map), "--robots", "2", "--seeds", "2", "--loss", "0",
+                           "--long", "1", capsys=capsys)
+    assert code == 0, err
+    lines = out.strip().splitlines()
+    labels = ["loss", "blocked_after", "past 1", "ticks", "longest"]
+    rows = [fields(lines[1], ln, labels) for ln in lines[2:]]
+    assert [(r["loss"], r["blocked_after"]) for r in rows] == [("0.0", "4"), ("0.0", "0")]
+    for r in rows:
+        assert r["past 1"] == "2" and re.match(r"^\d+±\d+$", r["ticks"]) and int(r["longest"]) > 1, r
+    code, _, err = bench("trade_lock", "--map", "/no/such/map.png", capsys=capsys)
+    assert code == 2 and err == "trade_lock: error: map file not found: /no/such/map.png\n"
+
+
 @pytest.mark.parametrize("script", ["fault_trials", "attacks", "connectivity_table", "decision_time", "mhm_fleet",
                                     "mhm_planner", "minpos_vs_utility"])
 def test_the_other_scripts_import_and_describe_themselves(script: str, capsys: pytest.CaptureFixture[str]) -> None:
