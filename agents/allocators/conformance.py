@@ -2,11 +2,13 @@
 
 ``api_test`` drives an allocator through drawn problems (frontiers in several directions, none at all,
 an unreachable one) and checks the typed contract; ``seed_test`` checks that the same generator gives the
-same decisions. Both raise AssertionError with a message naming what broke.
+same decisions; ``flip_test`` checks that a fleet run does not oscillate between two targets (the run itself
+is passed in: this layer does not step a fleet). Each raises AssertionError with a message naming what broke.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -15,7 +17,7 @@ from fleet_emu.agents.allocators.base import Allocation, Allocator, AllocStatus,
 from fleet_emu.agents.allocators.registry import make_allocator
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.core.codec import Payload
-from fleet_emu.core.grid import FREE, UNKNOWN, from_ascii
+from fleet_emu.core.grid import FREE, UNKNOWN, Cell, from_ascii
 from fleet_emu.core.messages import RadioMsg
 
 CROSS = """
@@ -125,3 +127,68 @@ def seed_test(config: dict[str, Any], seed: int = 7, rounds: int = 12) -> None:
         return out
 
     assert run() == run(), f"{name}: the same seed gave different decisions"
+
+
+#: A flip: a robot's target goes A -> B -> A, the return to A at most this many ticks after it left A.
+FLIP_WINDOW = 10
+#: The most flips per 100 robot-ticks an allocator may make at loss 0 (``flip_test``).
+FLIP_LIMIT = 3.0
+
+Targets = Sequence[Mapping[str, Cell | None]]
+
+
+def count_flips(targets: Targets, window: int = FLIP_WINDOW) -> int:
+    """The flips in a run: ``targets[t]`` maps each robot deciding at tick t to its target (None: none). Per
+    robot, ticks without a target are skipped and runs of one target merged; a flip is three runs in a row
+    A, B, A (A != B) whose return to A comes at most ``window`` ticks after the robot left A."""
+    runs: dict[str, list[tuple[Cell, int]]] = {}  # robot -> [(target, first tick of the run)]
+    for t, row in enumerate(targets):
+        for robot, target in row.items():
+            seq = runs.setdefault(robot, [])
+            if target is not None and (not seq or seq[-1][0] != target):
+                seq.append((target, t))
+    flips = 0
+    for seq in runs.values():
+        for (a, _), (b, left), (c, back) in zip(seq, seq[1:], seq[2:], strict=False):
+            if a == c and a != b and back - left <= window:
+                flips += 1
+    return flips
+
+
+def flip_rate(targets: Targets, window: int = FLIP_WINDOW) -> float:
+    """Flips (``count_flips``) per 100 robot-ticks, a robot-tick being one robot's decision in one tick."""
+    robot_ticks = sum(len(row) for row in targets)
+    return 100.0 * count_flips(targets, window) / robot_ticks if robot_ticks else 0.0
+
+
+#: The map of ``flip_test``: two rooms each side of a corridor, the two robots in its middle. Re-solving an
+#: optimal assignment every tick sends them back and forth between two frontiers here (``hungarian`` with
+#: ``replan="tick"``: 60 flips in 168 robot-ticks).
+FLIP_MAP = """
+#####################
+#.....#.....#.......#
+#.....#.....#.......#
+#.....#.....#.......#
+###.#####.#####.#####
+#...................#
+#.........01........#
+#...................#
+###.#####.#####.#####
+#.....#.....#.......#
+#.....#.....#.......#
+#.....#.....#.......#
+#####################
+"""
+
+
+def flip_test(config: dict[str, Any], run: Callable[[str, dict[str, Any], int], Targets],
+              seeds: Sequence[int] = (0,), limit: float = FLIP_LIMIT) -> float:
+    """No oscillation between two targets: ``run(FLIP_MAP, config, seed)`` explores the drawn map with the
+    allocator at loss 0 and gives each tick's targets (a fleet engine's, which this layer does not import); over
+    the seeds together the allocator makes at most ``limit`` flips per 100 robot-ticks. Returns the rate."""
+    traces = [run(FLIP_MAP, config, seed) for seed in seeds]
+    flips = sum(count_flips(t) for t in traces)
+    robot_ticks = sum(len(row) for t in traces for row in t)
+    rate = 100.0 * flips / robot_ticks if robot_ticks else 0.0
+    assert rate <= limit, f"{config['type']}: {rate:.1f} target flips per 100 robot-ticks (at most {limit:g})"
+    return rate

@@ -34,15 +34,15 @@ class Trace:
 
 def run_fleet(art: str, allocator: dict[str, Any], *, sensor_range: float = 3.0, max_ticks: int = 300,
               seed: int = 0, radio: RadioConfig | None = None, cell_size: float = 0.5,
-              stall_ticks: int = 30) -> Trace:
+              stall_ticks: int = 30, base: bool = False) -> Trace:
     """Explore the drawn map (``#`` wall, ``.`` free, ``0``-``9`` a robot's start cell) until full coverage,
     the tick limit or a stall. ``sensor_range`` in cells; ``radio``: ideal (every pair linked, no loss) with
-    the usual 1-tick latency by default."""
+    the usual 1-tick latency by default; ``base``: a base station at robot 0's start (a base planner's)."""
     grid, marks = from_ascii(art)
     scenario = Scenario(name="drawn", map="drawn", cell_size=cell_size, robots=len(marks),
                         sensor_range=sensor_range * cell_size, allocator=dict(allocator),
                         radio=radio or RadioConfig(comm="ideal", loss=0.0), seed=seed, max_ticks=max_ticks,
-                        target_coverage=1.0, stall_ticks=stall_ticks)
+                        target_coverage=1.0, stall_ticks=stall_ticks, base=base)
     poses: list[dict[str, Cell]] = []
     targets: dict[int, dict[str, Cell | None]] = {}
 

@@ -357,3 +357,16 @@ def test_the_other_scripts_import_and_describe_themselves(script: str, capsys: p
     """The scripts the suite does not run (minutes each): they import, and ``--help`` describes them."""
     code, out, _ = bench(script, "--help", capsys=capsys)
     assert code == 0 and out.startswith("usage: ") and "--" in out
+
+
+def test_flips_prints_a_row_per_allocator_and_size(small_map: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("flips", "--maps", str(small_map), "--robots", "2", "--seeds", "1", "--max-ticks", "40",
+                           "--allocators", "nearest", "hungarian:replan=tick", capsys=capsys)
+    assert code == 0, err[-2000:]
+    rows = markdown(out)
+    assert [r["allocator"] for r in rows] == ["nearest", "hungarian:replan=tick"]
+    for r in rows:
+        assert r["robots"] == "2" and r["runs"] == "1" and 0.0 <= float(r["flips / 100 robot-ticks"]) <= 100.0
+    assert err.count(" robot-ticks\n") == 2  # a progress line per run
+    code, _, err = bench("flips", "--allocators", "hungarian:replan", "--seeds", "1", capsys=capsys)
+    assert code == 2 and err.startswith("flips: error: ") and err.count("\n") == 1
