@@ -166,7 +166,7 @@ def test_builtin_scenario_fields_are_the_radio_and_the_sensor() -> None:
     assert alloc.to_dict() == {"type": "connectivity", "alpha": 0.6, "beta": 0.4, "lam": 0.5, "comm_range": 6.0,
                                "cell_size": 0.25, "path_loss": 3.0, "waf": 1.0, "max_walls": 2,
                                "unknown_walls": False, "position": "without_self", "predict": "pose",
-                               "replan": "observed"}
+                               "replan": "tick"}
     s = Scenario(cell_size=0.25, sensor_range=2.0, allocator={"type": "utility"})
     assert allocator_config(s) == {"type": "utility", "sensor_range": 8.0}
     assert allocator_config(Scenario(allocator={"type": "minpos"})) == {"type": "minpos"}
