@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from fleet_emu.core.errors import ConfigError, FleetError
+from fleet_emu.core.spelling import cli_spelling
 from fleet_emu.core.version import __version__
 from fleet_emu.launch.maps_cli import add_parser as add_maps
 from fleet_emu.launch.maps_cli import cmd_maps
@@ -393,37 +394,38 @@ def serve(argv: list[str] | None, parser: Callable[[], argparse.ArgumentParser],
 
     interrupts = Interrupts().install()  # first: a signal while parsing or importing is a request too
     command = "run"
-    try:
-        args = parser().parse_args(argv)
-        command = args.command or "help"
-        if command == "help":
-            interrupts.restore()
-            parser().print_help()
-            print(f"\n{START_HINT}")
-            code = 0
-        elif command == "run":
-            code = _run_with_signals(args, interrupts)
-        elif command == "host":
-            from fleet_emu.launch.host import cmd_host
+    with cli_spelling():  # errors name flags, not Python keywords
+        try:
+            args = parser().parse_args(argv)
+            command = args.command or "help"
+            if command == "help":
+                interrupts.restore()
+                parser().print_help()
+                print(f"\n{START_HINT}")
+                code = 0
+            elif command == "run":
+                code = _run_with_signals(args, interrupts)
+            elif command == "host":
+                from fleet_emu.launch.host import cmd_host
 
-            code = cmd_host(args, interrupts)
-        else:
-            interrupts.restore()  # a listing or a report: Ctrl-C simply stops it
-            if interrupts.requested.is_set():
-                raise KeyboardInterrupt
-            code = handlers[command](args)
-    except FleetError as exc:  # every error meant for the user, caught once: one line, its exit code
-        interrupts.restore()
-        _fail(str(exc), code=exc.exit_code)
-    except KeyboardInterrupt:
-        print("fleet: interrupted", file=sys.stderr)
-        code = 130
-    except BrokenPipeError:  # a listing piped into `head`: the reader left, nothing is wrong
-        _quiet_stdout()
-        code = 0
-    finally:
-        if command != "run":
+                code = cmd_host(args, interrupts)
+            else:
+                interrupts.restore()  # a listing or a report: Ctrl-C simply stops it
+                if interrupts.requested.is_set():
+                    raise KeyboardInterrupt
+                code = handlers[command](args)
+        except FleetError as exc:  # every error meant for the user, caught once: one line, its exit code
             interrupts.restore()
+            _fail(str(exc), code=exc.exit_code)
+        except KeyboardInterrupt:
+            print("fleet: interrupted", file=sys.stderr)
+            code = 130
+        except BrokenPipeError:  # a listing piped into `head`: the reader left, nothing is wrong
+            _quiet_stdout()
+            code = 0
+        finally:
+            if command != "run":
+                interrupts.restore()
     if command == "run":
         _ignore_signals_while_exiting()
     raise SystemExit(code)
