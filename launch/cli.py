@@ -231,7 +231,9 @@ def _add_report(sub: Any) -> None:
     rep.add_argument("--no-plots", action="store_true", help="metrics.json and the table only")
     rep.add_argument("--layout", type=Path, metavar="FILE",
                      help="write the Foxglove layout for a recording or a live run (--live) to FILE (JSON)")
-    rep.add_argument("--robots", type=int, metavar="N", help="with --layout: the robots it plots (default 8)")
+    rep.add_argument("--robots", type=int, metavar="N",
+                     help="with --layout: the robots it plots, from 1 to 1024 (default: the run's robots; 8 without "
+                          "a run, for a live one)")
     from fleet_emu.launch.recover import add_parser as add_recover
 
     add_recover(sub)
@@ -353,8 +355,12 @@ def cmd_report(args: argparse.Namespace) -> int:
 
     if args.layout is not None:
         from fleet_emu.recording.layout import write_layout
+        from fleet_emu.recording.read import recorded_scenario
 
-        write_layout(args.layout, args.robots)
+        robots = args.robots  # given: it wins; else the runs' own (the largest fleet of them), else the default
+        if robots is None and args.paths:
+            robots = max(int(recorded_scenario(p)["robots"]) for p in args.paths)
+        write_layout(args.layout, robots)
         print(args.layout)
     elif args.robots is not None:
         raise ConfigError("--robots goes with --layout")

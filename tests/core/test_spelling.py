@@ -10,6 +10,7 @@ import fleet_emu as fe
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.spelling import cli_spelling, option
 from fleet_emu.launch.outdir import refuse_held
+from tests.conftest import run_cli
 
 
 @pytest.mark.parametrize("flags, keyword, flag", [
@@ -35,10 +36,6 @@ def test_a_held_folder_says_overwrite_true_from_python(tmp_path: Path) -> None:
     assert option("overwrite", "True") == "overwrite=True"
 
 
-def test_the_cli_names_the_flag(capsys: pytest.CaptureFixture[str]) -> None:
-    from fleet_emu.cli import main
-
-    with pytest.raises(SystemExit) as exit_:
-        main(["run", "--loss", "1.5"])
-    assert exit_.value.code == 2
-    assert capsys.readouterr().err == "fleet: error: --loss must be within [0, 1] (got 1.5)\n"
+def test_the_cli_names_the_flag() -> None:
+    code, _, err = run_cli(["run", "--loss", "1.5"])
+    assert code == 2 and err == "fleet: error: --loss must be within [0, 1] (got 1.5)\n"

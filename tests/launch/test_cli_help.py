@@ -6,10 +6,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import pytest
-
-from fleet_emu.cli import build_parser, main
+from fleet_emu.cli import build_parser
 from fleet_emu.launch.cli import START_HINT, scenario_from_args
+from tests.conftest import run_cli
 
 
 def _run_parser() -> argparse.ArgumentParser:
@@ -17,13 +16,9 @@ def _run_parser() -> argparse.ArgumentParser:
     return sub.choices["run"]
 
 
-def test_bare_fleet_prints_help_and_starts_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                   capsys: pytest.CaptureFixture[str]) -> None:
-    monkeypatch.chdir(tmp_path)
-    with pytest.raises(SystemExit) as exit_:
-        main([])
-    out = capsys.readouterr().out
-    assert exit_.value.code == 0
+def test_bare_fleet_prints_help_and_starts_nothing(tmp_path: Path) -> None:
+    code, out, _ = run_cli([], cwd=tmp_path)
+    assert code == 0
     assert "usage: fleet" in out and START_HINT in out and "`fleet run`" in START_HINT
     assert list(tmp_path.iterdir()) == []  # no runs/ folder: nothing ran
 
