@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.radio import bytes_per_robot_tick
 from fleet_emu.sweep.execute import PARQUET
 
 GROUP = ("map", "comm", "loss_applied", "bandwidth", "robots")
@@ -79,14 +80,16 @@ def missed_coverage(row: dict[str, Any]) -> float:
     return 100.0 * row["coverage"]
 
 
-def airtime_kb(row: dict[str, Any]) -> float:
-    """Kilobytes on the air per robot-tick (``radio.airtime_bytes`` over ticks and robots)."""
-    ticks, robots, air = row.get("ticks"), row.get("robots"), row.get("radio.airtime_bytes")
-    return air / 1e3 / (ticks * robots) if ticks and robots and air is not None else math.nan
+def sent_kb(row: dict[str, Any]) -> float:
+    """Kilobytes sent per robot-tick: ``radio.bytes_sent`` over robots and ticks
+    (:func:`fleet_emu.core.radio.bytes_per_robot_tick`, the rate ``fleet report`` shows)."""
+    ticks, robots, sent = row.get("ticks"), row.get("robots"), row.get("radio.bytes_sent")
+    rate = bytes_per_robot_tick(sent, int(robots), int(ticks)) if ticks and robots and sent is not None else None
+    return math.nan if rate is None else rate / 1e3
 
 
 METRICS: dict[str, Callable[[dict[str, Any]], float]] = {
-    "airtime_kb": airtime_kb,
+    "sent_kb": sent_kb,
     "ticks": time_to_target, "moves": moves, "connected_pct": connected_pct,
     "coverage_pct": lambda r: 100.0 * r["coverage"] if r.get("coverage") is not None else math.nan,
     "base_connected_pct": base_connected_pct, "missed_coverage_pct": missed_coverage,
@@ -232,11 +235,11 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
     failed = any(ln["failed"] for ln in lines)  # a column only when a run failed
     rated = any(ln.get("bandwidth") for ln in lines)  # and one only for studies of a limited radio
     t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it; missed: the "
-                    "final coverage of the runs that did not" + ("; air kB: kilobytes on the air per robot-tick)"
+                    "final coverage of the runs that did not" + ("; sent kB: kilobytes sent per robot-tick)"
                                                                  if rated else ")"))
     for col in ("map", "radio", "robots", "allocator", "reached", *(["failed"] if failed else []), "time",
                 f"vs {baseline}", "paired Δ ± s.e.", "missed: coverage %", "moves", "connected %",
-                *(["air kB"] if rated else []), *(["base connected %"] if base else [])):
+                *(["sent kB"] if rated else []), *(["base connected %"] if base else [])):
         t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left",
                      no_wrap=col == "radio")
     for ln in lines:
@@ -245,7 +248,7 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
                   "-" if math.isnan(ln["vs_baseline_pct"]) else f"{ln['vs_baseline_pct']:+.1f} %",
                   "-" if math.isnan(ln["paired"][0]) else f"{ln['paired'][0]:+.1f} ± {ln['paired'][1]:.1f}",
                   _fmt(ln["missed_coverage_pct"]), _fmt(ln["moves"]), _fmt(ln["connected_pct"]),
-                  *([_fmt(ln["airtime_kb"], 2)] if rated else []),
+                  *([_fmt(ln["sent_kb"], 2)] if rated else []),
                   *([_fmt(ln["base_connected_pct"])] if base else []))
     return t
 
