@@ -48,17 +48,20 @@ def add_parser(sub: Any) -> None:
                    help="run only the study's first N seeds of every point (a quick look; a later call completes it)")
     s.add_argument("--baseline", help="report: the allocator to compare with (default: the study's)")
     s.add_argument("--no-plots", action="store_true", help="report: the tables only")
+    s.add_argument("--format", choices=("table", "csv", "markdown"), default=None,
+                   help="report: the tables fitted to the terminal (table, the default; full width when piped), or "
+                        "as CSV or Markdown on standard output (the other lines on standard error)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.add_argument("--overwrite", action="store_true", help="rerun: replace the run that --out DIR holds")
 
 
 #: The options each action of ``fleet sweep`` takes (the rest are refused, not ignored).
 USES = {"sweep": {"out", "jobs", "dask", "maps", "limit", "quick", "seeds", "quiet"},
-        "report": {"baseline", "no_plots", "seeds"},
+        "report": {"baseline", "no_plots", "seeds", "format"},
         "rerun": {"out", "maps", "overwrite", "quiet"}}
 OPTIONS = {"out": "--out", "jobs": "--jobs", "dask": "--dask", "maps": "--maps", "limit": "--limit", "quick": "--quick",
            "seeds": "--seeds", "baseline": "--baseline", "no_plots": "--no-plots", "quiet": "--quiet",
-           "overwrite": "--overwrite"}
+           "overwrite": "--overwrite", "format": "--format"}
 
 
 def refuse_unused(args: argparse.Namespace, action: str) -> None:
@@ -84,7 +87,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             raise ConfigError("usage: fleet sweep report RESULTS (a sweep's --out directory or its results.parquet)")
         from fleet_emu.sweep.report import report
 
-        report(Path(args.args[1]), baseline=args.baseline, plots=not args.no_plots, seeds=args.seeds)
+        report(Path(args.args[1]), baseline=args.baseline, plots=not args.no_plots, seeds=args.seeds,
+               fmt=args.format or "table")
         return 0
     if action == "rerun":
         if len(args.args) != 3:

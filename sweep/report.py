@@ -167,10 +167,18 @@ def summary(rows: list[dict[str, Any]], baseline: str | None) -> list[dict[str, 
     return lines
 
 
-def report(results: Path, baseline: str | None = None, plots: bool = True, seeds: int | None = None) -> None:
+def report(results: Path, baseline: str | None = None, plots: bool = True, seeds: int | None = None,
+           fmt: str = "table") -> None:
     """Print the tables (and draw the figures) of a sweep's results; with ``seeds``, only the runs of the
-    study's first N seeds (every point then has the same seeds)."""
+    study's first N seeds (every point then has the same seeds); ``fmt``: how the tables are printed
+    (:mod:`fleet_emu.sweep.tables`: fitted to the terminal, or ``csv`` / ``markdown``, the other lines then on
+    standard error)."""
     from rich.console import Console
+
+    from fleet_emu.sweep.tables import FORMATS, show
+
+    if fmt not in FORMATS:
+        raise ConfigError(f"--format must be one of {', '.join(FORMATS)} (got {fmt!r})")
 
     rows, study, out = load(results)
     if seeds is not None:
@@ -182,18 +190,17 @@ def report(results: Path, baseline: str | None = None, plots: bool = True, seeds
     allocators = sorted({str(r["param.allocator"]) for r in rows if r.get("param.allocator") is not None})
     head = study.get("study", {})
     baseline = baseline or head.get("baseline") or (allocators[0] if allocators else None)
-    console = Console()
-    if not console.is_terminal:
-        console = Console(width=180)
+    tables = Console()
+    console = tables if fmt == "table" else Console(stderr=True)  # csv, markdown: only the tables on stdout
     console.print(f"[bold]{head.get('name', out.name)}[/bold]: {len(rows)} runs, {failed} failed; "
                   f"baseline {baseline}" + (f"; the first {seeds} seeds" if seeds else ""))
     lines = summary(rows, baseline)
-    console.print(_summary_table(lines, baseline))
+    show(tables, _summary_table(lines, baseline), fmt)
     _odd_runs(console, rows, out)
     paper = study.get("paper", {})
     if paper:  # the paper's rows compare with the study's own baseline (the paper's), whatever --baseline says
         base = head.get("baseline") or baseline
-        console.print(_paper_table(paper, ok, lines if base == baseline else summary(rows, base), base))
+        show(tables, _paper_table(paper, ok, lines if base == baseline else summary(rows, base), base), fmt)
     if plots and ok:
         from fleet_emu.sweep.plots import draw
 
@@ -240,8 +247,7 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None) -> Any:
     for col in ("map", "radio", "robots", "allocator", "reached", *(["failed"] if failed else []), "time",
                 f"vs {baseline}", "paired Δ ± s.e.", "missed: coverage %", "moves", "connected %",
                 *(["sent kB"] if rated else []), *(["base connected %"] if base else [])):
-        t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left",
-                     no_wrap=col == "radio")
+        t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left")
     for ln in lines:
         t.add_row(Path(str(ln["map"])).stem, _radio(ln), str(ln["robots"]), str(ln["allocator"]),
                   f"{ln['reached']} / {ln['runs']}", *([str(ln["failed"])] if failed else []), _fmt(ln["ticks"]),
