@@ -19,7 +19,8 @@ COMPARED = "allocator"
 
 
 class _Point(Protocol):
-    params: dict[str, Any]
+    @property
+    def params(self) -> dict[str, Any]: ...
 
 
 P = TypeVar("P", bound=_Point)
