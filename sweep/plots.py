@@ -16,8 +16,8 @@ import numpy as np
 
 from fleet_emu.sweep.report import by, ci95, time_to_target
 
-TITLES = {"time_vs_robots": "Time to the target by robot count",
-          "time_vs_loss": "Time to the target by loss"}
+TITLES = {"time_vs_robots": "Time to the target against the robot count",
+          "time_vs_loss": "Time to the target against the loss"}
 
 
 def draw(rows: list[dict[str, Any]], out: Path) -> list[Path]:
