@@ -12,12 +12,13 @@ from contextvars import ContextVar
 _CLI: ContextVar[bool] = ContextVar("fleet_emu.cli_spelling", default=False)
 
 
-def option(name: str, value: str = "") -> str:
+def option(name: str, value: str = "", flag: str = "") -> str:
     """The setting ``name`` (a field or keyword name, ``max_ticks``) as the user wrote it: ``--max-ticks`` from
-    the CLI; ``max_ticks`` from Python, or ``max_ticks=VALUE`` when ``value`` is given (``overwrite=True`` for a
-    switch, whose flag takes no value)."""
+    the CLI (``flag`` when the flag is not the name's: ``--realtime`` for ``realtime_hz``); ``max_ticks`` from
+    Python, or ``max_ticks=VALUE`` when ``value`` is given (``overwrite=True`` for a switch, whose flag takes no
+    value)."""
     if _CLI.get():
-        return "--" + name.replace("_", "-")
+        return flag or "--" + name.replace("_", "-")
     return f"{name}={value}" if value else name
 
 

@@ -39,3 +39,12 @@ def test_a_held_folder_says_overwrite_true_from_python(tmp_path: Path) -> None:
 def test_the_cli_names_the_flag() -> None:
     code, _, err = run_cli(["run", "--loss", "1.5"])
     assert code == 2 and err == "fleet: error: --loss must be within [0, 1] (got 1.5)\n"
+
+
+def test_run_options_name_their_keywords_from_python() -> None:
+    with pytest.raises(ConfigError, match=r"^run_id must be letters"):
+        fe.run(fe.Scenario(), run_id="a/b", engine="memory")  # was a ValueError's traceback on this engine
+    with pytest.raises(ConfigError, match=r"^realtime_hz must be a number of ticks per second"):
+        fe.run(fe.Scenario(), realtime_hz=-1)
+    code, _, err = run_cli(["run", "--run-id", "a/b"])
+    assert code == 2 and err.startswith("fleet: error: --run-id must be letters")
