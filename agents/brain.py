@@ -31,7 +31,14 @@ from typing import Any
 
 import numpy as np
 
-from fleet_emu.agents.allocators import Allocation, Allocator, AllocStatus, Problem, allocator_class
+from fleet_emu.agents.allocators import (
+    Allocation,
+    Allocator,
+    AllocStatus,
+    Problem,
+    allocator_class,
+    make_allocator,
+)
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.clusters import FrontierClusters
 from fleet_emu.agents.mapsync import MapSync, SyncConfig
@@ -130,6 +137,14 @@ def allocator_config(scenario: Scenario) -> dict[str, Any]:
     for param, field in allocator_class(config.get("type")).scenario_fields.items():
         config.setdefault(param, operator.attrgetter(field)(scenario))
     return config
+
+
+def effective_allocator(scenario: Scenario) -> dict[str, Any]:
+    """Every parameter the run's allocator runs with, ``{"type": name, ...}``: the scenario's ``[allocator]``
+    table, the scenario fields the allocator declares, and every other parameter at its declared default, as
+    checked (what ``result.json`` records as ``allocator_params``, so that a later change of a default cannot
+    change what a stored result meant). ConfigError as :func:`allocator_config`."""
+    return make_allocator(allocator_config(scenario)).to_dict()
 
 
 class _Stage:

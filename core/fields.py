@@ -16,6 +16,7 @@ import math
 from typing import Any, TypeVar
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.spelling import option
 
 T = TypeVar("T")
 _KEY = "fleet_emu.setting"
@@ -56,10 +57,12 @@ class Setting:
         return f"within {'(' if self.low_open else '['}{_num(self.low)}, {_num(self.high)}]{unit}"
 
     def check(self, value: Any) -> None:
-        """A ConfigError of one line (naming the flag) when ``value`` is not what the field accepts."""
+        """A ConfigError of one line when ``value`` is not what the field accepts, naming the flag from the CLI
+        and the keyword from Python (:func:`fleet_emu.core.spelling.option`)."""
+        name = option(self.name)
         if self.choices:
             if value not in self.choices:
-                raise ConfigError(f"{self.flag} must be {self.span()} (got {value!r})")
+                raise ConfigError(f"{name} must be {self.span()} (got {value!r})")
             return
         whole = self.kind is int
         if whole:
@@ -68,9 +71,9 @@ class Setting:
             typed = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
         if not typed:
             what = "a whole number" if whole else "a finite number"
-            raise ConfigError(f"{self.flag} must be {what} {self.span()} (got {value!r})")
+            raise ConfigError(f"{name} must be {what} {self.span()} (got {value!r})")
         if not (self.low < value if self.low_open else self.low <= value) or value > self.high:
-            raise ConfigError(f"{self.flag} must be {self.span()} (got {value!r})")
+            raise ConfigError(f"{name} must be {self.span()} (got {value!r})")
 
 
 def _num(x: float) -> str:

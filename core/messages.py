@@ -197,6 +197,8 @@ class Links(Message):
     medium_load: tuple[int, ...] = ()
     medium_of: dict[str, int] = dataclasses.field(default_factory=dict)
     medium_capacity: int = 0
+    # each sender's part of ``bytes_sent`` (cumulative; the base station's too)
+    bytes_by: dict[str, int] = dataclasses.field(default_factory=dict)
 
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)

@@ -18,7 +18,8 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -97,6 +98,32 @@ def radio_label(comm: str, loss: float) -> str:
     ``fleet run``'s summary and ``fleet report``'s tables show it."""
     applied = RadioConfig(comm=comm, loss=loss).applied_loss
     return f"{comm}, no loss" if applied == 0 else f"{comm}, loss {applied:g}"
+
+
+def bytes_per_robot_tick(bytes_sent: float, robots: int, ticks: int) -> float | None:
+    """The run's bytes sent per robot and tick: ``result.json``'s ``radio.bytes_sent`` (every emission's
+    encoded envelope once, docs/reference/result.md) over ``robots * ticks``; None for a run of no tick. The one
+    rate the run's summary, ``metrics.json``, ``fleet report`` and the sweep tables show."""
+    return bytes_sent / (robots * ticks) if robots > 0 and ticks > 0 else None
+
+
+def bytes_line(bytes_sent: int, robots: int, ticks: int) -> str:
+    """The bytes-sent row of the run's summary and of ``fleet report``: the total and the rate per robot-tick."""
+    rate = bytes_per_robot_tick(bytes_sent, robots, ticks)
+    return f"{bytes_sent / 1e6:.2f} MB, " + ("-" if rate is None else f"{rate:.0f}") + " per robot-tick"
+
+
+def airtime_line(radio: Mapping[str, Any], scenario_radio: Mapping[str, Any]) -> str | None:
+    """The airtime row of a radio that charges it (a bandwidth or a jitter, netem/medium.py), from
+    ``result.json``'s ``radio`` and the scenario's ``[radio]``: the rate, the bytes on the air, the queues and the
+    delay from hand-off to delivery; None for another radio."""
+    if not (scenario_radio.get("bandwidth") or scenario_radio.get("jitter")):
+        return None
+    d = radio["delay_ticks"]
+    rate = f"{scenario_radio['bandwidth']:g} kbit/s" if scenario_radio.get("bandwidth") else "unlimited"
+    delay = "-" if d["mean"] is None else f"mean {d['mean']:.2f}, p95 {d['p95']}, max {d['max']}"
+    return (f"{rate}: {radio['airtime_bytes'] / 1e6:.2f} MB on the air, {radio['dropped_queue']} dropped at a full "
+            f"queue, largest queue {radio['queued_max_bytes'] / 1e3:.1f} kB; delay (ticks) {delay}")
 
 
 def signal_db(distance_m: float, walls: int, p: RadioConfig) -> float:

@@ -25,6 +25,7 @@ from fleet_emu.core.limits import MAX_NAME, check_size, check_text, check_values
 from fleet_emu.core.messages import MAX_TTL
 from fleet_emu.core.radio import RadioConfig, radio_settings
 from fleet_emu.core.scenario_checks import check_names
+from fleet_emu.core.spelling import option
 
 MAX_ROBOTS = 256
 MAX_HOSTS = 64
@@ -274,7 +275,7 @@ class Scenario:
                 top["allocator"] = _allocator(v, self.allocator)
             elif k == "hosts" and not isinstance(v, HostPlan):
                 if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= MAX_HOSTS:
-                    raise ConfigError(f"--hosts must be in 0..{MAX_HOSTS} (got {v!r})")
+                    raise ConfigError(f"{option('hosts')} must be in 0..{MAX_HOSTS} (got {v!r})")
                 top["hosts"] = HostPlan(v) if v else None
             elif k in names:
                 top[k] = tuple(v) if k in ("start", "base") and isinstance(v, list) else v
@@ -319,27 +320,28 @@ class Scenario:
         _text("name", self.name)
         if len(self.name) > MAX_NAME:
             raise ConfigError(f"name is {len(self.name)} characters long, more than the {MAX_NAME} allowed")
-        _text("--map", self.map)
+        _text(option("map"), self.map)
         check_values([self.map, self.allocator, self.start], "the scenario")
-        _integer("--robots", self.robots, 1, MAX_ROBOTS)
-        _integer("--seed", self.seed, 0, 2**63 - 1)
-        _integer("--max-ticks", self.max_ticks, 1, 10**9)
+        _integer(option("robots"), self.robots, 1, MAX_ROBOTS)
+        _integer(option("seed"), self.seed, 0, 2**63 - 1)
+        _integer(option("max_ticks"), self.max_ticks, 1, 10**9)
         _integer("stall_ticks", self.stall_ticks, 1, 10**9)
         _integer("coverage_stall_ticks", self.coverage_stall_ticks, 1, 10**9)
         _integer("belief_every", self.belief_every, 0, 10**9)
-        _number("--cell-size", self.cell_size, 1e-3, 1e3)
-        _number("--sensor-range", self.sensor_range, 0.0, math.inf, low_open=True)  # the world clamps it to the map
-        _number("--target-coverage", self.target_coverage, 0.0, 1.0, low_open=True)
+        _number(option("cell_size"), self.cell_size, 1e-3, 1e3)
+        _number(option("sensor_range"), self.sensor_range, 0.0, math.inf, low_open=True)  # the world clamps it
+        _number(option("target_coverage"), self.target_coverage, 0.0, 1.0, low_open=True)
         _number("barrier_timeout", self.barrier_timeout, 0.0, 86400.0, low_open=True)
         _number("tick_s", self.tick_s, 0.0, 3600.0, low_open=True)
         check_all(self.radio)
         if self.sensor_range / self.cell_size < 1:
-            raise ConfigError(f"--sensor-range {self.sensor_range} m is less than one cell ({self.cell_size} m)")
+            raise ConfigError(f"{option('sensor_range')} {self.sensor_range} m is less than one cell "
+                              f"({self.cell_size} m)")
         start_ok = self.start is None or self.start == "random" or (
             isinstance(self.start, tuple) and len(self.start) == 2
             and all(isinstance(v, int) and not isinstance(v, bool) for v in self.start))
         if not start_ok:
-            raise ConfigError(f"--start must be ROW,COL or 'random' (got {self.start!r})")
+            raise ConfigError(f"{option('start')} must be ROW,COL or 'random' (got {self.start!r})")
         base_ok = isinstance(self.base, bool) or (
             isinstance(self.base, tuple) and len(self.base) == 2
             and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in self.base))
@@ -348,13 +350,16 @@ class Scenario:
         if not isinstance(self.allocator, dict) or not isinstance(self.allocator.get("type"), str):
             raise ConfigError("allocator needs a 'type' name")
         if self.relay not in RELAY_POLICIES:
-            raise ConfigError(f"--relay must be one of {', '.join(RELAY_POLICIES)} (got {self.relay!r})")
-        _integer("--relay-ttl", self.relay_ttl, 0, MAX_TTL)
+            raise ConfigError(f"{option('relay')} must be one of {', '.join(RELAY_POLICIES)} (got {self.relay!r})")
+        _integer(option("relay_ttl"), self.relay_ttl, 0, MAX_TTL)
         if not isinstance(self.map_sync, bool):
-            raise ConfigError(f"map_sync must be true or false (--map-sync / --no-map-sync; got {self.map_sync!r})")
+            raise ConfigError(f"{option('map_sync', flag='--map-sync / --no-map-sync')} must be true or false "
+                              f"(got {self.map_sync!r})")
         if self.plans_at_base and not self.has_base:
-            raise ConfigError(f"--allocator {self.allocator['type']} plans at the base station: it needs --base "
-                              "(or --base-cell ROW,COL; in a scenario base = true)")
+            cli = option("base").startswith("--")
+            how = "--base (or --base-cell ROW,COL" if cli else "base=True (or base=(ROW, COL)"
+            raise ConfigError(f"{option('allocator')} {self.allocator['type']} plans at the base station: it needs "
+                              f"{how}; in a scenario base = true)")
         if self.hosts is not None:
             if not isinstance(self.hosts, HostPlan):
                 raise ConfigError(f"hosts must be a [hosts] table (count, names, robots; got {self.hosts!r})")

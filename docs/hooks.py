@@ -1,28 +1,47 @@
-"""MkDocs hooks of the documentation site (mkdocs.yml ``hooks``).
+"""The reference pages' generated parts, written into the pages themselves so that they read the same on the
+repository as on the site; an MkDocs hook (mkdocs.yml ``hooks``) refreshes them again when the site is built.
 
-- ``<!-- cli-help: run -->`` in a page becomes the help text of ``fleet run`` (``<!-- cli-help: -->``: of
-  ``fleet``), from the parser itself, so that the CLI reference cannot drift from the code.
-- ``<!-- api -->`` becomes a section per name of ``fleet_emu.__all__``, grouped as its source groups them
-  (a comment line per group), each rendered by mkdocstrings from where the name is defined.
+Each generated part sits between an opening and a closing comment, and ``python docs/hooks.py`` rewrites it
+(``tests/test_docs_generated.py`` fails while a page is not current):
+
+- ``<!-- cli-help: run -->`` ... ``<!-- /cli-help -->``: the help text of ``fleet run`` (``<!-- cli-help: -->``:
+  of ``fleet``), from the parser itself, so that the CLI reference cannot drift from the code.
+- ``<!-- api -->`` ... ``<!-- /api -->``: a section per name of ``fleet_emu.__all__``, grouped as its source
+  groups them (a comment line per group), from the docstrings of the module that defines each.
+- ``<!-- doc: fleet_emu.core.messages.Links -->`` ... ``<!-- /doc -->``: one class's or function's section.
+
+Docstrings are written in one style, reStructuredText's as Sphinx reads it (``literal``, ``:class:`Name```,
+``:func:`name```, a ``::`` paragraph before an indented example), the style mkdocs.yml gives mkdocstrings
+(``docstring_style: sphinx``); :func:`markdown_of` turns it into Markdown: a role becomes inline code and an
+indented example a fenced block.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
+import inspect
 import io
 import os
 import re
+import sys
 from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
-CLI_HELP = re.compile(r"<!--\s*cli-help:\s*(?P<cmd>[\w-]*)\s*-->")
-API = re.compile(r"<!--\s*api\s*-->")
+#: The pages holding generated parts.
+PAGES = ("reference/cli.md", "reference/api.md", "reference/protocol.md")
+CLI_HELP = re.compile(r"<!--\s*cli-help:\s*(?P<arg>[\w-]*)\s*-->.*?<!--\s*/cli-help\s*-->", re.S)
+API = re.compile(r"<!--\s*api\s*-->(?P<arg>).*?<!--\s*/api\s*-->", re.S)
+DOC = re.compile(r"<!--\s*doc:\s*(?P<arg>[\w.]+)\s*-->.*?<!--\s*/doc\s*-->", re.S)
+ROLE = re.compile(r":(?:py:)?(?:class|func|meth|mod|attr|data|exc|obj|const|ref):`~?\.?([^`]+)`")
 
 
 def cli_help(command: str) -> str:
     """The ``--help`` text of ``fleet COMMAND`` (of ``fleet`` for an empty one), 100 columns wide."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
     from fleet_emu.cli import build_parser
 
     old = os.environ.get("COLUMNS")
@@ -42,6 +61,103 @@ def cli_help(command: str) -> str:
     return text
 
 
+def markdown_of(doc: str) -> str:
+    """A docstring (reStructuredText as Sphinx reads it) as Markdown: roles as inline code, ``::`` examples
+    fenced."""
+    out: list[str] = []
+    lines = inspect.cleandoc(doc).splitlines()
+    i = 0
+    while i < len(lines):
+        line = ROLE.sub(r"``\1``", lines[i])
+        if line.rstrip().endswith("::"):
+            out.append(line.rstrip()[:-1] if not line.rstrip().endswith(" ::") else line.rstrip()[:-3])
+            i += 1
+            block: list[str] = []
+            while i < len(lines) and (not lines[i].strip() or lines[i].startswith(" ")):
+                block.append(lines[i])
+                i += 1
+            while block and not block[-1].strip():
+                block.pop()
+            body = inspect.cleandoc("\n".join(block)) if block else ""
+            out += ["", "```text", body, "```", ""]
+            continue
+        out.append(line)
+        i += 1
+    return "\n".join(out).strip()
+
+
+def _signature(obj: Any, name: str) -> str:
+    """``name(params) -> ret`` of a function or a class's constructor, a parameter a line when long."""
+    try:
+        sig = inspect.signature(obj)
+    except (TypeError, ValueError):
+        return name
+    params: list[str] = []
+    for p in sig.parameters.values():
+        if p.name in ("self", "cls"):
+            continue
+        if p.kind is p.KEYWORD_ONLY and not any(q.startswith("*") for q in params):
+            params.append("*")
+        params.append(_param(p))
+    ret = "" if sig.return_annotation is inspect.Signature.empty or inspect.isclass(obj) else \
+        f" -> {_annotation(sig.return_annotation)}"
+    one = f"{name}({', '.join(params)}){ret}"
+    if len(one) <= 100:
+        return one
+    return f"{name}(\n" + "".join(f"    {p},\n" for p in params) + f"){ret}"
+
+
+def _annotation(a: Any) -> str:
+    return a if isinstance(a, str) else inspect.formatannotation(a)
+
+
+def _param(p: inspect.Parameter) -> str:
+    """One parameter as written in the source: ``name: type = default`` (``*args``, ``**kwargs``)."""
+    star = {p.VAR_POSITIONAL: "*", p.VAR_KEYWORD: "**"}.get(p.kind, "")
+    text = star + p.name
+    if p.annotation is not p.empty:
+        text += f": {_annotation(p.annotation)}"
+    if p.default is not p.empty:
+        text += f" = {p.default!r}" if p.annotation is not p.empty else f"={p.default!r}"
+    return text
+
+
+def _members(cls: type) -> list[tuple[str, Any]]:
+    """A class's own public methods and properties with a docstring, in source order."""
+    out = []
+    for name, value in vars(cls).items():
+        if name.startswith("_"):
+            continue
+        fn = value.__func__ if isinstance(value, classmethod | staticmethod) else value
+        if (inspect.isfunction(fn) or isinstance(fn, property)) and inspect.getdoc(fn):
+            out.append((name, value))
+    return out
+
+
+def doc_section(path: str, level: int = 3, title: str | None = None) -> str:
+    """The section of one class or function (``module.Name``): its heading, signature, docstring, and a
+    class's own public methods and properties."""
+    module, _, name = path.rpartition(".")
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    obj = getattr(importlib.import_module(module), name)
+    head = "#" * level
+    kind = "class " if inspect.isclass(obj) else "def " if callable(obj) else ""
+    # ``py``, not ``python``: a signature is shown, not run (tests/test_docs.py runs ``python`` blocks)
+    parts = [f"{head} `{title or name}`", "", "```py", kind + _signature(obj, name), "```", ""]
+    parts += [markdown_of(inspect.getdoc(obj) or ""), ""]
+    if inspect.isclass(obj) and not issubclass(obj, BaseException):
+        for member, value in _members(obj):
+            fn = value.__func__ if isinstance(value, classmethod | staticmethod) else value
+            if isinstance(fn, property):
+                sig = f"{member}  # property"
+            else:
+                sig = ("@classmethod\n" if isinstance(value, classmethod) else "") + "def " + _signature(fn, member)
+            parts += [f"{head}# `{name}.{member}`", "", "```py", sig, "```", "",
+                      markdown_of(inspect.getdoc(fn) or ""), ""]
+    return "\n".join(parts).rstrip() + "\n"
+
+
 def api_groups(root: Path = ROOT) -> list[tuple[str, list[str]]]:
     """``fleet_emu.__all__`` as its source lists it: (group comment, names) in order."""
     text = (root / "fleet_emu" / "__init__.py").read_text()
@@ -58,21 +174,55 @@ def api_groups(root: Path = ROOT) -> list[tuple[str, list[str]]]:
 
 
 def api_page() -> str:
-    """A section per public name, rendered from the module that defines it."""
+    """A section per public name, from the module that defines it."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
     import fleet_emu
 
     out = []
     for title, names in api_groups():
         out.append(f"## {(title or 'package').capitalize()}\n")
         for name in names:
-            module = fleet_emu._LAZY.get(name, "fleet_emu")
             if name.startswith("__"):
-                out.append(f"### `fleet_emu.{name}`\n\nThe package's version, `{fleet_emu.__version__}`.\n")
+                out.append(f"### `fleet_emu.{name}`\n\nThe installed package's version (`fleet-emu` on PyPI).\n")
                 continue
-            out.append(f"::: {module}.{name}\n    options:\n      heading_level: 3\n")
+            if name == "SCHEMA_VERSION":
+                out.append(f"### `fleet_emu.{name}`\n\nThe version of the bus messages, `result.json` and the "
+                           "recording layout (an integer).\n")
+                continue
+            module = fleet_emu._LAZY.get(name, "fleet_emu")
+            out.append(doc_section(f"{module}.{name}", 3, f"fleet_emu.{name}"))
     return "\n".join(out)
 
 
+def refresh(markdown: str) -> str:
+    """``markdown`` with every generated part rewritten from the code."""
+    def block(tag: str, arg: str, body: str) -> str:
+        opener = f"<!-- {tag}: {arg} -->" if tag != "api" else "<!-- api -->"
+        return f"{opener}\n\n{body.strip()}\n\n<!-- /{tag} -->"
+
+    markdown = CLI_HELP.sub(lambda m: block("cli-help", m["arg"], f"```text\n{cli_help(m['arg']).rstrip()}\n```"),
+                            markdown)
+    markdown = API.sub(lambda m: block("api", "", api_page()), markdown)
+    return DOC.sub(lambda m: block("doc", m["arg"], doc_section(m["arg"])), markdown)
+
+
 def on_page_markdown(markdown: str, **_: Any) -> str:
-    markdown = CLI_HELP.sub(lambda m: f"```text\n{cli_help(m['cmd']).rstrip()}\n```", markdown)
-    return API.sub(lambda m: api_page(), markdown)
+    """MkDocs: the page with its generated parts current."""
+    return refresh(markdown)
+
+
+def main() -> int:
+    """``python docs/hooks.py``: rewrite the generated parts of :data:`PAGES`; print the pages that changed."""
+    for page in PAGES:
+        path = ROOT / "docs" / page
+        text = path.read_text()
+        new = refresh(text)
+        if new != text:
+            path.write_text(new)
+            print(f"wrote {path.relative_to(ROOT)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

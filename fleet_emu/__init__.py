@@ -101,7 +101,7 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
     ``host_timeout`` the seconds to wait for them. An ``out`` that holds a run is refused (ConfigError) unless
     ``overwrite``, which removes that run's files first; one another run is writing is always refused.
     """
-    from fleet_emu.launch.checks import check_memory_engine
+    from fleet_emu.launch.checks import check_memory_engine, check_options
     from fleet_emu.launch.runner import RunOptions, run_fleet
 
     out_dir = Path(out) if out is not None else None
@@ -121,6 +121,7 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
                ("tls_key", tls_key), ("host_timeout", host_timeout), ("hosts (the scenario's [hosts])", scenario.hosts)]
         check_memory_engine("the memory engine", [(name, value is not None) for name, value in bus],
                             ("realtime_hz", realtime_hz is not None))
+        check_options(RunOptions(run_id=run_id))  # as `fleet run --engine memory`: a bad run id is one line
         return run_memory(scenario, out_dir, record=out_dir is not None and record is not False, run_id=run_id,
                           grid_every=grid_every, overwrite=overwrite)
     opts = RunOptions(out_dir=out_dir, in_process=in_process, record=out_dir is not None and record is not False,

@@ -22,6 +22,7 @@ from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import RUN_ID, robot_ids
 from fleet_emu.core.messages import MAX_REALTIME_HZ
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.core.spelling import option
 from fleet_emu.launch import budget
 from fleet_emu.launch.hosts import check_hosts, check_reliable, host_credentials, listen_endpoints
 from fleet_emu.launch.liveness import check_run_id_free
@@ -100,7 +101,7 @@ def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None, 
     ``connect`` (its syntax, and a router answering there within :data:`CONNECT_TIMEOUT` and accepting the
     launcher's credential)."""
     if opts.run_id and not RUN_ID.fullmatch(opts.run_id):
-        raise ConfigError(f"--run-id must be letters, digits, '_', '-' or '.' (not first), at most 100 "
+        raise ConfigError(f"{option('run_id')} must be letters, digits, '_', '-' or '.' (not first), at most 100 "
                           f"(got {opts.run_id!r})")
     check_hosts(hosts, opts.in_process, opts.connect, opts.listen)
     if opts.connect is None:
@@ -111,9 +112,10 @@ def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None, 
         check_reliable("--connect", opts.connect)
     hz = opts.realtime_hz
     if hz is not None and (isinstance(hz, bool) or not isinstance(hz, int | float) or not 0 < hz <= MAX_HZ):
-        raise ConfigError(f"--realtime must be a number of ticks per second > 0 and <= {MAX_HZ:g} (got {hz!r})")
+        raise ConfigError(f"{option('realtime_hz', flag='--realtime')} must be a number of ticks per second > 0 "
+                          f"and <= {MAX_HZ:g} (got {hz!r})")
     if opts.tls_ca is not None and not opts.tls_ca.is_file():
-        raise ConfigError(f"--tls-ca {opts.tls_ca}: no such file")
+        raise ConfigError(f"{option('tls_ca')} {opts.tls_ca}: no such file")
     if opts.connect is None:
         return
     try:

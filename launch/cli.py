@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from fleet_emu.core.errors import ConfigError, FleetError
+from fleet_emu.core.spelling import cli_spelling
 from fleet_emu.core.version import __version__
 from fleet_emu.launch.maps_cli import add_parser as add_maps
 from fleet_emu.launch.maps_cli import cmd_maps
@@ -27,6 +28,9 @@ if TYPE_CHECKING:
     from fleet_emu.launch.signals import Interrupts
 
 DEFAULT_SCENARIO = Path(__file__).resolve().parent / "scenarios" / "default.toml"
+#: What a bare ``fleet`` prints after its help.
+START_HINT = ("`fleet run` starts the default fleet (4 robots exploring the built-in office); "
+              "`fleet COMMAND --help` describes a command.")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -81,9 +85,11 @@ def _add_run(sub: Any) -> None:
     _add_scenario_flags(r)
     _add_engine_flags(r)
     _add_bus_flags(r)
-    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--quiet", action="store_true",
+                   help="no progress bar and no summary table: print only the path of result.json (for scripts)")
     r.add_argument("--grid-every", type=int, metavar="K",
-                   help="Foxglove map/coverage/belief grids in run.mcap every K ticks (default: belief_every)")
+                   help="Foxglove map/coverage/belief grids in run.mcap every K ticks, K from 1 "
+                        "(default: the scenario's belief_every)")
     r.add_argument("--live", metavar="[HOST:]PORT",
                    help="serve the run to Foxglove over WebSocket (host 127.0.0.1 unless given; port 0: one the OS "
                         "picks); prints `live: ws://HOST:PORT` on stderr once up")
@@ -93,34 +99,58 @@ def _add_run(sub: Any) -> None:
 
 def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
     """``fleet run``'s scenario and its overrides."""
-    from fleet_emu.core.node import cell_arg  # here, not at the top: the dispatcher's signal handler is in place
+    from fleet_emu.core.messages import MAX_TTL  # here, not at the top: the dispatcher's signal handler is in place
+    from fleet_emu.core.node import cell_arg
+    from fleet_emu.core.scenario import MAX_ROBOTS
     r.add_argument("scenario_file", nargs="?", type=Path, metavar="SCENARIO",
                    help="a scenario TOML or a run's scenario.json, as --scenario")
     r.add_argument("--scenario", type=Path, help="a scenario TOML, a run's scenario.json, or a shipped scenario's name "
                                                  "(default, connectivity)")
     r.add_argument("--map", help="a built-in or registry map's name (see `fleet maps`), or a ROS map YAML or a "
-                                 "PNG/PGM path (a bare bitmap needs --cell-size: one pixel per cell)")
-    r.add_argument("--robots", type=int)
-    r.add_argument("--allocator", help="allocator name (see `fleet allocators`)")
-    r.add_argument("--sensor-range", type=float, help="sensor range in metres")
-    r.add_argument("--cell-size", type=float, help="metres per cell (default 0.5)")
-    r.add_argument("--seed", type=int)
-    r.add_argument("--start", type=_start, help="start cell ROW,COL, or 'random' (drawn from the seed)")
+                                 "PNG/PGM path (a bare bitmap needs --cell-size: one pixel per cell)"
+                                 + _default("map"))
+    r.add_argument("--robots", type=int, metavar="N", help=f"robots in the fleet, from 1 to {MAX_ROBOTS}"
+                                                           + _default("robots"))
+    r.add_argument("--allocator", help="allocator name (see `fleet allocators`)" + _default("allocator"))
+    r.add_argument("--sensor-range", type=float, metavar="M",
+                   help="sensor range in metres, > 0 and at least one cell" + _default("sensor_range"))
+    r.add_argument("--cell-size", type=float, metavar="M", help="metres per cell, within [0.001, 1000] (default 0.5)")
+    r.add_argument("--seed", type=int, help="the run's seed, from 0 to 2^63-1: a seed reproduces a run exactly"
+                                            + _default("seed"))
+    r.add_argument("--start", type=_start, help="start cell ROW,COL, or 'random' (drawn from the seed) "
+                                                "(default: the map's own start)")
     r.add_argument("--base", action="store_const", const=True, default=None,
                    help="a base station (its own process) at the start cell; see --base-cell")
     r.add_argument("--base-cell", type=cell_arg, metavar="ROW,COL", help="a base station at this cell")
     r.add_argument("--relay", choices=("none", "flood", "tree"),
                    help="multi-hop relaying in the robots: none (default), flood (every robot forwards) or tree")
     r.add_argument("--relay-ttl", type=int, metavar="K",
-                   help="hops left after the first on the messages a robot makes (default 0: one hop)")
-    r.add_argument("--max-ticks", type=int)
-    r.add_argument("--target-coverage", type=float)
+                   help=f"hops left after the first on the messages a robot makes, from 0 to {MAX_TTL} "
+                        "(default 0: one hop)")
+    r.add_argument("--max-ticks", type=int, metavar="N",
+                   help="ticks after which the run ends unfinished, from 1 to 10^9" + _default("max_ticks"))
+    r.add_argument("--target-coverage", type=float, metavar="F",
+                   help="fraction of the free cells at which the run is done, within (0, 1]"
+                        + _default("target_coverage"))
+    r.add_argument("--tick-s", type=float, metavar="S",
+                   help="seconds of simulated time per tick, within (0, 3600]: a robot moves one cell per tick, and "
+                        "the radio's --bandwidth is per second of it (default 1)")
     r.add_argument("--map-sync", action=argparse.BooleanOptionalAction, default=None,
                    help="repair map deltas lost on a lossy radio (the default); --no-map-sync: a lost delta is lost "
                         "(docs/guides/radio.md#map-sync)")
     from fleet_emu.launch.radio_flags import add_radio_flags
 
     add_radio_flags(r)
+
+
+def _default(field: str) -> str:
+    """`` (default: the scenario's; X in the default one)``, X the default scenario's value of ``field``."""
+    from fleet_emu.core.scenario import Scenario
+
+    value = getattr(Scenario.load(DEFAULT_SCENARIO), field)
+    if isinstance(value, dict):
+        value = value.get("type")
+    return f" (default: the scenario's; {value} in the default one)"
 
 
 def _add_engine_flags(r: argparse.ArgumentParser) -> None:
@@ -150,15 +180,16 @@ def _add_bus_flags(r: argparse.ArgumentParser) -> None:
                    help="with --connect: the users file written by `fleet router-config`")
     r.add_argument("--tls-ca", type=Path, metavar="CA.pem", help="with a tls/ --connect: the CA that signed the router")
     r.add_argument("--hosts", type=int, metavar="N",
-                   help="deal the robots round-robin between this machine and N `fleet host`s, waiting for them "
-                        "(replaces the scenario's [hosts]; 0: every robot here)")
+                   help="deal the robots round-robin between this machine and N `fleet host`s, waiting for them, "
+                        "N from 0 to 64 (replaces the scenario's [hosts]; 0: every robot here; default: the "
+                        "scenario's [hosts], none in the default one)")
     r.add_argument("--listen", metavar="ENDPOINT",
                    help="the embedded router's endpoint, one the hosts reach (e.g. tcp/192.0.2.1:7447)")
     r.add_argument("--tls-cert", type=Path, metavar="CERT.pem",
                    help="with a tls/ or quic/ --listen: the embedded router's certificate (signed by a CA)")
     r.add_argument("--tls-key", type=Path, metavar="KEY.pem", help="with --tls-cert: its private key")
     r.add_argument("--host-timeout", type=float, default=None, metavar="S",
-                   help="seconds to wait for the --hosts (default 60)")
+                   help="seconds to wait for the --hosts, > 0 (default 60)")
 
 
 def _add_router_config(sub: Any) -> None:
@@ -203,7 +234,9 @@ def _add_report(sub: Any) -> None:
     rep.add_argument("--no-plots", action="store_true", help="metrics.json and the table only")
     rep.add_argument("--layout", type=Path, metavar="FILE",
                      help="write the Foxglove layout for a recording or a live run (--live) to FILE (JSON)")
-    rep.add_argument("--robots", type=int, metavar="N", help="with --layout: the robots it plots (default 8)")
+    rep.add_argument("--robots", type=int, metavar="N",
+                     help="with --layout: the robots it plots, from 1 to 1024 (default: the run's robots; 8 without "
+                          "a run, for a live one)")
     from fleet_emu.launch.recover import add_parser as add_recover
 
     add_recover(sub)
@@ -221,7 +254,7 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
     return base.override(
         map=args.map, robots=args.robots, allocator=args.allocator, sensor_range=args.sensor_range,
         cell_size=args.cell_size, seed=args.seed, start=args.start, max_ticks=args.max_ticks,
-        target_coverage=args.target_coverage, **radio_overrides(args),
+        target_coverage=args.target_coverage, tick_s=getattr(args, "tick_s", None), **radio_overrides(args),
         base=args.base_cell if args.base_cell is not None else args.base,
         relay=getattr(args, "relay", None), relay_ttl=getattr(args, "relay_ttl", None),
         map_sync=getattr(args, "map_sync", None), hosts=getattr(args, "hosts", None))
@@ -325,8 +358,12 @@ def cmd_report(args: argparse.Namespace) -> int:
 
     if args.layout is not None:
         from fleet_emu.recording.layout import write_layout
+        from fleet_emu.recording.read import recorded_scenario
 
-        write_layout(args.layout, args.robots)
+        robots = args.robots  # given: it wins; else the runs' own (the largest fleet of them), else the default
+        if robots is None and args.paths:
+            robots = max(int(recorded_scenario(p)["robots"]) for p in args.paths)
+        write_layout(args.layout, robots)
         print(args.layout)
     elif args.robots is not None:
         raise ConfigError("--robots goes with --layout")
@@ -359,41 +396,45 @@ def main(argv: list[str] | None = None) -> None:
 
 def serve(argv: list[str] | None, parser: Callable[[], argparse.ArgumentParser],
           handlers: Mapping[str, Handler]) -> NoReturn:
-    """Parse ``argv`` with ``parser()`` (no command: ``run``), run the command and exit with its code: ``run``
-    and ``host`` with SIGINT and SIGTERM turned into requests, the others (``handlers``) with Ctrl-C simply
-    stopping them; an error meant for the user is one line."""
+    """Parse ``argv`` with ``parser()`` (no command: the help, and how to start a fleet), run the command and
+    exit with its code: ``run`` and ``host`` with SIGINT and SIGTERM turned into requests, the others
+    (``handlers``) with Ctrl-C simply stopping them; an error meant for the user is one line."""
     from fleet_emu.launch.signals import Interrupts
 
     interrupts = Interrupts().install()  # first: a signal while parsing or importing is a request too
     command = "run"
-    try:
-        args = parser().parse_args(argv)
-        command = args.command or "run"
-        if args.command is None:
-            args = parser().parse_args(["run", *(argv or [])])
-        if command == "run":
-            code = _run_with_signals(args, interrupts)
-        elif command == "host":
-            from fleet_emu.launch.host import cmd_host
+    with cli_spelling():  # errors name flags, not Python keywords
+        try:
+            args = parser().parse_args(argv)
+            command = args.command or "help"
+            if command == "help":
+                interrupts.restore()
+                parser().print_help()
+                print(f"\n{START_HINT}")
+                code = 0
+            elif command == "run":
+                code = _run_with_signals(args, interrupts)
+            elif command == "host":
+                from fleet_emu.launch.host import cmd_host
 
-            code = cmd_host(args, interrupts)
-        else:
-            interrupts.restore()  # a listing or a report: Ctrl-C simply stops it
-            if interrupts.requested.is_set():
-                raise KeyboardInterrupt
-            code = handlers[command](args)
-    except FleetError as exc:  # every error meant for the user, caught once: one line, its exit code
-        interrupts.restore()
-        _fail(str(exc), code=exc.exit_code)
-    except KeyboardInterrupt:
-        print("fleet: interrupted", file=sys.stderr)
-        code = 130
-    except BrokenPipeError:  # a listing piped into `head`: the reader left, nothing is wrong
-        _quiet_stdout()
-        code = 0
-    finally:
-        if command != "run":
+                code = cmd_host(args, interrupts)
+            else:
+                interrupts.restore()  # a listing or a report: Ctrl-C simply stops it
+                if interrupts.requested.is_set():
+                    raise KeyboardInterrupt
+                code = handlers[command](args)
+        except FleetError as exc:  # every error meant for the user, caught once: one line, its exit code
             interrupts.restore()
+            _fail(str(exc), code=exc.exit_code)
+        except KeyboardInterrupt:
+            print("fleet: interrupted", file=sys.stderr)
+            code = 130
+        except BrokenPipeError:  # a listing piped into `head`: the reader left, nothing is wrong
+            _quiet_stdout()
+            code = 0
+        finally:
+            if command != "run":
+                interrupts.restore()
     if command == "run":
         _ignore_signals_while_exiting()
     raise SystemExit(code)

@@ -360,8 +360,8 @@ def _run_and_write(scenario: Scenario, map_data: MapData, out_dir: Path | None, 
     with contextlib.ExitStack() as stack:
         recording = out_dir / "run.mcap" if record and out_dir is not None else None
         clock = RunClock.now(scenario.tick_s)
-        server = open_live(stack, live, clock)
-        pacer = Pacer(live.hz if live is not None else None)
+        server = open_live(stack, live, clock, robot_ids(scenario.robots))
+        pacer = Pacer(live.hz if live is not None else None, server.first_tick if server is not None else 0.0)
         tap, finish = _recording_tap(stack, scenario, map_data, run_id, recording, grid_every, clock, server)
         fleet = Fleet(scenario, run_id=run_id, tap=tap)
         if out_dir is not None:
@@ -379,6 +379,7 @@ def _run_and_write(scenario: Scenario, map_data: MapData, out_dir: Path | None, 
         try:
             if interrupts is not None and interrupts.requested.is_set():
                 raise KeyboardInterrupt  # a signal before the first tick
+            pacer.wait()  # a live run: the viewers' moment to subscribe before tick 0 (launch/live.py)
             result = fleet.run(on_tick=tick)
         except KeyboardInterrupt:  # result.json of what ran, as the processes engine writes it
             interrupted = True

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.files import write_atomic, write_json
+from fleet_emu.core.spelling import option
 
 __all__ = ["DiskFault", "FolderLock", "claim", "claimed", "disk_fault", "lock_folder", "make_folder", "refuse_held",
            "run_files",
@@ -116,7 +117,8 @@ def refuse_held(out: Path, overwrite: bool) -> None:
     """A ConfigError when ``out`` holds a run and ``overwrite`` is not given (nothing when it does not exist)."""
     found = held_run(out) if out.is_dir() else []
     if found and not overwrite:
-        raise ConfigError(f"--out {out} holds a run ({', '.join(found)}): pass --overwrite to replace it, "
+        raise ConfigError(f"{option('out')} {out} holds a run ({', '.join(found)}): pass "
+                          f"{option('overwrite', 'True')} to replace it, "
                           f"or choose another folder")
 
 
@@ -153,7 +155,8 @@ def claim(out: Path, overwrite: bool = False) -> FolderLock:
                 path.unlink()
     except OSError as exc:
         lock.release()
-        raise ConfigError(f"--out {out}: cannot remove the earlier run's files ({exc.strerror or exc})") from None
+        raise ConfigError(f"{option('out')} {out}: cannot remove the earlier run's files "
+                          f"({exc.strerror or exc})") from None
     except BaseException:
         lock.release()
         raise

@@ -10,7 +10,7 @@ from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
 from rich.progress import Progress as RichProgress
 from rich.table import Table
 
-from fleet_emu.core.radio import radio_label
+from fleet_emu.core.radio import airtime_line, bytes_line, radio_label
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.recording.monitor import Monitor
 from fleet_emu.recording.relaystats import relay_line
@@ -70,7 +70,8 @@ def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
         ("idle robot-ticks", _idle(result)),
         ("connected", "-" if result["connected_fraction"] is None else f"{result['connected_fraction']:.1%}"),
         ("radio msgs", f"sent {radio['sent']}, delivered {radio['delivered']}, lost {radio['dropped_loss']}, "
-                       f"out of range {radio['dropped_signal']}, {radio['bytes_sent'] / 1e6:.2f} MB"),
+                       f"out of range {radio['dropped_signal']}"),
+        ("bytes sent", bytes_line(radio["bytes_sent"], result["robots"], result["ticks"])),
         ("decision ms", f"mean {result['decision_ms']['mean']:.2f}, p95 {result['decision_ms']['p95']:.2f}"),
         ("speed", f"{result['ticks_per_second']} ticks/s ({result['wall_seconds']} s)"),
         ("recording", f"{result['recording']['messages']} messages" if result["recording"]["path"] else "off"),
@@ -82,21 +83,12 @@ def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
         rows.insert(11, ("base connected", _base(result)))
     if result.get("relay"):
         rows.insert(-4, ("relaying", relay_line(result["relay"])))
-    sr = result.get("scenario", {}).get("radio", {})
-    if sr.get("bandwidth") or sr.get("jitter"):  # a radio that charges airtime (netem/medium.py)
-        rows.insert(rows.index(next(r for r in rows if r[0] == "radio msgs")) + 1, ("airtime", _airtime(radio, sr)))
+    air = airtime_line(radio, result.get("scenario", {}).get("radio", {}))
+    if air is not None:
+        rows.insert(rows.index(next(r for r in rows if r[0] == "radio msgs")) + 1, ("airtime", air))
     for k, v in rows:
         t.add_row(k, v)
     return t
-
-
-def _airtime(radio: Mapping[str, Any], sr: Mapping[str, Any]) -> str:
-    """A bandwidth-limited run: the rate, the bytes on the air, the queues and the delay from hand-off to delivery."""
-    d = radio["delay_ticks"]
-    rate = f"{sr['bandwidth']:g} kbit/s" if sr.get("bandwidth") else "unlimited"
-    delay = "-" if d["mean"] is None else f"mean {d['mean']:.2f}, p95 {d['p95']}, max {d['max']}"
-    return (f"{rate}: {radio['airtime_bytes'] / 1e6:.2f} MB on the air, {radio['dropped_queue']} dropped at a full "
-            f"queue, largest queue {radio['queued_max_bytes'] / 1e3:.1f} kB; delay (ticks) {delay}")
 
 
 def _realtime(result: Mapping[str, Any]) -> str:

@@ -196,7 +196,7 @@ class _Run:
         if not opts.in_process and not self.requested.is_set() and fork_server_enabled(opts.fork_server):
             self.sup.start_fork_server(self.work / "scenario.json")  # before any session
         if self.viz is not None:
-            self.viz.live = open_live(stack, opts.live, self.clock)
+            self.viz.live = open_live(stack, opts.live, self.clock, robot_ids(self.scenario.robots))
         self.endpoint = endpoint = opts.connect if opts.connect else self._router(stack)
         login = self.creds or {}
         self.session = stack.enter_context(_closing(zenoh.open(client_config(endpoint, login.get(LAUNCHER)))))

@@ -1,8 +1,10 @@
 """The radio channel as a pure function of links, bundles and a seeded generator (docs/guides/radio.md).
 
 Counting convention: every (message, intended receiver) pair is one transmission, so
-``sent == delivered + dropped_loss + dropped_signal``; ``bytes_sent`` counts each message's encoded size once
-(one radio emission reaches every receiver); the base station, in a run with one, is a receiver like a robot.
+``sent == delivered + dropped_loss + dropped_signal``; ``bytes_sent`` counts each emission's encoded size once
+(its whole envelope as sent, a deflated map message compact; one radio emission reaches every receiver; a message
+dropped at a full queue, or still queued when the run ends, was never emitted), in total and per sender
+(``bytes_by``); the base station, in a run with one, is a receiver like a robot.
 Messages are :class:`~fleet_emu.core.messages.Envelope` s, routed
 by their header; their payloads are never decoded here. A message for one receiver reaches only it, unless it
 may still be relayed (``ttl > 0``, ``agents/relay.py``): a radio emission is heard by everyone in range, and
@@ -36,6 +38,7 @@ class Counters:
     dropped_loss: int = 0
     dropped_signal: int = 0
     bytes_sent: int = 0
+    bytes_by: collections.Counter[str] = dataclasses.field(default_factory=collections.Counter)  # per sender
     delay: collections.Counter[int] = dataclasses.field(default_factory=collections.Counter)  # emissions by delay
 
 
@@ -61,6 +64,7 @@ def links_message(tick: int, seq: int, nodes: tuple[str, ...], strength: np.ndar
         src="netem", tick=tick, seq=seq, robots=nodes[:n], strength=strength[:n, :n].astype(np.float32),
         link=link[:n, :n], connected=bool(connected(link[:n, :n])), sent=c.sent, delivered=c.delivered,
         dropped_loss=c.dropped_loss, dropped_signal=c.dropped_signal, bytes_sent=c.bytes_sent, dropped=dropped,
+        bytes_by=dict(c.bytes_by),
         base_strength=strength[:n, n].astype(np.float32) if has_base else None,
         base_link=link[:n, n].copy() if has_base else None, **airtime(counters, medium))
 
@@ -147,7 +151,9 @@ class Channel:
         """One emission of ``src``'s message (``heard``: :meth:`_heard`): its loss draws and deliveries."""
         c = self.counters
         row, others, others_linked = heard
-        c.bytes_sent += len(msg.encode())
+        size = len(msg.encode())
+        c.bytes_sent += size
+        c.bytes_by[src] += size
         if msg.dst == "*" or msg.ttl > 0:
             receivers, linked = others, others_linked
         else:

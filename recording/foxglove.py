@@ -30,6 +30,7 @@ from __future__ import annotations
 import base64
 import dataclasses
 import json
+from collections.abc import Sequence
 from importlib import resources
 from typing import Any
 
@@ -69,6 +70,14 @@ _BELIEF_RGBA = np.array([[128, 128, 128, 80], [250, 250, 250, 200], [30, 30, 30,
 
 def belief_topic(robot: str) -> str:
     return f"/viz/belief/{robot}"
+
+
+def live_topics(robots: Sequence[str]) -> list[tuple[str, str]]:
+    """Every (topic, schema) the fold of a run of ``robots`` writes, in a stable order: what a live server
+    advertises from its start, before any client can subscribe."""
+    return [(TOPIC_SCENE, "foxglove.SceneUpdate"), (TOPIC_TRUTH, "foxglove.Grid"), (TOPIC_COVERAGE, "foxglove.Grid"),
+            *((belief_topic(r), "foxglove.Grid") for r in robots), (TOPIC_LOG, "foxglove.Log"),
+            (TOPIC_STATS, SCHEMA_STATS)]
 
 
 def schema_text(name: str) -> bytes:

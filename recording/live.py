@@ -7,6 +7,12 @@ SDK's typed message (``foxglove.Grid``, ``foxglove.SceneUpdate``, ``foxglove.Log
 ``/viz/stats``, as JSON on a channel with its JSON schema. Logging never waits for a viewer: the SDK queues each
 client's messages (dropping the oldest for a slow one). The grids are latched: a client that subscribes mid-run
 gets the latest of each at once.
+
+Every channel of the run (:func:`~fleet_emu.recording.foxglove.live_topics`: the scene, the maps, each robot's
+belief, the log, the stats) exists before the server starts: a client is advertised all of them in the one
+advertisement it gets on connecting, and subscribes to them before the run logs anything. (A channel made
+mid-run is advertised to the connected clients while they may still be connecting; the SDK then lost some of
+their subscriptions, ``attempted to subscribe to unknown channel``, and the channel stayed dead for them.)
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ import base64
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import foxglove
@@ -93,13 +99,17 @@ class LiveServer(ServerListener):
     """The run's Foxglove WebSocket server (its own SDK context, so nothing else logs into it); it is its own
     listener, to latch the grids."""
 
-    def __init__(self, host: str, port: int, clock: RunClock, name: str = "fleet-emu") -> None:
+    def __init__(self, host: str, port: int, clock: RunClock, name: str = "fleet-emu",
+                 topics: Sequence[tuple[str, str]] = ()) -> None:
         self.clock = clock
         self.context = foxglove.Context()
         self._channels: dict[str, Any] = {}
+        for topic, schema in topics:  # advertised from the start: see the module's docstring
+            self._channel(topic, schema)
         self._latest: dict[str, tuple[Any, int]] = {}  # latched topics (the grids): last message, log time
         self._lock = threading.Lock()
         self.failed = False
+        self.first_tick = 0.0  # the monotonic time before which the run's first tick must not come (launch/live.py)
         self.published = 0
         self.watched = False  # a viewer subscribed at some point
         self.server = foxglove.start_server(name=name, host=host, port=port, context=self.context,

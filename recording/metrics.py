@@ -44,6 +44,7 @@ from fleet_emu.core.messages import (
     TxBundle,
     WorldState,
 )
+from fleet_emu.core.radio import bytes_per_robot_tick
 from fleet_emu.core.reach import base_connected
 from fleet_emu.recording.first_seen import FirstSeen
 from fleet_emu.recording.monitor import Monitor, base_graph
@@ -115,7 +116,7 @@ class RunMetrics:
         self.trajectory: dict[str, list[tuple[int, tuple[int, int]]]] = {r: [] for r in self.robots}
         self.pair_ticks: dict[tuple[str, str], int] = {}
         self.tx_msgs = dict.fromkeys(self.robots, 0)
-        self.tx_bytes = dict.fromkeys(self.robots, 0)
+        self._bytes_sent = 0  # netem's cumulative bytes sent at the last Links folded
         self.tx_bundles = dict.fromkeys(self.robots, 0)
         self.rx_msgs = dict.fromkeys(self.robots, 0)
         self.kinds: dict[str, int] = {}
@@ -140,9 +141,6 @@ class RunMetrics:
             except DecodeError:
                 self.undecodable += 1
                 return
-        if isinstance(msg, TxBundle) and msg.src in self.tx_bytes:  # (the monitor folds it too when relaying)
-            self.tx_bytes[msg.src] += len(data)
-            self.series.tx_bytes[msg.tick] = self.series.tx_bytes.get(msg.tick, 0) + len(data)
         if isinstance(msg, WorldState) and msg.src == "world":
             self._state(msg)
         elif isinstance(msg, Links) and msg.src == "netem":
@@ -180,6 +178,9 @@ class RunMetrics:
 
     def _links(self, lk: Links) -> None:
         t = lk.tick
+        if lk.bytes_sent >= self._bytes_sent:  # the bytes emitted this tick (netem's counters are cumulative)
+            self.series.tx_bytes[t] = self.series.tx_bytes.get(t, 0) + lk.bytes_sent - self._bytes_sent
+            self._bytes_sent = lk.bytes_sent
         link = np.asarray(lk.link, dtype=bool)
         strength = np.asarray(lk.strength, dtype=float)
         n = len(lk.robots)
@@ -323,7 +324,8 @@ class RunMetrics:
         """metrics.json's ``radio_detail``: messages sent, delivered and dropped, by kind and per robot."""
         lk = self.monitor.links
         sent = lk.sent if lk else 0
-        bundles = sum(self.tx_bundles.values())
+        ticks = self.monitor.tick
+        by = lk.bytes_by if lk and (lk.bytes_by or not lk.bytes_sent) else None  # None: a recording before it
         return {
             "sent": sent,
             "delivered": lk.delivered if lk else 0,
@@ -332,11 +334,13 @@ class RunMetrics:
             "by_kind": dict(sorted(self.kinds.items())),
             "per_robot": {r: {
                 "msgs_sent": self.tx_msgs[r],
-                "bytes_sent": self.tx_bytes[r],
-                "bytes_per_tick": _r(self.tx_bytes[r] / self.tx_bundles[r], 2) if self.tx_bundles[r] else None,
+                "bytes_sent": by.get(r, 0) if by is not None else None,
+                "bytes_per_tick": _r(by.get(r, 0) / ticks, 2) if by is not None and ticks else None,
                 "msgs_received": self.rx_msgs[r],
             } for r in self.robots},
-            "bytes_per_robot_per_tick": _r(sum(self.tx_bytes.values()) / bundles, 2) if bundles else None,
+            "bytes_sent": lk.bytes_sent if lk else 0,
+            "bytes_per_robot_per_tick": _r(rate, 2) if (rate := bytes_per_robot_tick(
+                lk.bytes_sent if lk else 0, len(self.robots), ticks)) is not None else None,
         }
 
     def _decision_time(self) -> dict[str, Any]:

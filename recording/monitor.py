@@ -69,6 +69,20 @@ def airtime_result(lk: Links | None) -> dict[str, Any]:
             "queued_max_bytes": lk.queued_max_bytes if lk else 0, "delay_ticks": delay}
 
 
+def allocator_params(scenario: dict[str, Any]) -> dict[str, Any]:
+    """``result.json``'s ``allocator_params``: every parameter the allocator ran with, defaults filled in
+    (:func:`fleet_emu.agents.brain.effective_allocator`); the scenario's table as given when its allocator cannot
+    be loaded here (a report, on another machine, of a run whose plugin is not installed)."""
+    from fleet_emu.agents.brain import effective_allocator  # at the end of a run only: the brain is heavy
+    from fleet_emu.core.errors import FleetError
+    from fleet_emu.core.scenario import Scenario
+
+    try:
+        return effective_allocator(Scenario.from_dict(scenario))
+    except FleetError:
+        return dict(scenario["allocator"])
+
+
 @dataclasses.dataclass
 class Monitor:
     """Folds the run's messages; ``result()`` gives the ``result.json`` keys (docs/reference/result.md)."""
@@ -231,7 +245,7 @@ class Monitor:
             "seed": scenario["seed"],
             "map": scenario["map"],
             "allocator": scenario["allocator"]["type"],
-            "allocator_params": scenario["allocator"],
+            "allocator_params": allocator_params(scenario),
             "robots": scenario["robots"],
             "loss": scenario["radio"]["loss"],
             "comm": scenario["radio"]["comm"],

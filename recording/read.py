@@ -100,6 +100,31 @@ def load_recording(path: str | Path) -> Run:
         return _read(f, mcap)
 
 
+def recorded_scenario(path: str | Path) -> dict[str, Any]:
+    """The scenario a recording (RUN_DIR or RUN.mcap) was made of, from its ``scenario`` metadata, without folding
+    its messages (the layout of a run needs its robots, not its metrics). ReportError as :func:`load_recording`."""
+    mcap = resolve(Path(path))
+    try:
+        with open(mcap, "rb") as f:
+            if f.read(len(MAGIC)) != MAGIC:
+                raise ReportError(f"{mcap} is not an MCAP file")
+            f.seek(0)
+            for rec in StreamReader(f, record_size_limit=max(mcap.stat().st_size, 1)).records:
+                if isinstance(rec, Metadata) and rec.name == SCENARIO_METADATA:
+                    _versions(rec.metadata, mcap)
+                    scenario = json.loads(rec.metadata.get("scenario", "null"))
+                    if not isinstance(scenario, dict):
+                        raise ReportError(f"{mcap}: unreadable scenario metadata")
+                    return scenario
+    except OSError as exc:
+        raise ReportError(f"cannot read {mcap}: {exc.strerror or exc}") from None
+    except ReportError:
+        raise
+    except Exception:  # a cut file ends inside a record before the metadata
+        pass
+    raise ReportError(f"{mcap} has no '{SCENARIO_METADATA}' metadata: not a fleet recording")
+
+
 def _read(f: BinaryIO, mcap: Path) -> Run:
     """Feed the file's msgpack messages to the fold, in file order (those before the scenario wait for it)."""
     channels: dict[int, Channel] = {}

@@ -6,7 +6,7 @@ from typing import Any
 
 from rich.table import Table
 
-from fleet_emu.core.radio import radio_label
+from fleet_emu.core.radio import airtime_line, bytes_line, radio_label
 from fleet_emu.recording.read import Run
 from fleet_emu.recording.relaystats import relay_line
 
@@ -55,8 +55,9 @@ def summary_table(run: Run) -> Table:
         ("radio msgs", f"sent {rd['sent']}, delivered {rd['delivered']}, lost {rd['dropped']['loss']}, "
                        f"out of range {rd['dropped']['signal']}"),
         *([("relaying", relay_line(m["relay"]))] if m.get("relay") else []),
-        ("tx bytes/robot/tick", f"{fmt(rd['bytes_per_robot_per_tick'])} "
-                                f"({_each({r: v['bytes_per_tick'] for r, v in per_robot.items()})})"),
+        ("bytes sent", f"{bytes_line(m['radio']['bytes_sent'], m['robots'], m['ticks'])} "
+                       f"({_each({r: v['bytes_per_tick'] for r, v in per_robot.items()})})"),
+        *([("airtime", air)] if (air := airtime_line(m["radio"], m["scenario"].get("radio", {}))) else []),
         ("decision ms", f"mean {fmt(dt['mean_ms'])}, p50 {fmt(dt['p50_ms'])}, p95 {fmt(dt['p95_ms'])}, "
                         f"max {fmt(dt['max_ms'])} ({dt['calls']} calls)"),
         ("recording", f"{m['recording']['messages']} messages"),

@@ -39,22 +39,29 @@ def add_parser(sub: Any) -> None:
     s.add_argument("--maps", type=Path, help="where the study's map files are, when it names them by path "
                         "(default: $FLEET_MAPS); a registry map is found by name (`fleet maps`)")
     s.add_argument("--list", action="store_true", help="list the studies shipped with fleet-emu")
-    s.add_argument("--limit", type=int, help="run only the first N points not yet done (a quick look)")
+    s.add_argument("--limit", type=int, metavar="N",
+                   help="run only N more runs, spread over the grid: every allocator at settings far apart, each "
+                        "point's first seed before any second (a quick look; a later call continues)")
+    s.add_argument("--quick", action="store_true",
+                   help="a quick look: one run of every grid point (its first seed), as --limit <points>")
     s.add_argument("--seeds", type=int, metavar="N",
                    help="run only the study's first N seeds of every point (a quick look; a later call completes it)")
     s.add_argument("--baseline", help="report: the allocator to compare with (default: the study's)")
     s.add_argument("--no-plots", action="store_true", help="report: the tables only")
+    s.add_argument("--format", choices=("table", "csv", "markdown"), default=None,
+                   help="report: the tables fitted to the terminal (table, the default; full width when piped), or "
+                        "as CSV or Markdown on standard output (the other lines on standard error)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.add_argument("--overwrite", action="store_true", help="rerun: replace the run that --out DIR holds")
 
 
 #: The options each action of ``fleet sweep`` takes (the rest are refused, not ignored).
-USES = {"sweep": {"out", "jobs", "dask", "maps", "limit", "seeds", "quiet"},
-        "report": {"baseline", "no_plots", "seeds"},
+USES = {"sweep": {"out", "jobs", "dask", "maps", "limit", "quick", "seeds", "quiet"},
+        "report": {"baseline", "no_plots", "seeds", "format"},
         "rerun": {"out", "maps", "overwrite", "quiet"}}
-OPTIONS = {"out": "--out", "jobs": "--jobs", "dask": "--dask", "maps": "--maps", "limit": "--limit",
+OPTIONS = {"out": "--out", "jobs": "--jobs", "dask": "--dask", "maps": "--maps", "limit": "--limit", "quick": "--quick",
            "seeds": "--seeds", "baseline": "--baseline", "no_plots": "--no-plots", "quiet": "--quiet",
-           "overwrite": "--overwrite"}
+           "overwrite": "--overwrite", "format": "--format"}
 
 
 def refuse_unused(args: argparse.Namespace, action: str) -> None:
@@ -82,7 +89,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             raise ConfigError("usage: fleet sweep report RESULTS (a sweep's --out directory or its results.parquet)")
         from fleet_emu.sweep.report import report
 
-        report(Path(args.args[1]), baseline=args.baseline, plots=not args.no_plots, seeds=args.seeds)
+        report(Path(args.args[1]), baseline=args.baseline, plots=not args.no_plots, seeds=args.seeds,
+               fmt=args.format or "table")
         return 0
     if action == "rerun":
         if len(args.args) != 3:
@@ -96,14 +104,15 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.out is None:
         raise ConfigError("fleet sweep needs --out DIR (where the results go)")
     return sweep(args.args[0], args.out, jobs=args.jobs, dask=args.dask, maps=args.maps, limit=args.limit,
-                 seeds=args.seeds, quiet=args.quiet)
+                 seeds=args.seeds, quiet=args.quiet, quick=args.quick)
 
 
 def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | None = None, maps: Path | None = None,
-          limit: int | None = None, seeds: int | None = None, quiet: bool = False) -> int:
+          limit: int | None = None, seeds: int | None = None, quiet: bool = False, quick: bool = False) -> int:
     """Run a study into ``out``, resuming what is there; the exit code (see the module docstring)."""
     from fleet_emu.sweep.execute import connect_dask
-    from fleet_emu.sweep.study import Study
+    from fleet_emu.sweep.spread import spread
+    from fleet_emu.sweep.study import Study, param_label
 
     study = Study.load(study_name)
     if jobs is not None and jobs < 1:
@@ -112,9 +121,15 @@ def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | No
         raise ConfigError(f"--limit must be at least 1 (got {limit})")
     if seeds is not None and seeds < 1:
         raise ConfigError(f"--seeds must be at least 1 (got {seeds})")
+    if quick and limit is not None:
+        raise ConfigError("--quick is --limit <the grid's points>: give one of them")
     points = study.points(maps)
     if seeds is not None:
         points = [p for p in points if p.params["seed"] in study.seeds[:seeds]]
+    if quick:
+        limit = len(points) // len(study.seeds[:seeds] if seeds else study.seeds)
+    if limit is not None:
+        points = spread(points, {k: [param_label(v) for v in vs] for k, vs in study.grid.items()}, study.seeds)
     with contextlib.ExitStack() as stack:
         client = stack.enter_context(connect_dask(dask)) if dask else None  # before anything is written
         from fleet_emu.launch.outdir import lock_folder, make_folder

@@ -1,5 +1,10 @@
 """The figures of ``fleet sweep report`` (matplotlib, Agg): time to target vs robot count with 95 % confidence
-bands, mean coverage vs tick, time vs loss and time vs bandwidth; one line per allocator."""
+bands, mean coverage vs tick, time vs loss and time vs bandwidth; one line per allocator.
+
+An interval says how many seeds it rests on (in the legend) and is never drawn below 0 ticks; with one seed a point
+has none. Coverage is in percent, as in ``fleet report``'s plots, with one panel per robot count when the study
+has several (a mean over robot counts would mix fleets that explore at different speeds). Titles are short enough
+to fit their panel; what a figure averages is said in its axis labels."""
 
 from __future__ import annotations
 
@@ -75,10 +80,19 @@ def _time_line(ax: Any, alloc: str, runs: list[dict[str, Any]], x_key: str, dodg
         return False
     order = np.argsort(xs)
     x, m, h = np.array(xs)[order], np.array(mean)[order], np.nan_to_num(np.array(half)[order])
-    ax.errorbar(x, m, yerr=h, marker="o", capsize=4, label=f"{alloc} ({sum(n)} runs reached it)")
+    low = np.minimum(h, m)  # never below 0 ticks
+    ax.errorbar(x, m, yerr=[low, h], marker="o", capsize=4, label=f"{alloc} ({seeds_label(n)})")
     if len(x) > 1:
-        ax.fill_between(x, m - h, m + h, alpha=0.2)
+        ax.fill_between(x, m - low, m + h, alpha=0.2)
     return True
+
+
+def seeds_label(n: list[int]) -> str:
+    """What a line's intervals rest on: ``CI of 5 seeds``, ``CI of 2-5 seeds``; one seed has no interval."""
+    lo, hi = min(n), max(n)
+    if hi == 1:
+        return "1 seed, no CI"
+    return f"CI of {lo} seeds" if lo == hi else f"CI of {lo}-{hi} seeds"
 
 
 def _x_axis(ax: Any, xs: list[float], integer: bool) -> None:
@@ -112,21 +126,32 @@ def _time_vs_bandwidth(rows: list[dict[str, Any]], out: Path, plt: Any) -> Path:
 
 
 def _coverage(rows: list[dict[str, Any]], out: Path, plt: Any) -> Path:
-    """Mean coverage against tick per allocator (a run that ended holds its last coverage)."""
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for (alloc,), runs in by(rows, "param.allocator").items():
-        curves = [np.array(json.loads(r["curve"]), dtype=float) for r in runs if r.get("curve")]
-        if not curves:
-            continue
-        every = int(runs[0].get("curve_every") or 1)
-        n = max(len(c) for c in curves)
-        padded = np.array([np.pad(c, (0, n - len(c)), mode="edge") for c in curves])
-        ax.plot(np.arange(n) * every, padded.mean(axis=0), label=f"{alloc} ({len(curves)} runs)")
-    ax.set_title("Coverage against tick (mean over the runs; a run that ended holds its last coverage)")
-    ax.set_xlabel("tick")
-    ax.set_ylabel("coverage (mean over runs)")
-    ax.grid(alpha=0.3)
-    ax.legend()
+    """Mean coverage (%) against tick, a curve per allocator, a panel per robot count (a run that ended holds its
+    last coverage)."""
+    panels = by(rows, "robots")
+    cols = min(len(panels), 5)
+    grid = (len(panels) + cols - 1) // cols
+    fig, axes = plt.subplots(grid, cols, figsize=(3.2 * cols + 1.5, 3.0 * grid + 0.8), squeeze=False,
+                             sharey=True)
+    for ax, ((robots,), runs) in zip(axes.flat, panels.items(), strict=False):
+        for (alloc,), pts in by(runs, "param.allocator").items():
+            curves = [np.array(json.loads(r["curve"]), dtype=float) for r in pts if r.get("curve")]
+            if not curves:
+                continue
+            every = int(pts[0].get("curve_every") or 1)
+            n = max(len(c) for c in curves)
+            padded = np.array([np.pad(c, (0, n - len(c)), mode="edge") for c in curves])
+            ax.plot(np.arange(n) * every, 100 * padded.mean(axis=0), label=f"{alloc} ({len(curves)} runs)")
+        ax.set_title(f"{robots} robot{'s' if robots != 1 else ''}" if len(panels) > 1 else "Coverage by tick")
+        ax.set(xlabel="tick", ylim=(0, 102))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="x-small")
+    for ax in axes.flat[len(panels):]:
+        ax.set_visible(False)
+    for row in axes:
+        row[0].set_ylabel("coverage (%, mean of runs)")
+    if len(panels) > 1:
+        fig.suptitle("Coverage by tick, per robot count")
     return _save(fig, out / "coverage_vs_tick.png")
 
 

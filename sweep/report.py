@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.radio import bytes_per_robot_tick
 from fleet_emu.sweep.execute import PARQUET
 
 GROUP = ("map", "comm", "loss_applied", "bandwidth", "map_sync", "robots")
@@ -97,14 +98,16 @@ def missed_coverage(row: dict[str, Any]) -> float:
     return 100.0 * row["coverage"]
 
 
-def airtime_kb(row: dict[str, Any]) -> float:
-    """Kilobytes on the air per robot-tick (``radio.airtime_bytes`` over ticks and robots)."""
-    ticks, robots, air = row.get("ticks"), row.get("robots"), row.get("radio.airtime_bytes")
-    return air / 1e3 / (ticks * robots) if ticks and robots and air is not None else math.nan
+def sent_kb(row: dict[str, Any]) -> float:
+    """Kilobytes sent per robot-tick: ``radio.bytes_sent`` over robots and ticks
+    (:func:`fleet_emu.core.radio.bytes_per_robot_tick`, the rate ``fleet report`` shows)."""
+    ticks, robots, sent = row.get("ticks"), row.get("robots"), row.get("radio.bytes_sent")
+    rate = bytes_per_robot_tick(sent, int(robots), int(ticks)) if ticks and robots and sent is not None else None
+    return math.nan if rate is None else rate / 1e3
 
 
 METRICS: dict[str, Callable[[dict[str, Any]], float]] = {
-    "airtime_kb": airtime_kb,
+    "sent_kb": sent_kb,
     "ticks": time_to_target, "moves": moves, "connected_pct": connected_pct,
     "coverage_pct": lambda r: 100.0 * r["coverage"] if r.get("coverage") is not None else math.nan,
     "base_connected_pct": base_connected_pct, "missed_coverage_pct": missed_coverage,
@@ -190,10 +193,18 @@ def summary(rows: list[dict[str, Any]], baseline: str | None, replicates: Iterab
     return lines
 
 
-def report(results: Path, baseline: str | None = None, plots: bool = True, seeds: int | None = None) -> None:
+def report(results: Path, baseline: str | None = None, plots: bool = True, seeds: int | None = None,
+           fmt: str = "table") -> None:
     """Print the tables (and draw the figures) of a sweep's results; with ``seeds``, only the runs of the
-    study's first N seeds (every point then has the same seeds)."""
+    study's first N seeds (every point then has the same seeds); ``fmt``: how the tables are printed
+    (:mod:`fleet_emu.sweep.tables`: fitted to the terminal, or ``csv`` / ``markdown``, the other lines then on
+    standard error)."""
     from rich.console import Console
+
+    from fleet_emu.sweep.tables import FORMATS, show
+
+    if fmt not in FORMATS:
+        raise ConfigError(f"--format must be one of {', '.join(FORMATS)} (got {fmt!r})")
 
     rows, study, out = load(results)
     if seeds is not None:
@@ -205,21 +216,20 @@ def report(results: Path, baseline: str | None = None, plots: bool = True, seeds
     allocators = sorted({str(r["param.allocator"]) for r in rows if r.get("param.allocator") is not None})
     head = study.get("study", {})
     baseline = baseline or head.get("baseline") or (allocators[0] if allocators else None)
-    console = Console()
-    if not console.is_terminal:
-        console = Console(width=180)
+    tables = Console()
+    console = tables if fmt == "table" else Console(stderr=True)  # csv, markdown: only the tables on stdout
     console.print(f"[bold]{head.get('name', out.name)}[/bold]: {len(rows)} runs, {failed} failed; "
                   f"baseline {baseline}" + (f"; the first {seeds} seeds" if seeds else ""))
     replicates = head.get("replicates", [])
     lines = summary(rows, baseline, replicates)
-    console.print(_summary_table(lines, baseline, axes(rows, replicates)))
+    show(tables, _summary_table(lines, baseline, axes(rows, replicates)), fmt)
     _odd_runs(console, rows, out)
     paper = study.get("paper", {})
     if paper:  # the paper's rows compare with the study's own baseline (the paper's), whatever --baseline says
         base = head.get("baseline") or baseline
         base_lines = lines if base == baseline else summary(rows, base, replicates)
-        console.print(_paper_table(paper, ok, base_lines, base))
-        _claims(console, study, rows, base_lines, base, out)
+        show(tables, _paper_table(paper, ok, base_lines, base), fmt)
+        _claims(console, tables, fmt, study, rows, base_lines, base, out)
     if plots and ok:
         from fleet_emu.sweep.plots import draw
 
@@ -227,14 +237,15 @@ def report(results: Path, baseline: str | None = None, plots: bool = True, seeds
             console.print(f"wrote {path}")
 
 
-def _claims(console: Any, study: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict[str, Any]],
-            baseline: str | None, out: Path) -> None:
-    """The ``[[paper.claims]]`` judged (:mod:`fleet_emu.sweep.claims`): a table, and ``claims.json`` in ``out``."""
+def _claims(console: Any, tables: Any, fmt: str, study: dict[str, Any], rows: list[dict[str, Any]],
+            lines: list[dict[str, Any]], baseline: str | None, out: Path) -> None:
+    """The ``[[paper.claims]]`` judged (:mod:`fleet_emu.sweep.claims`): a table (on ``tables``, in ``fmt``), and
+    ``claims.json`` in ``out`` (said on ``console``)."""
     from fleet_emu.sweep import claims
 
     judged = claims.evaluate(study, rows, lines, baseline)
     if judged:
-        console.print(claims.table(judged, str(study.get("paper", {}).get("source", ""))))
+        show(tables, claims.table(judged, str(study.get("paper", {}).get("source", ""))), fmt)
         console.print(f"wrote {claims.write_json(judged, out / 'claims.json')}")
 
 
@@ -273,14 +284,13 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None, extra: tup
     failed = any(ln["failed"] for ln in lines)  # a column only when a run failed
     rated = any(ln.get("bandwidth") for ln in lines)  # and one only for studies of a limited radio
     t = Table(title="mean ± std per allocator (time: ticks to the target, runs that reached it; missed: the "
-                    "final coverage of the runs that did not" + ("; air kB: kilobytes on the air per robot-tick)"
+                    "final coverage of the runs that did not" + ("; sent kB: kilobytes sent per robot-tick)"
                                                                  if rated else ")"))
     for col in ("map", "radio", "robots", *(k[6:] for k in extra), "allocator", "reached",
                 *(["failed"] if failed else []), "time",
                 f"vs {baseline}", "paired Δ ± s.e.", "missed: coverage %", "moves", "connected %",
-                *(["air kB"] if rated else []), *(["base connected %"] if base else [])):
-        t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left",
-                     no_wrap=col == "radio")
+                *(["sent kB"] if rated else []), *(["base connected %"] if base else [])):
+        t.add_column(col, justify="right" if col not in ("map", "radio", "allocator") else "left")
     for ln in lines:
         t.add_row(Path(str(ln["map"])).stem, _radio(ln), str(ln["robots"]), *(str(ln[k]) for k in extra),
                   str(ln["allocator"]),
@@ -288,7 +298,7 @@ def _summary_table(lines: list[dict[str, Any]], baseline: str | None, extra: tup
                   "-" if math.isnan(ln["vs_baseline_pct"]) else f"{ln['vs_baseline_pct']:+.1f} %",
                   "-" if math.isnan(ln["paired"][0]) else f"{ln['paired'][0]:+.1f} ± {ln['paired'][1]:.1f}",
                   _fmt(ln["missed_coverage_pct"]), _fmt(ln["moves"]), _fmt(ln["connected_pct"]),
-                  *([_fmt(ln["airtime_kb"], 2)] if rated else []),
+                  *([_fmt(ln["sent_kb"], 2)] if rated else []),
                   *([_fmt(ln["base_connected_pct"])] if base else []))
     return t
 

@@ -21,3 +21,15 @@ def test_the_pacer_caps_ticks_per_second_and_does_not_burst_after_a_late_tick(mo
     assert p.delay() == 0.0
     assert p.delay() == pytest.approx(0.25)
     assert Pacer(None).delay() == 0.0 and Pacer(0.0).delay() == 0.0
+
+
+def test_no_tick_before_first_with_or_without_a_cap(monkeypatch: pytest.MonkeyPatch) -> None:
+    now = [100.0]
+    monkeypatch.setattr(pace.time, "monotonic", lambda: now[0])
+    free = Pacer(None, first=100.5)  # a live run's first tick half a second after its live: line
+    assert free.delay() == pytest.approx(0.5)
+    now[0] = 101.0
+    assert free.delay() == 0.0 and free.delay() == 0.0  # then no cap
+    now[0] = 100.0
+    capped = Pacer(4.0, first=100.5)
+    assert capped.delay() == pytest.approx(0.5) and capped.delay() == pytest.approx(0.75)

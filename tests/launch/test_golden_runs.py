@@ -1,5 +1,6 @@
 """Fixed memory-engine runs give the result recorded on main before the incremental frontier clustering
-(recorded on main at be5c9a7, and again at fab62f8, whose map sync changed lossy runs):
+(recorded on main at be5c9a7, and again at fab62f8, whose map sync changed lossy runs; ``allocator_params``
+later became every effective parameter, the only key that changed):
 ``result.json``'s deterministic keys, and a digest of every command and every radio payload of the run, are
 identical. Regenerate (only for a deliberate behaviour change) with
 ``python -m tests.launch.test_golden_runs``."""

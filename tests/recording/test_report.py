@@ -82,15 +82,15 @@ def test_metrics_fold_on_hand_made_messages() -> None:
         link = np.array([[False, linked], [linked, False]])
         return Links(src="netem", tick=tick, seq=0, robots=("r0", "r1"), strength=np.full((2, 2), 3.0, np.float32),
                      link=link, connected=linked, sent=4 * (tick + 1), delivered=3, dropped_loss=1,
-                     dropped_signal=4 * tick, bytes_sent=100)
+                     dropped_signal=4 * tick, bytes_sent=len(beacon.encode()), bytes_by={"r0": len(beacon.encode())})
 
+    beacon = seal(RadioMsg(PoseBeacon(cell=(1, 1))), "r0", 0, 0)  # the one emission: its envelope counts
     feed("ctl/ready/r0", Ready(src="r0", tick=0, seq=0, role="agent", pid=11))
     feed("world/obs/r0", obs("r0", 0, (1, 1), [8, 9, 15]))
     feed("world/obs/r1", obs("r1", 0, (3, 5), [9, 19, 26]))
     feed("world/state", WorldState(src="world", tick=0, seq=0, poses={"r0": (1, 1), "r1": (3, 5)},
                                    live=("r0", "r1"), coverage=0.5, path_length={"r0": 0, "r1": 0}))
     feed("netem/links", links(0, True))
-    beacon = seal(RadioMsg(PoseBeacon(cell=(1, 1))), "r0", 0, 0)
     tx0 = TxBundle(src="r0", tick=0, seq=0, msgs=(beacon,))
     feed("radio/tx/r0", tx0)
     feed("radio/tx/r1", TxBundle(src="r1", tick=0, seq=0, msgs=()))
@@ -121,7 +121,7 @@ def test_metrics_fold_on_hand_made_messages() -> None:
     assert r["connectivity"]["pair_link_fraction"] == {"r0-r1": 0.5}
     rd = r["radio_detail"]
     assert rd["sent"] == 8 and rd["dropped"] == {"loss": 1, "signal": 4} and rd["by_kind"] == {"pose": 1}
-    assert rd["per_robot"]["r0"]["msgs_sent"] == 1 and rd["per_robot"]["r0"]["bytes_sent"] == len(tx0.encode())
+    assert rd["per_robot"]["r0"]["msgs_sent"] == 1 and rd["per_robot"]["r0"]["bytes_sent"] == len(beacon.encode())
     assert rd["per_robot"]["r1"]["msgs_received"] == 1
     dt = r["decision_time"]
     assert dt["calls"] == 3 and dt["mean_ms"] == 2.0 and dt["per_robot_mean_ms"] == {"r0": 2.0, "r1": 2.0}

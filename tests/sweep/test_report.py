@@ -168,4 +168,4 @@ def test_the_figures_have_titles_and_one_robot_count_a_narrow_axis(tmp_path: Pat
     assert ax.get_title() == "Time to the target against the robot count"
     assert ax.get_xlim() == (1.0, 3.0) and [t.get_text() for t in ax.get_xticklabels()] == ["2"]
     assert figures["time_vs_loss.png"].axes[0].get_title() == "Time to the target against the loss"
-    assert figures["coverage_vs_tick.png"].axes[0].get_title().startswith("Coverage against tick")
+    assert figures["coverage_vs_tick.png"].axes[0].get_title() == "Coverage by tick"  # one robot count: one panel

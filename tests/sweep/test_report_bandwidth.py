@@ -1,5 +1,5 @@
 """The sweep report of a bandwidth study, on hand-made rows: grouped by the radio's rate (absent from an
-unlimited run's scenario), kilobytes on the air per robot-tick, and the time against bandwidth figure."""
+unlimited run's scenario), kilobytes sent per robot-tick, and the time against bandwidth figure."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from tests.sweep.test_report import row
 
 
 def _rated(alloc: str, ticks: int, bandwidth: float | None, i: int) -> dict:
-    r = row(alloc, 2, ticks) | {"id": str(i), "radio.airtime_bytes": 2 * ticks * 1500, "curve": "[0.5, 0.99]",
+    r = row(alloc, 2, ticks) | {"id": str(i), "radio.bytes_sent": 2 * ticks * 1500, "curve": "[0.5, 0.99]",
                                 "curve_every": 5}
     return r | ({"scenario.radio.bandwidth": bandwidth} if bandwidth is not None else {})
 
@@ -26,7 +26,7 @@ def test_a_bandwidth_study_is_grouped_by_rate_with_its_bytes(tmp_path: Path,
     write_tables(rows, tmp_path)
     report(tmp_path, baseline="nearest", plots=True)
     text = capsys.readouterr().out
-    assert "full, loss 0, 16 kbit/s" in text and "air kB" in text
+    assert "full, loss 0, 16 kbit/s" in text and "sent kB" in text
     assert "310.0 ± 14.1" in text and "105.0 ± 7.1" in text  # nearest limited, unlimited: two groups
     assert "1.50 ± 0.00" in text  # 1500 bytes per robot-tick
     assert (tmp_path / "time_vs_bandwidth.png").stat().st_size > 1000

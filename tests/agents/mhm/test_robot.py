@@ -190,7 +190,7 @@ def test_an_envelope_from_the_base_is_refused_by_a_team_without_it() -> None:
 
 
 def test_mhm_needs_a_base_and_relays_on_the_tree_by_default() -> None:
-    with pytest.raises(ConfigError, match="needs --base"):
+    with pytest.raises(ConfigError, match="needs base=True"):
         Scenario().override(allocator="mhm")
     s = Scenario().override(allocator="mhm", base=True)
     assert s.plans_at_base and s.relay == "tree" and s.relay_ttl == 16 and s.stall_ticks == 200
