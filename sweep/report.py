@@ -242,6 +242,7 @@ def _claims(console: Any, tables: Any, fmt: str, study: dict[str, Any], rows: li
     """The ``[[paper.claims]]`` judged (:mod:`fleet_emu.sweep.claims`): a table (on ``tables``, in ``fmt``), and
     ``claims.json`` in ``out`` (said on ``console``)."""
     from fleet_emu.sweep import claims
+    from fleet_emu.sweep.tables import show
 
     judged = claims.evaluate(study, rows, lines, baseline)
     if judged:
