@@ -1,8 +1,9 @@
 """rmw_zenoh's wire format (``rmw_zenoh_cpp``, Jazzy and later), pure functions: the key expression of a
 topic, the attachment of a publication, the liveliness tokens of a node and its publishers, and the QoS string
-those tokens carry. Followed from rmw_zenoh's ``docs/design.md`` ("Topic", "Graph Cache") and, for the exact
-layouts, the third-party ``zenoh-ros2-sdk`` 0.1.8 (``keyexpr.py``, ``attachment.py``, ``qos.py``), which speaks
-it to ROS 2 nodes; tests/ros2/test_rmw.py checks them against that client.
+those tokens carry. Followed from rmw_zenoh's ``docs/design.md`` ("Topic and Service name mapping to Zenoh key
+expressions", "Graph Cache", with their ``demo_nodes_cpp`` examples) and, for the attachment, which that
+document does not lay out, the third-party ``zenoh-ros2-sdk`` 0.1.8 (``attachment.py``; ``keyexpr.py`` and
+``qos.py`` for the rest), which speaks it to ROS 2 nodes; tests/ros2/test_rmw.py checks both.
 
 - data: ``<domain>/<topic without its leading slash>/<DDS type name>/<RIHS01 type hash>``, CDR payload;
 - attachment (33 bytes, little-endian): sequence number (int64), source timestamp (int64, ns), the GID's
@@ -50,9 +51,10 @@ def parse_attachment(data: bytes) -> tuple[int, int, bytes]:
 
 
 def qos(latched: bool, depth: int = 1) -> str:
-    """The QoS field of a token: reliable, keep last ``depth``, transient local when ``latched`` (else
-    volatile), the other fields their defaults (empty)."""
-    return f"1:{'1' if latched else '2'}:1,{depth}:,:,:,,"
+    """The QoS field of a token as rmw_zenoh's ``qos_to_keyexpr`` writes it, a field equal to its default
+    (reliable, volatile, keep last) left empty: keep last ``depth``, transient local (``1``) when ``latched``;
+    the design document's talker publishes ``::,7:,:,:,,``."""
+    return f":{'1' if latched else ''}:,{depth}:,:,:,,"
 
 
 def node_token(domain: int, zid: str, node_id: int, name: str, namespace: str = "/") -> str:
