@@ -11,13 +11,13 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from mcap.reader import make_reader  # noqa: E402
+from mcap.reader import make_reader
 
-from fleet_emu.core.codec import decode  # noqa: E402
-from fleet_emu.core.messages import BeliefSnapshot, WorldState  # noqa: E402
-from fleet_emu.core.scenario import Scenario  # noqa: E402
-from fleet_emu.launch.memory import run_memory  # noqa: E402
-from tests.conftest import fleet  # noqa: E402
+from fleet_emu.core.codec import decode
+from fleet_emu.core.messages import BeliefSnapshot, WorldState
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.memory import run_memory
+from tests.conftest import fleet
 
 
 @pytest.fixture(scope="module")
