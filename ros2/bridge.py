@@ -31,6 +31,7 @@ from fleet_emu.core.bus import client_config, of_run
 from fleet_emu.core.codec import decode
 from fleet_emu.core.errors import DecodeError, RunError
 from fleet_emu.core.keys import Keys
+from fleet_emu.core.messages import Message
 from fleet_emu.launch.runner import BusAccess, Companion
 from fleet_emu.ros2 import rmw
 from fleet_emu.ros2.fold import Out, Ros2Fold, topics
@@ -147,7 +148,7 @@ class Bridge:
             if not of_run(s, self.nonce):
                 continue
             try:
-                msg = decode(s.payload.to_bytes())
+                msg: Message = decode(s.payload.to_bytes())
             except DecodeError:
                 continue
             with self.lock:

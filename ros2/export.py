@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from mcap.records import Channel, Metadata
@@ -25,7 +25,7 @@ from fleet_emu.recording.recorder import SCENARIO_METADATA
 from fleet_emu.ros2.fold import Out, Ros2Fold
 from fleet_emu.ros2.types import cdr, typestore
 
-BAG_VERSION = 9  # rosbag2's metadata version of Jazzy
+BAG_VERSION: Literal[9] = 9  # rosbag2's metadata version of Jazzy
 
 
 def recorded(mcap: Path) -> tuple[dict[str, str], Iterator[Message]]:
