@@ -324,7 +324,7 @@ def test_paper_setting_bad_input_is_one_line(capsys: pytest.CaptureFixture[str])
 
 
 @pytest.mark.parametrize("script", ["fault_trials", "attacks", "connectivity_table", "decision_time", "mhm_fleet",
-                                    "mhm_planner", "minpos_vs_utility"])
+                                    "mhm_planner", "minpos_vs_utility", "ros2_cost"])
 def test_the_other_scripts_import_and_describe_themselves(script: str, capsys: pytest.CaptureFixture[str]) -> None:
     """The scripts the suite does not run (minutes each): they import, and ``--help`` describes them."""
     code, out, _ = bench(script, "--help", capsys=capsys)
