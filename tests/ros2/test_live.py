@@ -121,3 +121,28 @@ def test_in_process_the_same_run(small_map: Path, tmp_path: Path) -> None:
         grant_users={VIEWER: "pw"}))
     plain = run_fleet(_scenario(small_map), RunOptions(out_dir=tmp_path / "b", in_process=True))
     assert deterministic(seen.data) == deterministic(plain.data)
+
+
+def test_the_cli_says_where_under_quiet(small_map: Path, tmp_path: Path) -> None:
+    from tests.conftest import fleet
+
+    out = tmp_path / "run"
+    done = fleet("run", "--ros2", "3", "--quiet", "--map", str(small_map), "--robots", "2", "--max-ticks", "15",
+                 "--out", str(out))
+    (line,) = [x for x in done.stderr.splitlines() if x.startswith("ros2: ")]
+    assert line.startswith("ros2: tcp/127.0.0.1:") and line.endswith(f" domain 3 credentials {out / 'ros2.users'}")
+    assert (out / "ros2.users").stat().st_mode & 0o077 == 0
+
+
+@pytest.mark.parametrize(("args", "says"), [
+    (["--engine", "memory", "--ros2"], "--ros2 needs a bus"),
+    (["--ros2-listen", "tcp/127.0.0.1:7447"], "--ros2-listen goes with --ros2"),
+    (["--ros2", "999"], "ROS domain id"),
+    (["--ros2", "--listen", "tcp/127.0.0.1:7000", "--ros2-listen", "tcp/127.0.0.1:7447"], "two endpoints"),
+])
+def test_bad_ros2_flags_are_one_line(args: list[str], says: str, tmp_path: Path) -> None:
+    from tests.conftest import fleet
+
+    done = fleet("run", *args, "--out", str(tmp_path / "x"), check=False)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and says in done.stderr, done.stderr
+    assert not (tmp_path / "x").exists()
