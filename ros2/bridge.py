@@ -78,6 +78,14 @@ class Ros2Options:
     def companion(self) -> Companion:
         return lambda access: bridge(access, self)
 
+    def run_options(self) -> dict[str, Any]:
+        """The ``RunOptions`` fields of a bridged run: the companion, and on the run's own (authenticated)
+        router the grants and the viewer's login."""
+        options: dict[str, Any] = {"companions": (self.companion(),)}
+        if self.viewer_password is not None:
+            options |= {"grants": grants(self.domain), "grant_users": {VIEWER: self.viewer_password}}
+        return options
+
 
 @contextlib.contextmanager
 def bridge(access: BusAccess, opts: Ros2Options) -> Iterator[Bridge]:

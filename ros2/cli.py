@@ -53,7 +53,7 @@ def companions(args: argparse.Namespace) -> Companions | None:
         if args.ros2_listen is not None:
             raise ConfigError("--ros2-listen goes with --ros2")
         return None
-    from fleet_emu.ros2.bridge import VIEWER, Ros2Options, grants
+    from fleet_emu.ros2.bridge import Ros2Options
     from fleet_emu.ros2.types import typestore
 
     typestore()  # the ros2 extra is installed, or one line saying so
@@ -65,11 +65,7 @@ def companions(args: argparse.Namespace) -> Companions | None:
             raise ConfigError("--listen and --ros2-listen name two endpoints: the router has one, give one")
         args.listen = args.ros2_listen
     opts = Ros2Options.new(args.ros2, authenticated=args.connect is None)
-    options: dict[str, Any] = {"companions": (opts.companion(),)}
-    if args.connect is None:
-        assert opts.viewer_password is not None
-        options |= {"grants": grants(args.ros2), "grant_users": {VIEWER: opts.viewer_password}}
-    return Companions("--ros2", options)
+    return Companions("--ros2", opts.run_options())
 
 
 def add_export(sub: Any) -> None:

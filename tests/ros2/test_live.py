@@ -109,18 +109,21 @@ def test_a_run_seen_over_rmw_zenoh(small_map: Path, tmp_path: Path, monkeypatch:
     assert any(t[5] == "MS" for t in (t.split("/") for t in probe.tokens))  # the SDK's subscribers, listed too
     published = {t[9] for t in ours if t[5] == "MP"}
     assert published == {rmw.mangle(topic) for topic in topics(2)}
-    grid = next(t for t in probe.tokens if "/%r1%map/" in t)
+    grid = next(t for t in probe.tokens if "/%r1%map/" in t and "/MP/" in t)
     assert grid.endswith(f"/nav_msgs::msg::dds_::OccupancyGrid_/{type_hash(GRID)}/{rmw.qos(True)}")
 
 
-def test_in_process_the_same_run(small_map: Path, tmp_path: Path) -> None:
-    """The in-process engine, bridged (nobody watching), ends as the plain processes run does."""
-    ros2 = Ros2Options(DOMAIN, "pw", lambda _line: None)
-    seen = run_fleet(_scenario(small_map), RunOptions(
-        out_dir=tmp_path / "a", in_process=True, companions=(ros2.companion(),), grants=grants(DOMAIN),
-        grant_users={VIEWER: "pw"}))
-    plain = run_fleet(_scenario(small_map), RunOptions(out_dir=tmp_path / "b", in_process=True))
+def test_in_process_the_same_run(small_map: Path, tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    """``fe.run(..., ros2=N)`` in the in-process engine, bridged (nobody watching), ends as the plain run does;
+    the memory engine, which has no bus, refuses it."""
+    import fleet_emu as fe
+
+    seen = fe.run(_scenario(small_map), tmp_path / "a", in_process=True, ros2=DOMAIN)
+    assert f"domain {DOMAIN} credentials {tmp_path / 'a' / 'ros2.users'}" in capfd.readouterr().err
+    plain = fe.run(_scenario(small_map), tmp_path / "b", in_process=True)
     assert deterministic(seen.data) == deterministic(plain.data)
+    with pytest.raises(fe.ConfigError, match="ros2"):
+        fe.run(_scenario(small_map), engine="memory", ros2=DOMAIN)
 
 
 def test_the_cli_says_where_under_quiet(small_map: Path, tmp_path: Path) -> None:
