@@ -51,14 +51,16 @@ def grants(domain: int) -> tuple[Grant, ...]:
     domain's keys, answer queries there (the latched topics' caches) and declare the graph's liveliness tokens;
     the viewer may subscribe, query and declare its own tokens (rmw_zenoh's subscriptions announce themselves),
     and is sent everything on those keys. It may put nothing: no one but the launcher writes the topics."""
-    data, graph = f"{domain}/**", f"{rmw.ADMIN_SPACE}/{domain}/**"
+    # ``@adv`` is a verbatim chunk (the advanced publishers' caches and tokens): ``**`` never matches it
+    keys = (f"{domain}/**", f"{domain}/**/@adv/**", f"{rmw.ADMIN_SPACE}/{domain}/**")
     viewer_in = ("declare_subscriber", "declare_liveliness_subscriber", "liveliness_query", "query",
                  "liveliness_token")
     return (
-        Grant(LAUNCHER, ("ingress",), ("put", "declare_queryable", "reply", "liveliness_token"), (data, graph)),
-        Grant(LAUNCHER, ("egress",), ("declare_subscriber", "query", "liveliness_query"), (data, graph)),
-        Grant(VIEWER, ("ingress",), viewer_in, (data, graph)),
-        Grant(VIEWER, ("egress",), _ALL, (data, graph)),
+        Grant(LAUNCHER, ("ingress",), ("put", "declare_queryable", "reply", "liveliness_token"), keys),
+        Grant(LAUNCHER, ("egress",), ("declare_subscriber", "query", "liveliness_query",
+                                      "declare_liveliness_subscriber"), keys),
+        Grant(VIEWER, ("ingress",), viewer_in, keys),
+        Grant(VIEWER, ("egress",), _ALL, keys),
     )
 
 

@@ -27,7 +27,7 @@ from fleet_emu.launch.runner import BusAccess, RunOptions, run_fleet
 from fleet_emu.ros2 import rmw
 from fleet_emu.ros2.bridge import VIEWER, Ros2Options, grants
 from fleet_emu.ros2.fold import topics
-from fleet_emu.ros2.types import GRID, POSE, type_hash
+from fleet_emu.ros2.types import GRID, POSE, decode, type_hash
 
 DOMAIN = 5
 
@@ -41,6 +41,7 @@ class Probe:
         self.got: dict[str, list[Any]] = {}
         self.tokens: list[str] = []
         self.heard: list[bytes] = []  # what a second viewer session got on /r0/pose: the bridge's, no spoof
+        self.late: dict[str, list[bytes]] = {}  # what a subscriber that came after the run got of the latched grids
 
     @contextlib.contextmanager
     def __call__(self, access: BusAccess) -> Iterator[None]:
@@ -69,6 +70,12 @@ class Probe:
             viewer.put(key, b"spoof")  # the ACL lets the viewer subscribe, never write
             yield
             time.sleep(1.0)  # the last publications on their way
+            for topic in ("/map", "/r1/map"):  # transient local as rmw_zenoh does it: a late advanced subscriber
+                zenoh.ext.declare_advanced_subscriber(  # with history gets each latched publisher's cache
+                    viewer, rmw.topic_key(DOMAIN, topic, GRID, type_hash(GRID)),
+                    lambda s, t=topic: self.late.setdefault(t, []).append(s.payload.to_bytes()),
+                    history=zenoh.ext.HistoryConfig(detect_late_publishers=True))
+            time.sleep(1.0)
         finally:
             for s in subs:
                 s.close()
@@ -102,6 +109,9 @@ def test_a_run_seen_over_rmw_zenoh(small_map: Path, tmp_path: Path, monkeypatch:
     assert maps and maps[-1].info.width == 24 and maps[-1].info.height == 12 and (maps[-1].data >= 0).any()
     assert poses[-1].header.frame_id == "map" and poses[0].pose.orientation.w == 1.0
     assert len(probe.heard) == len(poses) and b"spoof" not in probe.heard
+    (truth,), (belief,) = probe.late["/map"], probe.late["/r1/map"]  # the cache holds one, the last
+    assert decode(belief, GRID).data.tolist() == maps[-1].data.tolist()
+    assert (decode(truth, GRID).data == 100).any()
 
     ours = [t.split("/") for t in probe.tokens if t.split("/")[8] == "fleet_emu"]
     assert [t[3:] for t in ours if t[5] == "NN"] == [["0", "0", "NN", "%", "%", "fleet_emu"]]
