@@ -47,7 +47,7 @@ class Probe:
     def __call__(self, access: BusAccess) -> Iterator[None]:
         from zenoh_ros2_sdk import ROS2Subscriber, ZenohSession, get_registry, message_registry
 
-        from docs.examples.ros2_listen import write_msg_files
+        from docs.ros2.listen import write_msg_files
 
         host, port = access.endpoint.removeprefix("tcp/").rsplit(":", 1)
         self.monkeypatch.setenv("ZENOH_CONFIG_OVERRIDE", ";".join([

@@ -45,7 +45,7 @@ def test_the_design_documents_examples() -> None:
 def test_keys_and_hashes_agree_with_the_sdk(typename: str, tmp_path: Path) -> None:
     """The SDK's own hash, computed from the .msg texts (rosbags' definitions written out), is rosbags'; its
     key expression and DDS type name are ours."""
-    from docs.examples.ros2_listen import write_msg_files
+    from docs.ros2.listen import write_msg_files
 
     write_msg_files(tmp_path, [typename])
     text = (tmp_path / f"{typename}.msg").read_text()

@@ -1,7 +1,7 @@
 """Watch a ``fleet run --ros2`` with a ROS 2 client nobody here wrote: ``zenoh-ros2-sdk`` (rmw_zenoh's format from
 Python, no ROS installation). Prints each robot's map size as its maps come and its pose every tick.
 
-    python3 docs/examples/ros2_listen.py ENDPOINT ROBOTS [--credentials FILE] [--domain N] [--seconds S]
+    python3 docs/ros2/listen.py ENDPOINT ROBOTS [--credentials FILE] [--domain N] [--seconds S]
 
 ENDPOINT and FILE are what the run prints (``ros2: ENDPOINT domain N credentials FILE``). The SDK would fetch
 message definitions with git at run time; they are written here from rosbags' type store instead (offline), and
