@@ -107,12 +107,15 @@ def bridge(access: BusAccess, opts: Ros2Options) -> Iterator[Bridge]:
 
 
 def write_viewer(path: Path, password: str) -> Path:
-    """The viewer's users file (``ros2:PASSWORD``, mode 0600), in the format ``--credentials`` takes."""
+    """The viewer's users file (``ros2:PASSWORD``, mode 0600), in the format ``--credentials`` takes; written
+    to a temporary name and renamed, so a script that waits for it never reads it half written."""
     import os
 
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    tmp = path.with_name(f".{path.name}.tmp")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
     with os.fdopen(fd, "w") as f:
         f.write(dictionary_text({VIEWER: password}))
+    os.replace(tmp, path)
     return path
 
 
