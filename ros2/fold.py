@@ -79,6 +79,7 @@ class Ros2Fold:
         self.targets: dict[str, tuple[int, int] | None] = {}
         self.truth_sent = False
         self.last_tick = -1
+        self.threshold = float(scenario.get("radio", {}).get("threshold", 0.0))
 
     def feed(self, msg: Message) -> list[Out]:
         if isinstance(msg, WorldState) and msg.src == "world":
@@ -179,18 +180,21 @@ class Ros2Fold:
 
     def _links(self, lk: Links) -> Any:
         """One LINE_LIST marker of the tick's radio links (either way) between robots with a known pose,
-        green-to-red by strength as the Foxglove scene's."""
+        coloured as the Foxglove scene's: red at the radio's threshold to green 20 dB above it."""
         link = np.asarray(lk.link, dtype=bool)
+        strength = np.asarray(lk.strength, dtype=float)
         points, colors = [], []
         for i, a in enumerate(lk.robots):
             for j in range(i + 1, len(lk.robots)):
                 b = lk.robots[j]
                 if not (link[i, j] or link[j, i]) or a not in self.poses or b not in self.poses:
                     continue
+                p = max(strength[i, j], strength[j, i])
+                s = float(np.clip(((p if np.isfinite(p) else self.threshold) - self.threshold) / 20.0, 0.0, 1.0))
                 for r in (a, b):
                     x, y = self.xy(self.poses[r])
                     points.append(make("geometry_msgs/msg/Point", x=x, y=y, z=0.5 * self.cell_size))
-                    colors.append(make("std_msgs/msg/ColorRGBA", r=0.2, g=0.9, b=0.2, a=0.9))
+                    colors.append(make("std_msgs/msg/ColorRGBA", r=1.0 - s, g=s, b=0.2, a=0.9))
         marker = make("visualization_msgs/msg/Marker", header=self.header(lk.tick), ns="links", id=0,
                       type=LINE_LIST, action=ADD, pose=make("geometry_msgs/msg/Pose",
                                                             orientation=make("geometry_msgs/msg/Quaternion", w=1.0)),
