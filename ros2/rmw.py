@@ -1,9 +1,10 @@
 """rmw_zenoh's wire format (``rmw_zenoh_cpp``, Jazzy and later), pure functions: the key expression of a
 topic, the attachment of a publication, the liveliness tokens of a node and its publishers, and the QoS string
-those tokens carry. Followed from rmw_zenoh's ``docs/design.md`` ("Topic and Service name mapping to Zenoh key
-expressions", "Graph Cache", with their ``demo_nodes_cpp`` examples) and, for the attachment, which that
-document does not lay out, the third-party ``zenoh-ros2-sdk`` 0.1.8 (``attachment.py``; ``keyexpr.py`` and
-``qos.py`` for the rest), which speaks it to ROS 2 nodes; tests/ros2/test_rmw.py checks both.
+those tokens carry. Followed from rmw_zenoh's ``docs/design.md`` at commit
+99a6a2bd10b949052f4f12c5854825dc005e95a5 ("Topic and Service name mapping to Zenoh key expressions", "Graph
+Cache", "Publishers", with their ``demo_nodes_cpp`` examples), and cross-checked with the third-party
+``zenoh-ros2-sdk`` 0.1.8 (``keyexpr.py``, ``attachment.py``, ``qos.py``), which speaks it to ROS 2 nodes;
+tests/ros2/test_rmw.py checks both.
 
 - data: ``<domain>/<topic without its leading slash>/<DDS type name>/<RIHS01 type hash>``, CDR payload;
 - attachment (33 bytes, little-endian): sequence number (int64), source timestamp (int64, ns), the GID's

@@ -21,9 +21,10 @@ from fleet_emu.ros2 import rmw  # noqa: E402
 from fleet_emu.ros2.fold import topics  # noqa: E402
 from fleet_emu.ros2.types import GRID, type_hash  # noqa: E402
 
-# rmw_zenoh's docs/design.md, its demo_nodes_cpp examples, verbatim ("Topic and Service name mapping to Zenoh key
-# expressions" and "Graph Cache"; the version of the document that has them, read from the ros2/rmw_zenoh
-# repository: a snapshot of October 2024, bfc065f8, predates them)
+# rmw_zenoh's docs/design.md at commit 99a6a2bd10b949052f4f12c5854825dc005e95a5, its demo_nodes_cpp examples,
+# verbatim ("Topic and Service name mapping to Zenoh key expressions" and "Graph Cache"); its "Publishers" section
+# lays out the attachment: int64 sequence number and int64 timestamp (ns), little-endian, one length byte (16), the
+# 16-byte GID
 DESIGN_STRING_HASH = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
 DESIGN_KEY = f"0/robot1/chatter/std_msgs::msg::dds_::String_/{DESIGN_STRING_HASH}"
 DESIGN_NODE = "@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/listener"
@@ -60,7 +61,9 @@ def test_keys_and_hashes_agree_with_the_sdk(typename: str, tmp_path: Path) -> No
 def test_the_attachment_is_33_bytes_the_sdk_reads() -> None:
     gid = bytes(range(16))
     data = rmw.attachment(5, 1_700_000_000_123_456_789, gid)
-    assert len(data) == 33
+    assert len(data) == 33  # the design document's layout, field by field
+    assert data[:8] == (5).to_bytes(8, "little") and data[8:16] == (1_700_000_000_123_456_789).to_bytes(8, "little")
+    assert data[16] == 16 and data[17:] == gid
     got = Attachment.from_bytes(data)
     assert (got.sequence_id, got.timestamp_ns, got.gid) == (5, 1_700_000_000_123_456_789, gid)
     assert rmw.parse_attachment(Attachment(5, 9, gid).to_bytes()) == (5, 9, gid)
