@@ -88,9 +88,21 @@ def allowed_src(parsed: ParsedKey) -> frozenset[str] | None:
     return None
 
 
-def acl_config(run: str, nodes: Iterable[str]) -> dict[str, Any]:
+@dataclasses.dataclass(frozen=True)
+class Grant:
+    """Access for one user beyond the run's own keys (the ROS 2 topics of ``fleet run --ros2``): the message
+    kinds it may send (``ingress``) or be sent (``egress``) on ``key_exprs``. A user that is no process of the
+    fleet (a read-only viewer) gets only its grants."""
+
+    user: str
+    flows: tuple[str, ...]
+    messages: tuple[str, ...]
+    key_exprs: tuple[str, ...]
+
+
+def acl_config(run: str, nodes: Iterable[str], grants: Iterable[Grant] = ()) -> dict[str, Any]:
     """The router's ``access_control`` block for ``nodes`` (user names = node ids) of run ``run`` (``"*"``
-    for a router that serves many runs)."""
+    for a router that serves many runs), and the ``grants``."""
     prefix = f"{ROOT}/{run}"
     nodes = list(nodes)
     rules: list[dict[str, Any]] = [
@@ -121,9 +133,25 @@ def acl_config(run: str, nodes: Iterable[str]) -> dict[str, Any]:
     for node, rs in lobby.items():
         policy = next(p for p in policies if p["subjects"] == [f"user {node}"])
         policy["rules"] += [r["id"] for r in rs]
+    _grant(grants, rules, subjects, policies)
     policies = [p for p in policies if p["rules"]]
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
             "policies": policies}
+
+
+def _grant(grants: Iterable[Grant], rules: list[dict[str, Any]], subjects: list[dict[str, Any]],
+           policies: list[dict[str, Any]]) -> None:
+    """Add each grant's rule to its user's policy (a new subject and policy for a user not yet named)."""
+    for i, g in enumerate(grants):
+        rule = f"grant {i} {g.user}"
+        rules.append({"id": rule, "permission": "allow", "flows": list(g.flows), "messages": list(g.messages),
+                      "key_exprs": list(g.key_exprs)})
+        policy = next((p for p in policies if p["subjects"] == [f"user {g.user}"]), None)
+        if policy is None:
+            subjects.append({"id": f"user {g.user}", "usernames": [g.user]})
+            policy = {"rules": [], "subjects": [f"user {g.user}"]}
+            policies.append(policy)
+        policy["rules"].append(rule)
 
 
 def lobby_rules(nodes: Iterable[str]) -> dict[str, list[dict[str, Any]]]:

@@ -83,7 +83,7 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
         grid_every: int | None = None, engine: str = "processes", realtime_hz: float | None = None,
         credentials: str | Path | None = None, tls_ca: str | Path | None = None, listen: str | None = None,
         tls_cert: str | Path | None = None, tls_key: str | Path | None = None,
-        host_timeout: float | None = None, overwrite: bool = False) -> Result:
+        host_timeout: float | None = None, overwrite: bool = False, ros2: int | None = None) -> Result:
     """Run one scenario as a real fleet (world, netem and one process per robot over Zenoh; with
     ``in_process`` every node in this process, a session each) and return its :class:`Result`.
 
@@ -100,6 +100,9 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
     ``tls_key`` the embedded router's endpoint and TLS identity, e.g. for hosts on other machines;
     ``host_timeout`` the seconds to wait for them. An ``out`` that holds a run is refused (ConfigError) unless
     ``overwrite``, which removes that run's files first; one another run is writing is always refused.
+    ``ros2`` (a ROS domain id) publishes the run as ROS 2 topics in rmw_zenoh's format on its router, as
+    ``fleet run --ros2`` (the ``ros2`` extra; docs/guides/ros2.md), and prints its one ``ros2: ...`` line on
+    stderr, which a viewer needs.
     """
     from fleet_emu.launch.checks import check_memory_engine, check_options
     from fleet_emu.launch.runner import RunOptions, run_fleet
@@ -118,7 +121,8 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
         from fleet_emu.launch.memory import run_memory
 
         bus = [("credentials", credentials), ("tls_ca", tls_ca), ("listen", listen), ("tls_cert", tls_cert),
-               ("tls_key", tls_key), ("host_timeout", host_timeout), ("hosts (the scenario's [hosts])", scenario.hosts)]
+               ("tls_key", tls_key), ("host_timeout", host_timeout), ("hosts (the scenario's [hosts])", scenario.hosts),
+               ("ros2", ros2)]
         check_memory_engine("the memory engine", [(name, value is not None) for name, value in bus],
                             ("realtime_hz", realtime_hz is not None))
         check_options(RunOptions(run_id=run_id))  # as `fleet run --engine memory`: a bad run id is one line
@@ -128,10 +132,16 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
                       connect=connect, run_id=run_id, grid_every=grid_every, realtime_hz=realtime_hz,
                       credentials=_path(credentials), tls_ca=_path(tls_ca), listen=listen,
                       tls_cert=_path(tls_cert), tls_key=_path(tls_key), overwrite=overwrite)
-    if host_timeout is not None:  # else RunOptions' own default
-        import dataclasses
+    import dataclasses
 
+    if host_timeout is not None:  # else RunOptions' own default
         opts = dataclasses.replace(opts, host_timeout=host_timeout)
+    if ros2 is not None:
+        from fleet_emu.ros2.bridge import Ros2Options
+        from fleet_emu.ros2.types import typestore
+
+        typestore()  # the ros2 extra is installed, or one line saying so
+        opts = dataclasses.replace(opts, **Ros2Options.new(ros2, authenticated=connect is None).run_options())
     return run_fleet(scenario, opts)
 
 

@@ -283,6 +283,10 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
     from fleet_emu.launch.live import live_options
 
     live = live_options(args.live, args.live_hz, args.realtime is not None)
+    # a layer above this package (the ROS 2 bridge) may add clients of the bus: fleet_emu/cli.py sets this
+    companions = args.companions(args) if getattr(args, "companions", None) is not None else None
+    if companions is not None and args.engine == "memory":
+        raise ConfigError(f"{companions.flag} needs a bus: the processes engine (drop --engine memory)")
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
         if args.engine == "memory":
             from fleet_emu.launch.memory import run_memory
@@ -298,6 +302,7 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
                               interrupts=interrupts, on_warning=_warn, fork_server=args.fork_server,
                               listen=args.listen, realtime_hz=args.realtime, tls_cert=args.tls_cert,
                               tls_key=args.tls_key, overwrite=args.overwrite, live=live,
+                              **(companions.options if companions is not None else {}),
                               **({"host_timeout": args.host_timeout} if args.host_timeout is not None else {}))
             result = run_fleet(scenario, opts)
     if interrupts.signum is not None:

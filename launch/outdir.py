@@ -34,7 +34,7 @@ LOCK = ".fleet.lock"
 RUN_MARKERS = ("result.json", "run.mcap", "scenario.json", "run.mcap.cut")
 #: Every file a run (and ``fleet report`` on it) writes in its folder: removed by ``--overwrite``.
 _RUN_FILE = re.compile(r"(result\.json|scenario\.json|map\.npz|run\.mcap(\.cut)?|metrics\.json|[\w.-]+\.png|"
-                       r"[\w.-]+\.log|\.[\w.-]*\.tmp[\w.-]*)")
+                       r"[\w.-]+\.log|\.[\w.-]*\.tmp[\w.-]*|ros2\.users)")  # ros2.users: `fleet run --ros2`
 
 
 class DiskFault(RunError):

@@ -29,7 +29,7 @@ from typing import Any
 
 import zenoh
 
-from fleet_emu.core.access import Credential, acl_config, dictionary_text
+from fleet_emu.core.access import Credential, Grant, acl_config, dictionary_text
 from fleet_emu.core.bus import router_config, router_locators
 from fleet_emu.core.errors import RunError
 
@@ -52,7 +52,8 @@ class RouterProcess:
 
 @contextlib.contextmanager
 def router_process(run_id: str, creds: dict[str, Credential] | None, listen: list[str],
-                   tls: tuple[str, str] | None, log_dir: Path | None) -> Iterator[RouterProcess]:
+                   tls: tuple[str, str] | None, log_dir: Path | None,
+                   grants: tuple[tuple[Grant, ...], dict[str, str]] = ((), {})) -> Iterator[RouterProcess]:
     """Start the router child (user/password authentication and access control for this run's users, as
     :func:`fleet_emu.core.bus.router_config` embeds it), wait for its endpoints, and on the way out close it
     (its standard input, then SIGKILL to its group after :data:`CLOSE_TIMEOUT`). The users file lives in a
@@ -61,7 +62,7 @@ def router_process(run_id: str, creds: dict[str, Credential] | None, listen: lis
     log = log_dir / "router.log" if log_dir is not None else None
     with tempfile.TemporaryDirectory(prefix="fleet-router-") as private:  # mode 0700
         spec_file = Path(private) / "router.json"
-        _write_private(spec_file, json.dumps(router_spec(Path(private), run_id, creds, listen, tls)))
+        _write_private(spec_file, json.dumps(router_spec(Path(private), run_id, creds, listen, tls, grants)))
         err = open(log, "wb") if log is not None else None  # noqa: SIM115 (closed below)
         try:
             proc = subprocess.Popen([sys.executable, "-m", MODULE, str(spec_file)],
@@ -82,14 +83,17 @@ def router_process(run_id: str, creds: dict[str, Credential] | None, listen: lis
 
 
 def router_spec(private: Path, run_id: str, creds: dict[str, Credential] | None, listen: list[str],
-                tls: tuple[str, str] | None) -> dict[str, Any]:
+                tls: tuple[str, str] | None,
+                grants: tuple[tuple[Grant, ...], dict[str, str]] = ((), {})) -> dict[str, Any]:
     """:func:`fleet_emu.core.bus.router_config`'s arguments for this run's router; with ``creds`` its users
-    file is written (mode 0600) into the ``private`` directory, which the caller deletes once Zenoh has read it."""
+    file is written (mode 0600) into the ``private`` directory, which the caller deletes once Zenoh has read it.
+    ``grants``: access beyond the run's keys (:class:`~fleet_emu.core.access.Grant`) and the passwords of the
+    users they add (``fleet run --ros2``'s viewer)."""
     spec: dict[str, Any] = {"listen": listen, "tls": tls}
     if creds is not None:
         users = private / "users.txt"
-        _write_private(users, dictionary_text({n: c.password for n, c in creds.items()}))
-        spec |= {"dictionary_file": str(users), "acl": acl_config(run_id, creds)}
+        _write_private(users, dictionary_text({n: c.password for n, c in creds.items()} | grants[1]))
+        spec |= {"dictionary_file": str(users), "acl": acl_config(run_id, creds, grants[0])}
     return spec
 
 

@@ -18,7 +18,7 @@ from typing import Any
 
 import zenoh
 
-from fleet_emu.core.access import LAUNCHER, RECORDER, Credential
+from fleet_emu.core.access import LAUNCHER, RECORDER, Credential, Grant
 from fleet_emu.core.bus import Publisher, client_config, new_nonce, publisher, router_config, router_locators
 from fleet_emu.core.errors import RunError
 from fleet_emu.core.grid import Cell, MapData
@@ -85,6 +85,32 @@ class RunOptions:
     realtime_hz: float | None = None  # real time: the world ticks at this rate on the wall clock (None: lockstep)
     overwrite: bool = False  # an ``out_dir`` holding a run: remove that run's files first (else refused)
     live: LiveOptions | None = None  # serve the run to Foxglove viewers (`fleet run --live`)
+    companions: tuple[Companion, ...] = ()  # clients of the run's bus started with it (`fleet run --ros2`)
+    grants: tuple[Grant, ...] = ()  # the embedded router's access beyond the run's keys, for the companions ...
+    grant_users: dict[str, str] = dataclasses.field(default_factory=dict)  # ... and the users they add
+
+
+@dataclasses.dataclass(frozen=True)
+class BusAccess:
+    """What a companion gets once the run's router is up: where it is, the launcher's own login (a companion
+    publishes as the launcher: the router's ACL knows no other writer), the run's nonce (on each of its
+    messages), the scenario, the true map, the run's clock and the run's folder."""
+
+    endpoint: str
+    run_id: str
+    login: Credential | None
+    nonce: bytes
+    scenario: Scenario
+    map_data: MapData
+    clock: RunClock
+    work: Path
+    grid_every: int | None
+
+
+#: A client of the bus that runs beside the fleet (docs/design/architecture.md, "Companions"): given the
+#: run's :class:`BusAccess`, a context manager open from before the nodes start until after they stopped. A
+#: layer above launch (the ROS 2 bridge) provides it; the launcher never waits on it.
+Companion = Callable[[BusAccess], contextlib.AbstractContextManager[object]]
 
 
 def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
@@ -210,6 +236,10 @@ class _Run:
         self.pub_stop = publisher(self.session, keys.stop, self.nonce)
         self.handles = [pub_ready, self.pub_stop,
                         self.session.liveliness().declare_token(keys.alive("launcher", "launcher"))]
+        access = BusAccess(endpoint, self.run_id, login.get(LAUNCHER), self.nonce, self.scenario, self.map_data,
+                           self.clock, self.work, opts.grid_every)
+        for companion in opts.companions:
+            stack.enter_context(companion(access))
         hosts = self.scenario.hosts
         self.remote = stack.enter_context(Hosts(self.session, hosts, opts.host_timeout)) if hosts else None
         self.consumer = Consumer(keys, self.samples, self.monitor, self.recorder, pub_ready, self.viz)
@@ -224,12 +254,14 @@ class _Run:
             if opts.tls_cert is not None and opts.tls_key is not None else None
         if opts.in_process:  # one process by design: the router too
             try:
-                router = stack.enter_context(_closing(_open_router(self.run_id, self.creds, listen, tls)))
+                router = stack.enter_context(_closing(_open_router(self.run_id, self.creds, listen, tls,
+                                                                   (opts.grants, opts.grant_users))))
             except zenoh.ZError as exc:
                 raise RunError(f"cannot open the embedded Zenoh router: {str(exc).splitlines()[0]}") from None
             locators = router_locators(router)
         else:
-            self.router_child = stack.enter_context(router_process(self.run_id, self.creds, listen, tls, self.work))
+            self.router_child = stack.enter_context(router_process(self.run_id, self.creds, listen, tls, self.work,
+                                                                   (opts.grants, opts.grant_users)))
             locators = self.router_child.endpoints
         # the router's first endpoint, or with tls/ or quic/ its loopback tcp/ one
         return next(loc for loc in locators if tls is None or loc.startswith("tcp/"))
@@ -378,12 +410,13 @@ def _closing(session: zenoh.Session) -> Iterator[zenoh.Session]:
 
 
 def _open_router(run_id: str, creds: dict[str, Credential] | None, listen: list[str],
-                 tls: tuple[str, str] | None = None) -> zenoh.Session:
+                 tls: tuple[str, str] | None = None,
+                 grants: tuple[tuple[Grant, ...], dict[str, str]] = ((), {})) -> zenoh.Session:
     """The router embedded in this process (``--in-process``), set up as the router process's
     (:func:`~fleet_emu.launch.router_process.router_spec`); its users file lives in a private temporary
     directory only while it opens (Zenoh reads it then)."""
     with tempfile.TemporaryDirectory(prefix="fleet-auth-") as private:  # mode 0700
-        return zenoh.open(router_config(**router_spec(Path(private), run_id, creds, listen, tls)))
+        return zenoh.open(router_config(**router_spec(Path(private), run_id, creds, listen, tls, grants)))
 
 
 def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoint: str,

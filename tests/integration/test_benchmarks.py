@@ -352,7 +352,7 @@ def test_trade_lock_counts_runs_that_drag_on(small_map: Path, capsys: pytest.Cap
 
 
 @pytest.mark.parametrize("script", ["fault_trials", "attacks", "connectivity_table", "decision_time", "mhm_fleet",
-                                    "mhm_planner", "minpos_vs_utility"])
+                                    "mhm_planner", "minpos_vs_utility", "ros2_cost"])
 def test_the_other_scripts_import_and_describe_themselves(script: str, capsys: pytest.CaptureFixture[str]) -> None:
     """The scripts the suite does not run (minutes each): they import, and ``--help`` describes them."""
     code, out, _ = bench(script, "--help", capsys=capsys)
