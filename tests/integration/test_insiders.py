@@ -6,6 +6,7 @@ for a tick is dropped and counted (first wins), never a silent replacement (docs
 from __future__ import annotations
 
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,7 @@ from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
 from fleet_emu.netem.node import NetemNode
-from tests.conftest import result, run_cli
+from tests.conftest import result, run_cli, wait_for
 
 RUN = "insider"
 
@@ -82,3 +83,31 @@ def test_netem_keeps_the_first_bundle_of_a_sender_and_tick() -> None:
     node.sent_tick = 3
     node._keep_tx("fleet/x/radio/tx/r0", TxBundle(src="r0", tick=2, seq=3, msgs=()))
     assert 2 not in node.tx and node.dropped == 2
+
+
+def _heard_puts(run_id: str, tmp_path: Path, user: str, keys: list[str]) -> list[str]:
+    """The keys of ``keys`` (under ``fleet/``) that a session of ``user`` got past a router made by
+    ``fleet router-config --run-id run_id``, as heard by the router itself."""
+    users = tmp_path / f"users-{run_id.strip('*') or 'any'}.txt"
+    conf = zenoh.Config.from_json5(router_config_text(2, users, listen="tcp/127.0.0.1:0", run_id=run_id))
+    conf.insert_json5("adminspace/enabled", "true")
+    got: list[str] = []
+    with zenoh.open(conf) as router:
+        endpoint = router_locators(router)[0]
+        sub = router.declare_subscriber("fleet/**", lambda s: got.append(str(s.key_expr)))
+        cred = Credential(user, read_dictionary(users.read_text())[user])
+        with zenoh.open(client_config(endpoint, cred)) as s:
+            for k in keys:
+                s.put(f"fleet/{k}", b"x")
+            wait_for(lambda: len(got) >= 1, 10)
+            time.sleep(0.5)
+        sub.undeclare()
+    return sorted(k.removeprefix("fleet/") for k in got)
+
+
+def test_a_credential_reaches_every_run_on_an_any_run_router_and_one_run_on_a_per_run_one(tmp_path: Path) -> None:
+    keys = ["a/radio/tx/r0", "b/radio/tx/r0", "a/radio/tx/r1", "a/ctl/stop", "b/ctl/stop"]
+    assert _heard_puts("*", tmp_path, "r0", keys) == ["a/radio/tx/r0", "b/radio/tx/r0"]
+    assert _heard_puts("a", tmp_path, "r0", keys) == ["a/radio/tx/r0"]
+    assert _heard_puts("*", tmp_path, "world", keys) == ["a/ctl/stop", "b/ctl/stop"]
+    assert _heard_puts("a", tmp_path, "world", keys) == ["a/ctl/stop"]
