@@ -20,7 +20,7 @@ import signal
 import sys
 import time
 import tomllib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import FrameType
 from typing import Any
@@ -150,7 +150,7 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
     """The sweep proper, once every check passed and ``out`` is claimed."""
     from rich.console import Console
 
-    from fleet_emu.sweep.execute import RowWriter, execute, read_rows, write_tables
+    from fleet_emu.sweep.execute import execute, read_rows, write_tables
     from fleet_emu.sweep.record import Keep
 
     done = {r["id"] for r in read_rows(out) if r.get("status") == "ok"}
@@ -160,31 +160,11 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
     console.print(f"[bold]{study.name}[/bold]: {len(points)} runs, {sum(p.id in done for p in points)} done, "
                   f"{len(todo)} to run "
                   f"({study.engine} engine, {'Dask ' + dask if dask else f'{jobs} jobs'}) -> {out}")
-    try:
-        writer = RowWriter(out)
-    except OSError as exc:
-        raise ConfigError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
-    failed = ran = 0
     interrupted = False
     disk: str | None = None
-    unwritten: list[dict[str, Any]] = []  # rows of finished runs the disk did not take
     t0 = time.monotonic()
     with _bar(console, len(todo), quiet) as (bar, task):
-        def on_row(row: dict[str, Any]) -> None:
-            nonlocal failed, ran
-            ran += 1
-            failed += row.get("status") != "ok"
-            bar.update(task, advance=1, failed=failed)
-            try:
-                writer.write(row)
-            except OSError as exc:
-                unwritten.append(row)
-                raise _DiskFull(exc.strerror or str(exc)) from None
-            error = str(row.get("error") or "")
-            if error.startswith("DiskFault: "):  # the run's own files could not be written: the disk is full
-                full = os.strerror(errno.ENOSPC)
-                raise _DiskFull(full if full in error else error.split("; ")[0].removeprefix("DiskFault: "))
-
+        on_row = _Rows(out, lambda failed: bar.update(task, advance=1, failed=failed))
         with _sigterm_as_interrupt() as signals:
             try:
                 execute(todo, jobs, on_row, client, Keep(study.record, str(out.absolute())))
@@ -193,21 +173,22 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
             except _DiskFull as full:
                 disk = full.why
             finally:
-                writer.close()
+                on_row.close()
     rows = read_rows(out)
     tables, unwritable = write_tables(rows, out)
     missing = [p.id for p in points if p.id not in {r["id"] for r in rows}]
     failed_all = sum(r.get("status") != "ok" for r in rows) + (0 if limit or interrupted else len(missing))
     kept = sum(bool(r.get("run_dir")) for r in rows)
     console.print(f"{len(rows)} rows of {len(points)} points ({failed_all} failed) in "
-                  f"{' and '.join(str(t) for t in tables) or 'no table'}; this call ran {ran} of "
+                  f"{' and '.join(str(t) for t in tables) or 'no table'}; this call ran {on_row.ran} of "
                   f"{len(todo)} in {time.monotonic() - t0:.1f} s"
                   + (f"; {kept} runs kept in {out / 'runs'} (record = {study.record!r})" if kept else ""))
     if interrupted:
         print(f"fleet: interrupted; the finished runs are in {out} (run again to resume)", file=sys.stderr)
         return 128 + (signals[0] if signals else signal.SIGINT)
     if disk is not None or unwritable:
-        print(f"fleet: error: {_disk_line(out, disk, unwritable, rows, unwritten, missing)}", file=sys.stderr)
+        print(f"fleet: error: {_disk_line(out, disk, unwritable, rows, on_row.unwritten, missing)}",
+              file=sys.stderr)
         return DISK_FULL
     if failed_all:
         gone = f"; {len(missing)} points have no row: {_ids(missing)} (run again)" if missing and not limit else ""
@@ -216,6 +197,39 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
               file=sys.stderr)
         return min(FAILED_BASE + failed_all, 255)
     return 0
+
+
+class _Rows:
+    """Each row as its run finishes: appended to ``rows.jsonl`` and counted (``tick(failed so far)``). A row
+    the disk did not take, or a run whose own files it did not, stops the sweep (:class:`_DiskFull`)."""
+
+    def __init__(self, out: Path, tick: Callable[[int], None]) -> None:
+        from fleet_emu.sweep.execute import RowWriter
+
+        try:
+            self.writer = RowWriter(out)
+        except OSError as exc:
+            raise ConfigError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+        self.tick = tick
+        self.ran = self.failed = 0
+        self.unwritten: list[dict[str, Any]] = []  # rows of finished runs the disk did not take
+
+    def __call__(self, row: dict[str, Any]) -> None:
+        self.ran += 1
+        self.failed += row.get("status") != "ok"
+        self.tick(self.failed)
+        try:
+            self.writer.write(row)
+        except OSError as exc:
+            self.unwritten.append(row)
+            raise _DiskFull(exc.strerror or str(exc)) from None
+        error = str(row.get("error") or "")
+        if error.startswith("DiskFault: "):  # the run's own files could not be written: the disk is full
+            full = os.strerror(errno.ENOSPC)
+            raise _DiskFull(full if full in error else error.split("; ")[0].removeprefix("DiskFault: "))
+
+    def close(self) -> None:
+        self.writer.close()
 
 
 class _DiskFull(Exception):
