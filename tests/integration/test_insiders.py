@@ -111,3 +111,34 @@ def test_a_credential_reaches_every_run_on_an_any_run_router_and_one_run_on_a_pe
     assert _heard_puts("a", tmp_path, "r0", keys) == ["a/radio/tx/r0"]
     assert _heard_puts("*", tmp_path, "world", keys) == ["a/ctl/stop", "b/ctl/stop"]
     assert _heard_puts("a", tmp_path, "world", keys) == ["a/ctl/stop"]
+
+
+def test_per_run_logins_act_on_their_own_run_only_and_run_a_fleet(small_map: Path, tmp_path: Path) -> None:
+    """``fleet router-config --run-id a --run-id b``: run ``a``'s users file holds only run ``a``'s logins;
+    its world can stop run ``a``, not run ``b``; a fleet runs with it as run ``a``, and not as run ``b``."""
+    users = tmp_path / "users.txt"
+    conf = zenoh.Config.from_json5(router_config_text(2, users, listen="tcp/127.0.0.1:0", run_id=["a", "b"]))
+    conf.insert_json5("adminspace/enabled", "true")
+    mine = tmp_path / "users-a.txt"
+    assert oct(mine.stat().st_mode & 0o777) == "0o600"
+    logins = read_dictionary(mine.read_text())
+    assert logins and all(u.startswith("a.") for u in logins) and "a.world" in logins
+    assert set(logins) < set(read_dictionary(users.read_text()))
+    got: list[str] = []
+    with zenoh.open(conf) as router:
+        endpoint = router_locators(router)[0]
+        sub = router.declare_subscriber("fleet/**", lambda s: got.append(str(s.key_expr)))
+        with zenoh.open(client_config(endpoint, Credential("a.world", logins["a.world"]))) as s:
+            for k in ("a/ctl/stop", "b/ctl/stop"):
+                s.put(f"fleet/{k}", b"x")
+            wait_for(lambda: got, 10)
+            time.sleep(0.5)
+        sub.undeclare()
+        assert got == ["fleet/a/ctl/stop"]
+        scenario = ["--map", str(small_map), "--robots", "2", "--seed", "3", "--quiet", "--in-process",
+                    "--connect", endpoint, "--credentials", str(mine)]
+        code, _, err = run_cli(["run", *scenario, "--run-id", "b", "--out", str(tmp_path / "b")])
+        assert code == 2 and "holds the logins of run id a: add --run-id a" in err, err
+        run_cli(["run", *scenario, "--run-id", "a", "--out", str(tmp_path / "a")], check=True)
+    res = result(tmp_path / "a")
+    assert res["authenticated"] is True and res["ticks"] > 0
