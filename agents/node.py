@@ -104,16 +104,16 @@ class AgentNode(NodeBase):
                 self.answer_hello(key, data)
             elif channel == "obs":
                 o = self.decode(key, data, Observation, self.ctx_world)
-                if o is not None and o.robot == self.robot and o.tick >= tick:
+                if o is not None and o.robot == self.robot and o.tick >= tick and o.tick not in obs:
                     obs[o.tick] = o
-                elif o is not None:
-                    self.drop(key, "observation for another robot or a past tick")
+                elif o is not None:  # a second one of a tick: first wins
+                    self.drop(key, "observation for another robot, a past tick or a tick already observed")
             elif channel == "rx":
                 b = self.decode(key, data, RxBundle)  # loosely: the brain checks each envelope against the team
-                if b is not None and b.dst == self.robot and b.tick >= tick:
+                if b is not None and b.dst == self.robot and b.tick >= tick and b.tick not in rx:
                     rx[b.tick] = b
-                elif b is not None:
-                    self.drop(key, "rx bundle for another robot or a past tick")
+                elif b is not None:  # a second one of a tick: first wins
+                    self.drop(key, "rx bundle for another robot, a past tick or a tick already received")
             while tick in obs and tick in rx:
                 self._act(obs.pop(tick), rx.pop(tick))
                 tick += 1

@@ -223,13 +223,17 @@ class Scenario:
         for cell_key in ("start", "base"):
             if isinstance(d.get(cell_key), list):
                 d[cell_key] = tuple(d[cell_key])
-        if "allocator" in d and not isinstance(d["allocator"], dict):
-            raise ConfigError(f"{where}: allocator must be a table with a 'type' name")
+        alloc = d.get("allocator", {})
+        if not isinstance(alloc, dict) or not isinstance(alloc.get("type", ""), str):
+            raise ConfigError(f"{where}: allocator must be a table with a 'type' name (got {alloc!r})")
         if isinstance(d.get("hosts"), dict):
             d["hosts"] = HostPlan.from_dict(d["hosts"], where)
         elif d.get("hosts") is not None and not isinstance(d["hosts"], HostPlan):
             raise ConfigError(f"{where}: hosts must be a [hosts] table (count, names, robots)")
-        return cls(radio=radio, **d).validate()
+        try:
+            return cls(radio=radio, **d).validate()
+        except (TypeError, ValueError, AttributeError) as exc:  # a value of a type no check above foresaw
+            raise ConfigError(f"{where}: a value of the wrong type ({exc})") from None
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -300,7 +304,8 @@ class Scenario:
     @property
     def plans_at_base(self) -> bool:
         """Whether the allocator is a base-station planner (:data:`BASE_PLANNERS`): the base sends orders."""
-        return isinstance(self.allocator, dict) and self.allocator.get("type") in BASE_PLANNERS
+        kind = self.allocator.get("type") if isinstance(self.allocator, dict) else None
+        return isinstance(kind, str) and kind in BASE_PLANNERS
 
     @property
     def link_cells(self) -> float:

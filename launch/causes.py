@@ -44,10 +44,16 @@ def froze(monitor: Monitor, barrier_timeout: float) -> str | None:
 
 def outside_stop(monitor: Monitor) -> str | None:
     """The failure line of a stop in the launcher's name that this launcher did not send (it sends its own only
-    once the run is over or interrupted), or None."""
+    once the run is over or interrupted), or of one in the world's name that the world cannot have sent
+    (:meth:`~fleet_emu.recording.monitor.Monitor.world_sent`), or None."""
     stop = monitor.outside_stop
     if stop is None:
         return None
+    if stop.src == "world":
+        st = monitor.state
+        last = f"its last state was of tick {st.tick}, not done" if st is not None else "before its first state"
+        return (f"a stop in the world's name that the world did not send ended the run at tick {stop.tick} "
+                f"(reason {stop.reason!r}; {last})")
     return (f"a stop from outside this launcher ended the run at tick {stop.tick} (reason {stop.reason!r}, "
             f"sent as {stop.src!r} on the run's own key)")
 

@@ -88,11 +88,16 @@ def credentials(scenario: Scenario, opts: RunOptions) -> dict[str, Credential] |
     if opts.credentials is None:
         return None
     users = read_users(opts.credentials)
-    missing = [n for n in nodes if n not in users]
+    runs = sorted({u.rpartition(".")[0] for u in users if "." in u})  # logins of their own run ids only
+    if runs and opts.run_id not in runs:
+        raise ConfigError(f"--credentials {opts.credentials} holds the logins of run id {' '.join(runs)}: "
+                          f"add --run-id {runs[0]}")
+    login = {n: f"{opts.run_id}.{n}" if runs else n for n in nodes}
+    missing = [n for n in nodes if login[n] not in users]
     if missing:
-        raise ConfigError(f"--credentials {opts.credentials} has no user {missing[0]!r}; make it with "
+        raise ConfigError(f"--credentials {opts.credentials} has no user {login[missing[0]]!r}; make it with "
                           f"`fleet router-config --robots {scenario.robots}` or more robots")
-    return {n: Credential(n, users[n], ca) for n in nodes}
+    return {n: Credential(login[n], users[login[n]], ca) for n in nodes}
 
 
 def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None, hosts: int = 0) -> None:

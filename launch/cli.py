@@ -200,7 +200,9 @@ def _add_router_config(sub: Any) -> None:
                     help="the users file (user:password lines, mode 0600); kept passwords are reused")
     rc.add_argument("--listen", default=None, help="endpoint (default tcp/0.0.0.0:7447, or tls/0.0.0.0:7447 "
                                                    "with --tls-cert)")
-    rc.add_argument("--run-id", default="*", help="the one run this router serves (default: any)")
+    rc.add_argument("--run-id", action="append", default=None,
+                    help="the one run this router serves (default: any); given more than once, each run id with "
+                         "logins of its own, written to USERS-ID beside --users")
     rc.add_argument("--hosts", type=int, default=0, help="hosts host0..host<N-1> that may join (`fleet host`)")
     rc.add_argument("--tls-cert", type=Path, help="the router's TLS certificate (PEM)")
     rc.add_argument("--tls-key", type=Path, help="its private key (PEM)")
@@ -324,7 +326,7 @@ def _warn(message: str) -> None:
 def cmd_router_config(args: argparse.Namespace) -> int:
     from fleet_emu.launch.router_config import router_config_text
 
-    print(router_config_text(args.robots, args.users, args.listen, args.run_id, args.tls_cert, args.tls_key,
+    print(router_config_text(args.robots, args.users, args.listen, args.run_id or "*", args.tls_cert, args.tls_key,
                              args.hosts))
     return 0
 

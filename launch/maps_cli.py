@@ -3,13 +3,18 @@ fetches it), and ``fleet maps fetch NAME... | --all [--mirror URL|DIR]``, which 
 user cache directory, checks every file's sha256 and prints each map's source and licence.
 
 A checksum mismatch, an unknown name or an unreachable source is one line on stderr and exit 2, and leaves
-nothing in the cache (``world/fetch.py``).
+nothing in the cache (``world/fetch.py``); so do Ctrl-C (exit 130) and SIGTERM (exit 143) during a fetch.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
 import sys
+import threading
+from collections.abc import Iterator
+from types import FrameType
 from typing import Any, TextIO
 
 from fleet_emu.core.errors import ConfigError
@@ -73,10 +78,30 @@ def fetch_maps(names: list[str], *, every: bool = False, mirror: str | None = No
     if every == bool(names):
         raise ConfigError("fleet maps fetch needs map names or --all (not both); `fleet maps` lists them")
     for entry in entries_in(list(registry()) if every else names):
-        done = fetch(entry, mirror, force=force)
+        with _sigterm_unwinds():
+            done = fetch(entry, mirror, force=force)
         files = ", ".join(f.path for f in entry.files)
         via = "" if done.cached or mirror is None else f" via {mirror}"
         where = f"already in {done.folder}" if done.cached else f"-> {done.folder}"
         print(f"{entry.name}: {entry.source} {files}{via} {where} (sha256 checked); licence {entry.licence}",
               file=out)
     return 0
+
+
+@contextlib.contextmanager
+def _sigterm_unwinds() -> Iterator[None]:
+    """SIGTERM ends a fetch as Ctrl-C does, by an exception (exit 143), so that the fetch removes what it
+    wrote; by default it would end the process on the spot. (On the main thread only: signals go there.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(_signum: int, _frame: FrameType | None) -> None:
+        print("fleet: terminated", file=sys.stderr)
+        raise SystemExit(143)
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)

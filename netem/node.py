@@ -59,6 +59,7 @@ class NetemNode(NodeBase):
         self.states: dict[int, WorldState] = {}  # states come in, by tick, from the next one awaited on
         self.next_state = 0  # the first tick whose state netem has not used yet
         self.tx: dict[int, dict[str, TxBundle]] = {}
+        self.sent_tick = -1  # lockstep: the last tick whose bundles netem sent
         self.stopped = False
         self.stop_tick = -1
         self.abort = False
@@ -149,8 +150,21 @@ class NetemNode(NodeBase):
         elif channel == "tx":
             b = self.decode(key, data, TxBundle, self.ctx_tx)  # envelopes only: payloads stay opaque
             if b is not None:  # decode checked that the key's robot sent it
-                self.tx.setdefault(b.tick, {})[b.src] = b
+                self._keep_tx(key, b)
         return True
+
+    def _keep_tx(self, key: str, b: TxBundle) -> None:
+        """Keep a sender's tx bundle for its tick; a second one of the same sender and tick, or one of a tick
+        already sent (lockstep), is dropped and counted (first wins: a sender sends one bundle a tick, so a
+        second is someone else's in its name)."""
+        if not self.realtime and b.tick <= self.sent_tick:
+            self.drop(key, f"a tx bundle of {b.src} for tick {b.tick}, already sent")
+            return
+        got = self.tx.setdefault(b.tick, {})
+        if b.src in got:
+            self.drop(key, f"a second tx bundle of {b.src} for tick {b.tick} (the first is kept)")
+        else:
+            got[b.src] = b
 
     def _keep_state(self, key: str, st: WorldState) -> None:
         """Keep a state for its tick; one of a tick already used, or a second one of a tick, is dropped and
@@ -190,6 +204,7 @@ class NetemNode(NodeBase):
             if tick + 1 in self.states:  # the world moved on: only robots it failed may stay silent
                 needed &= set(self.states[tick + 1].live) | base
         got = self.tx.pop(tick, {})
+        self.sent_tick = tick
         return {r: got[r].msgs for r in (*live, *base) if r in got}
 
     def _publish_tick(self, state: WorldState) -> tuple[tuple[str, ...], np.ndarray]:

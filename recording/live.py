@@ -5,8 +5,9 @@ layout shows both.
 :class:`LiveServer` takes the fold's derived messages (JSON, as written into ``run.mcap``) and logs each as the
 SDK's typed message (``foxglove.Grid``, ``foxglove.SceneUpdate``, ``foxglove.Log``: protobuf on the wire) or, for
 ``/viz/stats``, as JSON on a channel with its JSON schema. Logging never waits for a viewer: the SDK queues each
-client's messages (dropping the oldest for a slow one). The grids are latched: a client that subscribes mid-run
-gets the latest of each at once.
+client's messages (at most :data:`BACKLOG`, dropping the oldest for a slow one), a viewer that stops reading is
+dropped (:class:`~fleet_emu.recording.viewers.ViewerWatch`), and the server's stop has a deadline. The grids
+are latched: a client that subscribes mid-run gets the latest of each at once.
 
 Every channel of the run (:func:`~fleet_emu.recording.foxglove.live_topics`: the scene, the maps, each robot's
 belief, the log, the stats) exists before the server starts: a client is advertised all of them in the one
@@ -32,12 +33,14 @@ from foxglove.websocket import ChannelView, Client, ServerListener
 from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.foxglove import Derived
 from fleet_emu.recording.stats import SCHEMA_STATS, STATS_SCHEMA
+from fleet_emu.recording.viewers import ViewerWatch, drop
 
 log = logging.getLogger(__name__)
 
 DEFAULT_HOST = "127.0.0.1"
 BACKLOG = 4096  # messages queued per client before the oldest are dropped
 LINGER = 0.5  # seconds the server stays up after the run, for its last messages to reach the viewers
+STOP_S = 2.0  # seconds the server's stop may take before every viewer still connected is dropped
 
 # nested JSON fields -> the SDK's typed message of that field (a list field: each item's type)
 _TYPES: dict[str, Any] = {
@@ -115,6 +118,7 @@ class LiveServer(ServerListener):
         self.server = foxglove.start_server(name=name, host=host, port=port, context=self.context,
                                             server_listener=self, message_backlog_size=BACKLOG)
         self.host = host
+        self.viewers = ViewerWatch(self.server.port)
 
     @property
     def port(self) -> int:
@@ -172,7 +176,18 @@ class LiveServer(ServerListener):
             log.exception("live view: cannot send the latest grid")
 
     def close(self) -> None:
-        """Stop serving; a watched run first lingers a moment (stopping drops what is still queued)."""
+        """Stop serving; a watched run first lingers a moment (stopping drops what is still queued). The SDK's
+        stop waits for each viewer to take what it was sent: one that has not within :data:`STOP_S` is dropped,
+        and a server that still does not stop is left to the process's exit (a run never waits on a viewer)."""
         if self.watched:
             time.sleep(LINGER)
-        self.server.stop()
+        self.viewers.close()
+        port = self.port
+        stopper = threading.Thread(target=self.server.stop, name="live-stop", daemon=True)
+        stopper.start()
+        stopper.join(STOP_S)
+        if stopper.is_alive():
+            self.viewers.dropped += drop(port, None, f"the server's stop waited {STOP_S:g} s for it")
+            stopper.join(STOP_S)
+        if stopper.is_alive():
+            log.warning("live: the server did not stop within %g s; the run goes on without it", 2 * STOP_S)

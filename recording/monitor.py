@@ -97,7 +97,9 @@ class Monitor:
     decision_ms: list[float] = dataclasses.field(default_factory=list)
     reports: dict[str, AgentReport] = dataclasses.field(default_factory=dict)
     stop: Stop | None = None
-    outside_stop: Stop | None = None  # the first stop sent as anyone but the world (the launcher's own included)
+    # the first stop sent as anyone but the world (the launcher's own included), or in the world's name when the
+    # world cannot have sent it (:meth:`world_sent`)
+    outside_stop: Stop | None = None
     last_activity_ns: int | None = None  # when the last world state or robot command came (lockstep's heartbeat)
     activity_tick: int = 0  # the world's tick then
     longest_silence: tuple[float, int] = (0.0, 0)  # the longest gap between them: seconds, and the tick it began at
@@ -181,10 +183,8 @@ class Monitor:
             self.reports[msg.src] = msg
         elif isinstance(msg, BaseReport) and msg.src == BASE:
             self.base_report = msg
-        elif isinstance(msg, Stop) and msg.src == "world":
-            self.stop = msg
-        elif isinstance(msg, Stop) and self.outside_stop is None:
-            self.outside_stop = msg
+        elif isinstance(msg, Stop):
+            self._fold_stop(msg)
         elif isinstance(msg, WorldClock) and msg.src == "world":
             if self.clock is None or msg.tick >= self.clock.tick:
                 self.clock = msg
@@ -195,6 +195,25 @@ class Monitor:
             self.relay_stats.fold_tx(msg)
         elif isinstance(msg, RxBundle) and self.relay_stats is not None and msg.src == "netem":
             self.relay_stats.fold_rx(msg)
+
+    def _fold_stop(self, msg: Stop) -> None:
+        """The world's first stop is the run's (never replaced by a later one); a stop in the world's name that
+        the world cannot have sent, or anyone else's, is kept apart (:attr:`outside_stop`)."""
+        if msg.src == "world" and self.stop is None and self.world_sent(msg):
+            self.stop = msg
+        elif (msg.src != "world" or self.stop is None) and self.outside_stop is None:
+            self.outside_stop = msg
+
+    def world_sent(self, msg: Stop) -> bool:
+        """Whether the world can have sent this stop in its name: it stops a run only when its start-up timed
+        out (before any state), after its last state (``done``, of the stop's tick), or when the launcher
+        stopped it (a stop of the launcher's came first)."""
+        st = self.state
+        if msg.reason == "startup":
+            return st is None
+        if msg.reason == "interrupted":
+            return self.outside_stop is not None and self.outside_stop.src == "launcher"
+        return st is not None and st.done and st.tick == msg.tick and msg.reason in (st.reason, "done")
 
     def _fold_base(self, lk: Links) -> None:
         """One tick of base connectivity (``core/reach.py``): the robots' links and theirs to the base."""

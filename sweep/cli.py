@@ -3,20 +3,24 @@ studies), ``fleet sweep report RESULTS`` (figures and tables) and ``fleet sweep 
 point re-created as a run folder, checked against its row).
 
 Exit codes: 0 when every run succeeded; 2 on bad input (one line, before any run); 130 on Ctrl-C (the rows
-finished so far are kept and the tables written); otherwise 200 + the number of failed runs (at most 255).
+finished so far are kept and the tables written); 1 when the sweep's own files cannot be written (a full disk:
+one line naming the failed runs and what has no row; every table that fits is written, and a resume runs the
+points without a row); otherwise 200 + the number of failed runs (at most 255), a point of the grid without a
+row counted as failed.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import os
 import shutil
 import signal
 import sys
 import time
 import tomllib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import FrameType
 from typing import Any
@@ -24,6 +28,7 @@ from typing import Any
 from fleet_emu.core.errors import ConfigError
 
 FAILED_BASE = 200
+DISK_FULL = 1  # the sweep's own files (rows, tables) could not be written: a full disk
 
 
 def add_parser(sub: Any) -> None:
@@ -162,7 +167,7 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
     """The sweep proper, once every check passed and ``out`` is claimed."""
     from rich.console import Console
 
-    from fleet_emu.sweep.execute import RowWriter, execute, read_rows, write_tables
+    from fleet_emu.sweep.execute import execute, read_rows, write_tables
     from fleet_emu.sweep.record import Keep
 
     done = {r["id"] for r in read_rows(out) if r.get("status") == "ok"}
@@ -172,39 +177,103 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
     console.print(f"[bold]{study.name}[/bold]: {len(points)} runs, {sum(p.id in done for p in points)} done, "
                   f"{len(todo)} to run "
                   f"({study.engine} engine, {'Dask ' + dask if dask else f'{jobs} jobs'}) -> {out}")
-    writer = RowWriter(out)
-    failed = ran = 0
     interrupted = False
+    disk: str | None = None
     t0 = time.monotonic()
     with _bar(console, len(todo), quiet) as (bar, task):
-        def on_row(row: dict[str, Any]) -> None:
-            nonlocal failed, ran
-            writer.write(row)
-            ran += 1
-            failed += row.get("status") != "ok"
-            bar.update(task, advance=1, failed=failed)
-
+        on_row = _Rows(out, lambda failed: bar.update(task, advance=1, failed=failed))
         with _sigterm_as_interrupt() as signals:
             try:
                 execute(todo, jobs, on_row, client, Keep(study.record, str(out.absolute())))
             except KeyboardInterrupt:
                 interrupted = True
+            except _DiskFull as full:
+                disk = full.why
             finally:
-                writer.close()
+                on_row.close()
     rows = read_rows(out)
-    parquet, csv = write_tables(rows, out)
-    failed_all = sum(r.get("status") != "ok" for r in rows)
+    tables, unwritable = write_tables(rows, out)
+    missing = [p.id for p in points if p.id not in {r["id"] for r in rows}]
+    failed_all = sum(r.get("status") != "ok" for r in rows) + (0 if limit or interrupted else len(missing))
     kept = sum(bool(r.get("run_dir")) for r in rows)
-    console.print(f"{len(rows)} rows ({failed_all} failed) in {parquet} and {csv}; this call ran {ran} of "
+    console.print(f"{len(rows)} rows of {len(points)} points ({failed_all} failed) in "
+                  f"{' and '.join(str(t) for t in tables) or 'no table'}; this call ran {on_row.ran} of "
                   f"{len(todo)} in {time.monotonic() - t0:.1f} s"
                   + (f"; {kept} runs kept in {out / 'runs'} (record = {study.record!r})" if kept else ""))
     if interrupted:
         print(f"fleet: interrupted; the finished runs are in {out} (run again to resume)", file=sys.stderr)
         return 128 + (signals[0] if signals else signal.SIGINT)
+    if disk is not None or unwritable:
+        print(f"fleet: error: {_disk_line(out, disk, unwritable, rows, on_row.unwritten, missing)}",
+              file=sys.stderr)
+        return DISK_FULL
     if failed_all:
-        print(f"fleet: error: {failed_all} of {len(rows)} runs failed (their rows hold the error)", file=sys.stderr)
+        gone = f"; {len(missing)} points have no row: {_ids(missing)} (run again)" if missing and not limit else ""
+        ids = _ids([r["id"] for r in rows if r.get("status") != "ok"])
+        print(f"fleet: error: {failed_all} of {len(points)} runs failed (their rows hold the error): {ids}{gone}",
+              file=sys.stderr)
         return min(FAILED_BASE + failed_all, 255)
     return 0
+
+
+class _Rows:
+    """Each row as its run finishes: appended to ``rows.jsonl`` and counted (``tick(failed so far)``). A row
+    the disk did not take, or a run whose own files it did not, stops the sweep (:class:`_DiskFull`)."""
+
+    def __init__(self, out: Path, tick: Callable[[int], None]) -> None:
+        from fleet_emu.sweep.execute import RowWriter
+
+        try:
+            self.writer = RowWriter(out)
+        except OSError as exc:
+            raise ConfigError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+        self.tick = tick
+        self.ran = self.failed = 0
+        self.unwritten: list[dict[str, Any]] = []  # rows of finished runs the disk did not take
+
+    def __call__(self, row: dict[str, Any]) -> None:
+        self.ran += 1
+        self.failed += row.get("status") != "ok"
+        self.tick(self.failed)
+        try:
+            self.writer.write(row)
+        except OSError as exc:
+            self.unwritten.append(row)
+            raise _DiskFull(exc.strerror or str(exc)) from None
+        error = str(row.get("error") or "")
+        if error.startswith("DiskFault: "):  # the run's own files could not be written: the disk is full
+            full = os.strerror(errno.ENOSPC)
+            raise _DiskFull(full if full in error else error.split("; ")[0].removeprefix("DiskFault: "))
+
+    def close(self) -> None:
+        self.writer.close()
+
+
+class _DiskFull(Exception):
+    """A row the disk did not take, or a run whose own files it did not: the sweep stops (its workers
+    interrupted) and says so in one line; ``why`` is the system's error."""
+
+    def __init__(self, why: str) -> None:
+        super().__init__(why)
+        self.why = why
+
+
+def _ids(ids: list[str], most: int = 8) -> str:
+    return ", ".join(ids[:most]) + (f" and {len(ids) - most} more" if len(ids) > most else "")
+
+
+def _disk_line(out: Path, disk: str | None, unwritable: dict[str, str], rows: list[dict[str, Any]],
+               unwritten: list[dict[str, Any]], missing: list[str]) -> str:
+    """The one line of a sweep whose own files the disk did not take: why, the runs that failed (their rows
+    or not), what has no row (it runs again on a resume), and the tables not written."""
+    why = disk if disk is not None else next(iter(unwritable.values()))
+    failed = sorted({r["id"] for r in rows if r.get("status") != "ok"} |
+                    {r["id"] for r in unwritten if r.get("status") != "ok"})
+    parts = [f"cannot write the sweep's files in {out}: {why}",
+             f"failed runs: {_ids(failed)}" if failed else "no run failed",
+             f"{len(missing)} points have no row (run again to resume once there is space)" if missing else "",
+             f"not written: {', '.join(unwritable)}" if unwritable else ""]
+    return "; ".join(p for p in parts if p)
 
 
 def _claim(out: Path, study: Any) -> None:

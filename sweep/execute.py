@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import errno
 import json
 import multiprocessing
 import os
@@ -87,31 +88,46 @@ def flatten(d: dict[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
 
 
 def read_rows(out: Path) -> list[dict[str, Any]]:
-    """The rows written so far (the last row of an id wins; a line cut by a crash is skipped)."""
+    """The rows written so far (the last row of an id wins; a line cut by a crash or a full disk is skipped, so
+    its point runs again)."""
     path = out / ROWS
     rows: dict[str, dict[str, Any]] = {}
     if path.exists():
-        for line in path.read_text().splitlines():
+        for line in path.read_bytes().split(b"\n"):
             try:
                 row = json.loads(line)
-            except json.JSONDecodeError:
+            except (json.JSONDecodeError, UnicodeDecodeError):
                 continue
-            rows[row["id"]] = row
+            if isinstance(row, dict) and isinstance(row.get("id"), str):
+                rows[row["id"]] = row
     return list(rows.values())
 
 
 class RowWriter:
-    """Appends each finished row to ``rows.jsonl`` at once (flushed), so an interrupted sweep loses nothing."""
+    """Appends each finished row to ``rows.jsonl`` at once, one line in one write, so an interrupted sweep loses
+    nothing. A line left cut by a full disk or a crash is closed first, so that the next row is a line of its
+    own (the cut one is skipped when read: its point runs again). An OSError (a full disk) is the caller's."""
 
     def __init__(self, out: Path) -> None:
-        self._file = (out / ROWS).open("a")
+        self._fd = os.open(out / ROWS, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        self._torn = os.fstat(self._fd).st_size > 0 and _last_byte(out / ROWS) != b"\n"
 
     def write(self, row: dict[str, Any]) -> None:
-        self._file.write(json.dumps(row, default=str) + "\n")
-        self._file.flush()
+        data = (b"\n" if self._torn else b"") + json.dumps(row, default=str).encode() + b"\n"
+        self._torn = True  # until the whole line is written: a failed write may leave part of it
+        written = os.write(self._fd, data)
+        if written != len(data):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        self._torn = False
 
     def close(self) -> None:
-        self._file.close()
+        os.close(self._fd)
+
+
+def _last_byte(path: Path) -> bytes:
+    with path.open("rb") as f:
+        f.seek(-1, os.SEEK_END)
+        return f.read(1)
 
 
 def execute(points: list[Point], jobs: int, on_row: Callable[[dict[str, Any]], None], dask: Any = None,
@@ -182,20 +198,29 @@ def _row_of(fut: Any, point: Point) -> dict[str, Any]:
                 **group_of(point), "status": "failed", "error": f"worker failed: {type(exc).__name__}: {exc}"}
 
 
-def write_tables(rows: Iterable[dict[str, Any]], out: Path) -> tuple[Path, Path]:
-    """``results.parquet`` (pyarrow) and ``results.csv`` beside it, one row per run, rows sorted by id."""
+def write_tables(rows: Iterable[dict[str, Any]], out: Path) -> tuple[list[Path], dict[str, str]]:
+    """``results.parquet`` (pyarrow) and ``results.csv`` beside it, one row per run, rows sorted by id, each
+    written whole or not at all (a full disk leaves the one before): the tables written, and the error of each
+    table that could not be."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
     import pyarrow.parquet as pq
+
+    from fleet_emu.core.files import write_atomic
 
     rows = sorted(rows, key=lambda r: r["id"])
     names: dict[str, None] = {}
     for r in rows:
         names |= dict.fromkeys(r)
     table = pa.table({n: _column([r.get(n) for r in rows]) for n in names})
-    pq.write_table(table, out / PARQUET)
-    pacsv.write_csv(table, out / CSV)
-    return out / PARQUET, out / CSV
+    written, failed = [], {}
+    for name, write in ((PARQUET, pq.write_table), (CSV, pacsv.write_csv)):
+        try:
+            write_atomic(out / name, lambda tmp, w=write: w(table, str(tmp)))  # type: ignore[misc]
+            written.append(out / name)
+        except OSError as exc:  # pyarrow's own errors on a full disk are OSErrors too
+            failed[name] = getattr(exc, "strerror", None) or str(exc).splitlines()[0]
+    return written, failed
 
 
 def _column(values: list[Any]) -> Any:

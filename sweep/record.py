@@ -94,4 +94,23 @@ def settle(point: Point, keep: Keep | None, row: dict[str, Any]) -> dict[str, An
     if not wanted:
         shutil.rmtree(folder, ignore_errors=True)
     there = folder.is_dir() and any(folder.iterdir())
+    if there and (said := _whole(folder)) is not None:
+        row = row | {"error": f"{row.get('error') or 'the run'}; {said}"}
+        there = folder.is_dir()
     return row | {"run_dir": keep.relative(point.id) if there else None}
+
+
+def _whole(folder: Path) -> str | None:
+    """A kept folder whose recording was cut (a full disk mid-run) is recovered (``fleet recover``), or removed
+    when that cannot be done: a sweep never names a recording no reader opens. What was done, or None."""
+    from fleet_emu.core.errors import FleetError
+    from fleet_emu.launch.recover import is_cut, recover
+
+    if not is_cut(folder):
+        return None
+    try:
+        recover(folder)
+    except (FleetError, OSError) as exc:
+        shutil.rmtree(folder, ignore_errors=True)
+        return f"its folder was removed: its recording was cut and could not be recovered ({exc})"
+    return "its recording was cut, and recovered"

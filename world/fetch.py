@@ -5,6 +5,12 @@ unreachable source, a checksum mismatch, Ctrl-C) leaves nothing in the cache.
 The files come from their pinned upstream addresses, or from a mirror laid out as ``MIRROR/<map
 name>/<upstream file name>``: a folder (for a machine without the internet) or a base URL (``http://`` or
 ``https://``). The cache itself has that layout, so one machine's cache can serve as another's mirror.
+
+Nothing can hold a fetch: each file must arrive whole within :data:`DEADLINE` seconds (a server that sends a
+byte now and then is cut off then, not only one silent for :data:`TIMEOUT`), a mirror folder's files are read
+only when regular (a symlink to one included: a FIFO or a device is refused, never waited on), and SIGINT or
+SIGTERM during a fetch remove its temporary folder (the caller turns SIGTERM into an exception:
+``launch/maps_cli.py``).
 """
 
 from __future__ import annotations
@@ -14,18 +20,25 @@ import dataclasses
 import hashlib
 import os
 import shutil
+import signal
+import stat
 import tempfile
+import time
 import urllib.error
 import urllib.parse
 import urllib.request
+from collections.abc import Iterator
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 from fleet_emu.core.errors import MapError
 from fleet_emu.world.registry import MapFile, RegistryMap, cache_dir, lookup, verified
 
-#: Seconds to wait for a server; the largest map file is under 2 MB.
+#: Seconds to wait for a server to connect or send anything; the largest map file is under 2 MB.
 TIMEOUT = 30.0
+#: Seconds for the whole of one file, connection included, however the server sends it.
+DEADLINE = 120.0
+_SIGNALS = {signal.SIGINT, signal.SIGTERM}
 #: A file larger than this is refused while it downloads (the largest registry file is 1.7 MB).
 MAX_BYTES = 64 << 20
 
@@ -63,21 +76,33 @@ def fetch(entry: RegistryMap, mirror: str | None = None, *, force: bool = False)
     if not force and verified(entry, folder):
         return Fetched(entry, folder, origins, cached=True)
     made = _missing_ancestors(root)
-    try:
-        root.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{entry.name}.", suffix=".part", dir=root))
-    except OSError as exc:
-        raise MapError(f"map {entry.name}: cannot write to the cache {root} ({exc.strerror or exc})") from None
+    with _signals_held():  # a signal between making the folder and owning it would leave it behind
+        try:
+            root.mkdir(parents=True, exist_ok=True)
+            tmp = Path(tempfile.mkdtemp(prefix=f".{entry.name}.", suffix=".part", dir=root))
+        except OSError as exc:
+            raise MapError(f"map {entry.name}: cannot write to the cache {root} ({exc.strerror or exc})") from None
     hint = "; without the internet, use --mirror DIR|URL" if mirror is None else ""
     try:
         for f, where in zip(entry.files, origins, strict=True):
             _download(entry, f, where, tmp / f.name, hint)
         _install(entry, tmp, folder)
     finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-        for d in made:  # the folders this fetch made, deepest first, when it left nothing in them
-            _remove_if_empty(d)
+        with _signals_held():  # a second Ctrl-C does not cut the clean-up short
+            shutil.rmtree(tmp, ignore_errors=True)
+            for d in made:  # the folders this fetch made, deepest first, when it left nothing in them
+                _remove_if_empty(d)
     return Fetched(entry, folder, origins, cached=False)
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """SIGINT and SIGTERM held back (delivered on leaving) for a few file operations that must not be cut."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _missing_ancestors(path: Path) -> list[Path]:
@@ -96,7 +121,7 @@ def _download(entry: RegistryMap, f: MapFile, where: str, dest: Path, hint: str)
     size = 0
     try:
         with _open(where) as src, dest.open("wb") as out:
-            for block in iter(lambda: src.read(1 << 16), b""):
+            for block in iter(src.read, b""):
                 size += len(block)
                 if size > MAX_BYTES:
                     raise MapError(f"map {entry.name}: {where} is larger than {MAX_BYTES >> 20} MB; nothing was "
@@ -114,22 +139,59 @@ def _download(entry: RegistryMap, f: MapFile, where: str, dest: Path, hint: str)
 
 
 class _open:
-    """A readable binary stream of a path or an http(s) URL (a context manager)."""
+    """The blocks of a path or an http(s) URL (a context manager: ``read()`` gives the next block, ``b""`` at
+    the end); an OSError once :data:`DEADLINE` has passed, or for a path that is not a regular file."""
 
     def __init__(self, where: str) -> None:
         self.where = where
-        self.stream: BinaryIO | None = None
+        self.stream: Any = None
+        self.deadline = time.monotonic() + DEADLINE
 
-    def __enter__(self) -> BinaryIO:
-        if _is_url(self.where):
-            self.stream = urllib.request.urlopen(self.where, timeout=TIMEOUT)  # http(s) only (_is_url)
+    def __enter__(self) -> _open:
+        if _is_url(self.where):  # http(s) only (_is_url)
+            self.stream = urllib.request.urlopen(self.where, timeout=self._left())
         else:
-            self.stream = Path(self.where).open("rb")
-        return self.stream
+            self.stream = _regular(Path(self.where))
+        return self
+
+    def _left(self) -> float:
+        """Seconds the next wait may take; TimeoutError once the deadline has passed (or all but passed)."""
+        left = self.deadline - time.monotonic()
+        if left <= 0.01:
+            raise TimeoutError(f"not whole within {DEADLINE:g} s")
+        return min(TIMEOUT, left)
+
+    def read(self) -> bytes:
+        if not _is_url(self.where):
+            return bytes(self.stream.read(1 << 16))
+        sock = getattr(getattr(getattr(self.stream, "fp", None), "raw", None), "_sock", None)
+        if sock is not None:
+            sock.settimeout(self._left())  # each wait on the server ends by the deadline
+        try:
+            block = bytes(self.stream.read1(1 << 16))  # whatever came: a trickle cannot hold one read open
+        except TimeoutError:
+            self._left()  # the deadline's own error, when that is what ended the wait
+            raise
+        self._left()
+        return block
 
     def __exit__(self, *exc: object) -> None:
         if self.stream is not None:
             self.stream.close()
+
+
+def _regular(path: Path) -> BinaryIO:
+    """``path`` open for reading when it is a regular file (or a symlink to one): opened without blocking, so
+    a FIFO or a device in a mirror folder is refused at once, never waited on."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(f"{path.name} is not a regular file")
+        os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
 
 
 def _reason(exc: BaseException) -> str:

@@ -260,6 +260,8 @@ class WorldNode(NodeBase):
                 moves[robot], self.known[robot] = cmd.move, cmd.known
                 waiting.discard(robot)
                 deadline = time.monotonic() + self.scenario.barrier_timeout  # silent since the last command
+            elif cmd.tick == t and robot in moves:  # a robot commands once a tick: a second is not its own
+                self.drop(key, f"a second command of {robot} for tick {t} (the first is kept)")
         return moves
 
 

@@ -11,11 +11,12 @@ import sys
 import threading
 from pathlib import Path
 
+import pytest
 import zenoh
 
 from fleet_emu.core.bus import client_config, router_config, router_locators
 from fleet_emu.core.messages import Stop, WorldState
-from fleet_emu.launch.causes import flood, froze, silent_world, state_timeout
+from fleet_emu.launch.causes import flood, froze, outside_stop, silent_world, state_timeout
 from fleet_emu.recording.monitor import Monitor
 from tests.conftest import ROOT, fleet_processes, result, run_cli
 
@@ -38,6 +39,27 @@ def test_the_causes_read_from_the_monitor() -> None:
     assert froze(m, 10.0) == "the world process stopped answering at tick 7 (no state for 20 s)"
     assert froze(m, 30.0) is None and state_timeout(10.0) == 20.0
     assert flood([], 100) is None and flood(["r1"], 0) is None
+    assert outside_stop(m) is None
+
+
+def test_the_worlds_first_stop_is_the_runs_and_a_forged_one_is_kept_apart() -> None:
+    def stop(tick: int, reason: str, src: str = "world") -> bytes:
+        return Stop(src=src, tick=tick, seq=99, reason=reason).encode()
+
+    m = Monitor(("r0",))
+    m.feed("fleet/x/world/state", _state(7).encode())
+    m.feed("fleet/x/ctl/stop", stop(7, "coverage"))  # the world is not done: not the world's
+    assert m.stop is None and m.outside_stop is not None
+    assert outside_stop(m) == ("a stop in the world's name that the world did not send ended the run at tick 7 "
+                               "(reason 'coverage'; its last state was of tick 7, not done)")
+    m.feed("fleet/x/world/state", _state(8, done=True).encode())
+    m.feed("fleet/x/ctl/stop", stop(8, "done"))
+    m.feed("fleet/x/ctl/stop", stop(8, "no_robots"))  # a second stop never replaces the first
+    assert m.stop is not None and m.stop.reason == "done"
+    ok = Monitor(("r0",))
+    ok.feed("fleet/x/ctl/stop", stop(0, "interrupted", "launcher"))
+    ok.feed("fleet/x/ctl/stop", stop(3, "interrupted"))  # the world's answer to the launcher's stop
+    assert ok.stop is not None and ok.stop.reason == "interrupted"
     assert "r1 failed while the bus carried 100 message(s) of another run" in (flood(["r1"], 100) or "")
 
 
@@ -75,8 +97,8 @@ def test_a_frozen_world_is_named_with_its_tick(small_map: Path, tmp_path: Path) 
     assert res["reason"] == "error" and res["error"] in err and res["ticks"] >= 4
 
 
-def _stop_from_outside(endpoint: str, done: threading.Event) -> None:
-    """Read the run's nonce off its first state on the open router, then put a stop in the launcher's name."""
+def _stop_from_outside(endpoint: str, done: threading.Event, src: str, reason: str) -> None:
+    """Read the run's nonce off its first state on the open router, then put a stop in ``src``'s name."""
     got: list[zenoh.Sample] = []
     with zenoh.open(client_config(endpoint)) as s:
         watch = s.declare_subscriber("fleet/outside/world/state", got.append)
@@ -84,18 +106,24 @@ def _stop_from_outside(endpoint: str, done: threading.Event) -> None:
             threading.Event().wait(0.05)
         if got:
             nonce = got[0].attachment
-            s.put("fleet/outside/ctl/stop", Stop(src="launcher", tick=0, seq=1, reason="interrupted").encode(),
+            s.put("fleet/outside/ctl/stop", Stop(src=src, tick=0, seq=1, reason=reason).encode(),
                   attachment=nonce.to_bytes() if nonce is not None else None)
         watch.undeclare()
 
 
-def test_a_stop_from_outside_is_named(small_map: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize(("src", "reason", "says"), [
+    ("launcher", "interrupted", "a stop from outside this launcher ended the run"),
+    ("world", "coverage", "a stop in the world's name that the world did not send ended the run at tick 0 "
+                          "(reason 'coverage'"),
+])
+def test_a_stop_from_outside_is_named(small_map: Path, tmp_path: Path, src: str, reason: str, says: str) -> None:
     """The nonce binds a run to its traffic; it does not authenticate (on an open router anyone can read it off
-    a message). A stop put in the launcher's name with it ends the run, and the line says so."""
+    a message). A stop put in the launcher's or the world's name with it ends the run (the robots obey it), and
+    the line says so: not robots that failed, not the run's own end."""
     done = threading.Event()
     with zenoh.open(router_config()) as router:
         endpoint = router_locators(router)[0]
-        attacker = threading.Thread(target=_stop_from_outside, args=(endpoint, done), daemon=True)
+        attacker = threading.Thread(target=_stop_from_outside, args=(endpoint, done, src, reason), daemon=True)
         attacker.start()
         code, _, err = run_cli(["run", "--map", str(small_map), "--robots", "2", "--max-ticks", "100000",
                                 "--target-coverage", "1.0", "--quiet", "--no-record", "--in-process",
@@ -103,8 +131,9 @@ def test_a_stop_from_outside_is_named(small_map: Path, tmp_path: Path) -> None:
         done.set()
         attacker.join(30)
     assert code == 1 and len(_errors(err)) == 1, err
-    assert "a stop from outside this launcher ended the run" in err
-    assert result(tmp_path / "run")["reason"] == "error"
+    assert says in err
+    res = result(tmp_path / "run")
+    assert res["reason"] == "error" and says in res["error"]
 
 
 def _errors(err: str) -> list[str]:
