@@ -29,6 +29,8 @@ import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.params import Param
+from fleet_emu.agents.allocators.tasks import TASKS, use_tasks
+from fleet_emu.agents.regions import RegionTasks
 from fleet_emu.core.codec import Context, Payload
 from fleet_emu.core.grid import Cell, flat
 from fleet_emu.core.messages import RadioMsg, check_robot_cells
@@ -75,13 +77,15 @@ class Hungarian(Allocator, plugin_name="hungarian"):
 
     DESCRIPTION = "a coordinator robot assigns frontiers by the Hungarian method, over the radio (Yan et al. 2011)"
 
-    parameters = {"timeout": Param(10, ge=1), "period": Param(1, ge=1)}
+    parameters = {"timeout": Param(10, ge=1), "period": Param(1, ge=1), "tasks": TASKS}
     timeout: int
     period: int
+    tasks: str
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
         self.received: dict[str, RadioMsg] = {}  # the newest Assignment from each robot
+        self.regions = RegionTasks()
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)
@@ -93,6 +97,7 @@ class Hungarian(Allocator, plugin_name="hungarian"):
                 if r == problem.me or r not in problem.heard or problem.tick - problem.heard[r] <= self.timeout]
 
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
+        use_tasks(problem, self.tasks, self.regions)  # tasks = "regions": Yan's regions for the clusters
         for msg in inbox:
             if isinstance(msg.body, Assignment) and msg.dst in ("*", problem.me):
                 old = self.received.get(msg.origin)
