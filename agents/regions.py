@@ -23,7 +23,8 @@ and target position (for example, a critical point)". The paper gives no more; w
 4. **Tasks.** A region holding frontier cells is a task (:class:`RegionTask`): ``cells`` are its frontier
    cells (so the wavefront cost, eq. 2, is the distance to the nearest of them, which a robot outside the
    region reaches through its entry), ``target`` its *entry point*: of the critical points on its border, the
-   one of least clearance (then least flat index), and the region's cell nearest it; a region without one
+   one of least clearance (then least flat index), and the region's cell nearest it off the critical lines
+   (a line cell joins one of the regions it touches, which may change as labels do); a region without one
    (the region the robots start in, before any door is seen) is entered where it is, its target the frontier
    cell nearest its frontier cells' mean, as a frontier cluster's. ``region`` lists its cells, so that a
    robot holding a task knows it while the region is explored, wherever its frontier goes.
@@ -219,6 +220,7 @@ def region_tasks(grid: np.ndarray, regions: Regions) -> list[RegionTask]:
     if not len(idx):
         return []
     entries = _entries(regions)
+    cuts = regions.cuts.ravel()
     order = np.argsort(flat, kind="stable")
     bounds = np.searchsorted(flat[order], np.arange(regions.count + 2))
     tasks: list[RegionTask] = []
@@ -227,7 +229,8 @@ def region_tasks(grid: np.ndarray, regions: Regions) -> list[RegionTask]:
         region = np.sort(order[bounds[k]:bounds[k + 1]]).astype(np.int64)
         cells.flags.writeable = region.flags.writeable = False
         entry = entries.get(k)
-        target = _target(cells, cols) if entry is None else _nearest(region, entry, cols)
+        inside = region[~cuts[region]]  # off the critical lines: a cell no other region can take
+        target = _target(cells, cols) if entry is None else _nearest(inside if len(inside) else region, entry, cols)
         tasks.append(RegionTask(cells=cells, target=target, region=region))
     return tasks
 

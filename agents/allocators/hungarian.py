@@ -2,6 +2,9 @@
 Ali Cherif 2011 (section 5, Tables 1-2: "a centralized approach based on the Hungarian method ... in which the task
 allocation is done by a central planner").
 
+Tasks are the brain's frontier clusters, or with ``tasks = "regions"`` the regions of the map cut at critical
+points that Yan et al. bid on (section 4.2, :mod:`agents.regions`): below, a cluster is then a region task.
+
 The coordinator minimises the total wavefront cost ``sum_ij alpha_ij C_ij`` over one-to-one assignments
 (``scipy.optimize.linear_sum_assignment``). With more robots than clusters the cluster columns are
 replicated ``ceil(n/m)`` times, so every robot is assigned; an unreachable pair costs a large finite value

@@ -69,3 +69,8 @@ def test_the_shipped_studies_load() -> None:
     yan = Study.load("yan-loss")
     assert yan.grid["loss"] == [0.0, 0.1, 0.3, 0.5] and yan.fleet["comm"] == "full"
     assert len(yan.points()) == 3 * 3 * 4 * 10
+    regions = Study.load("yan-regions")
+    assert regions.grid["allocator"][:2] == [{"type": "trade", "tasks": "regions"},
+                                             {"type": "hungarian", "tasks": "regions"}]
+    assert regions.grid["loss"] == yan.grid["loss"] and regions.fleet == yan.fleet
+    assert len(regions.points()) == 4 * 3 * 4 * 10

@@ -117,7 +117,8 @@ def test_a_missing_map_is_one_line_exit_2(tmp_path: Path) -> None:
 def test_list_names_the_shipped_studies() -> None:
     code, out, _ = run_cli(["sweep", "--list"])
     assert code == 0
-    assert [ln.split()[0] for ln in out.strip().splitlines()] == ["bandwidth", "bautin-fig5", "benavides", "yan-loss"]
+    assert [ln.split()[0] for ln in out.strip().splitlines()] == ["bandwidth", "bautin-fig5", "benavides", "yan-loss",
+                                                                    "yan-regions"]
 
 
 def test_a_study_on_a_dask_cluster(study_dir: Path) -> None:
