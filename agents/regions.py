@@ -8,14 +8,19 @@ and target position (for example, a critical point)". The paper gives no more; w
 1. **Clearance and basis points** (Thrun 1998, section 4's Voronoi diagram). ``clearance`` is each cell's
    Euclidean distance to the nearest *occupied* cell of the belief, and its *basis point* that cell
    (``scipy.ndimage.distance_transform_edt``). Unknown cells count as open: an opening onto the unknown is not a
-   narrowing, so a door is found as soon as its jambs are seen.
+   narrowing.
 2. **Critical points** (Thrun's "critical points" on the Voronoi diagram, which Wurm et al. 2008 use to segment
    the explored map). A known-free cell ``c`` is on the (grid) Voronoi diagram when a neighbour's basis point
-   ``q`` lies on the far side of ``c`` from its own ``p``: ``|p - q| >= max(2, OPPOSITE * clearance(c))``
-   (a corner's bisector, whose basis points are 90 degrees apart, is not). ``c`` is *critical* when its clearance
-   is a local minimum along the passage (the direction perpendicular to ``p - q``: not above either next cell)
-   and the passage widens on both sides: within ``REACH`` cells each way it reaches ``clearance(c) + WIDEN``.
-   A corridor of even width has none; a door between a corridor and a room has one.
+   ``q``, about as near to ``c`` as its own ``p`` (within a cell more), lies on the far side of ``c``: the angle
+   ``p c q`` is at least 120 degrees (``OPPOSITE``) and ``|p - q| >= 2`` (a corner's bisector, whose basis points
+   are 90 degrees apart, is not). ``c`` is *critical* when its clearance is a local minimum along the passage
+   (the direction perpendicular to ``p - q``: not above either next cell, and below one of them) and the passage
+   widens on both sides: within ``REACH`` cells each way, the clearance of *known* space (unknown counted as
+   occupied here: only what is sure to be wider counts, so that a critical point once found stays as more is
+   seen) reaches ``clearance(c) + WIDEN``. A corridor of even width has none; a door between a corridor and a
+   room has one. A passage at most two cells wide (``clearance(c) <= NARROW``) need only widen on one side, and
+   need not be below either next cell: a door onto a hallway as narrow as itself (the autolab map's) is no
+   local minimum of the clearance, yet a doorway; and such a hallway is cut where it opens into a room.
 3. **Critical lines and regions** (Thrun's "critical lines"). Each critical point is joined to its two basis
    points by straight lines; the known-free cells off those lines fall into 4-connected components, the
    *regions*; a component of fewer than ``MIN_REGION`` cells is not one. Each line cell then joins a region
@@ -29,9 +34,10 @@ and target position (for example, a critical point)". The paper gives no more; w
    cell nearest its frontier cells' mean, as a frontier cluster's. ``region`` lists its cells, so that a
    robot holding a task knows it while the region is explored, wherever its frontier goes.
 
-The segmentation is a pass over the grid (the distance transform, shifted comparisons, one labelling): about a
-millisecond on the built-in office at 0.5 m (``benchmarks/regions_picture.py`` prints it), so it is redone
-whole once per belief (:class:`RegionTasks` keeps the last) rather than updated.
+The segmentation is a few passes over the grid (two distance transforms, shifted comparisons, one labelling):
+about 3 ms of CPU on the built-in office and on autolab at 0.5 m cells, mostly numpy's per-call overhead
+(``benchmarks/regions_picture.py`` prints it), so it is redone whole once per belief (:class:`RegionTasks` keeps
+the last) rather than updated.
 """
 
 from __future__ import annotations
@@ -44,12 +50,15 @@ import numpy as np
 from fleet_emu.agents.frontiers import Cluster, _target, frontier_mask
 from fleet_emu.core.grid import FREE, OCCUPIED, Cell
 
-#: A Voronoi cell's two basis points are at least this many times its clearance apart (2 when opposite).
-OPPOSITE = 1.5
+#: A Voronoi cell's two basis points lie at least 120 degrees apart as seen from it (the cosine at most this).
+OPPOSITE = -0.5
 #: Cells looked at along the passage on each side of a candidate critical point.
 REACH = 6
 #: Clearance (cells) the passage must gain on both sides for a critical point: a door two cells narrower.
 WIDEN = 0.5
+#: A passage of at most this clearance (cells: two cells wide) is cut where it opens into a wider space, even
+#: when it does not widen on its other side (a door onto a hallway as narrow as it).
+NARROW = 1.5
 #: Components smaller than this (cells) between critical lines are no region of their own.
 MIN_REGION = 4
 
@@ -84,7 +93,8 @@ def segment(grid: np.ndarray) -> Regions:
     open_ = grid != OCCUPIED
     clearance, basis = ndimage.distance_transform_edt(open_, return_indices=True)
     free = grid == FREE
-    critical, ends = _critical_points(free, open_, clearance, basis)
+    certain = ndimage.distance_transform_edt(free)  # unknown as occupied: what is known to be that wide
+    critical, ends = _critical_points(free, open_, clearance, basis, certain)
     cuts = _lines(critical, ends, open_)
     labels, count = ndimage.label(free & ~cuts)
     sizes = np.bincount(labels.ravel(), minlength=count + 1)
@@ -110,23 +120,27 @@ def _shifted(a: np.ndarray, dr: int, dc: int, fill: float | bool) -> np.ndarray:
     return out
 
 
-def _critical_points(free: np.ndarray, open_: np.ndarray, clearance: np.ndarray, basis: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray]:
+def _critical_points(free: np.ndarray, open_: np.ndarray, clearance: np.ndarray, basis: np.ndarray,
+                     certain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The critical points (k x 2) and their basis points ((k x 2) p, (k x 2) q, stacked as k x 4)."""
     br, bc = basis[0].astype(np.float64), basis[1].astype(np.float64)
-    best = np.zeros_like(clearance)
-    qr, qc = br.copy(), bc.copy()
-    for dr, dc in _EIGHT:
-        nr, nc = _shifted(br, dr, dc, 0.0), _shifted(bc, dr, dc, 0.0)
-        ok = _shifted(open_, dr, dc, False)
-        d2 = np.where(ok, (nr - br) ** 2 + (nc - bc) ** 2, 0.0)
-        better = d2 > best
-        best = np.where(better, d2, best)
-        qr, qc = np.where(better, nr, qr), np.where(better, nc, qc)
-    sep = np.sqrt(best)
     rr, cc = np.indices(clearance.shape)
-    far = np.sqrt((qr - rr) ** 2 + (qc - cc) ** 2)  # the neighbour's basis point is about as near as c's own
-    cand = free & (sep >= np.maximum(2.0, OPPOSITE * clearance)) & (far <= clearance + 1.0)
+    pr, pc = br - rr, bc - cc  # c to its basis point p
+    reach2 = (clearance + 1.0) ** 2
+    cos = np.ones_like(clearance)
+    qr, qc = br.copy(), bc.copy()
+    for dr, dc in _EIGHT:  # the neighbour's basis point q most opposite p, about as near to c as p
+        nr, nc = _shifted(br, dr, dc, 0.0), _shifted(bc, dr, dc, 0.0)
+        vr, vc = nr - rr, nc - cc
+        n2 = vr ** 2 + vc ** 2
+        ok = _shifted(open_, dr, dc, False) & (n2 <= reach2) & (n2 > 0) & (clearance > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            k = np.where(ok, (vr * pr + vc * pc) / np.sqrt(n2 * (pr ** 2 + pc ** 2)), 1.0)
+        better = k < cos
+        cos = np.where(better, k, cos)
+        qr, qc = np.where(better, nr, qr), np.where(better, nc, qc)
+    sep2 = (qr - br) ** 2 + (qc - bc) ** 2
+    cand = free & (cos <= OPPOSITE) & (sep2 >= 4.0)
     r, c = np.nonzero(cand)
     if not len(r):
         return np.zeros((0, 2), dtype=np.int64), np.zeros((0, 4), dtype=np.int64)
@@ -141,24 +155,23 @@ def _critical_points(free: np.ndarray, open_: np.ndarray, clearance: np.ndarray,
         step = _sample(clearance, open_, r + sign * v[:, 0], c + sign * v[:, 1], ok)
         ok &= step >= here
         rises |= step > here
-    ok &= rises
+    ok &= rises | (here <= NARROW)
     r, c, u, v, here, p, q = r[ok], c[ok], u[ok], v[ok], here[ok], p[ok], q[ok]
-    ok = np.ones(len(r), dtype=bool)
-    for sign in (1.0, -1.0):  # and the passage widens on both sides
-        ok &= _widest(clearance, open_, r, c, sign * v, u) >= here + WIDEN
+    wider = [_widest(certain, open_, r, c, sign * v, u, here) >= here + WIDEN for sign in (1.0, -1.0)]
+    ok = (wider[0] & wider[1]) | ((wider[0] | wider[1]) & (here <= NARROW))  # a narrow passage's mouth too
     cells = np.stack([r, c], axis=1)[ok]
     ends = np.concatenate([p[ok], q[ok]], axis=1).astype(np.int64)
     return cells.astype(np.int64), ends
 
 
 def _widest(clearance: np.ndarray, open_: np.ndarray, r: np.ndarray, c: np.ndarray, v: np.ndarray,
-            u: np.ndarray) -> np.ndarray:
-    """The most clearance within ``REACH`` steps along ``v`` from each ``(r, c)`` (before an occupied cell or the
-    grid's edge), looking across the passage (along ``u``) up to its half-width plus one cell each way (at most
-    ``REACH``), up to a wall; -inf when the first step is blocked."""
+            u: np.ndarray, here: np.ndarray) -> np.ndarray:
+    """The most ``clearance`` within ``REACH`` steps along ``v`` from each ``(r, c)`` (before an occupied cell or
+    the grid's edge), looking across the passage (along ``u``) up to its half-width ``here`` plus one cell each
+    way (at most ``REACH``), up to a wall; -inf when the first step is blocked."""
     live = np.ones(len(r), dtype=bool)
     widest = np.full(len(r), -np.inf)
-    half = np.minimum(np.ceil(clearance[r, c]).astype(np.int64) + 1, REACH)
+    half = np.minimum(np.ceil(here).astype(np.int64) + 1, REACH)
     for k in range(1, REACH + 1):
         sr, sc = r + k * v[:, 0], c + k * v[:, 1]
         d = _sample(clearance, open_, sr, sc, live)

@@ -37,6 +37,17 @@ CORRIDOR = """
 ###################
 """
 
+# Rooms whose one-cell doors open onto a one-cell hallway: no door is narrower than the hallway.
+HALLWAY = """
+#############
+#...#...#...#
+#...#...#...#
+#...#...#...#
+##.###.###.##
+#...........#
+#############
+"""
+
 PLAIN = """
 ##############
 #............#
@@ -78,6 +89,14 @@ def test_a_corridor_with_rooms_off_it() -> None:
     rooms = {int(labels[2, c]) for c in (3, 9, 15)}
     corridor = set(labels[6:9, 1:18].ravel().tolist())
     assert len(rooms) == 3 and len(corridor) == 1 and not rooms & corridor
+    assert _free_labelled(grid, labels)
+
+
+def test_doors_onto_a_hallway_as_narrow_as_them_split_the_rooms_off() -> None:
+    grid, _ = from_ascii(HALLWAY)
+    labels = segment(grid).labels
+    rooms = {int(labels[2, c]) for c in (2, 6, 10)}
+    assert len(rooms) == 3 and int(labels[5, 6]) not in rooms
     assert _free_labelled(grid, labels)
 
 
