@@ -7,8 +7,8 @@ A robot *not in a task* runs one round of the protocol; a robot in a task explor
    smaller than its own it is a *buyer* of the robot with the smallest number heard, otherwise the *seller*.
 2. **Task allocation** (section 4.2). Tasks are frontier clusters, named by their target cell, or with
    ``tasks = "regions"`` the paper's own, regions of the map cut at critical points (:mod:`agents.regions`),
-   named by their entry point, a region task lasting while its region (which holds that cell) has a frontier
-   cell wherever it is (``_track``) and a teammate's claim covering its region. Each robot picks
+   named by their entry point: a region task lasts while the region holding that cell has a frontier cell,
+   however far from the entry (``_track``), and a teammate's claim takes the region holding its cell. Each robot picks
    the task of least wavefront cost (eq. 2) that its task list does not show as taken by a teammate. A buyer
    sends the purchase message ``{r, m, c}`` (eq. 3, ``TradePurchase``) to its seller and waits for the answer.
    The seller, with its own pick, collects purchases for ``bid_period`` ticks, then runs Algorithm 2: per task,
