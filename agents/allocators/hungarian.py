@@ -2,6 +2,9 @@
 Ali Cherif 2011 (section 5, Tables 1-2: "a centralized approach based on the Hungarian method ... in which the task
 allocation is done by a central planner").
 
+Tasks are the brain's frontier clusters, or with ``tasks = "regions"`` the regions of the map cut at critical
+points that Yan et al. bid on (section 4.2, :mod:`agents.regions`): below, a cluster is then a region task.
+
 The coordinator minimises the total wavefront cost ``sum_ij alpha_ij C_ij`` over one-to-one assignments
 (``scipy.optimize.linear_sum_assignment``). With more robots than clusters the cluster columns are
 replicated ``ceil(n/m)`` times, so every robot is assigned; an unreachable pair costs a large finite value
@@ -67,6 +70,8 @@ import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem, robot_order
 from fleet_emu.agents.allocators.params import Param
+from fleet_emu.agents.allocators.tasks import TASKS, use_tasks
+from fleet_emu.agents.regions import RegionTasks
 from fleet_emu.core.codec import Context, Payload
 from fleet_emu.core.grid import Cell, flat
 from fleet_emu.core.messages import RadioMsg, check_robot_cells
@@ -128,17 +133,19 @@ class Hungarian(Allocator, plugin_name="hungarian"):
     DESCRIPTION = "a coordinator robot assigns frontiers by the Hungarian method, over the radio (Yan et al. 2011)"
 
     parameters = {"timeout": Param(10, ge=1), "period": Param(1, ge=1), "replan": Param("commit", choices=REPLANS),
-                  "patience": Param(10, ge=1)}
+                  "patience": Param(10, ge=1), "tasks": TASKS}
     timeout: int
     period: int
     replan: str
     patience: int
+    tasks: str
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
         self.received: dict[str, RadioMsg] = {}  # the newest Assignment from each robot
         self.held: dict[str, Held] = {}  # as coordinator with replan="commit": each robot's task
         self.leading = False  # whether this robot coordinated at its previous decision
+        self.regions = RegionTasks()
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)
@@ -152,6 +159,7 @@ class Hungarian(Allocator, plugin_name="hungarian"):
                 if r == problem.me or r not in problem.heard or problem.tick - problem.heard[r] <= self.timeout]
 
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
+        use_tasks(problem, self.tasks, self.regions)  # tasks = "regions": Yan's regions for the clusters
         for msg in inbox:
             if isinstance(msg.body, Assignment) and msg.dst in ("*", problem.me):
                 old = self.received.get(msg.origin)

@@ -5,7 +5,10 @@ A robot *not in a task* runs one round of the protocol; a robot in a task explor
 1. **Role allocation** (Algorithm 1). Every tick while not in a task, the robot broadcasts its number
    (``TradeNumber``; ``r3`` is 3). After ``time_max`` ticks of listening it decides: if it heard a number
    smaller than its own it is a *buyer* of the robot with the smallest number heard, otherwise the *seller*.
-2. **Task allocation** (section 4.2). Tasks are frontier clusters, named by their target cell. Each robot picks
+2. **Task allocation** (section 4.2). Tasks are frontier clusters, named by their target cell, or with
+   ``tasks = "regions"`` the paper's own, regions of the map cut at critical points (:mod:`agents.regions`),
+   named by their entry point: a region task lasts while the region holding that cell has a frontier cell,
+   however far from the entry (``_track``), and a teammate's claim takes the region holding its cell. Each robot picks
    the task of least wavefront cost (eq. 2) that its task list does not show as taken by a teammate. A buyer
    sends the purchase message ``{r, m, c}`` (eq. 3, ``TradePurchase``) to its seller and waits for the answer.
    The seller, with its own pick, collects purchases for ``bid_period`` ticks, then runs Algorithm 2: per task,
@@ -68,6 +71,8 @@ import numpy as np
 from fleet_emu.agents.allocators.base import Allocation, Allocator, AllocStatus, Problem, robot_order
 from fleet_emu.agents.allocators.blocking import BLOCKED_AFTER, Blockage, open_costs
 from fleet_emu.agents.allocators.params import Param
+from fleet_emu.agents.allocators.tasks import TASKS, use_tasks
+from fleet_emu.agents.regions import RegionTasks, holding
 from fleet_emu.core.codec import Context, Payload
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
@@ -177,7 +182,7 @@ class Trade(Allocator, plugin_name="trade"):
     parameters = {"time_max": Param(2, ge=0), "bid_period": Param(2, ge=0), "award_timeout": Param(5, ge=1),
                   "retries": Param(1, ge=0), "task_radius": Param(3, ge=0), "claim_ttl": Param(100, ge=0),
                   "task_timeout": Param(300, ge=1), "explore_in_round": Param(True),
-                  "blocked_after": Param(BLOCKED_AFTER, ge=0)}  # ticks, but task_radius
+                  "blocked_after": Param(BLOCKED_AFTER, ge=0), "tasks": TASKS}  # ticks, but task_radius
     time_max: int
     bid_period: int
     award_timeout: int
@@ -187,10 +192,12 @@ class Trade(Allocator, plugin_name="trade"):
     task_timeout: int
     explore_in_round: bool
     blocked_after: int
+    tasks: str
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
         self.s = _State()
+        self.regions = RegionTasks()
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)
@@ -199,6 +206,7 @@ class Trade(Allocator, plugin_name="trade"):
     # --- one tick -------------------------------------------------------------------------------------
 
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
+        use_tasks(problem, self.tasks, self.regions)  # tasks = "regions": Yan's regions for the clusters
         s = self.s
         if problem.me != s.me or problem.tick < s.tick:  # another robot, or time went back: start afresh
             self.s = s = _State(me=problem.me, tick=problem.tick, since=problem.tick)
@@ -353,16 +361,29 @@ class Trade(Allocator, plugin_name="trade"):
         if not len(reach):
             return None
         taken = [t for r, (t, _) in self.s.claims.items() if r != self.s.me] + list(exclude)
-        free = [int(j) for j in reach if not any(near(problem.clusters[j].target, t, self.task_radius) for t in taken)]
+        free = [int(j) for j in reach if not any(self._names(problem, int(j), t) for t in taken)]
         pool = free or [int(j) for j in reach if problem.clusters[j].target not in exclude] or [int(j) for j in reach]
         j = min(pool, key=lambda k: (costs[k], k))
         return problem.clusters[j].target, float(costs[j])
 
+    def _names(self, problem: Problem, j: int, cell: Cell) -> bool:
+        """Task ``j`` is the one named by ``cell``: its target is within ``task_radius`` of it, or (a region
+        task) its region holds it."""
+        if near(problem.clusters[j].target, cell, self.task_radius):
+            return True
+        return self.tasks == "regions" and holding(problem.clusters[j:j + 1], cell, problem.belief.shape[1]) == 0
+
     def _track(self, problem: Problem, task: Cell) -> int | None:
         """The reachable cluster with a frontier cell nearest the task (within ``task_radius``), or None
-        when the task's frontier is gone: the task is done."""
+        when the task's frontier is gone: the task is done. A region task is tracked by its region, which
+        holds its entry point while it has a frontier cell (else by an entry within ``task_radius``)."""
         me = problem.poses[problem.me]
         cols = problem.belief.shape[1]
+        if self.tasks == "regions":
+            j = holding(problem.clusters, task, cols)
+            if j is None:
+                j = next((k for k, c in enumerate(problem.clusters) if near(c.target, task, self.task_radius)), None)
+            return j if j is not None and problem.wavefronts[j][me] >= 0 else None
         best: tuple[int, int] | None = None
         for j, cluster in enumerate(problem.clusters):
             rows, cs = np.divmod(cluster.cells, cols)

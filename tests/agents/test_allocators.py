@@ -28,6 +28,8 @@ CONFIGS: list[dict[str, Any]] = [{"type": name} for name in allocator_names()] +
     {"type": "minpos", "wavefront": "parallel"},
     {"type": "utility", "beta": 0.5, "sensor_range": 3.0},
     {"type": "hungarian", "timeout": 3, "period": 2},
+    {"type": "trade", "tasks": "regions"},
+    {"type": "hungarian", "tasks": "regions"},
 ]
 
 

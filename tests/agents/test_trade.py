@@ -117,7 +117,8 @@ def test_conformance() -> None:
     api_test({"type": "trade", "time_max": 0, "bid_period": 0, "award_timeout": 1, "retries": 0})
     assert make_allocator({"type": "trade"}).to_dict() == {
         "type": "trade", "time_max": 2, "bid_period": 2, "award_timeout": 5, "retries": 1, "task_radius": 3,
-        "claim_ttl": 100, "task_timeout": 300, "explore_in_round": True, "blocked_after": 4}
+        "claim_ttl": 100, "task_timeout": 300, "explore_in_round": True, "blocked_after": 4,
+        "tasks": "frontiers"}
     with pytest.raises(ConfigError, match="time_max must be an integer >= 0"):
         make_allocator({"type": "trade", "time_max": -1})
 

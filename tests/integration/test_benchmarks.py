@@ -351,6 +351,35 @@ def test_trade_lock_counts_runs_that_drag_on(small_map: Path, capsys: pytest.Cap
     assert code == 2 and err == "trade_lock: error: map file not found: /no/such/map.png\n"
 
 
+def test_yan_regions_counts_trade_rounds_and_segmentations(small_map: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("yan_regions", "--map", str(small_map), "--allocators", "trade:tasks=regions", "trade",
+                           "--seeds", "1", "--loss", "0", "--max-ticks", "300", capsys=capsys)
+    assert code == 0, err[-2000:]
+    regions, frontiers = markdown(out)
+    assert (regions["allocator"], frontiers["allocator"]) == ("trade:tasks=regions", "trade")
+    assert 0 < float(regions["calls/robot-tick"]) <= 1.0 and float(regions["segmentation ms/call"]) > 0
+    assert frontiers["segmentation ms/call"] == "-" and float(frontiers["rounds /100 ticks"]) > 0
+    assert len(err.strip().splitlines()) == 2  # a line per run
+
+
+def test_yan_regions_and_regions_picture_bad_input_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = bench("yan_regions", "--allocators", "trade:tasks=rooms", capsys=capsys)
+    assert code == 2 and err.count("\n") == 1 and "tasks must be one of" in err, err
+    code, _, err = bench("regions_picture", "--maps", "/no/such/map.png", capsys=capsys)
+    assert code == 2 and err.count("\n") == 1 and err.startswith("regions_picture: error: "), err
+
+
+def test_regions_picture_draws_a_png_per_map(small_map: Path, tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("regions_picture", "--maps", str(small_map), "--tick", "5", "--out", str(tmp_path),
+                           capsys=capsys)
+    assert code == 0, err[-2000:]
+    (row,) = markdown(out)
+    assert row["map"] == small_map.stem and int(row["regions (whole map)"]) >= 1
+    assert (tmp_path / f"regions-{small_map.stem}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 @pytest.mark.parametrize("script", ["fault_trials", "attacks", "connectivity_table", "decision_time", "mhm_fleet",
                                     "mhm_planner", "minpos_vs_utility", "ros2_cost"])
 def test_the_other_scripts_import_and_describe_themselves(script: str, capsys: pytest.CaptureFixture[str]) -> None:

@@ -76,3 +76,8 @@ def test_the_shipped_studies_load() -> None:
     points = yan.points()
     assert len(points) == 3 * 3 * 4 * 2 * 10
     assert {p.scenario.get("map_sync", True) for p in points} == {False, True}
+    regions = Study.load("yan-regions")
+    assert regions.grid["allocator"][:2] == [{"type": "trade", "tasks": "regions"},
+                                             {"type": "hungarian", "tasks": "regions"}]
+    assert regions.grid["loss"] == yan.grid["loss"] and regions.fleet == yan.fleet | {"map_sync": False}
+    assert len(regions.points()) == 4 * 3 * 4 * 10

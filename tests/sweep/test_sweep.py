@@ -118,7 +118,7 @@ def test_list_names_the_shipped_studies() -> None:
     code, out, _ = run_cli(["sweep", "--list"])
     assert code == 0
     assert [ln.split()[0] for ln in out.strip().splitlines()] == ["bandwidth", "bautin-fig5", "benavides",
-                                                                "benavides-calibration", "yan-loss"]
+                                                                "benavides-calibration", "yan-loss", "yan-regions"]
 
 
 def test_a_study_on_a_dask_cluster(study_dir: Path) -> None:
