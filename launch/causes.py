@@ -42,11 +42,13 @@ def froze(monitor: Monitor, barrier_timeout: float) -> str | None:
     return f"the world process stopped answering at tick {tick} (no state for {gap:.0f} s)"
 
 
-def outside_stop(monitor: Monitor) -> str | None:
+def outside_stop(monitor: Monitor, pending: bool = False) -> str | None:
     """The failure line of a stop in the launcher's name that this launcher did not send (it sends its own only
     once the run is over or interrupted), or of one in the world's name that the world cannot have sent
-    (:meth:`~fleet_emu.recording.monitor.Monitor.world_sent`), or None."""
-    stop = monitor.outside_stop
+    (:meth:`~fleet_emu.recording.monitor.Monitor.world_sent`), or None. ``pending``: the one in the world's name
+    still waiting for its tick's state (:attr:`~fleet_emu.recording.monitor.Monitor.pending_stop`), which never
+    came."""
+    stop = monitor.pending_stop if pending else monitor.outside_stop
     if stop is None:
         return None
     if stop.src == "world":

@@ -42,6 +42,7 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
     :func:`~fleet_emu.launch.causes.state_timeout` seconds, fails the run naming that cause, and a world that
     ended without a stop after a silence is named for it (:mod:`fleet_emu.launch.causes`)."""
     stop_seen: float | None = None
+    pending_seen: float | None = None  # when a stop in the world's name came ahead of its tick's state
     clean_end: float | None = None
     announced: set[str] = set()
     while True:
@@ -53,6 +54,9 @@ def wait_for_end(monitor: Monitor, consumer: Consumer, sup: Supervisor, nodes_th
             return None
         if (cause := outside_stop(monitor)) is not None:
             return cause
+        pending_seen = None if monitor.pending_stop is None else pending_seen or time.monotonic()
+        if pending_seen is not None and not consumer.backlog() and time.monotonic() - pending_seen > STOP_GRACE:
+            return outside_stop(monitor, pending=True)
         if barrier_timeout is not None and not consumer.backlog() and \
                 (cause := silent_world(monitor, state_timeout(barrier_timeout))) is not None:
             return cause

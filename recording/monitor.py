@@ -100,6 +100,9 @@ class Monitor:
     # the first stop sent as anyone but the world (the launcher's own included), or in the world's name when the
     # world cannot have sent it (:meth:`world_sent`)
     outside_stop: Stop | None = None
+    # a stop in the world's name for a tick whose state has not come yet (messages on different keys may arrive
+    # out of order): judged by :meth:`world_sent` once a state of its tick or later comes
+    pending_stop: Stop | None = None
     last_activity_ns: int | None = None  # when the last world state or robot command came (lockstep's heartbeat)
     activity_tick: int = 0  # the world's tick then
     longest_silence: tuple[float, int] = (0.0, 0)  # the longest gap between them: seconds, and the tick it began at
@@ -162,6 +165,9 @@ class Monitor:
         if isinstance(msg, WorldState) and msg.src == "world":
             if self.state is None or msg.tick >= self.state.tick:
                 self.state = msg
+            if self.pending_stop is not None and msg.tick >= self.pending_stop.tick:
+                pending, self.pending_stop = self.pending_stop, None
+                self._fold_stop(pending)
             self.coverage_curve.append((msg.tick, msg.coverage))
             self.cells[msg.tick] = {r: msg.poses[r] for r in msg.live if r in msg.poses}
             if self.t90 is None and msg.coverage >= 0.90:
@@ -201,8 +207,14 @@ class Monitor:
         the world cannot have sent, or anyone else's, is kept apart (:attr:`outside_stop`)."""
         if msg.src == "world" and self.stop is None and self.world_sent(msg):
             self.stop = msg
+        elif msg.src == "world" and self.stop is None and self._ahead(msg):
+            self.pending_stop = self.pending_stop or msg
         elif (msg.src != "world" or self.stop is None) and self.outside_stop is None:
             self.outside_stop = msg
+
+    def _ahead(self, msg: Stop) -> bool:
+        """Whether a stop in the world's name is of a tick whose state has not come yet (so not judged yet)."""
+        return msg.reason not in ("startup", "interrupted") and self.state is not None and self.state.tick < msg.tick
 
     def world_sent(self, msg: Stop) -> bool:
         """Whether the world can have sent this stop in its name: it stops a run only when its start-up timed

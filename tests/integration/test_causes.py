@@ -63,6 +63,32 @@ def test_the_worlds_first_stop_is_the_runs_and_a_forged_one_is_kept_apart() -> N
     assert "r1 failed while the bus carried 100 message(s) of another run" in (flood(["r1"], 100) or "")
 
 
+def test_a_world_stop_ahead_of_its_state_waits_for_it() -> None:
+    """The world's stop and its last state travel on different keys and may arrive in either order: a stop of a
+    tick whose state has not come is judged when that state comes (the world's own, done: the run's stop; a
+    state not done: a forged one), and one whose state never comes is named as not the world's."""
+    def stop(tick: int, reason: str) -> bytes:
+        return Stop(src="world", tick=tick, seq=99, reason=reason).encode()
+
+    real = Monitor(("r0",))
+    real.feed("fleet/x/world/state", _state(14).encode())
+    real.feed("fleet/x/ctl/stop", stop(15, "max_ticks"))
+    assert real.stop is None and real.outside_stop is None and outside_stop(real) is None
+    real.feed("fleet/x/world/state", WorldState(src="world", tick=15, seq=15, poses={}, live=("r0",), coverage=0.5,
+                                                path_length={}, done=True, reason="max_ticks").encode())
+    assert real.stop is not None and real.stop.reason == "max_ticks" and real.pending_stop is None
+    forged = Monitor(("r0",))
+    forged.feed("fleet/x/world/state", _state(14).encode())
+    forged.feed("fleet/x/ctl/stop", stop(15, "coverage"))
+    forged.feed("fleet/x/world/state", _state(15).encode())
+    assert forged.stop is None and forged.outside_stop is not None and forged.pending_stop is None
+    never = Monitor(("r0",))
+    never.feed("fleet/x/world/state", _state(14).encode())
+    never.feed("fleet/x/ctl/stop", stop(900, "coverage"))
+    assert outside_stop(never) is None and (outside_stop(never, pending=True) or "").startswith(
+        "a stop in the world's name that the world did not send ended the run at tick 900")
+
+
 def test_a_frozen_world_is_named_with_its_tick(small_map: Path, tmp_path: Path) -> None:
     """``kill -STOP`` of the world mid-run: the launcher ends the run within the state timeout (two of the
     scenario's ``barrier_timeout``, here 1 s) with one line naming the world and the tick it froze at."""
