@@ -232,6 +232,8 @@ class Scenario:
             raise ConfigError(f"{where}: hosts must be a [hosts] table (count, names, robots)")
         try:
             return cls(radio=radio, **d).validate()
+        except ConfigError:  # the checks' own line (a ConfigError is a ValueError too)
+            raise
         except (TypeError, ValueError, AttributeError) as exc:  # a value of a type no check above foresaw
             raise ConfigError(f"{where}: a value of the wrong type ({exc})") from None
 

@@ -99,7 +99,8 @@ def test_metrics_fold_on_hand_made_messages() -> None:
     feed("world/obs/r0", obs("r0", 1, (1, 2), [26]))
     feed("world/obs/r1", obs("r1", 1, (3, 5), [10]))
     feed("world/state", WorldState(src="world", tick=1, seq=0, poses={"r0": (1, 2), "r1": (3, 5)},
-                                   live=("r0", "r1"), coverage=0.95, path_length={"r0": 1, "r1": 0}))
+                                   live=("r0", "r1"), coverage=0.95, path_length={"r0": 1, "r1": 0}, done=True,
+                                   reason="max_ticks"))  # the world's last state says it is done, then it stops
     feed("netem/links", links(1, False))
     feed("radio/rx/r1", RxBundle(src="netem", tick=1, seq=0, dst="r1", msgs=(beacon,)))
     feed("robot/r0/cmd", Command(src="r0", tick=1, seq=0, move=(0, 0), target=None, decision_ms=3.0))
