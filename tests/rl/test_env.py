@@ -18,6 +18,7 @@ from pettingzoo.test import (
     parallel_api_test,
     parallel_seed_test,
     render_test,
+    seed_test,
     state_test,
 )
 
@@ -47,6 +48,7 @@ def test_pettingzoo_parallel_api_and_aec_api(mod: types.SimpleNamespace) -> None
 
 def test_pettingzoo_seed_test(mod: types.SimpleNamespace) -> None:
     parallel_seed_test(functools.partial(mod.parallel_env, max_cycles=30), num_cycles=30)
+    seed_test(functools.partial(mod.env, max_cycles=30), num_cycles=30)
 
 
 def test_pettingzoo_max_cycles_render_and_state(mod: types.SimpleNamespace) -> None:
