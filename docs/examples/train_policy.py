@@ -11,8 +11,9 @@ vectors from a Gaussian, runs each for ``episodes`` episodes of the environment 
 seeds 1000, 1001, ...: ``hall`` places its obstacles from the seed, so every episode is another hall), keeps the
 ``elite`` of fewest ticks to the target coverage (95 %) and refits the Gaussian to them (its spread floored at
 0.05); the Gaussian starts at mean 0, spread 1. An episode that misses the target counts its ``max_ticks``
-(``--train-max-ticks`` in training, 500: a bad draw is cut short; ``--max-ticks`` in the comparison, 1500). The radio is the default scenario's (wall
-attenuation, 10 % loss): the policy learns with what the robots actually hear.
+(``--train-max-ticks`` in training, 500: a bad draw is cut short; ``--max-ticks`` in the comparison, 1500).
+The radio is the default scenario's (wall attenuation, 10 % loss): the policy learns with what the robots
+actually hear.
 
 Then the policy is saved (``--out``, the ``policy`` allocator's file) and compared, by ticks to 95 % (mean ±
 sd over ``--eval-seeds`` seeds, 0, 1, ...), on the ``--eval`` maps against a random choice among the same K
