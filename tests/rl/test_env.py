@@ -24,7 +24,7 @@ from pettingzoo.test import (
 
 import fleet_emu as fe
 from fleet_emu import rl
-from fleet_emu.agents.allocators.policy import save_policy
+from fleet_emu.agents.allocators.policy import candidates, save_policy
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic
 
@@ -100,3 +100,40 @@ def test_a_policy_in_the_environment_is_the_policy_allocator(small_map: Path, tm
     assert {k: v for k, v in deterministic(learned.data).items() if k not in named} == \
         {k: v for k, v in deterministic(allocated.data).items() if k not in named}
     assert learned.curve == allocated.curve and learned["ticks"] > 10 and learned["radio"]["dropped_loss"] > 0
+
+
+def test_raw_moves_and_the_reward_terms(small_map: Path) -> None:
+    """``moves=True``: Discrete(5) raw moves pass PettingZoo's API test, and a robot told to stay stays; the time
+    and overlap costs come off the team's gain."""
+    s = _scenario(small_map, loss=0.3)
+    parallel_api_test(rl.parallel_env(s, moves=True), num_cycles=20)
+    env = rl.parallel_env(s, moves=True)
+    env.reset()
+    before = dict(env.fleet.world.poses)
+    env.step(dict.fromkeys(env.agents, 0))
+    assert env.fleet.world.poses == before
+    plain, costly = rl.parallel_env(s), rl.parallel_env(s, time_cost=0.01, overlap_cost=0.1)
+    plain.reset()
+    costly.reset()
+    shared = 0
+    for _ in range(15):
+        targets = {}
+        for r, p in costly._percepts.items():  # action 0: each robot's nearest candidate
+            cands = candidates(p.problem, costly.k)
+            targets[r] = p.problem.clusters[cands[0]].target if cands else None
+        _, gain, *_ = plain.step(dict.fromkeys(plain.agents, 0))
+        _, paid, *_ = costly.step(dict.fromkeys(costly.agents, 0))
+        for r in gain:
+            same = sum(1 for q, t in targets.items() if q != r and t is not None and t == targets[r])
+            shared += same
+            assert paid[r] == pytest.approx(gain[r] - 0.01 - 0.1 * same)
+    assert shared > 0  # robots near one another head for the same nearest frontier at times
+
+
+def test_env_speed_smoke(capsys: pytest.CaptureFixture[str]) -> None:
+    from tests.integration.test_benchmarks import bench, markdown
+
+    code, out, _ = bench("env_speed", "--robots", "2", "--ticks", "3", "--big-ticks", "2", "--repeat", "1",
+                         capsys=capsys)
+    rows = markdown(out)
+    assert code == 0 and len(rows) == 2 and all(float(r["environment steps/s"]) > 0 for r in rows)
