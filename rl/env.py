@@ -17,7 +17,9 @@ tick, bytes queued at its radio). :meth:`FleetParallelEnv.state` gives the truth
 Rewards: every robot gets the team's coverage gain of the tick (the fraction of free cells newly sensed), less
 ``time_cost`` per tick and ``overlap_cost`` for each teammate that chose the same target. The run terminates
 at the scenario's target coverage and is truncated at ``max_cycles`` ticks (or when the scenario's stall
-rules end it). The observation returned with the last step repeats the robot's last decision's.
+rules end it). The observation returned with the last step repeats the robot's last decision's. The run's
+``result.json`` (``env.fleet.result()``) is a run's in every key but the allocator's name, which stays the
+scenario's: the policy took its seat.
 """
 
 from __future__ import annotations
