@@ -112,6 +112,21 @@ class Plan:
         return STAY if self.dist is None else next_move(self.dist, cell, self.blocked)
 
 
+@dataclasses.dataclass(frozen=True)
+class Percept:
+    """What :meth:`Brain.perceive` leaves for :meth:`Brain.act`: the observation, the allocator's problem and
+    protocol messages, and the radio work of the tick so far (messages to send, map-sync requests, relayed
+    copies, teammates' expected cells)."""
+
+    obs: Observation
+    problem: Problem
+    protocol: list[RadioMsg]
+    outbox: list[RadioMsg]
+    want: dict[str, tuple[int, ...]] | None
+    forwards: list[Envelope]
+    expected: dict[str, Cell]
+
+
 def brain_config(scenario: Scenario) -> BrainConfig:
     """The scenario's brain: map sync on when the scenario asks for it (``map_sync``, the default) and the radio
     can lose a message: not on one that delivers every message (``ideal``, or ``full`` without loss), where it
@@ -275,8 +290,13 @@ class Brain:
 
     def step(self, obs: Observation, inbox: Sequence[Envelope]) -> tuple[Command, tuple[Envelope, ...]]:
         """Decide the move for ``obs.tick`` and the radio messages to send (with relaying on, the copies it
-        forwards go out after its own). Each stage's thread CPU is added to ``cpu_ms`` (:data:`STAGES`), the
-        whole step's to ``step_cpu_ms``."""
+        forwards go out after its own): :meth:`perceive`, then :meth:`act` with the allocator's decision. Each
+        stage's thread CPU is added to ``cpu_ms`` (:data:`STAGES`), the whole step's to ``step_cpu_ms``."""
+        return self.act(self.perceive(obs, inbox))
+
+    def perceive(self, obs: Observation, inbox: Sequence[Envelope]) -> Percept:
+        """The first half of :meth:`step`: merge the observation and what the radio delivered, hear teammates,
+        cluster frontiers; the :class:`Percept` holds the allocator's problem (a learned policy reads it)."""
         c0 = time.thread_time()
         t = obs.tick
         belief = self._belief(obs)
@@ -295,14 +315,23 @@ class Brain:
             clusters = list(self.frontiers.update(belief.grid, belief.take_changed()))
         problem = Problem(me=self.me, poses={self.me: obs.cell} | expected, belief=belief.grid, clusters=clusters,
                           tick=t, heard=heard, previous_target=self.last_target)
-        alloc = self._decide(problem, protocol)
+        self.step_cpu_ms += (time.thread_time() - c0) * 1000.0
+        return Percept(obs, problem, protocol, outbox, want, forwards, expected)
+
+    def act(self, p: Percept) -> tuple[Command, tuple[Envelope, ...]]:
+        """The second half of :meth:`step`: the allocator's decision on ``p.problem``, the move toward it and the
+        news sent (the beacon announces the move taken)."""
+        c0 = time.thread_time()
+        alloc = self._decide(p.problem, p.protocol)
         with self._stage("navigation"):
-            move = self._navigate(obs.cell, t, alloc, problem, expected)
+            move = self._navigate(p.obs.cell, p.obs.tick, alloc, p.problem, p.expected)
         with self._stage("news"):
-            outbox.extend(alloc.outbox)
-            sealed = self._news(obs, move, want, outbox, forwards)
-        cmd = Command(src=self.me, tick=t, seq=self.next_seq(), move=move, target=alloc.target,
-                      status=alloc.status.name, decision_ms=round(self.decision_ms[-1], 4), known=belief.known_cells)
+            p.outbox.extend(alloc.outbox)
+            sealed = self._news(p.obs, move, p.want, p.outbox, p.forwards)
+        assert self.belief is not None
+        cmd = Command(src=self.me, tick=p.obs.tick, seq=self.next_seq(), move=move, target=alloc.target,
+                      status=alloc.status.name, decision_ms=round(self.decision_ms[-1], 4),
+                      known=self.belief.known_cells)
         self.step_cpu_ms += (time.thread_time() - c0) * 1000.0
         return cmd, sealed
 

@@ -112,6 +112,8 @@ def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
     r.add_argument("--robots", type=int, metavar="N", help=f"robots in the fleet, from 1 to {MAX_ROBOTS}"
                                                            + _default("robots"))
     r.add_argument("--allocator", help="allocator name (see `fleet allocators`)" + _default("allocator"))
+    r.add_argument("--param", action="append", metavar="NAME=VALUE",
+                   help="an allocator parameter (repeatable; see `fleet allocators`), e.g. --param path=policy.npz")
     r.add_argument("--sensor-range", type=float, metavar="M",
                    help="sensor range in metres, > 0 and at least one cell" + _default("sensor_range"))
     r.add_argument("--cell-size", type=float, metavar="M", help="metres per cell, within [0.001, 1000] (default 0.5)")
@@ -254,12 +256,39 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
     from fleet_emu.launch.radio_flags import radio_overrides
 
     return base.override(
-        map=args.map, robots=args.robots, allocator=args.allocator, sensor_range=args.sensor_range,
+        map=args.map, robots=args.robots, allocator=_allocator_arg(base, args.allocator, getattr(args, "param", None)),
+        sensor_range=args.sensor_range,
         cell_size=args.cell_size, seed=args.seed, start=args.start, max_ticks=args.max_ticks,
         target_coverage=args.target_coverage, tick_s=getattr(args, "tick_s", None), **radio_overrides(args),
         base=args.base_cell if args.base_cell is not None else args.base,
         relay=getattr(args, "relay", None), relay_ttl=getattr(args, "relay_ttl", None),
         map_sync=getattr(args, "map_sync", None), hosts=getattr(args, "hosts", None))
+
+
+def _allocator_arg(base: Scenario, name: str | None, params: list[str] | None) -> str | dict[str, Any] | None:
+    """``--allocator`` with its ``--param NAME=VALUE`` (a number, true/false, or else a string), over the
+    scenario's table when it names the same allocator; ConfigError on a parameter not of that form."""
+    if not params:
+        return name
+    kind = name or base.allocator.get("type")
+    table = dict(base.allocator) if kind == base.allocator.get("type") else {"type": kind}
+    for item in params:
+        key, eq, text = item.partition("=")
+        if not eq or not key:
+            raise ConfigError(f"--param must be NAME=VALUE (got {item!r})")
+        table[key] = _param_value(text)
+    return table
+
+
+def _param_value(text: str) -> bool | int | float | str:
+    if text in ("true", "false"):
+        return text == "true"
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
 
 
 def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:

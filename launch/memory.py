@@ -26,7 +26,7 @@ from typing import Any
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.allocators.mhm.station import station_planner
 from fleet_emu.agents.base import BaseStation
-from fleet_emu.agents.brain import Brain, allocator_config, brain_config, radio_team
+from fleet_emu.agents.brain import Brain, Percept, allocator_config, brain_config, radio_team
 from fleet_emu.agents.outputs import agent_report, base_report, base_tx, first_cpu_ms, robot_outputs
 from fleet_emu.core.errors import RunError
 from fleet_emu.core.grid import Cell, MapData
@@ -116,6 +116,7 @@ class Fleet:
         self.monitor = Monitor(tuple(self.possible_agents), base=s.has_base, relay=s.relay != "none")
         self._world_seq = self._netem_seq = 0
         self._first_cpu: dict[str, dict[str, float]] = {}  # each robot's first step's CPU (AgentReport)
+        self._percepts: dict[str, Percept] = {}  # perceive()'s, for the next step to act on
         self._started = time.perf_counter()
         self.done = False
         self.reason: str | None = None
@@ -142,7 +143,8 @@ class Fleet:
         for r in live:
             brain = self.brains[r]
             try:
-                cmd, out = brain.step(self.obs[r], self.rx.get(r, ()))
+                p = self._percepts.pop(r, None)
+                cmd, out = brain.act(p) if p is not None else brain.step(self.obs[r], self.rx.get(r, ()))
             except Exception as exc:
                 raise RunError(f"robot {r} failed at tick {t}: {type(exc).__name__}: {exc}") from exc
             bundles[r] = out
@@ -166,6 +168,21 @@ class Fleet:
         truncations: dict[str, bool] = {r: self.done and self.reason != "coverage" for r in live}
         infos = {r: {"tick": w.tick, "coverage": w.coverage} for r in live}
         return dict(self.obs), rewards, terminations, truncations, infos
+
+    def perceive(self) -> dict[str, Percept]:
+        """The first half of every live robot's step of this tick (:meth:`Brain.perceive`: belief, teammates,
+        frontiers, the allocator's problem), kept for the next :meth:`step`, which acts on them: a learned policy
+        (``fleet_emu.rl``) chooses in between, and the run is the one ``step`` alone would make."""
+        if self.done:
+            raise RunError("perceive() after the run ended: call reset()")
+        for r in self.agents:
+            if r not in self._percepts:
+                try:
+                    self._percepts[r] = self.brains[r].perceive(self.obs[r], self.rx.get(r, ()))
+                except Exception as exc:
+                    raise RunError(f"robot {r} failed at tick {self.world.tick}: {type(exc).__name__}: {exc}"
+                                   ) from exc
+        return dict(self._percepts)
 
     def close(self) -> None:
         """Nothing to release (kept for the ParallelEnv API)."""

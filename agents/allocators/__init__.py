@@ -7,6 +7,7 @@ from fleet_emu.agents.allocators import (  # noqa: F401  (registration)
     hungarian,
     minpos,
     nearest,
+    policy,
     trade,
     utility,
 )
