@@ -399,3 +399,27 @@ def test_flips_prints_a_row_per_allocator_and_size(small_map: Path, capsys: pyte
     assert err.count(" robot-ticks\n") == 2  # a progress line per run
     code, _, err = bench("flips", "--allocators", "hungarian:replan", "--seeds", "1", capsys=capsys)
     assert code == 2 and err.startswith("flips: error: ") and err.count("\n") == 1
+
+
+def test_mhm_reach_runs_to_the_method_end_and_compares_with_the_disc(tmp_path: Path,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    data = tmp_path / "reach.json"
+    code, out, err = bench("mhm_reach", "--cells", "70", "--robots", "3", "--r-comm", "8", "--sensor", "3",
+                           "--json", str(data), capsys=capsys)
+    assert code == 0, err[-2000:]
+    (row,) = json.loads(data.read_text())
+    assert row["end"] == "step18" and row["stop"].startswith("stop: ") and row["worst"] == 1.0
+    assert row["reach"] == int(out.strip().splitlines()[-1].split()[4].replace(",", ""))
+    assert abs(row["disc"] - 3.141592653589793 * (2 * 8 + 3) ** 2) < 1e-6 and row["table2"] is None
+    assert 0.5 < row["vs_disc"] < 1.5 and not row["bounded"]
+    code, out, err = bench("mhm_reach", "--cells", "30", "--robots", "3", "--r-comm", "8", "--sensor", "3",
+                           "--max-ticks", "5", capsys=capsys)
+    assert code == 0 and " max_ticks " in out.splitlines()[-1] and "max ticks" in out.splitlines()[-1]
+    code, out, err = bench("mhm_reach", "--cells", "24", "--robots", "3", "--r-comm", "8", "--sensor", "3",
+                           "--json", str(data), capsys=capsys)
+    assert code == 0 and json.loads(data.read_text())[0]["bounded"], err[-2000:]  # the walls were in reach
+
+
+def test_mhm_reach_bad_argument_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = bench("mhm_reach", "--robots", "1", capsys=capsys)
+    assert code == 2 and err.count("\n") == 1 and err.startswith("mhm_reach: error: --robots"), err

@@ -3,13 +3,14 @@ the chain of nodes that reaches it.
 
 Choices where the paper is silent, and why:
 
-- "Closest to the base station" is the path distance over known-free cells (a 4-connected breadth-first
-  wavefront from the base), not the straight line: the chain is made of robots that drive there, and a
-  frontier behind a wall is far for them. A frontier no known-free path reaches is out of reach (section III:
-  "all the frontiers are out of reach"). Ties go to the lowest (row, col).
-- The hop path follows one shortest known-free path, read back from the frontier down the wavefront, taking
-  at each step the first neighbour in the project's move order (up, down, left, right) that is one step
-  nearer the base.
+- "Closest to the base station" is the path distance over known-free cells, not the straight line: the
+  chain is made of robots that drive there, and a frontier behind a wall is far for them. A frontier no
+  known-free path reaches is out of reach (section III: "all the frontiers are out of reach"). Ties go to the
+  lowest (row, col). The distance is the octile one (8-connected), and the hop path is its shortest path
+  pulled taut into straight segments (``geodesic``): a 4-connected path would measure Manhattan distances,
+  and a chain along it would need up to 1.41 times the nodes on a diagonal (the reach of a fleet a diamond
+  instead of a disc). :func:`path_from_base` (one 4-connected shortest path read back down a wavefront) is
+  the hop path the planner used before that.
 - Nodes are placed greedily along that path: from the last node (the base first), the next node is the
   farthest point of the path such that every point of the path up to it is within r_comm of the last node.
   A robot driving along the path is then always in range of a node, and consecutive nodes are in range of
@@ -25,6 +26,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from fleet_emu.agents.allocators.mhm.geodesic import Geodesic
 from fleet_emu.agents.frontiers import frontier_mask
 from fleet_emu.core.grid import FREE, MOVES, Cell
 from fleet_emu.core.kernels import wavefront
@@ -38,8 +40,9 @@ def base_distance(grid: np.ndarray, base: Cell) -> np.ndarray:
 
 def closest_frontier(grid: np.ndarray, base: Cell, dist: np.ndarray | None = None,
                      exclude: Iterable[Cell] = ()) -> Cell | None:
-    """Step 8: the reachable frontier cell nearest the base station by path, ``exclude`` left out; None
-    when there is none."""
+    """Step 8: the reachable frontier cell nearest the base station by path (``dist``: a path distance from
+    the base, negative where unreached; by default :func:`base_distance`), ``exclude`` left out; None when
+    there is none."""
     if dist is None:
         dist = base_distance(grid, base)
     cand = frontier_mask(grid) & (dist >= 0)
@@ -91,9 +94,10 @@ def chain_positions(path: list[Cell], r_comm: float) -> list[Cell]:
 
 def phase2_chain(grid: np.ndarray, base: Cell, r_comm: float,
                  exclude: Iterable[Cell] = ()) -> tuple[Cell, list[Cell]] | None:
-    """Steps 8-9: the closest frontier (``exclude`` left out) and L_h; None when no frontier is reachable."""
-    dist = base_distance(grid, base)
-    frontier = closest_frontier(grid, base, dist, exclude)
+    """Steps 8-9: the closest frontier (``exclude`` left out) and L_h, along the taut octile path; None when
+    no frontier is reachable."""
+    geo = Geodesic(grid, base)
+    frontier = closest_frontier(grid, base, geo.dist, exclude)
     if frontier is None or frontier == base:
         return None
-    return frontier, chain_positions(path_from_base(dist, frontier), r_comm)
+    return frontier, chain_positions(geo.taut(frontier), r_comm)

@@ -24,54 +24,105 @@ from collections.abc import Iterable, Mapping, Sequence
 import numpy as np
 
 from fleet_emu.agents.allocators.base import robot_order
-from fleet_emu.agents.allocators.mhm.wavefront import cell_area, disk
+from fleet_emu.agents.allocators.mhm.wavefront import cell_window, disk_window
 from fleet_emu.agents.frontiers import Cluster, find_clusters
 from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell
 from fleet_emu.core.kernels import wavefront
 
+# Every mask below is whole-grid, but only the window around the cells it is made of is written or read: the
+# grid may be far larger than the area the robots work in (an open map of 1,200 x 1,200 cells).
+Box = tuple[int, int, int, int]  # rows r0 <= r < r1, columns c0 <= c < c1
+
+
+def bounds(mask: np.ndarray, cells: np.ndarray | None = None) -> Box:
+    """The smallest box holding ``mask``'s cells and ``cells`` (k x 2), at least one cell."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask[rows[0]:rows[-1] + 1].any(axis=0)) if len(rows) else rows
+    lo = [int(rows[0]), int(cols[0])] if len(rows) else [mask.shape[0], mask.shape[1]]
+    hi = [int(rows[-1]) + 1, int(cols[-1]) + 1] if len(rows) else [0, 0]
+    if cells is not None and len(cells):
+        lo = [min(lo[0], int(cells[:, 0].min())), min(lo[1], int(cells[:, 1].min()))]
+        hi = [max(hi[0], int(cells[:, 0].max()) + 1), max(hi[1], int(cells[:, 1].max()) + 1)]
+    if hi[0] <= lo[0]:
+        return (0, 0, 1, 1)
+    return (lo[0], lo[1], hi[0], hi[1])
+
+
+def boxed_wavefront(passable: np.ndarray, box: Box, sources: np.ndarray) -> np.ndarray:
+    """:func:`~fleet_emu.core.kernels.wavefront` from ``sources`` (k x 2 cells, inside ``box``) over the
+    ``passable`` cells inside ``box``, as the box's distance array: equal to the whole grid's wherever
+    ``box`` holds every passable cell."""
+    r0, c0, r1, c1 = box
+    local = np.ascontiguousarray(passable[r0:r1, c0:c1])
+    flat = (sources[:, 0] - r0) * (c1 - c0) + (sources[:, 1] - c0)
+    return wavefront(local, flat.astype(np.int64), -1)
+
+
+def _at(dist: np.ndarray, box: Box, cell: Cell) -> int:
+    """``dist`` (a box's) at the grid cell ``cell``; -1 outside the box."""
+    r, c = cell[0] - box[0], cell[1] - box[1]
+    return int(dist[r, c]) if 0 <= r < dist.shape[0] and 0 <= c < dist.shape[1] else -1
+
+
+def _or_windows(shape: tuple[int, int], parts: Iterable[tuple[tuple[slice, slice], np.ndarray]]) -> np.ndarray:
+    mask = np.zeros(shape, dtype=bool)
+    for win, inside in parts:
+        mask[win] |= inside
+    return mask
+
 
 def safe_area(grid: np.ndarray, relays: Iterable[Cell], r_comm: float) -> np.ndarray:
     """Known-free cells within r_comm of a relay (a hinged node or the base station), the relays included."""
-    mask = np.zeros(grid.shape, dtype=bool)
-    for p in relays:
-        mask |= disk(grid.shape, p, r_comm)
-    return mask & (grid == FREE)
+    relays = list(relays)
+    mask = _or_windows(grid.shape, (disk_window(grid.shape, p, r_comm) for p in relays))
+    if relays:
+        k = math.ceil(r_comm)
+        rc = np.array(relays)
+        r0, c0 = np.maximum(rc.min(axis=0) - k, 0)
+        r1, c1 = rc.max(axis=0) + k + 1
+        mask[r0:r1, c0:c1] &= grid[r0:r1, c0:c1] == FREE
+    return mask
 
 
 def cells_area(grid: np.ndarray, centers: Iterable[Cell], r_comm: float) -> np.ndarray:
-    """The union of the node cells (:func:`cell_area`) of nodes at ``centers``."""
-    mask = np.zeros(grid.shape, dtype=bool)
-    for p in centers:
-        mask |= cell_area(grid, p, r_comm)
-    return mask
+    """The union of the node cells (:func:`~.wavefront.cell_area`) of nodes at ``centers``."""
+    return _or_windows(grid.shape, (cell_window(grid, p, r_comm) for p in centers))
 
 
 def near_any(shape: tuple[int, int], centers: Iterable[Cell], radius: float) -> np.ndarray:
     """Cells within ``radius`` (``d <= radius``) of any of ``centers``."""
-    mask = np.zeros(shape, dtype=bool)
-    for p in centers:
-        mask |= disk(shape, p, radius + 1e-6)
-    return mask
+    return _or_windows(shape, (disk_window(shape, p, radius + 1e-6) for p in centers))
 
 
 def path_gaps(passable: np.ndarray, poses: Mapping[str, Cell], targets: Mapping[str, Cell]) -> dict[str, float]:
     """Each robot's path distance over ``passable`` cells to its target (``inf``: no path)."""
-    cols = passable.shape[1]
     out: dict[str, float] = {}
+    if not targets:
+        return out
+    box = bounds(passable, np.array(list(targets.values())))
     for goal in set(targets.values()):
-        dist = wavefront(passable, np.array([goal[0] * cols + goal[1]], dtype=np.int64), -1)
+        dist = boxed_wavefront(passable, box, np.array([goal]))
         for r, g in targets.items():
             if g == goal:
-                d = dist[poses[r]]
+                d = _at(dist, box, poses[r])
                 out[r] = float(d) if d >= 0 else math.inf
     return out
 
 
 def area_clusters(grid: np.ndarray, area: np.ndarray, cluster_max: int) -> list[Cluster]:
     """The frontier clusters made of frontier cells inside ``area``."""
-    clipped = grid.copy()
-    clipped[(grid == FREE) & ~area] = OCCUPIED  # a frontier outside the area stops being one
-    return find_clusters(clipped, cluster_max)
+    if not area.any():
+        return []
+    r0, c0, r1, c1 = bounds(area)  # the area and its 4-neighbours: frontiers are the same as on the whole grid
+    r0, c0, r1, c1 = max(0, r0 - 1), max(0, c0 - 1), min(grid.shape[0], r1 + 1), min(grid.shape[1], c1 + 1)
+    clipped = grid[r0:r1, c0:c1].copy()
+    clipped[(clipped == FREE) & ~area[r0:r1, c0:c1]] = OCCUPIED  # a frontier outside the area stops being one
+    width, cols = c1 - c0, grid.shape[1]
+    out = []
+    for c in find_clusters(clipped, cluster_max):  # a box's raster order is the grid's: the same clusters
+        rows, cs = np.divmod(c.cells, width)
+        out.append(Cluster(cells=(rows + r0) * cols + cs + c0, target=(c.target[0] + r0, c.target[1] + c0)))
+    return out
 
 
 def descend(dist: np.ndarray, cell: Cell) -> Cell:
@@ -102,19 +153,33 @@ def assign_explorers(grid: np.ndarray, passable: np.ndarray, clusters: Sequence[
     """Goals for the explorers over ``passable`` cells, with each one's path distance to it: one explorer per
     cluster, nearest pairs first, then the rest to their nearest cluster; an explorer that reaches no cluster
     gets none."""
-    dists = [wavefront(passable, c.cells.astype(np.int64), -1) for c in clusters]
-    taken, pairs = _greedy(dists, explorers)
+    cols = passable.shape[1]
+    sources = [np.column_stack(np.divmod(c.cells, cols)) for c in clusters]
+    box = bounds(passable, np.concatenate(sources) if sources else None)
+    dists = [boxed_wavefront(passable, box, s) for s in sources]
+    local = _inside(explorers, box)
+    taken, pairs = _greedy(dists, local)
     for _, _, j, r in pairs:  # sorted by distance: the first pair of a robot is its nearest cluster
         taken.setdefault(r, j)
-    return {r: (descend(dists[j], explorers[r]), int(dists[j][explorers[r]]))
+    return {r: (_shift(descend(dists[j], local[r]), box), int(dists[j][local[r]]))
             for r, j in sorted(taken.items(), key=lambda kv: robot_order(kv[0]))}
+
+
+def _inside(robots: Mapping[str, Cell], box: Box) -> dict[str, Cell]:
+    """The robots standing inside ``box``, at their cells in the box (the others reach nothing in it)."""
+    return {r: (c[0] - box[0], c[1] - box[1]) for r, c in robots.items()
+            if box[0] <= c[0] < box[2] and box[1] <= c[1] < box[3]}
+
+
+def _shift(cell: Cell, box: Box) -> Cell:
+    return (cell[0] + box[0], cell[1] + box[1])
 
 
 def assign_positions(passable: np.ndarray, positions: Sequence[Cell], explorers: Mapping[str, Cell]
                      ) -> dict[str, Cell]:
     """An explorer for each hinge position it can reach over ``passable`` cells, nearest pairs first;
     positions no free explorer reaches are left out."""
-    cols = passable.shape[1]
-    dists = [wavefront(passable, np.array([p[0] * cols + p[1]], dtype=np.int64), -1) for p in positions]
-    taken, _ = _greedy(dists, explorers)
+    box = bounds(passable, np.array(positions) if positions else None)
+    dists = [boxed_wavefront(passable, box, np.array([p])) for p in positions]
+    taken, _ = _greedy(dists, _inside(explorers, box))
     return {r: positions[j] for r, j in sorted(taken.items(), key=lambda kv: kv[1])}

@@ -18,7 +18,11 @@ phase 2's in ``chain``, the explorers' in ``explore``):
   drives inside the safe area, and never so many that fewer than X_min explorers remain.
 - *The pruning embellishment of III-C* is applied (the paper states it): a subtree whose leaf cells have no
   EW is marked processed without moving a robot. The other two embellishments (dynamic relaxation of X_min,
-  a SHM fallback) are "not discussed" in the paper and are not implemented.
+  a SHM fallback) are "not discussed due to space constraints": the paper gives neither rule, and they are
+  not implemented. Neither can move the method's end: both act in a Wavefront Expansion, and step 10 ends
+  the method when the closest frontier needs as many nodes as there are robots, whatever those expansions
+  did (on an open map, ``benchmarks/mhm_reach.py``: the final reach is set by step 10 and the chain's
+  geometry, ``chain`` and ``geodesic``).
 - *Phase 2's RTG from C_f* takes C_f "as the base": eq. 2's J is limited to T_f's hinged nodes, so that the
   new cells join the subtree the RTG traverses (a chain node, with fewer hops, would otherwise adopt them and
   RTG from C_f would never expand them). The chain's nodes are tree nodes (kind ``chain``, processed), so
@@ -323,7 +327,7 @@ class MhmPlanner:
             area = cells_area(self.grid, centers, self.config.r_comm)
             clusters = area_clusters(self.grid, area, self.config.cluster_max)
             targets = assign_explorers(self.grid, self.passable(), clusters, self.explorers()) if clusters else {}
-            seen = int((self.grid != UNKNOWN).sum())
+            seen = int(np.count_nonzero(self.grid != UNKNOWN))
             closer = any(d < best.get((r, g), 1 << 30) for r, (g, d) in targets.items())
             best.update({(r, g): min(d, best.get((r, g), 1 << 30)) for r, (g, d) in targets.items()})
             quiet = 0 if seen != known or closer else quiet + 1

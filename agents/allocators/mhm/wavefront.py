@@ -49,23 +49,34 @@ def _window(shape: tuple[int, int], center: Cell, radius: float) -> tuple[slice,
 def disk(shape: tuple[int, int], center: Cell, radius: float) -> np.ndarray:
     """Bool mask of the grid cells at Euclidean distance ``< radius`` from ``center``."""
     out = np.zeros(shape, dtype=bool)
+    win, inside = disk_window(shape, center, radius)
+    out[win] = inside
+    return out
+
+
+def disk_window(shape: tuple[int, int], center: Cell, radius: float) -> tuple[tuple[slice, slice], np.ndarray]:
+    """:func:`disk` as the window it can touch and the mask inside that window (no whole-grid array)."""
     rs, cs = _window(shape, center, radius)
     rows, cols = np.ogrid[rs, cs]
-    out[rs, cs] = (rows - center[0]) ** 2 + (cols - center[1]) ** 2 < radius * radius
-    return out
+    return (rs, cs), (rows - center[0]) ** 2 + (cols - center[1]) ** 2 < radius * radius
+
+
+def cell_window(grid: np.ndarray, center: Cell, r_comm: float) -> tuple[tuple[slice, slice], np.ndarray]:
+    """:func:`cell_area` as the window it can touch and the mask inside that window."""
+    (rs, cs), inside = disk_window(grid.shape, center, r_comm)
+    inside &= grid[rs, cs] == FREE
+    local = (center[0] - rs.start, center[1] - cs.start)
+    inside[local] = True
+    labels, _ = label(inside)
+    return (rs, cs), labels == labels[local]
 
 
 def cell_area(grid: np.ndarray, center: Cell, r_comm: float) -> np.ndarray:
     """The node cell of a node at ``center``: known-free cells within r_comm, 4-connected to ``center``
     inside the disk (``center`` itself always belongs)."""
     out = np.zeros(grid.shape, dtype=bool)
-    rs, cs = _window(grid.shape, center, r_comm)
-    rows, cols = np.ogrid[rs, cs]
-    inside = (grid[rs, cs] == FREE) & ((rows - center[0]) ** 2 + (cols - center[1]) ** 2 < r_comm * r_comm)
-    local = (center[0] - rs.start, center[1] - cs.start)
-    inside[local] = True
-    labels, _ = label(inside)
-    out[rs, cs] = labels == labels[local]
+    win, inside = cell_window(grid, center, r_comm)
+    out[win] = inside
     return out
 
 
