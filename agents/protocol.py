@@ -11,11 +11,12 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import operator
-from typing import Any
+from typing import Annotated, Any
 
+import msgspec
 import numpy as np
 
-from fleet_emu.core.codec import Context, Payload, fast_decoder, packed_array
+from fleet_emu.core.codec import Context, Payload, array_of, fast_decoder, packed_array, typed_decoder
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
 from fleet_emu.core.kernels import cells_valid
@@ -263,4 +264,115 @@ def _fast_fill(obj: dict, ctx: Context | None) -> MapFill | None:
         return None
     fill = object.__new__(MapFill)
     fill.__dict__.update(cells=got[0], values=got[1], seqs=seqs, upto=upto)
+    return fill
+
+
+# --- typed decoders ------------------------------------------------------------------------------------
+# The same payloads straight from their bytes into structs (msgspec checks the types, the ranges and the list
+# lengths in C), then the checks that need the context or several fields, as above; None for anything else,
+# and the dict decoders then decide (:data:`fleet_emu.core.codec._TYPED`).
+
+_Seq = Annotated[int, msgspec.Meta(ge=1)]
+_Seqs = Annotated[tuple[_Seq, ...], msgspec.Meta(max_length=MAX_SEQS)]
+
+
+class _PoseWire(msgspec.Struct, forbid_unknown_fields=True):
+    cell: tuple[int, int]
+    next: tuple[int, int] | None = None
+    maps: Annotated[int, msgspec.Meta(ge=0)] | None = None
+    want: dict[str, _Seqs] | None = None
+
+
+class _PackedWire(msgspec.Struct, forbid_unknown_fields=True):
+    dtype: str
+    shape: list[int]
+    data: bytes
+
+
+class _MapWire(msgspec.Struct, forbid_unknown_fields=True):
+    cells: _PackedWire
+    values: _PackedWire
+    n: _Seq | None = None
+    covers: _Seqs | None = None
+
+
+class _FillWire(msgspec.Struct, forbid_unknown_fields=True):
+    cells: _PackedWire
+    values: _PackedWire
+    seqs: _Seqs = ()
+    upto: Annotated[int, msgspec.Meta(ge=0)] = 0
+
+
+_POSE_DECODER = msgspec.msgpack.Decoder(_PoseWire)
+_MAP_DECODER = msgspec.msgpack.Decoder(_MapWire)
+_FILL_DECODER = msgspec.msgpack.Decoder(_FillWire)
+
+
+def _inside(cell: tuple[int, int], shape: tuple[int, int] | None) -> bool:
+    return shape is None or (0 <= cell[0] < shape[0] and 0 <= cell[1] < shape[1])
+
+
+def _ascending(seqs: tuple[int, ...]) -> bool:
+    """Strictly ascending (each number already >= 1)."""
+    return len(seqs) < 2 or all(map(operator.lt, seqs, itertools.islice(seqs, 1, None)))
+
+
+@typed_decoder(PoseBeacon)
+def _typed_pose(data: bytes, ctx: Context | None) -> PoseBeacon | None:
+    w = _POSE_DECODER.decode(data)
+    shape = ctx.shape if ctx is not None else None
+    cell, nxt, want = w.cell, w.next, w.want
+    if not _inside(cell, shape):
+        return None
+    if nxt is not None and (not _inside(nxt, shape) or abs(nxt[0] - cell[0]) + abs(nxt[1] - cell[1]) > 1):
+        return None
+    if want:
+        senders = ctx.senders if ctx is not None else None
+        if senders is not None and not want.keys() <= senders:
+            return None
+        if max(map(len, want.values())) > 1 and not all(map(_ascending, want.values())):
+            return None
+    beacon = object.__new__(PoseBeacon)
+    beacon.__dict__.update(cell=cell, next=nxt, maps=w.maps, want=want)
+    return beacon
+
+
+def _typed_cells(w: _MapWire | _FillWire, ctx: Context | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """The checked cells and values of a decoded map delta or fill, or None (:func:`_fast_cells`)."""
+    c, v = w.cells, w.values
+    cells, values = array_of(c.dtype, c.shape, c.data), array_of(v.dtype, v.shape, v.data)
+    if cells is None or values is None:
+        return None
+    shape = ctx.shape if ctx is not None else None
+    if (shape is not None and cells.ndim == 1 and values.ndim == 1 and len(cells) == len(values)
+            and cells.dtype in _KERNEL_CELLS and values.dtype == np.int8):  # the common case, compiled
+        return (cells, values) if cells_valid(cells, values, shape[0] * shape[1]) else None
+    check_cells(cells, values, shape, "map")  # raises: the dict decoders decide
+    return cells, values
+
+
+@typed_decoder(MapDelta)
+def _typed_map(data: bytes, ctx: Context | None) -> MapDelta | None:
+    w = _MAP_DECODER.decode(data)
+    n, covers = w.n, w.covers
+    if covers is not None and (n is None or not _ascending(covers) or (covers and covers[-1] >= n)):
+        return None
+    got = _typed_cells(w, ctx)
+    if got is None:
+        return None
+    delta = object.__new__(MapDelta)
+    delta.__dict__.update(cells=got[0], values=got[1], n=n, covers=covers)
+    return delta
+
+
+@typed_decoder(MapFill)
+def _typed_fill(data: bytes, ctx: Context | None) -> MapFill | None:
+    w = _FILL_DECODER.decode(data)
+    if not _ascending(w.seqs):
+        return None
+    got = _typed_cells(w, ctx)
+    if got is None:
+        return None
+    fill = object.__new__(MapFill)
+    fill.__dict__.update(cells=got[0], values=got[1], seqs=w.seqs, upto=w.upto)
     return fill
