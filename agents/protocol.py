@@ -16,10 +16,10 @@ from typing import Annotated, Any
 import msgspec
 import numpy as np
 
+from fleet_emu.core import kernels
 from fleet_emu.core.codec import Context, Payload, array_of, fast_decoder, packed_array, typed_decoder
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
-from fleet_emu.core.kernels import cells_valid
 from fleet_emu.core.messages import check_cell, check_cells
 
 #: At most this many delta numbers in a request or a fill (a receiver missing more asks again next tick).
@@ -224,7 +224,7 @@ def _fast_cells(cls: type[MapDelta] | type[MapFill], obj: dict, ctx: Context | N
     shape = ctx.shape if ctx is not None else None
     if (shape is not None and cells.ndim == 1 and values.ndim == 1 and len(cells) == len(values)
             and cells.dtype in _KERNEL_CELLS and values.dtype == np.int8):  # the common case, compiled
-        return (cells, values) if cells_valid(cells, values, shape[0] * shape[1]) else None
+        return (cells, values) if kernels.cells_valid(cells, values, shape[0] * shape[1]) else None
     try:
         check_cells(cells, values, shape, cls.KIND)
     except DecodeError:
@@ -330,7 +330,7 @@ def _typed_pose(data: bytes, ctx: Context | None) -> PoseBeacon | None:
         senders = ctx.senders if ctx is not None else None
         if senders is not None and not want.keys() <= senders:
             return None
-        if max(map(len, want.values())) > 1 and not all(map(_ascending, want.values())):
+        if max(map(len, want.values())) > 1 and not all(_ascending(seqs) for seqs in want.values() if len(seqs) > 1):
             return None
     beacon = object.__new__(PoseBeacon)
     beacon.__dict__.update(cell=cell, next=nxt, maps=w.maps, want=want)
@@ -346,7 +346,7 @@ def _typed_cells(w: _MapWire | _FillWire, ctx: Context | None) -> tuple[np.ndarr
     shape = ctx.shape if ctx is not None else None
     if (shape is not None and cells.ndim == 1 and values.ndim == 1 and len(cells) == len(values)
             and cells.dtype in _KERNEL_CELLS and values.dtype == np.int8):  # the common case, compiled
-        return (cells, values) if cells_valid(cells, values, shape[0] * shape[1]) else None
+        return (cells, values) if kernels.cells_valid(cells, values, shape[0] * shape[1]) else None
     check_cells(cells, values, shape, "map")  # raises: the dict decoders decide
     return cells, values
 

@@ -71,6 +71,10 @@ class Envelope(Message):
         return packed
 
     def validate(self, ctx: Context | None) -> None:
+        senders = ctx.senders if ctx is not None else None
+        if (senders is not None and self.src in senders and self.origin in senders and self.tick >= 0
+                and self.seq >= 0 and 0 <= self.ttl <= MAX_TTL and len(self.payload) <= MAX_PAYLOAD_BYTES):
+            return  # the common case in one expression: a robot checks every envelope it hears
         super().validate(ctx)
         if not 0 <= self.ttl <= MAX_TTL:
             raise DecodeError("radio: ttl out of range")
