@@ -66,7 +66,16 @@ class Envelope(Message):
         envelope in every receiver's rx bundle, and counts its size."""
         packed = self.__dict__.get("_packed")
         if packed is None:
-            packed = super().encode()
+            src, tick, seq, origin, dst, ttl = self.src, self.tick, self.seq, self.origin, self.dst, self.ttl
+            kind, payload = self.payload_kind, self.payload
+            if (type(tick) is int and type(seq) is int and type(ttl) is int and type(src) is str
+                    and type(origin) is str and type(dst) is str and type(kind) is str and type(payload) is bytes):
+                # to_obj's map, written out: the same keys in the same order, so the same bytes
+                packed = msgpack.packb({"kind": self.KIND, "v": SCHEMA_VERSION, "src": src, "tick": tick, "seq": seq,
+                                        "origin": origin, "dst": dst, "ttl": ttl, "payload_kind": kind,
+                                        "payload": payload}, use_bin_type=True)
+            else:  # numpy scalars, or anything odd: the generic conversion
+                packed = super().encode()
             object.__setattr__(self, "_packed", packed)
         return packed
 

@@ -105,3 +105,13 @@ def test_typed_decoders_refuse_what_they_cannot_vouch_for() -> None:
         assert _typed(cls, data, ctx) is None
         with pytest.raises(DecodeError):
             decode_payload(cls.KIND, data, ctx)
+
+
+def test_an_envelope_encodes_as_its_map_packs() -> None:
+    """:meth:`Envelope.encode` writes its map out rather than converting each field: the bytes msgpack packs
+    from ``to_obj`` (numpy integers included, which take the generic conversion)."""
+    payload = PoseBeacon(cell=(1, 2)).encode()
+    for tick, ttl in ((3, 0), (2**40, 16), (np.int64(7), np.int8(2))):
+        env = Envelope(src="r1", tick=tick, seq=9, origin="r0", dst="*", ttl=ttl, payload_kind="pose",  # type: ignore[arg-type]
+                       payload=payload)
+        assert env.encode() == msgpack.packb(env.to_obj(), use_bin_type=True)
