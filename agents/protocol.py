@@ -17,7 +17,7 @@ import msgspec
 import numpy as np
 
 from fleet_emu.core import kernels
-from fleet_emu.core.codec import Context, Payload, array_of, fast_decoder, packed_array, typed_decoder
+from fleet_emu.core.codec import MAX_ARRAY_BYTES, Context, Payload, array_of, fast_decoder, packed_array, typed_decoder
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
 from fleet_emu.core.messages import check_cell, check_cells
@@ -139,6 +139,7 @@ _POSE_KEYS = frozenset({"cell", "next", "maps", "want"})
 _MAP_KEYS = frozenset({"cells", "values", "n", "covers"})
 _FILL_KEYS = frozenset({"cells", "values", "seqs", "upto"})
 _KERNEL_CELLS = (np.dtype(np.int32), np.dtype(np.int64))  # cell index types cells_valid is warmed up for
+_KERNEL_DTYPES = {dt.name: dt for dt in _KERNEL_CELLS}
 
 
 def _cell_of(value: Any, shape: tuple[int, int] | None) -> Cell | None:
@@ -322,9 +323,10 @@ def _typed_pose(data: bytes, ctx: Context | None) -> PoseBeacon | None:
     w = _POSE_DECODER.decode(data)
     shape = ctx.shape if ctx is not None else None
     cell, nxt, want = w.cell, w.next, w.want
-    if not _inside(cell, shape):
+    r, c = cell
+    if shape is not None and not (0 <= r < shape[0] and 0 <= c < shape[1]):
         return None
-    if nxt is not None and (not _inside(nxt, shape) or abs(nxt[0] - cell[0]) + abs(nxt[1] - cell[1]) > 1):
+    if nxt is not None and (abs(nxt[0] - r) + abs(nxt[1] - c) > 1 or not _inside(nxt, shape)):
         return None
     if want:
         senders = ctx.senders if ctx is not None else None
@@ -340,13 +342,15 @@ def _typed_pose(data: bytes, ctx: Context | None) -> PoseBeacon | None:
 def _typed_cells(w: _MapWire | _FillWire, ctx: Context | None) -> tuple[np.ndarray, np.ndarray] | None:
     """The checked cells and values of a decoded map delta or fill, or None (:func:`_fast_cells`)."""
     c, v = w.cells, w.values
+    shape = ctx.shape if ctx is not None else None
+    dt = _KERNEL_DTYPES.get(c.dtype)
+    if (shape is not None and dt is not None and v.dtype == "int8" and c.shape == v.shape and len(c.shape) == 1
+            and len(c.data) == c.shape[0] * dt.itemsize <= MAX_ARRAY_BYTES and len(v.data) == v.shape[0]):  # compiled
+        cells, values = np.frombuffer(c.data, dt), np.frombuffer(v.data, np.int8)
+        return (cells, values) if kernels.cells_valid(cells, values, shape[0] * shape[1]) else None
     cells, values = array_of(c.dtype, c.shape, c.data), array_of(v.dtype, v.shape, v.data)
     if cells is None or values is None:
         return None
-    shape = ctx.shape if ctx is not None else None
-    if (shape is not None and cells.ndim == 1 and values.ndim == 1 and len(cells) == len(values)
-            and cells.dtype in _KERNEL_CELLS and values.dtype == np.int8):  # the common case, compiled
-        return (cells, values) if kernels.cells_valid(cells, values, shape[0] * shape[1]) else None
     check_cells(cells, values, shape, "map")  # raises: the dict decoders decide
     return cells, values
 
