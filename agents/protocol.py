@@ -277,27 +277,27 @@ _Seq = Annotated[int, msgspec.Meta(ge=1)]
 _Seqs = Annotated[tuple[_Seq, ...], msgspec.Meta(max_length=MAX_SEQS)]
 
 
-class _PoseWire(msgspec.Struct, forbid_unknown_fields=True):
+class _PoseWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
     cell: tuple[int, int]
     next: tuple[int, int] | None = None
     maps: Annotated[int, msgspec.Meta(ge=0)] | None = None
     want: dict[str, _Seqs] | None = None
 
 
-class _PackedWire(msgspec.Struct, forbid_unknown_fields=True):
+class _PackedWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
     dtype: str
     shape: list[int]
     data: bytes
 
 
-class _MapWire(msgspec.Struct, forbid_unknown_fields=True):
+class _MapWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
     cells: _PackedWire
     values: _PackedWire
     n: _Seq | None = None
     covers: _Seqs | None = None
 
 
-class _FillWire(msgspec.Struct, forbid_unknown_fields=True):
+class _FillWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
     cells: _PackedWire
     values: _PackedWire
     seqs: _Seqs = ()

@@ -341,7 +341,7 @@ _NonNeg = Annotated[int, msgspec.Meta(ge=0)]
 _Version = Annotated[int, msgspec.Meta(le=SCHEMA_VERSION)]
 
 
-class _EnvelopeWire(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
+class _EnvelopeWire(msgspec.Struct, forbid_unknown_fields=True, gc=False, kw_only=True):
     """An envelope's map as the wire has it, each field's type and range checked by msgspec (``kind`` a field,
     not msgspec's tag, which a lone struct does not require)."""
 
@@ -357,7 +357,7 @@ class _EnvelopeWire(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     payload: Annotated[bytes, msgspec.Meta(max_length=min(MAX_PAYLOAD_BYTES, MAX_ARRAY_BYTES))]
 
 
-class _TxWire(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
+class _TxWire(msgspec.Struct, forbid_unknown_fields=True, gc=False, kw_only=True):
     kind: Literal["tx"]
     v: _Version = 1
     src: str
@@ -366,7 +366,7 @@ class _TxWire(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     msgs: list[_EnvelopeWire]
 
 
-class _RxWire(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
+class _RxWire(msgspec.Struct, forbid_unknown_fields=True, gc=False, kw_only=True):
     kind: Literal["rx"]
     v: _Version = 1
     src: str
