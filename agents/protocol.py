@@ -346,8 +346,8 @@ def _typed_cells(w: _MapWire | _FillWire, ctx: Context | None) -> tuple[np.ndarr
     dt = _KERNEL_DTYPES.get(c.dtype)
     if (shape is not None and dt is not None and v.dtype == "int8" and c.shape == v.shape and len(c.shape) == 1
             and len(c.data) == c.shape[0] * dt.itemsize <= MAX_ARRAY_BYTES and len(v.data) == v.shape[0]):  # compiled
-        cells, values = np.frombuffer(c.data, dt), np.frombuffer(v.data, np.int8)
-        return (cells, values) if kernels.cells_valid(cells, values, shape[0] * shape[1]) else None
+        flat, vals = np.frombuffer(c.data, dt), np.frombuffer(v.data, np.int8)
+        return (flat, vals) if kernels.cells_valid(flat, vals, shape[0] * shape[1]) else None
     cells, values = array_of(c.dtype, c.shape, c.data), array_of(v.dtype, v.shape, v.data)
     if cells is None or values is None:
         return None
