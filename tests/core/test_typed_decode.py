@@ -115,3 +115,20 @@ def test_an_envelope_encodes_as_its_map_packs() -> None:
         env = Envelope(src="r1", tick=tick, seq=9, origin="r0", dst="*", ttl=ttl, payload_kind="pose",  # type: ignore[arg-type]
                        payload=payload)
         assert env.encode() == msgpack.packb(env.to_obj(), use_bin_type=True)
+
+
+def test_a_broadcast_is_opened_once_for_receivers_of_one_team() -> None:
+    """The memory engine hands one envelope object to every receiver: the message opened for one is given as it
+    is to the next whose context has the same team set (or an equal one), and decoded afresh for a receiver
+    whose context differs (another grid: the payload is checked again)."""
+    from fleet_emu.core.envelope import RadioMsg, open_envelope, seal
+
+    team = frozenset({"r0", "r1"})
+    env = seal(RadioMsg(PoseBeacon(cell=(3, 4))), "r0", 5, 9)
+    first = open_envelope(env, Context(senders=team, shape=(4, 5)))
+    assert open_envelope(env, Context(senders=team, shape=(4, 5))) is first
+    assert open_envelope(env, Context(senders=frozenset({"r0", "r1"}), shape=(4, 5))) is first
+    with pytest.raises(DecodeError, match="outside"):
+        open_envelope(env, Context(senders=team, shape=(3, 3)))  # (3, 4) is outside a 3 x 3 grid
+    other = open_envelope(env, Context(senders=team, shape=(9, 9)))
+    assert other is not first and other == first
