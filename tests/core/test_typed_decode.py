@@ -14,7 +14,7 @@ import pytest
 
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
 from fleet_emu.core.codec import _TYPED, Context, DecodeError, Payload, _typed, decode, decode_payload, generic_decode
-from fleet_emu.core.envelope import Envelope, RxBundle, TxBundle
+from fleet_emu.core.envelope import Envelope, RadioMsg, RxBundle, TxBundle, open_envelope, seal
 from fleet_emu.core.messages import Message
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
@@ -121,8 +121,6 @@ def test_a_broadcast_is_opened_once_for_receivers_of_one_team() -> None:
     """The memory engine hands one envelope object to every receiver: the message opened for one is given as it
     is to the next whose context has the same team set (or an equal one), and decoded afresh for a receiver
     whose context differs (another grid: the payload is checked again)."""
-    from fleet_emu.core.envelope import RadioMsg, open_envelope, seal
-
     team = frozenset({"r0", "r1"})
     env = seal(RadioMsg(PoseBeacon(cell=(3, 4))), "r0", 5, 9)
     first = open_envelope(env, Context(senders=team, shape=(4, 5)))
