@@ -11,14 +11,15 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import operator
-from typing import Any
+from typing import Annotated, Any
 
+import msgspec
 import numpy as np
 
-from fleet_emu.core.codec import Context, Payload, fast_decoder, packed_array
+from fleet_emu.core import kernels
+from fleet_emu.core.codec import MAX_ARRAY_BYTES, Context, Payload, array_of, fast_decoder, packed_array, typed_decoder
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
-from fleet_emu.core.kernels import cells_valid
 from fleet_emu.core.messages import check_cell, check_cells
 
 #: At most this many delta numbers in a request or a fill (a receiver missing more asks again next tick).
@@ -138,6 +139,7 @@ _POSE_KEYS = frozenset({"cell", "next", "maps", "want"})
 _MAP_KEYS = frozenset({"cells", "values", "n", "covers"})
 _FILL_KEYS = frozenset({"cells", "values", "seqs", "upto"})
 _KERNEL_CELLS = (np.dtype(np.int32), np.dtype(np.int64))  # cell index types cells_valid is warmed up for
+_KERNEL_DTYPES = {dt.name: dt for dt in _KERNEL_CELLS}
 
 
 def _cell_of(value: Any, shape: tuple[int, int] | None) -> Cell | None:
@@ -223,7 +225,7 @@ def _fast_cells(cls: type[MapDelta] | type[MapFill], obj: dict, ctx: Context | N
     shape = ctx.shape if ctx is not None else None
     if (shape is not None and cells.ndim == 1 and values.ndim == 1 and len(cells) == len(values)
             and cells.dtype in _KERNEL_CELLS and values.dtype == np.int8):  # the common case, compiled
-        return (cells, values) if cells_valid(cells, values, shape[0] * shape[1]) else None
+        return (cells, values) if kernels.cells_valid(cells, values, shape[0] * shape[1]) else None
     try:
         check_cells(cells, values, shape, cls.KIND)
     except DecodeError:
@@ -263,4 +265,118 @@ def _fast_fill(obj: dict, ctx: Context | None) -> MapFill | None:
         return None
     fill = object.__new__(MapFill)
     fill.__dict__.update(cells=got[0], values=got[1], seqs=seqs, upto=upto)
+    return fill
+
+
+# --- typed decoders ------------------------------------------------------------------------------------
+# The same payloads straight from their bytes into structs (msgspec checks the types, the ranges and the list
+# lengths in C), then the checks that need the context or several fields, as above; None for anything else,
+# and the dict decoders then decide (:data:`fleet_emu.core.codec._TYPED`).
+
+_Seq = Annotated[int, msgspec.Meta(ge=1)]
+_Seqs = Annotated[tuple[_Seq, ...], msgspec.Meta(max_length=MAX_SEQS)]
+
+
+class _PoseWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
+    cell: tuple[int, int]
+    next: tuple[int, int] | None = None
+    maps: Annotated[int, msgspec.Meta(ge=0)] | None = None
+    want: dict[str, _Seqs] | None = None
+
+
+class _PackedWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
+    dtype: str
+    shape: list[int]
+    data: bytes
+
+
+class _MapWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
+    cells: _PackedWire
+    values: _PackedWire
+    n: _Seq | None = None
+    covers: _Seqs | None = None
+
+
+class _FillWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
+    cells: _PackedWire
+    values: _PackedWire
+    seqs: _Seqs = ()
+    upto: Annotated[int, msgspec.Meta(ge=0)] = 0
+
+
+_POSE_DECODER = msgspec.msgpack.Decoder(_PoseWire)
+_MAP_DECODER = msgspec.msgpack.Decoder(_MapWire)
+_FILL_DECODER = msgspec.msgpack.Decoder(_FillWire)
+
+
+def _inside(cell: tuple[int, int], shape: tuple[int, int] | None) -> bool:
+    return shape is None or (0 <= cell[0] < shape[0] and 0 <= cell[1] < shape[1])
+
+
+def _ascending(seqs: tuple[int, ...]) -> bool:
+    """Strictly ascending (each number already >= 1)."""
+    return len(seqs) < 2 or all(map(operator.lt, seqs, itertools.islice(seqs, 1, None)))
+
+
+@typed_decoder(PoseBeacon)
+def _typed_pose(data: bytes, ctx: Context | None) -> PoseBeacon | None:
+    w = _POSE_DECODER.decode(data)
+    shape = ctx.shape if ctx is not None else None
+    cell, nxt, want = w.cell, w.next, w.want
+    r, c = cell
+    if shape is not None and not (0 <= r < shape[0] and 0 <= c < shape[1]):
+        return None
+    if nxt is not None and (abs(nxt[0] - r) + abs(nxt[1] - c) > 1 or not _inside(nxt, shape)):
+        return None
+    if want:
+        senders = ctx.senders if ctx is not None else None
+        if senders is not None and not want.keys() <= senders:
+            return None
+        if max(map(len, want.values())) > 1 and not all(_ascending(seqs) for seqs in want.values() if len(seqs) > 1):
+            return None
+    beacon = object.__new__(PoseBeacon)
+    beacon.__dict__.update(cell=cell, next=nxt, maps=w.maps, want=want)
+    return beacon
+
+
+def _typed_cells(w: _MapWire | _FillWire, ctx: Context | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """The checked cells and values of a decoded map delta or fill, or None (:func:`_fast_cells`)."""
+    c, v = w.cells, w.values
+    shape = ctx.shape if ctx is not None else None
+    dt = _KERNEL_DTYPES.get(c.dtype)
+    if (shape is not None and dt is not None and v.dtype == "int8" and c.shape == v.shape and len(c.shape) == 1
+            and len(c.data) == c.shape[0] * dt.itemsize <= MAX_ARRAY_BYTES and len(v.data) == v.shape[0]):  # compiled
+        flat, vals = np.frombuffer(c.data, dt), np.frombuffer(v.data, np.int8)
+        return (flat, vals) if kernels.cells_valid(flat, vals, shape[0] * shape[1]) else None
+    cells, values = array_of(c.dtype, c.shape, c.data), array_of(v.dtype, v.shape, v.data)
+    if cells is None or values is None:
+        return None
+    check_cells(cells, values, shape, "map")  # raises: the dict decoders decide
+    return cells, values
+
+
+@typed_decoder(MapDelta)
+def _typed_map(data: bytes, ctx: Context | None) -> MapDelta | None:
+    w = _MAP_DECODER.decode(data)
+    n, covers = w.n, w.covers
+    if covers is not None and (n is None or not _ascending(covers) or (covers and covers[-1] >= n)):
+        return None
+    got = _typed_cells(w, ctx)
+    if got is None:
+        return None
+    delta = object.__new__(MapDelta)
+    delta.__dict__.update(cells=got[0], values=got[1], n=n, covers=covers)
+    return delta
+
+
+@typed_decoder(MapFill)
+def _typed_fill(data: bytes, ctx: Context | None) -> MapFill | None:
+    w = _FILL_DECODER.decode(data)
+    if not _ascending(w.seqs):
+        return None
+    got = _typed_cells(w, ctx)
+    if got is None:
+        return None
+    fill = object.__new__(MapFill)
+    fill.__dict__.update(cells=got[0], values=got[1], seqs=w.seqs, upto=w.upto)
     return fill

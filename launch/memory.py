@@ -110,8 +110,10 @@ class Fleet:
         self.dropped = dict.fromkeys(self.possible_agents, 0)
         self.base: BaseStation | None = None
         self._base_dropped = 0
+        team = radio_team(s)  # one set for every brain: a broadcast's decoded payload, kept on its envelope with
+        # the context it was checked against, is then matched to the next receiver's by identity, not compared
         self.brains = {r: Brain(r, make_allocator(allocator_config(s)), generator(s.seed, r), brain_config(s),
-                                team=radio_team(s), on_drop=self._on_drop(r))
+                                team=team, on_drop=self._on_drop(r))
                        for r in self.possible_agents}
         self.monitor = Monitor(tuple(self.possible_agents), base=s.has_base, relay=s.relay != "none")
         self._world_seq = self._netem_seq = 0

@@ -134,8 +134,10 @@ class Problem:
         return c
 
 
+@functools.lru_cache(maxsize=4096)
 def robot_order(robot: str) -> tuple[int, str]:
-    """Sort key of robot ids: ``r2`` before ``r10``; anything else (``base``) after, by name."""
+    """Sort key of robot ids: ``r2`` before ``r10``; anything else (``base``) after, by name. Kept per id:
+    every decision sorts every teammate's pose by it."""
     return (int(robot[1:]), "") if robot[:1] == "r" and robot[1:].isdigit() else (1 << 30, robot)
 
 
