@@ -66,8 +66,10 @@ def test_a_second_bundle_in_a_robots_name_is_dropped_and_counted(small_map: Path
         attacker.join(30)
     base, attacked = result(tmp_path / "base"), result(tmp_path / "attacked")
     assert len(sent) > 10
-    assert attacked["malformed_dropped"] == attacked["malformed_dropped_by"]["netem"] == len(sent), \
-        attacked["malformed_dropped_by"]
+    # every second bundle netem got was dropped and counted; the last, put on the last state before the end, may
+    # reach a netem that has already stopped
+    assert attacked["malformed_dropped"] == attacked["malformed_dropped_by"]["netem"] in (len(sent) - 1, len(sent)), \
+        (attacked["malformed_dropped_by"], len(sent))
     same = {k: v for k, v in deterministic(attacked).items() if not k.startswith("malformed_dropped")}
     assert same == {k: v for k, v in deterministic(base).items() if not k.startswith("malformed_dropped")}, \
         err[-2000:]  # r0's own bundle (the first) was the one sent
