@@ -7,7 +7,6 @@ point missing."""
 from __future__ import annotations
 
 import json
-import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -17,25 +16,14 @@ import pytest
 from fleet_emu.recording.recover import is_whole
 from fleet_emu.sweep.execute import ROWS, read_rows
 from fleet_emu.sweep.study import Study
-from tests.conftest import run_cli
+from tests.conftest import run_cli, tmpfs
 
 
 @pytest.fixture
 def small_disk(tmp_path: Path) -> Iterator[Path]:
     """A mounted 2 MB tmpfs, unmounted after the test."""
-    mnt = tmp_path / "disk"
-    mnt.mkdir()
-    try:
-        done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], capture_output=True,
-                              text=True, timeout=30)
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        pytest.skip(f"cannot mount a tmpfs here: {exc}")
-    if done.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here: {done.stderr.strip() or done.returncode}")
-    try:
+    with tmpfs(tmp_path / "disk", "2m") as mnt:
         yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], capture_output=True, timeout=30)
 
 
 def _kept(study_dir: Path) -> Path:

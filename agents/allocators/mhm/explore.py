@@ -14,9 +14,9 @@ r_comm from its closest node. Choices, and why:
   nearest reachable cluster. Each goal is the cluster cell nearest the explorer (down the cluster's
   wavefront), not its centre, which may be on the far side.
 - An explorer keeps its goal while that cell is still a frontier cell (a cluster holds it) of the safe area
-  the explorer can reach, as Yamauchi's robots navigate to their frontier until they reach it; only the others are assigned,
-  over the clusters nobody keeps. Re-assigning every explorer at every tick let two of them trade goals back
-  and forth as they moved (an explorer's goal flipping A, B, A within a few ticks, ten times per hundred
+  the explorer can reach, as Yamauchi's robots navigate to their frontier until they reach it; only the others
+  are assigned, over the clusters nobody keeps. Re-assigning every explorer at every tick let two of them trade
+  goals back and forth as they moved (an explorer's goal flipping A, B, A within a few ticks, ten times per hundred
   robot-ticks on a small map), the limit cycle of any plan re-solved from scratch.
 - Hinge points are taken greedily the same way: the explorer nearest each position by path distance.
 """
