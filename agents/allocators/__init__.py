@@ -8,6 +8,7 @@ from fleet_emu.agents.allocators import (  # noqa: F401  (registration)
     minpos,
     nearest,
     policy,
+    random_frontier,
     trade,
     utility,
 )

@@ -16,11 +16,12 @@ The radio is the default scenario's (wall attenuation, 10 % loss): the policy le
 actually hear.
 
 Then the policy is saved (``--out``, the ``policy`` allocator's file) and compared, by ticks to 95 % (mean ±
-sd over ``--eval-seeds`` seeds, 0, 1, ...), on the ``--eval`` maps against a random choice among the same K
-candidates (in the environment, from a seeded generator), ``nearest`` and ``minpos`` (allocators, memory
-engine); the trained policy runs as the ``policy`` allocator reading the saved file, as a robot process would.
-``--tiny`` is a smoke run of a few seconds (what the documentation's test runs). Prints the training log, a
-table, and the seconds each part took.
+sd over ``--eval-seeds`` seeds, 0, 1, ...), on the ``--eval`` maps against a uniform choice among the same K
+candidates redrawn every tick (in the environment, from a seeded generator), and the allocators ``random`` (a
+reachable frontier drawn at random and kept until seen), ``nearest`` and ``minpos`` (memory engine); the
+trained policy runs as the ``policy`` allocator reading the saved file, as a robot process would. ``--tiny`` is
+a smoke run of a few seconds (what the documentation's test runs). Prints the training log, a table, and the
+seconds each part took.
 """
 
 from __future__ import annotations
@@ -98,19 +99,20 @@ def cem(env: rl.FleetParallelEnv, iterations: int, population: int, elite: int, 
 
 
 def compare(policy: Path, maps: list[str], robots: int, seeds: int, max_ticks: int) -> list[list[Any]]:
-    """Ticks to the target per map and chooser: random (in the environment), nearest, minpos and the policy
-    (allocators, memory engine)."""
+    """Ticks to the target per map and chooser: a uniform choice among the candidates redrawn every tick (in the
+    environment), then the allocators random, nearest, minpos and the policy (memory engine)."""
     rows = []
     for name in maps:
         s = scenario(name, robots, max_ticks)
         env = rl.parallel_env(s)
         rng = np.random.default_rng(0)
-        ticks: dict[str, list[float]] = {"random": [float(episode(env, uniform(rng), k)) for k in range(seeds)]}
-        for label, alloc in (("nearest", {"type": "nearest"}), ("minpos", {"type": "minpos"}),
+        ticks: dict[str, list[float]] = {"uniform": [float(episode(env, uniform(rng), k)) for k in range(seeds)]}
+        for label, alloc in (("random", {"type": "random"}), ("nearest", {"type": "nearest"}),
+                             ("minpos", {"type": "minpos"}),
                              ("trained", {"type": "policy", "path": str(policy)})):
             runs = [Fleet(s.override(allocator=alloc)).run(seed=k) for k in range(seeds)]
             ticks[label] = [float(r["ticks"]) if r["reason"] == "coverage" else float(max_ticks) for r in runs]
-        rows.append([name, *(mean_sd(ticks[k]) for k in ("random", "nearest", "minpos", "trained"))])
+        rows.append([name, *(mean_sd(ticks[k]) for k in ("uniform", "random", "nearest", "minpos", "trained"))])
     return rows
 
 
@@ -158,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
         rows = compare(out, maps, a.robots, a.eval_seeds, a.max_ticks)
         print(f"\nticks to {TARGET:.0%}, {a.robots} robots, seeds 0..{a.eval_seeds - 1} (mean ± sd; "
               f"{a.max_ticks} when missed)")
-        print("| map | random | nearest | minpos | trained |\n|---|---|---|---|---|")
+        print("| map | uniform | random | nearest | minpos | trained |\n|---|---|---|---|---|---|")
         for row in rows:
             print("| " + " | ".join(str(c) for c in row) + " |")
         print(f"compared in {time.perf_counter() - t1:.1f} s")

@@ -3,9 +3,12 @@ the scenario fields the allocator reads, and every other parameter at its defaul
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Any, ClassVar
 
-from fleet_emu.agents.allocators import Param, allocator_class
+import pytest
+
+from fleet_emu.agents.allocators import Allocator, Param, allocator_class
 from fleet_emu.agents.allocators.nearest import Nearest
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
@@ -13,10 +16,19 @@ from fleet_emu.launch.result import validate_result
 from fleet_emu.recording.monitor import allocator_params
 
 
-class _WithDefaults(Nearest, plugin_name="test-params-with-defaults"):
-    """A plugin-like allocator whose parameters are all defaulted."""
+@pytest.fixture
+def with_defaults() -> Iterator[str]:
+    """A plugin-like allocator whose parameters are all defaulted, registered for the test only (another
+    interpreter a later test starts would not know it)."""
 
-    parameters: ClassVar[dict[str, Param]] = {"crowd": Param(15.0, ge=0), "stale": Param(40, ge=1)}
+    class _WithDefaults(Nearest):
+        parameters: ClassVar[dict[str, Param]] = {"crowd": Param(15.0, ge=0), "stale": Param(40, ge=1)}
+
+    _WithDefaults.register("test-params-with-defaults")
+    try:
+        yield "test-params-with-defaults"
+    finally:
+        del Allocator.registry["test-params-with-defaults"]
 
 
 def test_a_run_records_every_effective_parameter() -> None:
@@ -29,9 +41,9 @@ def test_a_run_records_every_effective_parameter() -> None:
     validate_result(data)
 
 
-def test_a_plugins_defaults_are_filled_in_and_a_given_value_wins() -> None:
-    scenario = Scenario().override(allocator={"type": "test-params-with-defaults", "stale": 7})
-    assert allocator_params(scenario.to_dict()) == {"type": "test-params-with-defaults", "crowd": 15.0, "stale": 7}
+def test_a_plugins_defaults_are_filled_in_and_a_given_value_wins(with_defaults: str) -> None:
+    scenario = Scenario().override(allocator={"type": with_defaults, "stale": 7})
+    assert allocator_params(scenario.to_dict()) == {"type": with_defaults, "crowd": 15.0, "stale": 7}
 
 
 def test_an_allocator_that_cannot_load_keeps_the_table_as_given() -> None:
