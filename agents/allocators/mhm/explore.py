@@ -158,9 +158,8 @@ def assign_explorers(grid: np.ndarray, passable: np.ndarray, clusters: Sequence[
                      ) -> dict[str, tuple[Cell, int]]:
     """Goals for the explorers over ``passable`` cells, with each one's path distance to it. An explorer whose
     goal in ``held`` (the previous goals) a cluster still holds, and that it reaches, keeps it; the others take
-    one cluster each among the rest, nearest pairs first, then any left over its nearest cluster (held or not,
-    as before any was kept: an explorer never waits for lack of a cluster of its own); an explorer that reaches
-    no cluster gets none."""
+    one cluster each among the rest, nearest pairs first, then any left over its nearest cluster; an explorer
+    that reaches no cluster gets none."""
     cols = passable.shape[1]
     sources = [np.column_stack(np.divmod(c.cells, cols)) for c in clusters]
     box = bounds(passable, np.concatenate(sources) if sources else None)
@@ -169,11 +168,10 @@ def assign_explorers(grid: np.ndarray, passable: np.ndarray, clusters: Sequence[
     kept = _kept(clusters, dists, local, {r: g for r, g in (held or {}).items() if passable[g]}, box, cols)
     free = {r: c for r, c in local.items() if r not in kept}
     open_ = [i for i in range(len(dists)) if i not in {j for j, _ in kept.values()}]
-    taken, _ = _greedy([dists[i] for i in open_], free)
+    taken, pairs = _greedy([dists[i] for i in open_], free)
     taken = {r: open_[k] for r, k in taken.items()}
-    _, pairs = _greedy(dists, free)
-    for _, _, j, r in pairs:  # sorted by distance: the first pair of a robot is its nearest cluster, held or not
-        taken.setdefault(r, j)
+    for _, _, k, r in pairs:  # sorted by distance: the first pair of a robot is its nearest open cluster
+        taken.setdefault(r, open_[k])
     goals = {r: (_shift(descend(dists[j], local[r]), box), int(dists[j][local[r]])) for r, j in taken.items()}
     goals |= {r: (goal, int(dists[j][local[r]])) for r, (j, goal) in kept.items()}
     return dict(sorted(goals.items(), key=lambda kv: robot_order(kv[0])))
