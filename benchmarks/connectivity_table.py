@@ -28,6 +28,7 @@ from typing import Any
 
 from benchmarks._common import fleet_run, parser
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.launch.cli import param_value
 from fleet_emu.launch.memory import Fleet
 
 #: Registry maps (`fleet maps fetch hospital_section autolab mbicp cave` once) and a built-in one.
@@ -52,23 +53,11 @@ def simulate(sc: Scenario) -> Outcome:
     return Outcome(r["ticks"], r["coverage"], r["reason"], r["connected_fraction"] or 0.0, r["path_length"])
 
 
-def _value(text: str) -> bool | int | float | str:
-    """A ``NAME=VALUE`` item's value: true/false, a number, else the string."""
-    if text in ("true", "false"):
-        return text == "true"
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return text
-
-
 def allocator(config: str) -> dict[str, Any]:
     """``minpos`` or ``conn:ALPHA:BETA[:POSITION[:PREDICT]]``, then any ``:NAME=VALUE``, as an allocator table
     (strings; the allocator checks and converts them: a bad value is a one-line ConfigError)."""
     name, *parts = config.split(":")
-    named = {k: _value(v) for k, v in (p.split("=", 1) for p in parts if "=" in p)}
+    named = {k: param_value(v) for k, v in (p.split("=", 1) for p in parts if "=" in p)}
     parts = [p for p in parts if "=" not in p]
     if name != "conn":
         return {"type": name, **named}

@@ -12,6 +12,7 @@ heavy at the top, so that a signal during start-up meets the handler, not a half
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -145,11 +146,17 @@ def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
     add_radio_flags(r)
 
 
-def _default(field: str) -> str:
-    """`` (default: the scenario's; X in the default one)``, X the default scenario's value of ``field``."""
+@functools.cache
+def _default_scenario() -> Scenario:
+    """The shipped default scenario, read once (every flag's help names a value of it)."""
     from fleet_emu.core.scenario import Scenario
 
-    value = getattr(Scenario.load(DEFAULT_SCENARIO), field)
+    return Scenario.load(DEFAULT_SCENARIO)
+
+
+def _default(field: str) -> str:
+    """`` (default: the scenario's; X in the default one)``, X the default scenario's value of ``field``."""
+    value = getattr(_default_scenario(), field)
     if isinstance(value, dict):
         value = value.get("type")
     return f" (default: the scenario's; {value} in the default one)"
@@ -276,11 +283,12 @@ def _allocator_arg(base: Scenario, name: str | None, params: list[str] | None) -
         key, eq, text = item.partition("=")
         if not eq or not key:
             raise ConfigError(f"--param must be NAME=VALUE (got {item!r})")
-        table[key] = _param_value(text)
+        table[key] = param_value(text)
     return table
 
 
-def _param_value(text: str) -> bool | int | float | str:
+def param_value(text: str) -> bool | int | float | str:
+    """A ``NAME=VALUE`` item's value: true/false, an integer, a number, else the string."""
     if text in ("true", "false"):
         return text == "true"
     for kind in (int, float):
