@@ -4,6 +4,8 @@ Foxglove coverage grid, the report's final map) and for each robot (first-discov
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 
@@ -28,3 +30,13 @@ class FirstSeen:
         """A ``shape`` grid of the values of the cells first sensed at or before ``upto``, -1 elsewhere."""
         seen = (self.tick >= 0) & (self.tick <= upto)
         return np.where(seen, self.value, -1).astype(np.int8).reshape(self.shape)
+
+
+def fold_team(coverage: FirstSeen | None, shape: tuple[int, int] | None, obs: Any) -> FirstSeen:
+    """The team's first-seen grid with the world's ``Observation`` ``obs`` folded in: made at ``shape`` (the
+    true map's, when known) or else at the first observation's; an observation of another shape is left out."""
+    if coverage is None:
+        coverage = FirstSeen(shape or (int(obs.shape[0]), int(obs.shape[1])))
+    if tuple(obs.shape) == coverage.shape:
+        coverage.observe(obs.tick, obs.cells, obs.values)
+    return coverage

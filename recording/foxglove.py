@@ -39,7 +39,7 @@ import numpy as np
 from fleet_emu.core.keys import robot_ids
 from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Message, Observation, Stop, WorldState
 from fleet_emu.recording.clock import EPOCH, RunClock
-from fleet_emu.recording.first_seen import FirstSeen
+from fleet_emu.recording.first_seen import FirstSeen, fold_team
 from fleet_emu.recording.stats import SCHEMA_STATS, TOPIC_STATS, StatsFold, stats_schema_text
 
 SCHEMAS = ("foxglove.Grid", "foxglove.SceneUpdate", "foxglove.Log", SCHEMA_STATS)
@@ -245,12 +245,8 @@ class FoxgloveFold:
     # --- folds --------------------------------------------------------------------------------------------
 
     def _observe(self, o: Observation) -> None:
-        if self.shape is None:
-            self.shape = (int(o.shape[0]), int(o.shape[1]))
-        if self.coverage is None:
-            self.coverage = FirstSeen(self.shape)
-        if tuple(o.shape) == self.shape:
-            self.coverage.observe(o.tick, o.cells, o.values)
+        self.coverage = fold_team(self.coverage, self.shape, o)
+        self.shape = self.coverage.shape
 
     def _state(self, st: WorldState) -> list[Derived]:
         out: list[Derived] = []

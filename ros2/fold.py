@@ -32,7 +32,7 @@ import numpy as np
 from fleet_emu.core.keys import robot_ids
 from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Message, Observation, WorldState
 from fleet_emu.recording.clock import EPOCH, RunClock
-from fleet_emu.recording.first_seen import FirstSeen
+from fleet_emu.recording.first_seen import FirstSeen, fold_team
 from fleet_emu.ros2.types import CLOCK, GRID, MARKERS, PATH, POSE, TF, make
 
 FRAME = "map"
@@ -130,12 +130,8 @@ class Ros2Fold:
     # --- folds ----------------------------------------------------------------------------------------------
 
     def _observe(self, o: Observation) -> None:
-        if self.shape is None:
-            self.shape = (int(o.shape[0]), int(o.shape[1]))
-        if self.coverage is None:
-            self.coverage = FirstSeen(self.shape)
-        if tuple(o.shape) == self.shape:
-            self.coverage.observe(o.tick, o.cells, o.values)
+        self.coverage = fold_team(self.coverage, self.shape, o)
+        self.shape = self.coverage.shape
 
     def _state(self, st: WorldState) -> list[Out]:
         t = st.tick
