@@ -49,11 +49,7 @@ def explore(art: str, config: dict[str, Any], seed: int) -> Targets:
     return run_fleet(art, config, seed=seed, max_ticks=200, base=config["type"] in BASE_PLANNERS).targets
 
 
-# mhm's explorers follow the goals of the base's plan, which here alternate between two cells (10 flips per 100
-# robot-ticks on this map): known, left to the planner's own work.
-MHM_FLIPS = pytest.mark.xfail(strict=True, reason="the base's plan alternates an explorer's goal between two cells")
-FLIP_CONFIGS = [pytest.param({"type": name}, marks=MHM_FLIPS) if name == "mhm" else {"type": name}
-                for name in allocator_names()] + [{"type": "connectivity", "replan": "tick"}]
+FLIP_CONFIGS = [{"type": name} for name in allocator_names()] + [{"type": "connectivity", "replan": "tick"}]
 
 
 @pytest.mark.parametrize("config", FLIP_CONFIGS, ids=_id)

@@ -13,6 +13,13 @@ r_comm from its closest node. Choices, and why:
   explorer per cluster (ties: lower robot id, then lower cluster index); explorers left over go to their
   nearest reachable cluster. Each goal is the cluster cell nearest the explorer (down the cluster's
   wavefront), not its centre, which may be on the far side.
+- An explorer keeps its goal while that cell is still a frontier cell (a cluster holds it) of the safe area
+  the explorer can reach, as Yamauchi's robots navigate to their frontier until they reach it; only the
+  others are assigned, over the clusters nobody keeps, and an explorer left without a cluster of its own goes
+  to its nearest cluster, held or not (it would otherwise wait). Re-assigning every explorer at every tick let
+  two of them trade goals back and forth as they moved (an explorer's goal flipping A, B, A within a few
+  ticks, ten times per hundred robot-ticks on a small map), the limit cycle of any plan re-solved from
+  scratch. Kept goals rely on the robot driving to a goal its own map does not know yet (``robot.py``).
 - Hinge points are taken greedily the same way: the explorer nearest each position by path distance.
 """
 
@@ -84,6 +91,17 @@ def safe_area(grid: np.ndarray, relays: Iterable[Cell], r_comm: float) -> np.nda
     return mask
 
 
+def reach_area(belief: np.ndarray, relays: Iterable[Cell], r_comm: float) -> np.ndarray:
+    """The cells within r_comm of a relay that ``belief`` does not know to be occupied (unknown cells
+    included), the relays too: where an explorer may drive toward a goal the base's map reaches but its own
+    map does not know yet (``robot.py``)."""
+    mask = _or_windows(belief.shape, (disk_window(belief.shape, p, r_comm) for p in relays))
+    mask &= belief != OCCUPIED
+    for p in relays:
+        mask[p] = True
+    return mask
+
+
 def cells_area(grid: np.ndarray, centers: Iterable[Cell], r_comm: float) -> np.ndarray:
     """The union of the node cells (:func:`~.wavefront.cell_area`) of nodes at ``centers``."""
     return _or_windows(grid.shape, (cell_window(grid, p, r_comm) for p in centers))
@@ -149,20 +167,51 @@ def _greedy(dists: Sequence[np.ndarray], robots: Mapping[str, Cell]) -> tuple[di
 
 
 def assign_explorers(grid: np.ndarray, passable: np.ndarray, clusters: Sequence[Cluster],
-                     explorers: Mapping[str, Cell]) -> dict[str, tuple[Cell, int]]:
-    """Goals for the explorers over ``passable`` cells, with each one's path distance to it: one explorer per
-    cluster, nearest pairs first, then the rest to their nearest cluster; an explorer that reaches no cluster
-    gets none."""
+                     explorers: Mapping[str, Cell], held: Mapping[str, Cell] | None = None
+                     ) -> dict[str, tuple[Cell, int]]:
+    """Goals for the explorers over ``passable`` cells, with each one's path distance to it. An explorer whose
+    goal in ``held`` (the previous goals) a cluster still holds, and that it reaches, keeps it; the others take
+    one cluster each among the rest, nearest pairs first, then any left over its nearest cluster (held or not,
+    as before any was kept: an explorer never waits for lack of a cluster of its own); an explorer that reaches
+    no cluster gets none."""
     cols = passable.shape[1]
     sources = [np.column_stack(np.divmod(c.cells, cols)) for c in clusters]
     box = bounds(passable, np.concatenate(sources) if sources else None)
     dists = [boxed_wavefront(passable, box, s) for s in sources]
     local = _inside(explorers, box)
-    taken, pairs = _greedy(dists, local)
-    for _, _, j, r in pairs:  # sorted by distance: the first pair of a robot is its nearest cluster
+    kept = _kept(clusters, dists, local, {r: g for r, g in (held or {}).items() if passable[g]}, box, cols)
+    free = {r: c for r, c in local.items() if r not in kept}
+    open_ = [i for i in range(len(dists)) if i not in {j for j, _ in kept.values()}]
+    taken, _ = _greedy([dists[i] for i in open_], free)
+    taken = {r: open_[k] for r, k in taken.items()}
+    _, pairs = _greedy(dists, free)
+    for _, _, j, r in pairs:  # sorted by distance: the first pair of a robot is its nearest cluster, held or not
         taken.setdefault(r, j)
-    return {r: (_shift(descend(dists[j], local[r]), box), int(dists[j][local[r]]))
-            for r, j in sorted(taken.items(), key=lambda kv: robot_order(kv[0]))}
+    goals = {r: (_shift(descend(dists[j], local[r]), box), int(dists[j][local[r]])) for r, j in taken.items()}
+    goals |= {r: (goal, int(dists[j][local[r]])) for r, (j, goal) in kept.items()}
+    return dict(sorted(goals.items(), key=lambda kv: robot_order(kv[0])))
+
+
+def _kept(clusters: Sequence[Cluster], dists: Sequence[np.ndarray], local: Mapping[str, Cell],
+          held: Mapping[str, Cell], box: Box, cols: int) -> dict[str, tuple[int, Cell]]:
+    """The explorers that keep their goal: (cluster, goal) for each whose goal a cluster still holds, that
+    reaches that cluster and does not stand on the goal already; one explorer per cluster (the lower robot id)."""
+    kept: dict[str, tuple[int, Cell]] = {}
+    for r in sorted(held, key=robot_order):
+        goal = held[r]
+        if r not in local or _shift(local[r], box) == goal:
+            continue
+        index = goal[0] * cols + goal[1]
+        j = next((j for j, c in enumerate(clusters) if _holds(c.cells, index)), None)
+        if j is not None and dists[j][local[r]] >= 0 and all(j != k for k, _ in kept.values()):
+            kept[r] = (j, goal)
+    return kept
+
+
+def _holds(cells: np.ndarray, index: int) -> bool:
+    """Whether the sorted flat indices ``cells`` hold ``index``."""
+    k = int(np.searchsorted(cells, index))
+    return k < len(cells) and int(cells[k]) == index
 
 
 def _inside(robots: Mapping[str, Cell], box: Box) -> dict[str, Cell]:

@@ -326,7 +326,8 @@ class MhmPlanner:
         while True:
             area = cells_area(self.grid, centers, self.config.r_comm)
             clusters = area_clusters(self.grid, area, self.config.cluster_max)
-            targets = assign_explorers(self.grid, self.passable(), clusters, self.explorers()) if clusters else {}
+            targets = assign_explorers(self.grid, self.passable(), clusters, self.explorers(),
+                                       self.goals) if clusters else {}
             seen = int(np.count_nonzero(self.grid != UNKNOWN))
             closer = any(d < best.get((r, g), 1 << 30) for r, (g, d) in targets.items())
             best.update({(r, g): min(d, best.get((r, g), 1 << 30)) for r, (g, d) in targets.items()})

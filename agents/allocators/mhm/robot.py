@@ -6,11 +6,15 @@ are older and ignored) and decides from it alone:
 
 - A **node** holds: it stands on its node's cell, a relay (section III: "a node does not move"). Should it
   not yet be there (orders that moved on while it drove), it drives to that cell like an explorer.
-- An **explorer** drives to its goal over the *safe area it knows*: its own known-free cells within r_comm
-  of a relay cell of the orders (the base, the hinged nodes), the cell it stands on included. Explorers stay
-  in range of a relay at every step (section III); the base plans every goal inside its own safe area.
-- **Without a usable order** (none heard yet, no goal, a goal outside the safe area the robot knows, or no
-  path to it inside that area) the robot keeps its *last safe position*: the last cell it stood on that was
+- An **explorer** drives to its goal inside the relays' reach: the cells within r_comm of a relay cell of
+  the orders (the base, the hinged nodes) that its own map does not know to be occupied, the cell it stands
+  on included. Explorers stay in range of a relay at every step (section III). The base plans every goal and
+  its way over its *team* map's safe area; the robot's map may not know that way yet (a room a teammate
+  explored), so the robot drives over the cells it does not know as well, and re-plans each tick as it sees
+  them (it sees a cell before it steps on it). Driving over known-free cells only, a robot sent to a room it
+  never saw stood still until the base sent another robot.
+- **Without a usable order** (none heard yet, no goal, a goal outside the relays' reach, or no path to it
+  inside that reach) the robot keeps its *last safe position*: the last cell it stood on that was
   in the safe area of the orders it had then. It holds there. Standing outside the safe area of its newest
   orders (its relay unhinged before it heard of it), it drives over its known-free cells to the nearest
   cell of that safe area, or, when it knows no way there, back to its last safe cell. It never drives out
@@ -43,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
-from fleet_emu.agents.allocators.mhm.explore import descend, safe_area
+from fleet_emu.agents.allocators.mhm.explore import descend, reach_area, safe_area
 from fleet_emu.agents.allocators.mhm.orders import MhmAck, MhmOrders
 from fleet_emu.agents.allocators.mhm.planner import MhmConfig
 from fleet_emu.agents.allocators.params import Param
@@ -128,9 +132,11 @@ class Mhm(Allocator, plugin_name="mhm"):
         if safe[me]:
             self.last_safe = me
         goal = order.goals.get(problem.me)
-        if goal is None or goal == me or not safe[goal]:
+        if goal is None or goal == me:
             return self._keep(problem, me, safe, routes)
-        passable = safe.copy()
+        passable = reach_area(problem.belief, order.relays, self.r_comm)
+        if not passable[goal]:
+            return self._keep(problem, me, safe, routes)
         passable[me] = True
         if not _reaches(passable, goal, me):
             return self._keep(problem, me, safe, routes)

@@ -90,7 +90,7 @@ def test_a_fleet_on_open_ground_reaches_the_disc_of_its_chain() -> None:
     grid[[0, -1], :] = grid[:, [0, -1]] = OCCUPIED
     base = (50, 50)
     config = MhmConfig(r_comm=10.0, sensor_range=4.0, cluster_max=8, patience=40)
-    out = simulate(grid, base, 4, config, keep_belief=True)
+    out = simulate(grid, base, 4, config, keep_belief=True, max_ticks=5000)
     assert out.done and worst(out.connected) == 1.0
     assert out.planner.events[-1][1].startswith("stop: frontier")  # step 10: the closest frontier is too far
     disc = math.pi * (3 * 10.0 + 4.0) ** 2  # of a chain of 4 robots: pi ((n - 1) r_comm + r_sense)^2

@@ -1,5 +1,5 @@
 """The robot side of ``mhm`` (``agents/allocators/mhm/robot.py``) and its orders (``orders.py``): a robot obeys
-the base's newest order inside the safe area it knows, holds without a usable one, and hands the order's
+the base's newest order inside its relays' reach, holds without a usable one, and hands the order's
 routes to its relay. Grids are ASCII art: ``B`` is where the base station stands (a free cell)."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from fleet_emu.agents.allocators.mhm.robot import Mhm
 from fleet_emu.agents.brain import Brain, BrainConfig
 from fleet_emu.core.codec import Context
 from fleet_emu.core.errors import ConfigError, DecodeError
-from fleet_emu.core.grid import FREE, from_ascii
+from fleet_emu.core.grid import FREE, OCCUPIED, UNKNOWN, from_ascii
 from fleet_emu.core.messages import Envelope, Observation, RadioMsg, open_envelope, seal
 from fleet_emu.core.scenario import Scenario
 
@@ -90,6 +90,21 @@ def test_a_goal_outside_the_safe_area_is_not_obeyed_and_an_older_order_is_ignore
     a.allocate(_problem(), [_msg(_orders(tick=5, goals={"r0": (1, 4)}))])
     stale = a.allocate(_problem(), [_msg(_orders(tick=4, goals={"r0": (2, 2)}))])  # relayed late: older
     assert stale.status is AllocStatus.GOAL and stale.target == (1, 4)
+
+
+def test_an_explorer_drives_toward_a_goal_its_own_map_has_not_seen_but_not_through_a_known_wall() -> None:
+    # The base's team map reaches (1, 4); this robot, at (1, 2), knows only columns 0-2 (a teammate saw the rest).
+    a = _alloc()
+    grid, robots = _grid()
+    robots["r0"] = (1, 2)
+    grid[:, 3:] = UNKNOWN
+    blind = Problem(me="r0", poses=robots, belief=grid, clusters=[])
+    got = a.allocate(blind, [_msg(_orders())])
+    assert got.status is AllocStatus.GOAL and got.target == (1, 4)
+    assert got.passable is not None and got.passable[1, 3] and not got.passable[1, 6]  # still d < r_comm
+    grid[:, 3] = OCCUPIED  # it saw a wall across the corridor: no way to the goal it knows of
+    walled = Problem(me="r0", poses=robots, belief=grid, clusters=[])
+    assert a.allocate(walled, ()).status is AllocStatus.HOLD
 
 
 def test_a_node_holds_on_its_cell() -> None:
