@@ -72,6 +72,7 @@ from fleet_emu.agents.allocators.mhm.explore import (
     assign_explorers,
     assign_positions,
     cells_area,
+    make_way,
     near_any,
     path_gaps,
     safe_area,
@@ -357,7 +358,8 @@ class MhmPlanner:
                 self._note(f"hinge: {sorted((r, p) for r, p in chosen.items() if self.poses[r] != p)} not reached")
                 chosen = {r: p for r, p in chosen.items() if self.poses[r] == p}
                 break
-            self.goals = dict(chosen)
+            idle = [r for r in self.explorers() if r not in chosen]
+            self.goals = dict(chosen) | make_way(self.passable(), self.poses, chosen, idle)
             yield
         self.goals = {}
         order = {p: k for k, p in enumerate(positions)}

@@ -11,7 +11,9 @@ are older and ignored) and decides from it alone:
   on included. Explorers stay in range of a relay at every step (section III). The base plans every goal and
   its way over its *team* map's safe area; the robot's map may not know that way yet (a room a teammate
   explored), so the robot drives over the cells it does not know as well, and re-plans each tick as it sees
-  them (it sees a cell before it steps on it). Driving over known-free cells only, a robot sent to a room it
+  them (it sees a cell before it steps on it). Its way goes around the node robots standing on their relay
+  cells, as the base's paths do: a node does not move, and a robot whose shortest way ran through one stepped
+  aside and back, tick after tick. Driving over known-free cells only, a robot sent to a room it
   never saw stood still until the base sent another robot.
 - **Without a usable order** (none heard yet, no goal, a goal outside the relays' reach, or no path to it
   inside that reach) the robot keeps its *last safe position*: the last cell it stood on that was
@@ -137,6 +139,10 @@ class Mhm(Allocator, plugin_name="mhm"):
         passable = reach_area(problem.belief, order.relays, self.r_comm)
         if not passable[goal]:
             return self._keep(problem, me, safe, routes)
+        standing = {cell for r, cell in problem.poses.items() if r != problem.me}
+        for cell in order.relays[1:]:  # a node does not move: the way goes around it (the base's is not a body)
+            if cell in standing and cell != goal:
+                passable[cell] = False
         passable[me] = True
         if not _reaches(passable, goal, me):
             return self._keep(problem, me, safe, routes)

@@ -235,3 +235,22 @@ def test_no_cell_is_created_twice_on_a_generated_office(hinges: int) -> None:
     assert len(positions) == len(set(positions)) > 3
     assert worst(out.connected) == 1.0
     assert out.seen[-1] > 2 * out.seen[0]
+
+
+def test_an_idle_explorer_in_a_doorway_makes_way_for_the_robot_sent_through_it() -> None:
+    from fleet_emu.agents.allocators.mhm.explore import make_way
+
+    grid, robots = from_ascii("""
+#########
+#...#...#
+#.0.1.2.#
+#...#...#
+#########
+""")
+    passable = grid == 0
+    goal = (1, 7)
+    away = make_way(passable, robots, {"r0": goal}, ["r1", "r2"])
+    assert set(away) == {"r1"}  # r1 holds in the door on r0's way; r2 stands beside it: it holds
+    spot = away["r1"]
+    assert passable[spot] and spot not in robots.values() and spot[0] != 2  # off the row a drives along
+    assert make_way(passable, robots, {}, ["r1"]) == {}

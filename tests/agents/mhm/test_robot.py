@@ -107,6 +107,20 @@ def test_an_explorer_drives_toward_a_goal_its_own_map_has_not_seen_but_not_throu
     assert a.allocate(walled, ()).status is AllocStatus.HOLD
 
 
+def test_an_explorer_plans_around_a_node_standing_on_its_relay_cell() -> None:
+    a = _alloc()
+    node_cell = (1, 3)  # r1 hinged there: a relay of the orders, and it stands on it
+    order = _orders(goals={"r0": (1, 4)}, roles={"r0": "explorer", "r1": "node"}, relays=(BASE_CELL, node_cell))
+    grid, robots = _grid()
+    robots |= {"r0": (1, 2), "r1": node_cell}
+    got = a.allocate(Problem(me="r0", poses=robots, belief=grid, clusters=[]), [_msg(order)])
+    assert got.status is AllocStatus.GOAL and got.passable is not None
+    assert not got.passable[node_cell] and got.passable[2, 3]  # around it, not through it
+    robots["r1"] = (2, 5)  # not yet on its cell: the cell is free to drive over
+    got = a.allocate(Problem(me="r0", poses=robots, belief=grid, clusters=[]), ())
+    assert got.passable is not None and got.passable[node_cell]
+
+
 def test_a_node_holds_on_its_cell() -> None:
     a = _alloc()
     got = a.allocate(_problem(), [_msg(_orders(roles={"r0": "node", "r1": "explorer"}, goals={"r0": (1, 3)}))])
