@@ -41,6 +41,7 @@ from fleet_emu.agents.allocators import (
 )
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.clusters import FrontierClusters
+from fleet_emu.agents.hearing import Beacon, Delta, Heard, as_heard, hear
 from fleet_emu.agents.mapsync import MapSync, SyncConfig
 from fleet_emu.agents.navigation import next_move
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
@@ -254,9 +255,16 @@ class Brain:
         decision ran); it goes out as map news with the next step's."""
         self._belief(obs).merge(obs.cells, obs.values)
 
-    def open(self, inbox: Sequence[Envelope]) -> list[RadioMsg]:
-        """Decode what the radio delivered, checked against the grid and the team; a message that does not
-        validate (an unknown payload kind included) is dropped and reported to ``on_drop``, which counts it."""
+    def open(self, inbox: Sequence[Envelope]) -> list[Heard]:
+        """Decode what the radio delivered, checked against the grid and the team, in the order it came
+        (:func:`~fleet_emu.agents.hearing.hear`: teammates' beacons and map deltas as light structs, every
+        other kind as a :class:`RadioMsg`). When a message does not validate (an unknown payload kind
+        included), the inbox is opened message by message: what does not validate is dropped and reported to
+        ``on_drop``, which counts it."""
+        assert self.ctx is not None
+        heard = hear(inbox, self.ctx)
+        if heard is not None:
+            return heard
         out = []
         for env in inbox:
             try:
@@ -265,7 +273,7 @@ class Brain:
             except DecodeError as exc:
                 if self.on_drop is not None:
                     self.on_drop(f"radio/{env.payload_kind}", str(exc))
-        return out
+        return as_heard(out)
 
     def relay_inbox(self, inbox: Sequence[Envelope]) -> tuple[list[Envelope], list[Envelope]]:
         """With relaying on: the envelopes of ``inbox`` to deliver (first copies for this robot or everyone)
@@ -339,56 +347,78 @@ class Brain:
         """A ``with`` block whose thread CPU counts to the stage ``name`` of ``cpu_ms``."""
         return _Stage(self, name)
 
-    def _read(self, opened: list[RadioMsg], t: int, belief: Belief, outbox: list[RadioMsg]
+    def _read(self, opened: list[Heard], t: int, belief: Belief, outbox: list[RadioMsg]
               ) -> tuple[list[RadioMsg], list[str]]:
         """Teammates' messages of the tick, in the order they came: beacons (:meth:`_beacon`), map deltas and
         fills (merged into the belief: the ``merge`` stage), and the rest, the allocator's protocol. Returns
         the protocol messages and the teammates heard again after a silence."""
-        sync = self.sync
+        sync, me = self.sync, self.me
         merges = _Merges(self, belief)
+        pending = merges.pending
         protocol: list[RadioMsg] = []
         rejoined: list[str] = []
-        for msg in opened:
-            if msg.origin == self.me:
+        for origin, tick, body in opened:
+            if origin == me:
                 continue
-            body = msg.body
-            if isinstance(body, PoseBeacon):
-                if self._beacon(msg, body, t, outbox, merges):
-                    rejoined.append(msg.origin)
-            elif isinstance(body, MapDelta):
-                merges.add(body.cells, body.values)
-                if sync is not None and body.n is not None:
-                    peer = sync.peer(msg.origin)
-                    peer.received(body.n)
-                    if body.covers:
-                        peer.filled(body.covers, 0)
-            elif isinstance(body, MapFill):
+            kind = type(body)
+            if kind is RadioMsg:  # opened message by message: its record's class says what it is
+                msg, body = body, body.body
+                kind = (Beacon if isinstance(body, PoseBeacon) else Delta if isinstance(body, MapDelta)
+                        else MapFill if isinstance(body, MapFill) else RadioMsg)
+                if kind is RadioMsg:
+                    protocol.append(msg)
+                    continue
+            if kind is MapFill:
                 merges.add(body.cells, body.values)
                 if sync is not None:
-                    sync.peer(msg.origin).filled(body.seqs, body.upto)
-            else:
-                protocol.append(msg)
+                    sync.peer(origin).filled(body.seqs, body.upto)
+            elif kind is Delta:
+                pending.append((body.cells, body.values))
+                n = body.n
+                if sync is not None and n is not None:
+                    peer = sync.peer(origin)
+                    if n <= peer.top:  # announced by its beacon: Peer.received(n), inlined
+                        peer.missing.pop(n, None)
+                    else:
+                        peer.received(n)
+                    if body.covers:
+                        peer.filled(body.covers, 0)
+            elif self._beacon(origin, tick, body, t, outbox, merges):
+                rejoined.append(origin)
         merges.flush()
         return protocol, rejoined
 
-    def _beacon(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg], merges: _Merges) -> bool:
+    def _beacon(self, origin: str, tick: int, beacon: Beacon | PoseBeacon, t: int, outbox: list[RadioMsg],
+                merges: _Merges) -> bool:
         """A teammate's beacon: its pose (:meth:`_heard`; True when it rejoined), and with map sync the deltas
         it numbered so far and those it asks this robot for again. The pending merges go in first whenever
         the belief is about to be sent."""
-        prev = self.teammates.get(msg.origin)
-        if prev is None or t - prev.heard > self.config.resync_after:  # it may get our whole map
+        prev = self.teammates.get(origin)
+        if prev is not None and t - prev.heard <= self.config.resync_after:  # heard lately: its pose only
+            if tick >= prev.heard:
+                prev.cell, prev.heard, prev.next = beacon.cell, max(t, tick), beacon.next
+            rejoined = False
+        else:  # it may get our whole map
             merges.flush()
-        rejoined = self._heard(msg, beacon, t, outbox)
+            rejoined = self._heard(origin, tick, beacon, t, outbox)
         sync = self.sync
-        if sync is not None and beacon.maps is not None:
-            sync.peer(msg.origin).exists(beacon.maps)
-        if sync is not None and beacon.want is not None and self.me in beacon.want:
-            seqs = beacon.want[self.me]
-            if sync.sends_whole(seqs):
-                merges.flush()
-            fill = sync.answer(seqs, merges.belief)
-            if fill is not None:
-                outbox.append(RadioMsg(fill, dst=msg.origin))
+        if sync is not None:
+            maps = beacon.maps
+            if maps is not None:
+                peer = sync.peer(origin)
+                if maps == peer.top + 1:  # Peer.exists(maps) of the usual next number, inlined
+                    peer.missing[maps] = None
+                    peer.top = maps
+                elif maps > peer.top:  # it does nothing otherwise
+                    peer.exists(maps)
+            want = beacon.want
+            if want is not None and self.me in want:
+                seqs = want[self.me]
+                if sync.sends_whole(seqs):
+                    merges.flush()
+                fill = sync.answer(seqs, merges.belief)
+                if fill is not None:
+                    outbox.append(RadioMsg(fill, dst=origin))
         return rejoined
 
     def _requests(self, t: int, heard: dict[str, int], rejoined: list[str]) -> dict[str, tuple[int, ...]] | None:
@@ -465,23 +495,23 @@ class Brain:
             sealed += tuple(forwards)
         return sealed
 
-    def _heard(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> bool:
+    def _heard(self, origin: str, tick: int, beacon: Beacon | PoseBeacon, t: int, outbox: list[RadioMsg]) -> bool:
         """A teammate's pose; one heard for the first time, or again after a silence, gets our whole map
         (True then; with map sync as a fill that stands for every delta so far)."""
-        prev = self.teammates.get(msg.origin)
-        if prev is not None and msg.tick < prev.heard:
+        prev = self.teammates.get(origin)
+        if prev is not None and tick < prev.heard:
             return False
         rejoined = (prev is None or t - prev.heard > self.config.resync_after) and self.belief is not None
         if rejoined and self.sync is not None:
-            outbox.append(RadioMsg(self.sync.whole(self.belief), dst=msg.origin))  # type: ignore[arg-type]
+            outbox.append(RadioMsg(self.sync.whole(self.belief), dst=origin))  # type: ignore[arg-type]
         elif rejoined:
             cells, values = self.belief.known()  # type: ignore[union-attr]
-            outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=msg.origin))
+            outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=origin))
         if prev is None:  # a new teammate: the dict stays in id order
-            self.teammates[msg.origin] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
+            self.teammates[origin] = Teammate(cell=beacon.cell, heard=max(t, tick), next=beacon.next)
             self.teammates = dict(sorted(self.teammates.items()))
         else:  # updated in place: a robot hears every teammate's beacon every tick
-            prev.cell, prev.heard, prev.next = beacon.cell, max(t, msg.tick), beacon.next
+            prev.cell, prev.heard, prev.next = beacon.cell, max(t, tick), beacon.next
         return rejoined
 
     def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray, occupied: set[Cell],

@@ -207,9 +207,11 @@ class MapSync:
         """The requests to send at ``t`` (``PoseBeacon.want``), to teammates heard within ``retry_after``
         ticks, in id order; None when there is none."""
         out = {}
+        retry = self.config.retry_after
         for robot in sorted(self.peers):
-            if robot in heard and t - heard[robot] <= self.config.retry_after:
-                req = self.peers[robot].request(t, self.config.retry_after)
+            p = self.peers[robot]
+            if (p.missing or p.whole is not None) and robot in heard and t - heard[robot] <= retry:
+                req = p.request(t, retry)  # (nothing missing: None, without the call)
                 if req is not None:
                     self.asked += 1
                     out[robot] = req

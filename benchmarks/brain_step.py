@@ -79,9 +79,12 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
 
 def _own_copy(open_: Any) -> Any:
     """``Brain.open`` that decodes every envelope afresh (over Zenoh every receiver decodes its own copy)."""
+    from fleet_emu.agents.hearing import CACHE
+
     def opened(inbox: Any) -> Any:
         for env in inbox:
             env.__dict__.pop("_opened", None)
+            env.__dict__.pop(CACHE, None)
         return open_(inbox)
     return opened
 
