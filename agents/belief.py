@@ -20,6 +20,9 @@ class Belief:
         self._news: list[np.ndarray] = []
         self._changed: list[np.ndarray] = []
         self._known: tuple[np.ndarray, np.ndarray] | None = None  # known()'s answer until a merge changes a cell
+        self._known_idx: np.ndarray | None = None  # the known cells of known()'s last answer, ascending
+        self._since: list[np.ndarray] = []  # the cells changed since, with their count in _since_n
+        self._since_n = 0
         self.known_cells = 0
 
     @property
@@ -36,9 +39,7 @@ class Belief:
         changed = cells[old != values]
         flat[cells] = values
         if len(changed):
-            self._known = None
-            self._news.append(changed)
-            self._changed.append(changed)
+            self._changed_too(changed)
         learned = int(np.count_nonzero(old == UNKNOWN))
         self.known_cells += learned
         return learned
@@ -56,9 +57,7 @@ class Belief:
         np.cumsum([len(c) for c, _ in parts], out=bounds[1:])
         changed, unknowns = merge_parts(self.grid.reshape(-1), cells, values, bounds, UNKNOWN)
         if len(changed):
-            self._known = None
-            self._news.append(changed)
-            self._changed.append(changed)
+            self._changed_too(changed)
         self.known_cells += int(unknowns)
         return int(unknowns)
 
@@ -74,13 +73,33 @@ class Belief:
         self._changed = []
         return out
 
+    def _changed_too(self, changed: np.ndarray) -> None:
+        """A merge changed the cells ``changed``: news, changed cells, and known()'s answer to update."""
+        self._known = None
+        self._news.append(changed)
+        self._changed.append(changed)
+        self._since.append(changed)
+        self._since_n += len(changed)
+        if self._since_n > self.grid.size // 16:  # known() has not been asked for a while: a pass then
+            self._known_idx, self._since, self._since_n = None, [], 0
+
     def known(self) -> tuple[np.ndarray, np.ndarray]:
         """Every known cell, flat indices ascending and their values (for a full-map sync to a teammate heard
-        again after a silence), as read-only arrays. The answer is kept until a merge changes a cell: at 100
-        robots a robot sends several whole maps a tick, each a pass over the grid."""
+        again after a silence), as read-only arrays. The answer is kept until a merge changes a cell, and then
+        updated with the cells changed since rather than found by a pass over the grid (a merge never makes
+        a cell unknown): at 100 robots a robot's first tick sends a whole map to most teammates, each after
+        merging a teammate's delta."""
         if self._known is None:
             flat = self.grid.reshape(-1)
-            idx = np.flatnonzero(flat != UNKNOWN)
+            idx = self._known_idx
+            if idx is None:
+                idx = np.flatnonzero(flat != UNKNOWN)
+            elif self._since:
+                new = np.unique(np.concatenate(self._since))
+                pos = np.searchsorted(idx, new)
+                add = idx[np.minimum(pos, len(idx) - 1)] != new if len(idx) else np.ones(len(new), dtype=bool)
+                idx = np.insert(idx, pos[add], new[add])
+            self._known_idx, self._since, self._since_n = idx, [], 0
             cells, values = idx.astype(np.int32), flat[idx]
             cells.flags.writeable = values.flags.writeable = False
             self._known = cells, values

@@ -208,9 +208,12 @@ class Brain:
 
     def __init__(self, me: str, allocator: Allocator, rng: np.random.Generator, config: BrainConfig,
                  clock: Callable[[], float] = time.perf_counter, team: frozenset[str] | None = None,
-                 on_drop: Callable[[str, str], None] | None = None) -> None:
+                 on_drop: Callable[[str, str], None] | None = None, shared_inbox: bool = False) -> None:
         self.me = me
         self.team = team
+        # the envelopes it hears are the objects its teammates hear too (the memory engine): what it decodes is
+        # kept on them for the next receiver (agents/hearing.py)
+        self.shared_inbox = shared_inbox
         self.on_drop = on_drop
         self.allocator = allocator
         self.rng = rng
@@ -262,7 +265,7 @@ class Brain:
         included), the inbox is opened message by message: what does not validate is dropped and reported to
         ``on_drop``, which counts it."""
         assert self.ctx is not None
-        heard = hear(inbox, self.ctx)
+        heard = hear(inbox, self.ctx, self.shared_inbox)
         if heard is not None:
             return heard
         out = []
@@ -349,14 +352,18 @@ class Brain:
 
     def _read(self, opened: list[Heard], t: int, belief: Belief, outbox: list[RadioMsg]
               ) -> tuple[list[RadioMsg], list[str]]:
-        """Teammates' messages of the tick, in the order they came: beacons (:meth:`_beacon`), map deltas and
-        fills (merged into the belief: the ``merge`` stage), and the rest, the allocator's protocol. Returns
-        the protocol messages and the teammates heard again after a silence."""
-        sync, me = self.sync, self.me
+        """Teammates' messages of the tick, in the order they came: beacons (:meth:`_beacon`; a teammate heard
+        lately that asks this robot for nothing, the usual beacon, inline), map deltas and fills (merged into
+        the belief: the ``merge`` stage), and the rest, the allocator's protocol. Returns the protocol
+        messages and the teammates heard again after a silence."""
+        sync, me, resync = self.sync, self.me, self.config.resync_after
+        peers = sync.peers if sync is not None else {}
+        teammates = self.teammates
         merges = _Merges(self, belief)
         pending = merges.pending
         protocol: list[RadioMsg] = []
         rejoined: list[str] = []
+        joined = False
         for origin, tick, body in opened:
             if origin == me:
                 continue
@@ -368,24 +375,42 @@ class Brain:
                 if kind is RadioMsg:
                     protocol.append(msg)
                     continue
-            if kind is MapFill:
-                merges.add(body.cells, body.values)
-                if sync is not None:
-                    sync.peer(origin).filled(body.seqs, body.upto)
-            elif kind is Delta:
+            if kind is Delta:
                 pending.append((body.cells, body.values))
                 n = body.n
                 if sync is not None and n is not None:
-                    peer = sync.peer(origin)
+                    peer = peers.get(origin) or sync.peer(origin)
                     if n <= peer.top:  # announced by its beacon: Peer.received(n), inlined
                         peer.missing.pop(n, None)
                     else:
                         peer.received(n)
                     if body.covers:
                         peer.filled(body.covers, 0)
-            elif self._beacon(origin, tick, body, t, outbox, merges):
-                rejoined.append(origin)
+            elif kind is MapFill:
+                merges.add(body.cells, body.values)
+                if sync is not None:
+                    sync.peer(origin).filled(body.seqs, body.upto)
+            else:
+                prev = teammates.get(origin)
+                want = body.want
+                if (prev is None or t - prev.heard > resync or (sync is not None and want is not None and me in want)):
+                    joined = joined or prev is None
+                    if self._beacon(origin, tick, body, t, outbox, merges):
+                        rejoined.append(origin)
+                    continue
+                if tick >= prev.heard:  # heard lately, asks nothing of this robot: _beacon's usual case inline
+                    prev.cell, prev.heard, prev.next = body.cell, max(t, tick), body.next
+                maps = body.maps
+                if sync is not None and maps is not None:
+                    peer = peers.get(origin) or sync.peer(origin)
+                    if maps == peer.top + 1:  # Peer.exists(maps) of the usual next number, inlined
+                        peer.missing[maps] = None
+                        peer.top = maps
+                    elif maps > peer.top:  # it does nothing otherwise
+                        peer.exists(maps)
         merges.flush()
+        if joined:  # new teammates: the dict in id order again
+            self.teammates = dict(sorted(teammates.items()))
         return protocol, rejoined
 
     def _beacon(self, origin: str, tick: int, beacon: Beacon | PoseBeacon, t: int, outbox: list[RadioMsg],
@@ -405,12 +430,7 @@ class Brain:
         if sync is not None:
             maps = beacon.maps
             if maps is not None:
-                peer = sync.peer(origin)
-                if maps == peer.top + 1:  # Peer.exists(maps) of the usual next number, inlined
-                    peer.missing[maps] = None
-                    peer.top = maps
-                elif maps > peer.top:  # it does nothing otherwise
-                    peer.exists(maps)
+                sync.peer(origin).exists(maps)
             want = beacon.want
             if want is not None and self.me in want:
                 seqs = want[self.me]
@@ -507,9 +527,8 @@ class Brain:
         elif rejoined:
             cells, values = self.belief.known()  # type: ignore[union-attr]
             outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=origin))
-        if prev is None:  # a new teammate: the dict stays in id order
+        if prev is None:  # a new teammate: the dict is put back in id order once every message is read (_read)
             self.teammates[origin] = Teammate(cell=beacon.cell, heard=max(t, tick), next=beacon.next)
-            self.teammates = dict(sorted(self.teammates.items()))
         else:  # updated in place: a robot hears every teammate's beacon every tick
             prev.cell, prev.heard, prev.next = beacon.cell, max(t, tick), beacon.next
         return rejoined

@@ -21,7 +21,7 @@ import functools
 import itertools
 import operator
 from collections.abc import Sequence
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, cast
 
 import msgspec
 import numpy as np
@@ -104,98 +104,96 @@ def _beacon_decoder(shape: tuple[int, int], senders: frozenset[str]) -> msgspec.
     return msgspec.msgpack.Decoder(wire)
 
 
-def hear(inbox: Sequence[Envelope], ctx: Context) -> list[Heard] | None:
+def hear(inbox: Sequence[Envelope], ctx: Context, keep: bool = False) -> list[Heard] | None:
     """The messages of ``inbox`` in order, each checked as :meth:`Envelope.validate` and
     :func:`~fleet_emu.core.envelope.open_envelope` check it; None when one does not pass (or is not in a form
-    decoded here and does not open), and the caller opens the inbox message by message instead."""
+    decoded here and does not open), and the caller opens the inbox message by message instead. With
+    ``keep`` (the memory engine, whose receivers of a broadcast share its envelope object), each message
+    decoded is kept on its envelope for the next receiver of the same team and grid, and one kept is used."""
     senders, shape = ctx.senders, ctx.shape
     if not senders or shape is None:
         return None
+    beacon, delta = _beacon_decoder(shape, senders).decode, _DELTA.decode
     out: list[Any] = []
-    poses: list[int] = []  # indices in out of the beacons and deltas to decode
-    maps: list[int] = []
+    wants: list[dict[str, tuple[int, ...]]] = []  # the beacons' requests, their order checked at the end
+    deltas: list[tuple[int, _DeltaWire]] = []  # the map deltas (index in out, wire), checked at the end
     fresh: list[tuple[int, Envelope]] = []
-    for env in inbox:
-        cached = env.__dict__.get(CACHE)
-        if cached is not None:
-            seen = cached[0]
-            if seen is ctx or (seen.senders is senders and seen.shape == shape):
-                out.append(cached[1])
-                continue
-        src, origin, payload = env.src, env.origin, env.payload
-        if not (src in senders and origin in senders and env.tick >= 0 and env.seq >= 0
-                and 0 <= env.ttl <= MAX_TTL and len(payload) <= MAX_PAYLOAD_BYTES):
-            return None  # Envelope.validate's common case, inlined; anything else goes the long way
-        kind = env.payload_kind
-        if kind == "pose":
-            poses.append(len(out))
-        elif kind == "map":
-            maps.append(len(out))
-        else:
-            try:
-                msg = open_envelope(env, ctx)
-            except DecodeError:
-                return None
-            out.append((origin, env.tick, msg))
-            continue
-        fresh.append((len(out), env))
-        out.append((origin, env.tick, env))
-    if (poses and not _beacons(out, poses, shape, senders)) or (maps and not _deltas(out, maps, shape)):
+    try:
+        for env in inbox:
+            if keep:
+                cached = _kept(env, ctx)
+                if cached is not None:
+                    out.append(cached)
+                    continue
+                fresh.append((len(out), env))
+            origin, payload, kind = env.origin, env.payload, env.payload_kind
+            if not (env.src in senders and origin in senders and env.tick >= 0 and env.seq >= 0
+                    and 0 <= env.ttl <= MAX_TTL and len(payload) <= MAX_PAYLOAD_BYTES):
+                return None  # Envelope.validate's common case, inlined; anything else goes the long way
+            if kind == "pose":
+                b = beacon(payload)
+                nxt = b.next
+                if nxt is not None and abs(nxt[0] - b.cell[0]) + abs(nxt[1] - b.cell[1]) > 1:
+                    return None
+                if b.want:
+                    wants.append(b.want)
+                out.append((origin, env.tick, b))
+            elif kind == "map":
+                deltas.append((len(out), delta(payload)))
+                out.append((origin, env.tick, None))
+            else:
+                out.append((origin, env.tick, open_envelope(env, ctx)))
+    except (msgspec.MsgspecError, DecodeError):
+        return None
+    if (wants and not _in_order(wants)) or (deltas and not _deltas(out, deltas, shape)):
         return None
     for i, env in fresh:
         env.__dict__[CACHE] = (ctx, out[i])
     return out
 
 
-def _beacons(out: list[Any], at: list[int], shape: tuple[int, int], senders: frozenset[str]) -> bool:
-    """Decode the beacons whose envelopes are at ``at`` in ``out`` in place; False when one does not pass."""
-    decode = _beacon_decoder(shape, senders).decode
-    try:
-        for i in at:
-            origin, tick, env = out[i]
-            out[i] = (origin, tick, decode(env.payload))
-    except msgspec.MsgspecError:
-        return False
-    multi: list[tuple[int, ...]] = []  # the requests of more than one number, whose order is checked below in one pass
-    for i in at:
-        b = out[i][2]
-        nxt, want = b.next, b.want
-        if nxt is not None and abs(nxt[0] - b.cell[0]) + abs(nxt[1] - b.cell[1]) > 1:
-            return False
-        if want and max(map(len, want.values())) > 1:
-            multi.extend(s for s in want.values() if len(s) > 1)
-    return not multi or all(map(operator.lt, itertools.chain.from_iterable(s[:-1] for s in multi),
-                                itertools.chain.from_iterable(s[1:] for s in multi)))
+def _kept(env: Envelope, ctx: Context) -> Heard | None:
+    """What :func:`hear` kept on ``env`` for a context of the same team and grid as ``ctx``, or None."""
+    cached = env.__dict__.get(CACHE)
+    if cached is not None:
+        seen = cached[0]
+        if seen is ctx or (seen.senders is ctx.senders and seen.shape == ctx.shape):
+            return cast(Heard, cached[1])
+    return None
+
+
+def _in_order(wants: list[dict[str, tuple[int, ...]]]) -> bool:
+    """Every request of more than one number strictly ascending (each number is >= 1 already), in one pass."""
+    multi = [s for w in wants for s in w.values() if len(s) > 1]
+    return not multi or all(map(operator.lt, itertools.chain.from_iterable([s[:-1] for s in multi]),
+                                itertools.chain.from_iterable([s[1:] for s in multi])))
 
 
 def _ascending(seqs: tuple[int, ...]) -> bool:
     return len(seqs) < 2 or all(map(operator.lt, seqs, itertools.islice(seqs, 1, None)))
 
 
-def _deltas(out: list[Any], at: list[int], shape: tuple[int, int]) -> bool:
-    """Decode the map deltas whose envelopes are at ``at`` in ``out`` in place, their cells and values checked
-    in one compiled pass over all of them; False when one does not pass."""
-    decode = _DELTA.decode
-    try:
-        wires = [decode(out[i][2].payload) for i in at]
-    except msgspec.MsgspecError:
+def _deltas(out: list[Any], deltas: list[tuple[int, _DeltaWire]], shape: tuple[int, int]) -> bool:
+    """Check the decoded map deltas (their index in ``out`` and wire) and put them in ``out``; their cells and
+    values checked in one compiled pass over all of them. False when one does not pass."""
+    wires = [w for _, w in deltas]
+    ks = [w.cells.shape[0] for w in wires]
+    if ([w.values.shape[0] for w in wires] != ks or [len(w.values.data) for w in wires] != ks
+            or [len(w.cells.data) for w in wires] != [4 * k for k in ks]):
         return False
-    bounds = [0]
     for w in wires:
-        c, v, n, covers = w.cells, w.values, w.n, w.covers
-        k = c.shape[0]
-        if v.shape[0] != k or len(c.data) != 4 * k or len(v.data) != k:
+        covers, n = w.covers, w.n
+        if covers is not None and (n is None or (covers and covers[-1] >= n) or not _ascending(covers)):
             return False
-        if covers is not None and (n is None or not _ascending(covers) or (covers and covers[-1] >= n)):
-            return False
-        bounds.append(bounds[-1] + k)
     cells = np.frombuffer(b"".join([w.cells.data for w in wires]), np.int32)
     values = np.frombuffer(b"".join([w.values.data for w in wires]), np.int8)
     if not kernels.cells_valid(cells, values, shape[0] * shape[1]):
         return False
-    for i, w, a, b in zip(at, wires, bounds, bounds[1:], strict=False):
+    a = 0
+    for (i, w), k in zip(deltas, ks, strict=True):
         origin, tick, _ = out[i]
-        out[i] = (origin, tick, Delta(cells[a:b], values[a:b], w.n, w.covers))
+        out[i] = (origin, tick, Delta(cells[a:a + k], values[a:a + k], w.n, w.covers))
+        a += k
     return True
 
 

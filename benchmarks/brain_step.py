@@ -51,6 +51,7 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
     fleet = Fleet(scale.scenario_for(m, robots, a))
     fleet.reset()
     for brain in fleet.brains.values():
+        brain.shared_inbox = False  # each decodes its own copy, as over Zenoh
         brain.open = _own_copy(brain.open)  # type: ignore[method-assign]
     fleet.step()  # tick 0, not counted: numba loads (or compiles) the kernels on their first call
     for brain in fleet.brains.values():
@@ -79,12 +80,9 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
 
 def _own_copy(open_: Any) -> Any:
     """``Brain.open`` that decodes every envelope afresh (over Zenoh every receiver decodes its own copy)."""
-    from fleet_emu.agents.hearing import CACHE
-
     def opened(inbox: Any) -> Any:
         for env in inbox:
             env.__dict__.pop("_opened", None)
-            env.__dict__.pop(CACHE, None)
         return open_(inbox)
     return opened
 
