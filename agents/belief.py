@@ -55,6 +55,13 @@ class Belief:
         values = np.concatenate([v for _, v in parts])
         bounds = np.zeros(len(parts) + 1, dtype=np.int64)
         np.cumsum([len(c) for c, _ in parts], out=bounds[1:])
+        return self.merge_parts(cells, values, bounds)
+
+    def merge_parts(self, cells: np.ndarray, values: np.ndarray, bounds: np.ndarray) -> int:
+        """:meth:`merge_many` of the parts ``bounds[p]:bounds[p + 1]`` of ``cells`` and ``values`` (int64
+        bounds from 0 to their length), already side by side."""
+        if len(bounds) <= 2:
+            return self.merge(cells, values)
         changed, unknowns = merge_parts(self.grid.reshape(-1), cells, values, bounds, UNKNOWN)
         if len(changed):
             self._changed_too(changed)

@@ -23,6 +23,7 @@ lets a line of robots advance in the same tick.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import operator
 import threading
 import time
@@ -183,24 +184,34 @@ class _Stage:
 
 
 class _Merges:
-    """Teammates' map deltas and fills of one step, merged together (:meth:`Belief.merge_many`, the ``merge``
+    """Teammates' map deltas and fills of one step, merged together (:meth:`Belief.merge_parts`, the ``merge``
     stage) in the order they came, once every message is read or before anything reads the belief (a whole
-    map for a teammate): the same belief as merging each as it comes."""
+    map for a teammate): the same belief as merging each as it comes. Each part is ``(cells, values, start,
+    end)``, its cells and values ``start:end`` of those arrays: a run of deltas heard together
+    (:class:`~fleet_emu.agents.hearing.Delta`) is merged from their arrays as they are."""
 
     __slots__ = ("belief", "brain", "pending")
 
     def __init__(self, brain: Brain, belief: Belief) -> None:
         self.brain, self.belief = brain, belief
-        self.pending: list[tuple[np.ndarray, np.ndarray]] = []
+        self.pending: list[tuple[np.ndarray, np.ndarray, int, int]] = []
 
     def add(self, cells: np.ndarray, values: np.ndarray) -> None:
-        self.pending.append((cells, values))
+        self.pending.append((cells, values, 0, len(cells)))
 
     def flush(self) -> None:
-        if self.pending:
-            with self.brain._stage("merge"):
-                self.belief.merge_many(self.pending)
-                self.pending.clear()
+        parts = self.pending
+        if not parts:
+            return
+        with self.brain._stage("merge"):
+            cells, values, start, _ = parts[0]
+            end = parts[-1][3]
+            if len(parts) > 1 and all(p[0] is cells and p[2] == q[3] for q, p in itertools.pairwise(parts)):
+                bounds = np.array([p[2] for p in parts] + [end], dtype=np.int64) - start  # one run: no copies
+                self.belief.merge_parts(cells[start:end], values[start:end], bounds)
+            else:
+                self.belief.merge_many([(c[a:b], v[a:b]) for c, v, a, b in parts])
+            parts.clear()
 
 
 class Brain:
@@ -370,13 +381,16 @@ class Brain:
             kind = type(body)
             if kind is RadioMsg:  # opened message by message: its record's class says what it is
                 msg, body = body, body.body
-                kind = (Beacon if isinstance(body, PoseBeacon) else Delta if isinstance(body, MapDelta)
+                kind = (Beacon if isinstance(body, PoseBeacon) else MapDelta if isinstance(body, MapDelta)
                         else MapFill if isinstance(body, MapFill) else RadioMsg)
                 if kind is RadioMsg:
                     protocol.append(msg)
                     continue
-            if kind is Delta:
-                pending.append((body.cells, body.values))
+            if kind is Delta or kind is MapDelta:
+                if kind is Delta:
+                    pending.append((body.all_cells, body.all_values, body.start, body.end))
+                else:
+                    merges.add(body.cells, body.values)
                 n = body.n
                 if sync is not None and n is not None:
                     peer = peers.get(origin) or sync.peer(origin)

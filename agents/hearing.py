@@ -49,7 +49,7 @@ _Bytes = Annotated[bytes, msgspec.Meta(max_length=MAX_ARRAY_BYTES)]
 
 
 class Beacon(msgspec.Struct, gc=False):
-    """A pose beacon's fields as heard (:class:`PoseBeacon`'s names and meanings)."""
+    """A pose beacon's fields as heard (:class:`~fleet_emu.agents.protocol.PoseBeacon`'s names and meanings)."""
 
     cell: tuple[int, int]
     next: tuple[int, int] | None = None
@@ -58,12 +58,24 @@ class Beacon(msgspec.Struct, gc=False):
 
 
 class Delta(msgspec.Struct, gc=False):
-    """A map delta's fields as heard (:class:`MapDelta`'s): ``cells`` int32 and ``values`` int8, read-only."""
+    """A map delta's fields as heard (:class:`~fleet_emu.agents.protocol.MapDelta`'s): its cells and values are
+    ``start:end`` of ``all_cells`` (int32) and ``all_values`` (int8), every delta of the inbox's in turn, read
+    only (the brain merges a run of them at once, without a copy of each)."""
 
-    cells: np.ndarray
-    values: np.ndarray
+    all_cells: np.ndarray
+    all_values: np.ndarray
+    start: int
+    end: int
     n: int | None = None
     covers: tuple[int, ...] | None = None
+
+    @property
+    def cells(self) -> np.ndarray:
+        return self.all_cells[self.start:self.end]
+
+    @property
+    def values(self) -> np.ndarray:
+        return self.all_values[self.start:self.end]
 
 
 class _Cells(msgspec.Struct, forbid_unknown_fields=True, gc=False):
@@ -93,8 +105,8 @@ _DELTA = msgspec.msgpack.Decoder(_DeltaWire)
 @functools.lru_cache(maxsize=16)
 def _beacon_decoder(shape: tuple[int, int], senders: frozenset[str]) -> msgspec.msgpack.Decoder:
     """A beacon decoder for one grid and team: a cell's row and column in range and every request's robot one
-    of the team, checked by msgspec (:meth:`PoseBeacon.validate`'s checks but the next cell's distance and the
-    requests' order)."""
+    of the team, checked by msgspec (:meth:`~fleet_emu.agents.protocol.PoseBeacon.validate`'s checks but the
+    next cell's distance and the requests' order)."""
     cell = tuple[Annotated[int, msgspec.Meta(ge=0, lt=shape[0])], Annotated[int, msgspec.Meta(ge=0, lt=shape[1])]]
     robot = Literal[tuple(sorted(senders))]  # type: ignore[valid-type]
     wire = msgspec.defstruct("BeaconWire", [("cell", cell), ("next", cell | None, None),
@@ -192,7 +204,7 @@ def _deltas(out: list[Any], deltas: list[tuple[int, _DeltaWire]], shape: tuple[i
     a = 0
     for (i, w), k in zip(deltas, ks, strict=True):
         origin, tick, _ = out[i]
-        out[i] = (origin, tick, Delta(cells[a:a + k], values[a:a + k], w.n, w.covers))
+        out[i] = (origin, tick, Delta(cells, values, a, a + k, w.n, w.covers))
         a += k
     return True
 

@@ -13,7 +13,7 @@ import pytest
 from fleet_emu.agents.brain import Brain, BrainConfig
 from fleet_emu.agents.hearing import CACHE, Beacon, Delta, hear
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
-from fleet_emu.core.codec import DecodeError, decode_payload
+from fleet_emu.core.codec import Context, DecodeError, decode_payload
 from fleet_emu.core.envelope import Envelope, RadioMsg, seal
 from fleet_emu.core.messages import Observation
 from tests.agents.test_brain import Spy
@@ -85,3 +85,34 @@ def test_the_brain_drops_and_counts_a_bad_message_and_hears_the_rest() -> None:
     opened = brain.open(inbox)
     assert drops == ["radio/pose"]
     assert [(o, type(b)) for o, _, b in opened] == [("r1", RadioMsg), ("r1", RadioMsg)]
+
+
+def test_a_brain_hearing_at_once_learns_what_it_learns_message_by_message(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Beacons and overlapping map deltas of three teammates (a cell changed by a later delta, unknown values):
+    the belief, its news and count, and the teammates are those of the inbox opened message by message."""
+    import fleet_emu.agents.brain as brain_module
+
+    team = frozenset({"r0", "r1", "r2", "r3"})
+    rng = np.random.default_rng(3)
+    inbox = []
+    for i, r in enumerate(["r1", "r2", "r3"]):
+        inbox.append(seal(RadioMsg(PoseBeacon(cell=(i, 1), next=(i, 2))), r, 3, 1))
+        cells = np.unique(rng.integers(0, 20, 8)).astype(np.int32)
+        values = rng.choice(np.array([-1, 0, 100], np.int8), len(cells))
+        inbox.append(seal(RadioMsg(MapDelta(cells=cells, values=values)), r, 3, 2))
+
+    def run(at_once: bool) -> Brain:
+        if not at_once:
+            monkeypatch.setattr(brain_module, "hear", lambda *a: None)
+        b = Brain("r0", Spy(), np.random.default_rng(0), BrainConfig(), team=team)
+        b.step(Observation(src="world", tick=4, seq=1, robot="r0", cell=(3, 4), shape=(4, 5), cell_size=0.5,
+                           cells=np.array([19], np.int32), values=np.array([0], np.int8)), inbox)
+        monkeypatch.undo()
+        return b
+
+    assert hear(inbox, Context(senders=team, shape=(4, 5))) is not None  # heard at once, with no fallback
+    fast, slow = run(True), run(False)
+    assert fast.belief is not None and slow.belief is not None
+    assert np.array_equal(fast.belief.grid, slow.belief.grid) and fast.belief.known_cells == slow.belief.known_cells
+    assert fast.teammates == slow.teammates and list(fast.teammates) == ["r1", "r2", "r3"]
+    assert fast.belief.known_cells > 5
