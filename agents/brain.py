@@ -329,9 +329,8 @@ class Brain:
             opened = self.open(delivered)
         outbox: list[RadioMsg] = []
         protocol, rejoined = self._read(opened, t, belief, outbox)
-        heard = {r: tm.heard for r, tm in self.teammates.items()}
+        heard, expected = self._poses(obs.cell)
         want = self._requests(t, heard, rejoined)
-        expected = {r: tm.expected(obs.cell) for r, tm in self.teammates.items()}
         with self._stage("clusters"):
             assert self.frontiers is not None
             clusters = list(self.frontiers.update(belief.grid, belief.take_changed()))
@@ -398,8 +397,10 @@ class Brain:
                         peer.missing.pop(n, None)
                     else:
                         peer.received(n)
-                    if body.covers:
-                        peer.filled(body.covers, 0)
+                    if body.covers:  # Peer.filled(covers, 0), inlined
+                        missing = peer.missing
+                        for c in body.covers:
+                            missing.pop(c, None)
             elif kind is MapFill:
                 merges.add(body.cells, body.values)
                 if sync is not None:
@@ -454,6 +455,15 @@ class Brain:
                 if fill is not None:
                     outbox.append(RadioMsg(fill, dst=origin))
         return rejoined
+
+    def _poses(self, mine: Cell) -> tuple[dict[str, int], dict[str, Cell]]:
+        """Every teammate's last tick heard, and where it is expected (:meth:`Teammate.expected`), in id order."""
+        heard, expected = {}, {}
+        for r, tm in self.teammates.items():
+            heard[r] = tm.heard
+            nxt = tm.cell if tm.next is None else tm.next
+            expected[r] = tm.cell if nxt == mine else nxt
+        return heard, expected
 
     def _requests(self, t: int, heard: dict[str, int], rejoined: list[str]) -> dict[str, tuple[int, ...]] | None:
         """With map sync, the deltas to ask teammates for again (:attr:`PoseBeacon.want`); None without."""

@@ -130,17 +130,18 @@ def hear(inbox: Sequence[Envelope], ctx: Context, keep: bool = False) -> list[He
     wants: list[dict[str, tuple[int, ...]]] = []  # the beacons' requests, their order checked at the end
     deltas: list[tuple[int, _DeltaWire]] = []  # the map deltas (index in out, wire), checked at the end
     fresh: list[tuple[int, Envelope]] = []
+    add, max_ttl, max_bytes = out.append, MAX_TTL, MAX_PAYLOAD_BYTES
     try:
         for env in inbox:
             if keep:
                 cached = _kept(env, ctx)
                 if cached is not None:
-                    out.append(cached)
+                    add(cached)
                     continue
                 fresh.append((len(out), env))
-            origin, payload, kind = env.origin, env.payload, env.payload_kind
-            if not (env.src in senders and origin in senders and env.tick >= 0 and env.seq >= 0
-                    and 0 <= env.ttl <= MAX_TTL and len(payload) <= MAX_PAYLOAD_BYTES):
+            origin, tick, payload, kind = env.origin, env.tick, env.payload, env.payload_kind
+            if not (env.src in senders and origin in senders and tick >= 0 and env.seq >= 0
+                    and 0 <= env.ttl <= max_ttl and len(payload) <= max_bytes):
                 return None  # Envelope.validate's common case, inlined; anything else goes the long way
             if kind == "pose":
                 b = beacon(payload)
@@ -149,12 +150,12 @@ def hear(inbox: Sequence[Envelope], ctx: Context, keep: bool = False) -> list[He
                     return None
                 if b.want:
                     wants.append(b.want)
-                out.append((origin, env.tick, b))
+                add((origin, tick, b))
             elif kind == "map":
                 deltas.append((len(out), delta(payload)))
-                out.append((origin, env.tick, None))
+                add((origin, tick, None))
             else:
-                out.append((origin, env.tick, open_envelope(env, ctx)))
+                add((origin, tick, open_envelope(env, ctx)))
     except (msgspec.MsgspecError, DecodeError):
         return None
     if (wants and not _in_order(wants)) or (deltas and not _deltas(out, deltas, shape)):
@@ -175,14 +176,14 @@ def _kept(env: Envelope, ctx: Context) -> Heard | None:
 
 
 def _in_order(wants: list[dict[str, tuple[int, ...]]]) -> bool:
-    """Every request of more than one number strictly ascending (each number is >= 1 already), in one pass."""
-    multi = [s for w in wants for s in w.values() if len(s) > 1]
+    """Every request of more than one number strictly ascending (each number is >= 1 already)."""
+    return _pairs_ascending([s for w in wants for s in w.values() if len(s) > 1])
+
+
+def _pairs_ascending(multi: list[tuple[int, ...]]) -> bool:
+    """Every tuple of ``multi`` strictly ascending, their pairs compared in one pass in C."""
     return not multi or all(map(operator.lt, itertools.chain.from_iterable([s[:-1] for s in multi]),
                                 itertools.chain.from_iterable([s[1:] for s in multi])))
-
-
-def _ascending(seqs: tuple[int, ...]) -> bool:
-    return len(seqs) < 2 or all(map(operator.lt, seqs, itertools.islice(seqs, 1, None)))
 
 
 def _deltas(out: list[Any], deltas: list[tuple[int, _DeltaWire]], shape: tuple[int, int]) -> bool:
@@ -193,10 +194,10 @@ def _deltas(out: list[Any], deltas: list[tuple[int, _DeltaWire]], shape: tuple[i
     if ([w.values.shape[0] for w in wires] != ks or [len(w.values.data) for w in wires] != ks
             or [len(w.cells.data) for w in wires] != [4 * k for k in ks]):
         return False
-    for w in wires:
-        covers, n = w.covers, w.n
-        if covers is not None and (n is None or (covers and covers[-1] >= n) or not _ascending(covers)):
-            return False
+    covers = [w for w in wires if w.covers is not None]
+    if covers and (any([w.n is None or (w.covers and w.covers[-1] >= w.n) for w in covers])
+                   or not _pairs_ascending([w.covers for w in covers if len(w.covers) > 1])):
+        return False
     cells = np.frombuffer(b"".join([w.cells.data for w in wires]), np.int32)
     values = np.frombuffer(b"".join([w.values.data for w in wires]), np.int8)
     if not kernels.cells_valid(cells, values, shape[0] * shape[1]):
