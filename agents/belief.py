@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from fleet_emu.core.grid import UNKNOWN
-from fleet_emu.core.kernels import merge_parts
+from fleet_emu.core.kernels import known_grown, merge_parts
 
 
 class Belief:
@@ -99,15 +99,13 @@ class Belief:
         if self._known is None:
             flat = self.grid.reshape(-1)
             idx = self._known_idx
-            if idx is None:
-                idx = np.flatnonzero(flat != UNKNOWN)
-            elif self._since:
-                new = np.unique(np.concatenate(self._since))
-                pos = np.searchsorted(idx, new)
-                add = idx[np.minimum(pos, len(idx) - 1)] != new if len(idx) else np.ones(len(new), dtype=bool)
-                idx = np.insert(idx, pos[add], new[add])
+            if idx is None or not self._since:
+                idx = np.flatnonzero(flat != UNKNOWN) if idx is None else idx
+                cells, values = idx.astype(np.int32), flat[idx]
+            else:
+                new = np.concatenate(self._since).astype(np.int64, copy=False)
+                idx, cells, values = known_grown(idx, new, flat, UNKNOWN)
             self._known_idx, self._since, self._since_n = idx, [], 0
-            cells, values = idx.astype(np.int32), flat[idx]
             cells.flags.writeable = values.flags.writeable = False
             self._known = cells, values
         return self._known

@@ -194,9 +194,9 @@ def _deltas(out: list[Any], deltas: list[tuple[int, _DeltaWire]], shape: tuple[i
     if ([w.values.shape[0] for w in wires] != ks or [len(w.values.data) for w in wires] != ks
             or [len(w.cells.data) for w in wires] != [4 * k for k in ks]):
         return False
-    covers = [w for w in wires if w.covers is not None]
-    if covers and (any([w.n is None or (w.covers and w.covers[-1] >= w.n) for w in covers])
-                   or not _pairs_ascending([w.covers for w in covers if len(w.covers) > 1])):
+    covered = [(w.covers, w.n) for w in wires if w.covers is not None]
+    if covered and (any([n is None or (c and c[-1] >= n) for c, n in covered])
+                    or not _pairs_ascending([c for c, _ in covered if len(c) > 1])):
         return False
     cells = np.frombuffer(b"".join([w.cells.data for w in wires]), np.int32)
     values = np.frombuffer(b"".join([w.values.data for w in wires]), np.int8)

@@ -12,12 +12,14 @@ tick 0's, where numba loads or compiles the kernels):
 - ``decide``: the allocator (``allocate``, wavefronts included);
 - ``clusters``: frontier detection and clustering;
 - ``merge``: writing the observation and teammates' map deltas into the belief;
-- ``decode``: the radio payloads' decode and validation (each robot decodes its own copy, as over Zenoh: the
-  memory engine's sharing of a decoded broadcast is turned off here);
+- ``decode``: the radio messages' decode and validation, headers and payloads (``Brain.open``:
+  ``agents/hearing.py``; each robot decodes its own copy, as over Zenoh: the memory engine's sharing of a
+  decoded broadcast, ``Brain.shared_inbox``, is turned off here);
 - ``nav``: the wavefront descent and unsticking;
 - ``news``: the robot's own map delta, beacon and envelopes;
-- ``other``: the rest of ``Brain.step``; ``outside``: everything but ``decide`` (the issue's target is
-  at most 2 ms); ``step``: the whole of ``Brain.step``;
+- ``other``: the rest of ``Brain.step`` (teammates' poses, map sync's bookkeeping and whole maps for teammates
+  heard again, the problem, the command); ``outside``: everything but ``decide`` (the target is at most
+  1 ms); ``step``: the whole of ``Brain.step``;
 - ``rx codec``: what an agent process also does per tick before its brain runs (not in ``step``): decoding its
   rx bundle from bytes (``core.codec.decode``), timed on the bundle netem would send it.
 
