@@ -251,8 +251,10 @@ def known_grown(idx: np.ndarray, new: np.ndarray, flat: np.ndarray, unknown: int
 def warm_up() -> None:
     """Compile (or load from cache) every kernel once, so the first tick does not pay for it."""
     for dtype in (np.int32, np.int64):  # read-only, as decoded from a message's bytes
-        cells_valid(np.frombuffer(np.zeros(1, dtype).tobytes(), dtype), np.frombuffer(b"\0", np.int8), 1)
+        cells, values = np.frombuffer(np.zeros(1, dtype).tobytes(), dtype), np.frombuffer(b"\0", np.int8)
+        cells_valid(cells, values, 1)
         merge_parts(np.zeros(1, np.int8), np.zeros(1, dtype), np.zeros(1, np.int8), np.array([0, 1]), -1)
+        merge_parts(np.zeros(1, np.int8), cells, values, np.array([0, 1]), -1)  # map deltas merged as heard
     known_grown(np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int8), -1)
     occ = np.zeros((3, 3), dtype=np.bool_)
     sources = np.array([0], dtype=np.int64)
