@@ -7,7 +7,7 @@ steps each map's fleet for ``--ticks`` ticks with ``benchmarks/scale.py``'s scen
 wavefronts, the wall radio, 10 % loss, sensor 8 cells, comm 20 cells, the map's most open start), and every
 brain sums its own thread CPU (``time.thread_time``, robust to the machine's load) per stage of
 ``Brain.step`` (``Brain.cpu_ms``). One row per map, in ms per robot-tick (averaged over every robot-tick but
-tick 0's, where numba loads or compiles the kernels):
+tick 0's; the kernels are loaded first, as an agent process loads them before its first tick):
 
 - ``decide``: the allocator (``allocate``, wavefronts included);
 - ``clusters``: frontier detection and clustering;
@@ -47,15 +47,17 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
     from fleet_emu.agents.brain import STAGES
     from fleet_emu.core.codec import decode
     from fleet_emu.core.errors import FleetError
+    from fleet_emu.core.kernels import warm_up
     from fleet_emu.core.messages import RxBundle
     from fleet_emu.launch.memory import Fleet
 
+    warm_up()  # as an agent process does before its first tick: no kernel loads (or compiles) in a counted tick
     fleet = Fleet(scale.scenario_for(m, robots, a))
     fleet.reset()
     for brain in fleet.brains.values():
         brain.shared_inbox = False  # each decodes its own copy, as over Zenoh
         brain.open = _own_copy(brain.open)  # type: ignore[method-assign]
-    fleet.step()  # tick 0, not counted: numba loads (or compiles) the kernels on their first call
+    fleet.step()  # tick 0, not counted: the kernels warm_up leaves out (the allocator's) load on their first call
     for brain in fleet.brains.values():
         brain.cpu_ms = dict.fromkeys(brain.cpu_ms, 0.0)
         brain.step_cpu_ms = 0.0
