@@ -210,7 +210,8 @@ class _Merges:
                 bounds = np.array([p[2] for p in parts] + [end], dtype=np.int64) - start  # one run: no copies
                 self.belief.merge_parts(cells[start:end], values[start:end], bounds)
             else:
-                self.belief.merge_many([(c[a:b], v[a:b]) for c, v, a, b in parts])
+                self.belief.merge_many([(c, v) if a == 0 and b == len(c) else (c[a:b], v[a:b])
+                                        for c, v, a, b in parts])
             parts.clear()
 
 

@@ -158,7 +158,7 @@ def hear(inbox: Sequence[Envelope], ctx: Context, keep: bool = False) -> list[He
                 add((origin, tick, open_envelope(env, ctx)))
     except (msgspec.MsgspecError, DecodeError):
         return None
-    if (wants and not _in_order(wants)) or (deltas and not _deltas(out, deltas, shape)):
+    if (wants and not _in_order(wants)) or (deltas and not _deltas(out, deltas, shape, keep)):
         return None
     for i, env in fresh:
         env.__dict__[CACHE] = (ctx, out[i])
@@ -186,9 +186,10 @@ def _pairs_ascending(multi: list[tuple[int, ...]]) -> bool:
                                 itertools.chain.from_iterable([s[1:] for s in multi])))
 
 
-def _deltas(out: list[Any], deltas: list[tuple[int, _DeltaWire]], shape: tuple[int, int]) -> bool:
+def _deltas(out: list[Any], deltas: list[tuple[int, _DeltaWire]], shape: tuple[int, int], keep: bool) -> bool:
     """Check the decoded map deltas (their index in ``out`` and wire) and put them in ``out``; their cells and
-    values checked in one compiled pass over all of them. False when one does not pass."""
+    values checked in one compiled pass over all of them. False when one does not pass. With ``keep`` each
+    delta gets arrays of its own (its receivers' runs of deltas are not this inbox's)."""
     wires = [w for _, w in deltas]
     ks = [w.cells.shape[0] for w in wires]
     if ([w.values.shape[0] for w in wires] != ks or [len(w.values.data) for w in wires] != ks
@@ -205,7 +206,9 @@ def _deltas(out: list[Any], deltas: list[tuple[int, _DeltaWire]], shape: tuple[i
     a = 0
     for (i, w), k in zip(deltas, ks, strict=True):
         origin, tick, _ = out[i]
-        out[i] = (origin, tick, Delta(cells, values, a, a + k, w.n, w.covers))
+        d = Delta(cells[a:a + k], values[a:a + k], 0, k, w.n, w.covers) if keep else \
+            Delta(cells, values, a, a + k, w.n, w.covers)
+        out[i] = (origin, tick, d)
         a += k
     return True
 
