@@ -363,10 +363,9 @@ class Brain:
 
     def _read(self, opened: list[Heard], t: int, belief: Belief, outbox: list[RadioMsg]
               ) -> tuple[list[RadioMsg], list[str]]:
-        """Teammates' messages of the tick, in the order they came: beacons (:meth:`_beacon`; a teammate heard
-        lately that asks this robot for nothing, the usual beacon, inline), map deltas and fills (merged into
-        the belief: the ``merge`` stage), and the rest, the allocator's protocol. Returns the protocol
-        messages and the teammates heard again after a silence."""
+        """Teammates' messages of the tick, in the order they came: beacons (:meth:`_beacon`, the usual one
+        inline), map deltas and fills (merged into the belief: the ``merge`` stage), and the rest, the
+        allocator's protocol. Returns the protocol messages and the teammates heard again after a silence."""
         sync, me, resync = self.sync, self.me, self.config.resync_after
         peers = sync.peers if sync is not None else {}
         teammates = self.teammates
@@ -380,28 +379,19 @@ class Brain:
                 continue
             kind = type(body)
             if kind is RadioMsg:  # opened message by message: its record's class says what it is
-                msg, body = body, body.body
-                kind = (Beacon if isinstance(body, PoseBeacon) else MapDelta if isinstance(body, MapDelta)
-                        else MapFill if isinstance(body, MapFill) else RadioMsg)
-                if kind is RadioMsg:
-                    protocol.append(msg)
+                if not isinstance(body.body, (PoseBeacon, MapDelta, MapFill)):
+                    protocol.append(body)
                     continue
+                body = body.body
+                kind = Beacon if isinstance(body, PoseBeacon) else MapDelta if isinstance(body, MapDelta) else MapFill
             if kind is Delta or kind is MapDelta:
-                if kind is Delta:
-                    pending.append((body.all_cells, body.all_values, body.start, body.end))
-                else:
-                    merges.add(body.cells, body.values)
-                n = body.n
-                if sync is not None and n is not None:
+                pending.append((body.all_cells, body.all_values, body.start, body.end) if kind is Delta
+                               else (body.cells, body.values, 0, len(body.cells)))
+                if sync is not None and body.n is not None:
                     peer = peers.get(origin) or sync.peer(origin)
-                    if n <= peer.top:  # announced by its beacon: Peer.received(n), inlined
-                        peer.missing.pop(n, None)
-                    else:
-                        peer.received(n)
-                    if body.covers:  # Peer.filled(covers, 0), inlined
-                        missing = peer.missing
-                        for c in body.covers:
-                            missing.pop(c, None)
+                    peer.received(body.n)
+                    if body.covers:
+                        peer.filled(body.covers, 0)
             elif kind is MapFill:
                 merges.add(body.cells, body.values)
                 if sync is not None:
@@ -416,14 +406,8 @@ class Brain:
                     continue
                 if tick >= prev.heard:  # heard lately, asks nothing of this robot: _beacon's usual case inline
                     prev.cell, prev.heard, prev.next = body.cell, max(t, tick), body.next
-                maps = body.maps
-                if sync is not None and maps is not None:
-                    peer = peers.get(origin) or sync.peer(origin)
-                    if maps == peer.top + 1:  # Peer.exists(maps) of the usual next number, inlined
-                        peer.missing[maps] = None
-                        peer.top = maps
-                    elif maps > peer.top:  # it does nothing otherwise
-                        peer.exists(maps)
+                if sync is not None and body.maps is not None:
+                    (peers.get(origin) or sync.peer(origin)).exists(body.maps)
         merges.flush()
         if joined:  # new teammates: the dict in id order again
             self.teammates = dict(sorted(teammates.items()))

@@ -90,7 +90,9 @@ class Peer:
         """Delta ``n`` was sent (a delta or a beacon said so): every number above ``top`` up to it is missing."""
         if n <= self.top:
             return
-        if n - self.top > MAX_SEQS:
+        if n == self.top + 1:  # the usual case: the next number
+            self.missing[n] = None
+        elif n - self.top > MAX_SEQS:
             self.missing.clear()  # a whole map stands for them too
             self.whole = n
         else:
@@ -99,7 +101,8 @@ class Peer:
 
     def received(self, n: int) -> None:
         """Delta ``n`` arrived."""
-        self.exists(n)
+        if n > self.top:  # not announced yet (its beacon comes first, as a rule)
+            self.exists(n)
         self.missing.pop(n, None)
 
     def filled(self, seqs: tuple[int, ...], upto: int) -> None:
