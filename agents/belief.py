@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from fleet_emu.core.grid import UNKNOWN
-from fleet_emu.core.kernels import merge_parts
+from fleet_emu.core.kernels import known_grown, merge_parts
 
 
 class Belief:
@@ -20,6 +20,9 @@ class Belief:
         self._news: list[np.ndarray] = []
         self._changed: list[np.ndarray] = []
         self._known: tuple[np.ndarray, np.ndarray] | None = None  # known()'s answer until a merge changes a cell
+        self._known_idx: np.ndarray | None = None  # the known cells of known()'s last answer, ascending
+        self._since: list[np.ndarray] = []  # the cells changed since, with their count in _since_n
+        self._since_n = 0
         self.known_cells = 0
 
     @property
@@ -36,9 +39,7 @@ class Belief:
         changed = cells[old != values]
         flat[cells] = values
         if len(changed):
-            self._known = None
-            self._news.append(changed)
-            self._changed.append(changed)
+            self._changed_too(changed)
         learned = int(np.count_nonzero(old == UNKNOWN))
         self.known_cells += learned
         return learned
@@ -54,11 +55,16 @@ class Belief:
         values = np.concatenate([v for _, v in parts])
         bounds = np.zeros(len(parts) + 1, dtype=np.int64)
         np.cumsum([len(c) for c, _ in parts], out=bounds[1:])
+        return self.merge_parts(cells, values, bounds)
+
+    def merge_parts(self, cells: np.ndarray, values: np.ndarray, bounds: np.ndarray) -> int:
+        """:meth:`merge_many` of the parts ``bounds[p]:bounds[p + 1]`` of ``cells`` and ``values`` (int64
+        bounds from 0 to their length), already side by side."""
+        if len(bounds) <= 2:
+            return self.merge(cells, values)
         changed, unknowns = merge_parts(self.grid.reshape(-1), cells, values, bounds, UNKNOWN)
         if len(changed):
-            self._known = None
-            self._news.append(changed)
-            self._changed.append(changed)
+            self._changed_too(changed)
         self.known_cells += int(unknowns)
         return int(unknowns)
 
@@ -74,14 +80,32 @@ class Belief:
         self._changed = []
         return out
 
+    def _changed_too(self, changed: np.ndarray) -> None:
+        """A merge changed the cells ``changed``: news, changed cells, and known()'s answer to update."""
+        self._known = None
+        self._news.append(changed)
+        self._changed.append(changed)
+        self._since.append(changed)
+        self._since_n += len(changed)
+        if self._since_n > self.grid.size // 16:  # known() has not been asked for a while: a pass then
+            self._known_idx, self._since, self._since_n = None, [], 0
+
     def known(self) -> tuple[np.ndarray, np.ndarray]:
         """Every known cell, flat indices ascending and their values (for a full-map sync to a teammate heard
-        again after a silence), as read-only arrays. The answer is kept until a merge changes a cell: at 100
-        robots a robot sends several whole maps a tick, each a pass over the grid."""
+        again after a silence), as read-only arrays. The answer is kept until a merge changes a cell, and then
+        updated with the cells changed since rather than found by a pass over the grid (a merge never makes
+        a cell unknown): at 100 robots a robot's first tick sends a whole map to most teammates, each after
+        merging a teammate's delta."""
         if self._known is None:
             flat = self.grid.reshape(-1)
-            idx = np.flatnonzero(flat != UNKNOWN)
-            cells, values = idx.astype(np.int32), flat[idx]
+            idx = self._known_idx
+            if idx is None or not self._since:
+                idx = np.flatnonzero(flat != UNKNOWN) if idx is None else idx
+                cells, values = idx.astype(np.int32), flat[idx]
+            else:
+                new = np.concatenate(self._since).astype(np.int64, copy=False)
+                idx, cells, values = known_grown(idx, new, flat, UNKNOWN)
+            self._known_idx, self._since, self._since_n = idx, [], 0
             cells.flags.writeable = values.flags.writeable = False
             self._known = cells, values
         return self._known

@@ -23,6 +23,7 @@ lets a line of robots advance in the same tick.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import operator
 import threading
 import time
@@ -41,6 +42,7 @@ from fleet_emu.agents.allocators import (
 )
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.clusters import FrontierClusters
+from fleet_emu.agents.hearing import Beacon, Delta, Heard, as_heard, hear
 from fleet_emu.agents.mapsync import MapSync, SyncConfig
 from fleet_emu.agents.navigation import next_move
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
@@ -182,24 +184,35 @@ class _Stage:
 
 
 class _Merges:
-    """Teammates' map deltas and fills of one step, merged together (:meth:`Belief.merge_many`, the ``merge``
+    """Teammates' map deltas and fills of one step, merged together (:meth:`Belief.merge_parts`, the ``merge``
     stage) in the order they came, once every message is read or before anything reads the belief (a whole
-    map for a teammate): the same belief as merging each as it comes."""
+    map for a teammate): the same belief as merging each as it comes. Each part is ``(cells, values, start,
+    end)``, its cells and values ``start:end`` of those arrays: a run of deltas heard together
+    (:class:`~fleet_emu.agents.hearing.Delta`) is merged from their arrays as they are."""
 
     __slots__ = ("belief", "brain", "pending")
 
     def __init__(self, brain: Brain, belief: Belief) -> None:
         self.brain, self.belief = brain, belief
-        self.pending: list[tuple[np.ndarray, np.ndarray]] = []
+        self.pending: list[tuple[np.ndarray, np.ndarray, int, int]] = []
 
     def add(self, cells: np.ndarray, values: np.ndarray) -> None:
-        self.pending.append((cells, values))
+        self.pending.append((cells, values, 0, len(cells)))
 
     def flush(self) -> None:
-        if self.pending:
-            with self.brain._stage("merge"):
-                self.belief.merge_many(self.pending)
-                self.pending.clear()
+        parts = self.pending
+        if not parts:
+            return
+        with self.brain._stage("merge"):
+            cells, values, start, _ = parts[0]
+            end = parts[-1][3]
+            if len(parts) > 1 and all(p[0] is cells and p[2] == q[3] for q, p in itertools.pairwise(parts)):
+                bounds = np.array([p[2] for p in parts] + [end], dtype=np.int64) - start  # one run: no copies
+                self.belief.merge_parts(cells[start:end], values[start:end], bounds)
+            else:
+                self.belief.merge_many([(c, v) if a == 0 and b == len(c) else (c[a:b], v[a:b])
+                                        for c, v, a, b in parts])
+            parts.clear()
 
 
 class Brain:
@@ -207,9 +220,12 @@ class Brain:
 
     def __init__(self, me: str, allocator: Allocator, rng: np.random.Generator, config: BrainConfig,
                  clock: Callable[[], float] = time.perf_counter, team: frozenset[str] | None = None,
-                 on_drop: Callable[[str, str], None] | None = None) -> None:
+                 on_drop: Callable[[str, str], None] | None = None, shared_inbox: bool = False) -> None:
         self.me = me
         self.team = team
+        # the envelopes it hears are the objects its teammates hear too (the memory engine): what it decodes is
+        # kept on them for the next receiver (agents/hearing.py)
+        self.shared_inbox = shared_inbox
         self.on_drop = on_drop
         self.allocator = allocator
         self.rng = rng
@@ -254,9 +270,16 @@ class Brain:
         decision ran); it goes out as map news with the next step's."""
         self._belief(obs).merge(obs.cells, obs.values)
 
-    def open(self, inbox: Sequence[Envelope]) -> list[RadioMsg]:
-        """Decode what the radio delivered, checked against the grid and the team; a message that does not
-        validate (an unknown payload kind included) is dropped and reported to ``on_drop``, which counts it."""
+    def open(self, inbox: Sequence[Envelope]) -> list[Heard]:
+        """Decode what the radio delivered, checked against the grid and the team, in the order it came
+        (:func:`~fleet_emu.agents.hearing.hear`: teammates' beacons and map deltas as light structs, every
+        other kind as a :class:`RadioMsg`). When a message does not validate (an unknown payload kind
+        included), the inbox is opened message by message: what does not validate is dropped and reported to
+        ``on_drop``, which counts it."""
+        assert self.ctx is not None
+        heard = hear(inbox, self.ctx, self.shared_inbox)
+        if heard is not None:
+            return heard
         out = []
         for env in inbox:
             try:
@@ -265,7 +288,7 @@ class Brain:
             except DecodeError as exc:
                 if self.on_drop is not None:
                     self.on_drop(f"radio/{env.payload_kind}", str(exc))
-        return out
+        return as_heard(out)
 
     def relay_inbox(self, inbox: Sequence[Envelope]) -> tuple[list[Envelope], list[Envelope]]:
         """With relaying on: the envelopes of ``inbox`` to deliver (first copies for this robot or everyone)
@@ -307,9 +330,8 @@ class Brain:
             opened = self.open(delivered)
         outbox: list[RadioMsg] = []
         protocol, rejoined = self._read(opened, t, belief, outbox)
-        heard = {r: tm.heard for r, tm in self.teammates.items()}
+        heard, expected = self._poses(obs.cell)
         want = self._requests(t, heard, rejoined)
-        expected = {r: tm.expected(obs.cell) for r, tm in self.teammates.items()}
         with self._stage("clusters"):
             assert self.frontiers is not None
             clusters = list(self.frontiers.update(belief.grid, belief.take_changed()))
@@ -339,57 +361,94 @@ class Brain:
         """A ``with`` block whose thread CPU counts to the stage ``name`` of ``cpu_ms``."""
         return _Stage(self, name)
 
-    def _read(self, opened: list[RadioMsg], t: int, belief: Belief, outbox: list[RadioMsg]
+    def _read(self, opened: list[Heard], t: int, belief: Belief, outbox: list[RadioMsg]
               ) -> tuple[list[RadioMsg], list[str]]:
-        """Teammates' messages of the tick, in the order they came: beacons (:meth:`_beacon`), map deltas and
-        fills (merged into the belief: the ``merge`` stage), and the rest, the allocator's protocol. Returns
-        the protocol messages and the teammates heard again after a silence."""
-        sync = self.sync
+        """Teammates' messages of the tick, in the order they came: beacons (:meth:`_beacon`, the usual one
+        inline), map deltas and fills (merged into the belief: the ``merge`` stage), and the rest, the
+        allocator's protocol. Returns the protocol messages and the teammates heard again after a silence."""
+        sync, me, resync = self.sync, self.me, self.config.resync_after
+        peers = sync.peers if sync is not None else {}
+        teammates = self.teammates
         merges = _Merges(self, belief)
+        pending = merges.pending
         protocol: list[RadioMsg] = []
         rejoined: list[str] = []
-        for msg in opened:
-            if msg.origin == self.me:
+        joined = False
+        for origin, tick, body in opened:
+            if origin == me:
                 continue
-            body = msg.body
-            if isinstance(body, PoseBeacon):
-                if self._beacon(msg, body, t, outbox, merges):
-                    rejoined.append(msg.origin)
-            elif isinstance(body, MapDelta):
-                merges.add(body.cells, body.values)
+            kind = type(body)
+            if kind is RadioMsg:  # opened message by message: its record's class says what it is
+                if not isinstance(body.body, (PoseBeacon, MapDelta, MapFill)):
+                    protocol.append(body)
+                    continue
+                body = body.body
+                kind = Beacon if isinstance(body, PoseBeacon) else MapDelta if isinstance(body, MapDelta) else MapFill
+            if kind is Delta or kind is MapDelta:
+                pending.append((body.all_cells, body.all_values, body.start, body.end) if kind is Delta
+                               else (body.cells, body.values, 0, len(body.cells)))
                 if sync is not None and body.n is not None:
-                    peer = sync.peer(msg.origin)
+                    peer = peers.get(origin) or sync.peer(origin)
                     peer.received(body.n)
                     if body.covers:
                         peer.filled(body.covers, 0)
-            elif isinstance(body, MapFill):
+            elif kind is MapFill:
                 merges.add(body.cells, body.values)
                 if sync is not None:
-                    sync.peer(msg.origin).filled(body.seqs, body.upto)
+                    sync.peer(origin).filled(body.seqs, body.upto)
             else:
-                protocol.append(msg)
+                prev = teammates.get(origin)
+                want = body.want
+                if (prev is None or t - prev.heard > resync or (sync is not None and want is not None and me in want)):
+                    joined = joined or prev is None
+                    if self._beacon(origin, tick, body, t, outbox, merges):
+                        rejoined.append(origin)
+                    continue
+                if tick >= prev.heard:  # heard lately, asks nothing of this robot: _beacon's usual case inline
+                    prev.cell, prev.heard, prev.next = body.cell, max(t, tick), body.next
+                if sync is not None and body.maps is not None:
+                    (peers.get(origin) or sync.peer(origin)).exists(body.maps)
         merges.flush()
+        if joined:  # new teammates: the dict in id order again
+            self.teammates = dict(sorted(teammates.items()))
         return protocol, rejoined
 
-    def _beacon(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg], merges: _Merges) -> bool:
+    def _beacon(self, origin: str, tick: int, beacon: Beacon | PoseBeacon, t: int, outbox: list[RadioMsg],
+                merges: _Merges) -> bool:
         """A teammate's beacon: its pose (:meth:`_heard`; True when it rejoined), and with map sync the deltas
         it numbered so far and those it asks this robot for again. The pending merges go in first whenever
         the belief is about to be sent."""
-        prev = self.teammates.get(msg.origin)
-        if prev is None or t - prev.heard > self.config.resync_after:  # it may get our whole map
+        prev = self.teammates.get(origin)
+        if prev is not None and t - prev.heard <= self.config.resync_after:  # heard lately: its pose only
+            if tick >= prev.heard:
+                prev.cell, prev.heard, prev.next = beacon.cell, max(t, tick), beacon.next
+            rejoined = False
+        else:  # it may get our whole map
             merges.flush()
-        rejoined = self._heard(msg, beacon, t, outbox)
+            rejoined = self._heard(origin, tick, beacon, t, outbox)
         sync = self.sync
-        if sync is not None and beacon.maps is not None:
-            sync.peer(msg.origin).exists(beacon.maps)
-        if sync is not None and beacon.want is not None and self.me in beacon.want:
-            seqs = beacon.want[self.me]
-            if sync.sends_whole(seqs):
-                merges.flush()
-            fill = sync.answer(seqs, merges.belief)
-            if fill is not None:
-                outbox.append(RadioMsg(fill, dst=msg.origin))
+        if sync is not None:
+            maps = beacon.maps
+            if maps is not None:
+                sync.peer(origin).exists(maps)
+            want = beacon.want
+            if want is not None and self.me in want:
+                seqs = want[self.me]
+                if sync.sends_whole(seqs):
+                    merges.flush()
+                fill = sync.answer(seqs, merges.belief)
+                if fill is not None:
+                    outbox.append(RadioMsg(fill, dst=origin))
         return rejoined
+
+    def _poses(self, mine: Cell) -> tuple[dict[str, int], dict[str, Cell]]:
+        """Every teammate's last tick heard, and where it is expected (:meth:`Teammate.expected`), in id order."""
+        heard, expected = {}, {}
+        for r, tm in self.teammates.items():
+            heard[r] = tm.heard
+            nxt = tm.cell if tm.next is None else tm.next
+            expected[r] = tm.cell if nxt == mine else nxt
+        return heard, expected
 
     def _requests(self, t: int, heard: dict[str, int], rejoined: list[str]) -> dict[str, tuple[int, ...]] | None:
         """With map sync, the deltas to ask teammates for again (:attr:`PoseBeacon.want`); None without."""
@@ -465,23 +524,22 @@ class Brain:
             sealed += tuple(forwards)
         return sealed
 
-    def _heard(self, msg: RadioMsg, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> bool:
+    def _heard(self, origin: str, tick: int, beacon: Beacon | PoseBeacon, t: int, outbox: list[RadioMsg]) -> bool:
         """A teammate's pose; one heard for the first time, or again after a silence, gets our whole map
         (True then; with map sync as a fill that stands for every delta so far)."""
-        prev = self.teammates.get(msg.origin)
-        if prev is not None and msg.tick < prev.heard:
+        prev = self.teammates.get(origin)
+        if prev is not None and tick < prev.heard:
             return False
         rejoined = (prev is None or t - prev.heard > self.config.resync_after) and self.belief is not None
         if rejoined and self.sync is not None:
-            outbox.append(RadioMsg(self.sync.whole(self.belief), dst=msg.origin))  # type: ignore[arg-type]
+            outbox.append(RadioMsg(self.sync.whole(self.belief), dst=origin))  # type: ignore[arg-type]
         elif rejoined:
             cells, values = self.belief.known()  # type: ignore[union-attr]
-            outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=msg.origin))
-        if prev is None:  # a new teammate: the dict stays in id order
-            self.teammates[msg.origin] = Teammate(cell=beacon.cell, heard=max(t, msg.tick), next=beacon.next)
-            self.teammates = dict(sorted(self.teammates.items()))
+            outbox.append(RadioMsg(MapDelta(cells=cells, values=values), dst=origin))
+        if prev is None:  # a new teammate: the dict is put back in id order once every message is read (_read)
+            self.teammates[origin] = Teammate(cell=beacon.cell, heard=max(t, tick), next=beacon.next)
         else:  # updated in place: a robot hears every teammate's beacon every tick
-            prev.cell, prev.heard, prev.next = beacon.cell, max(t, msg.tick), beacon.next
+            prev.cell, prev.heard, prev.next = beacon.cell, max(t, tick), beacon.next
         return rejoined
 
     def _unstick(self, cell: Cell, move: Cell, wants: bool, grid: np.ndarray, occupied: set[Cell],

@@ -90,7 +90,9 @@ class Peer:
         """Delta ``n`` was sent (a delta or a beacon said so): every number above ``top`` up to it is missing."""
         if n <= self.top:
             return
-        if n - self.top > MAX_SEQS:
+        if n == self.top + 1:  # the usual case: the next number
+            self.missing[n] = None
+        elif n - self.top > MAX_SEQS:
             self.missing.clear()  # a whole map stands for them too
             self.whole = n
         else:
@@ -99,7 +101,8 @@ class Peer:
 
     def received(self, n: int) -> None:
         """Delta ``n`` arrived."""
-        self.exists(n)
+        if n > self.top:  # not announced yet (its beacon comes first, as a rule)
+            self.exists(n)
         self.missing.pop(n, None)
 
     def filled(self, seqs: tuple[int, ...], upto: int) -> None:
@@ -207,9 +210,11 @@ class MapSync:
         """The requests to send at ``t`` (``PoseBeacon.want``), to teammates heard within ``retry_after``
         ticks, in id order; None when there is none."""
         out = {}
+        retry = self.config.retry_after
         for robot in sorted(self.peers):
-            if robot in heard and t - heard[robot] <= self.config.retry_after:
-                req = self.peers[robot].request(t, self.config.retry_after)
+            p = self.peers[robot]
+            if (p.missing or p.whole is not None) and robot in heard and t - heard[robot] <= retry:
+                req = p.request(t, retry)  # (nothing missing: None, without the call)
                 if req is not None:
                     self.asked += 1
                     out[robot] = req

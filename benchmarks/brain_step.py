@@ -1,23 +1,27 @@
 """Thread CPU of one robot-tick of the brain on a 512 x 512 map, split by stage.
 
-    python -m benchmarks.brain_step [--robots 16] [--ticks 60] [--cells 512] [--maps maze PATH ...]
+    python -m benchmarks.brain_step [--robots 16] [--ticks 60] [--cells 512] [--maps maze PATH ...] [--skip 1]
+                                    [--shared]
 
 The memory engine (:class:`fleet_emu.launch.memory.Fleet`: the real World, Channel and Brain objects, no Zenoh)
 steps each map's fleet for ``--ticks`` ticks with ``benchmarks/scale.py``'s scenario (minpos with parallel
 wavefronts, the wall radio, 10 % loss, sensor 8 cells, comm 20 cells, the map's most open start), and every
 brain sums its own thread CPU (``time.thread_time``, robust to the machine's load) per stage of
 ``Brain.step`` (``Brain.cpu_ms``). One row per map, in ms per robot-tick (averaged over every robot-tick but
-tick 0's, where numba loads or compiles the kernels):
+tick 0's, or the first ``--skip`` ticks'; the kernels are loaded first, as an agent process loads them before
+its first tick):
 
 - ``decide``: the allocator (``allocate``, wavefronts included);
 - ``clusters``: frontier detection and clustering;
 - ``merge``: writing the observation and teammates' map deltas into the belief;
-- ``decode``: the radio payloads' decode and validation (each robot decodes its own copy, as over Zenoh: the
-  memory engine's sharing of a decoded broadcast is turned off here);
+- ``decode``: the radio messages' decode and validation, headers and payloads (``Brain.open``:
+  ``agents/hearing.py``; each robot decodes its own copy, as over Zenoh: the memory engine's sharing of a
+  decoded broadcast, ``Brain.shared_inbox``, is turned off here unless ``--shared``);
 - ``nav``: the wavefront descent and unsticking;
 - ``news``: the robot's own map delta, beacon and envelopes;
-- ``other``: the rest of ``Brain.step``; ``outside``: everything but ``decide`` (the issue's target is
-  at most 2 ms); ``step``: the whole of ``Brain.step``;
+- ``other``: the rest of ``Brain.step`` (teammates' poses, map sync's bookkeeping and whole maps for teammates
+  heard again, the problem, the command); ``outside``: everything but ``decide`` (the target is at most
+  1 ms); ``step``: the whole of ``Brain.step``;
 - ``rx codec``: what an agent process also does per tick before its brain runs (not in ``step``): decoding its
   rx bundle from bytes (``core.codec.decode``), timed on the bundle netem would send it.
 
@@ -45,14 +49,20 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
     from fleet_emu.agents.brain import STAGES
     from fleet_emu.core.codec import decode
     from fleet_emu.core.errors import FleetError
+    from fleet_emu.core.kernels import warm_up
     from fleet_emu.core.messages import RxBundle
     from fleet_emu.launch.memory import Fleet
 
+    warm_up()  # as an agent process does before its first tick: no kernel loads (or compiles) in a counted tick
     fleet = Fleet(scale.scenario_for(m, robots, a))
     fleet.reset()
-    for brain in fleet.brains.values():
-        brain.open = _own_copy(brain.open)  # type: ignore[method-assign]
-    fleet.step()  # tick 0, not counted: numba loads (or compiles) the kernels on their first call
+    if not a.shared:
+        for brain in fleet.brains.values():
+            brain.shared_inbox = False  # each decodes its own copy, as over Zenoh
+            brain.open = _own_copy(brain.open)  # type: ignore[method-assign]
+    for _ in range(a.skip):  # tick 0 at least: the kernels warm_up leaves out (the allocator's) load then
+        if not fleet.done:
+            fleet.step()
     for brain in fleet.brains.values():
         brain.cpu_ms = dict.fromkeys(brain.cpu_ms, 0.0)
         brain.step_cpu_ms = 0.0
@@ -97,13 +107,17 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--sensor-cells", type=float, default=8.0)
     p.add_argument("--comm-cells", type=float, default=20.0)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--skip", type=int, default=1, help="ticks stepped first and not counted (default 1: tick 0)")
+    p.add_argument("--shared", action="store_true",
+                   help="decode as the memory engine does, once per broadcast for all its receivers")
     a = p.parse_args(argv)
-    if a.robots < 1 or a.ticks < 2 or a.cells < 8:
-        fail(PROG, "--robots must be at least 1, --ticks at least 2, --cells at least 8")
+    if a.robots < 1 or a.ticks < 2 or a.cells < 8 or not 1 <= a.skip < a.ticks:
+        fail(PROG, "--robots must be at least 1, --ticks at least 2, --cells at least 8, --skip from 1 to --ticks - 1")
     print(f"# benchmarks/brain_step.py: {machine()}")
     print(f"# memory engine, minpos (parallel wavefronts), wall radio, loss 0.1, {a.robots} robots, {a.ticks} ticks, "
           f"sensor {a.sensor_cells:g} cells, comm {a.comm_cells:g} cells, seed {a.seed}; "
-          "thread CPU in ms per robot-tick")
+          f"thread CPU in ms per robot-tick after the first {a.skip} tick(s)"
+          + ("; a broadcast decoded once for its receivers" if a.shared else ""))
     print(f"{'map':>10} " + " ".join(f"{c:>8}" for c in COLUMNS) + f" {'load1':>6}", flush=True)
     for m in fitted_maps(PROG, a.maps, a.cells, a.seed):
         t = time.monotonic()

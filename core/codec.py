@@ -119,7 +119,8 @@ def _to_obj(value: Any) -> Any:
         return value.to_obj()
     if isinstance(value, np.ndarray):
         arr = np.ascontiguousarray(value)
-        return {"dtype": arr.dtype.name, "shape": list(arr.shape), "data": arr.tobytes()}
+        dt = arr.dtype
+        return {"dtype": _DTYPE_NAMES.get(dt) or dt.name, "shape": list(arr.shape), "data": arr.tobytes()}
     if isinstance(value, tuple):
         return [_to_obj(v) for v in value]
     if isinstance(value, dict):
@@ -281,6 +282,8 @@ def _array(value: Any, name: str) -> np.ndarray:
 
 
 _DTYPES = {name: np.dtype(name) for name in ALLOWED_DTYPES}
+#: The allowed dtypes' names (``dtype.name`` is a Python property of numpy's, slow for every array encoded).
+_DTYPE_NAMES = {dt: name for name, dt in _DTYPES.items()}
 
 
 #: Fast decoders, by record class: a function of the record's msgpack map (a message's with

@@ -216,11 +216,46 @@ def merge_parts(flat: np.ndarray, cells: np.ndarray, values: np.ndarray, bounds:
     return changed[:n], unknowns
 
 
+@njit(cache=True)
+def known_grown(idx: np.ndarray, new: np.ndarray, flat: np.ndarray, unknown: int
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ascending known cells of ``flat`` from ``idx``, those known before (ascending, int64), and ``new``,
+    the cells changed since (int64, any order, repeats allowed; a cell never turns unknown again): the union
+    of ``idx`` and the known cells of ``new``, as int64 and int32, and their values. One pass instead of a
+    scan of the grid (:meth:`fleet_emu.agents.belief.Belief.known`)."""
+    s = np.sort(new)
+    out = np.empty(idx.shape[0] + s.shape[0], dtype=np.int64)
+    i = j = n = 0
+    last = -1
+    while i < idx.shape[0] or j < s.shape[0]:
+        if j >= s.shape[0] or (i < idx.shape[0] and idx[i] <= s[j]):
+            v = idx[i]
+            i += 1
+        else:
+            v = s[j]
+            j += 1
+            if flat[v] == unknown:
+                continue
+        if v != last:
+            out[n] = v
+            n += 1
+            last = v
+    cells = np.empty(n, dtype=np.int32)
+    values = np.empty(n, dtype=flat.dtype)
+    for k in range(n):
+        cells[k] = out[k]
+        values[k] = flat[out[k]]
+    return out[:n], cells, values
+
+
 def warm_up() -> None:
     """Compile (or load from cache) every kernel once, so the first tick does not pay for it."""
     for dtype in (np.int32, np.int64):  # read-only, as decoded from a message's bytes
-        cells_valid(np.frombuffer(np.zeros(1, dtype).tobytes(), dtype), np.frombuffer(b"\0", np.int8), 1)
+        cells, values = np.frombuffer(np.zeros(1, dtype).tobytes(), dtype), np.frombuffer(b"\0", np.int8)
+        cells_valid(cells, values, 1)
         merge_parts(np.zeros(1, np.int8), np.zeros(1, dtype), np.zeros(1, np.int8), np.array([0, 1]), -1)
+        merge_parts(np.zeros(1, np.int8), cells, values, np.array([0, 1]), -1)  # map deltas merged as heard
+    known_grown(np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int8), -1)
     occ = np.zeros((3, 3), dtype=np.bool_)
     sources = np.array([0], dtype=np.int64)
     wavefront(~occ, sources, -1)

@@ -113,7 +113,7 @@ class Fleet:
         team = radio_team(s)  # one set for every brain: a broadcast's decoded payload, kept on its envelope with
         # the context it was checked against, is then matched to the next receiver's by identity, not compared
         self.brains = {r: Brain(r, make_allocator(allocator_config(s)), generator(s.seed, r), brain_config(s),
-                                team=team, on_drop=self._on_drop(r))
+                                team=team, on_drop=self._on_drop(r), shared_inbox=True)
                        for r in self.possible_agents}
         self.monitor = Monitor(tuple(self.possible_agents), base=s.has_base, relay=s.relay != "none")
         self._world_seq = self._netem_seq = 0

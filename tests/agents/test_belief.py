@@ -69,3 +69,22 @@ def test_known_is_kept_until_a_merge_changes_a_cell() -> None:
     assert b.known()[1].tolist() == [0, 0]
     b.merge_many([(np.array([0]), np.array([0], np.int8)), (np.array([11]), np.array([100], np.int8))])
     assert b.known()[0].tolist() == [0, 1, 5, 11] and b.known()[1].tolist() == [0, 0, 0, 100]
+
+
+def test_known_updated_from_the_changed_cells_is_the_pass_over_the_grid() -> None:
+    """:meth:`Belief.known` after merges (single and many, unknown values among them, a cell changed from free
+    to occupied, long runs without a call) gives what a pass over the grid gives."""
+    rng = np.random.default_rng(5)
+    b = Belief((40, 50))
+    for step in range(300):
+        parts = []
+        for _ in range(int(rng.integers(1, 4))):
+            cells = rng.integers(0, 2000, int(rng.integers(0, 30)))
+            parts.append((cells, rng.choice(np.array([-1, 0, 100], np.int8), len(cells))))
+        b.merge_many(parts) if step % 2 else b.merge(*parts[0])
+        if step % 7 == 0 or step > 250:
+            cells, values = b.known()
+            flat = b.grid.reshape(-1)
+            expected = np.flatnonzero(flat != -1)
+            assert cells.dtype == np.int32 and np.array_equal(cells, expected)
+            assert np.array_equal(values, flat[expected])
