@@ -112,7 +112,7 @@ def cache_dir() -> Path:
     return Path(platformdirs.user_cache_dir("fleet-emu", appauthor=False)) / "kernels"
 
 
-_CORE = tuple(Path(__file__).with_name(n) for n in ("jit.py", "kernels.py", "cluster_kernels.py"))
+_CORE = tuple(Path(__file__).with_name(n) for n in ("jit.py", "kernels.py", "cluster_kernels.py", "minpos_kernels.py"))
 
 
 @functools.cache

@@ -12,7 +12,7 @@ min P_ij" (then the lowest cluster index). Frontiers the robot cannot reach are 
   the ones not reached are farther: ``P_ij`` and the robot's own cost (the tie-break) are exact.
 - ``"parallel"``: "Parallel computation of wavefronts": all BFS advance together, a wavefront pauses on
   each robot it meets, and the first to reach the deciding robot wins
-  (:func:`core.kernels.minpos_parallel`, which orders wavefronts by (robots met, distance, cluster index)
+  (:func:`core.minpos_kernels.minpos_parallel`, which orders wavefronts by (robots met, distance, cluster index)
   and therefore breaks ties exactly as Algorithm 3 does). The cost matrix is never built.
 
 ``replan`` selects when the assignment is recomputed. Section 2: "optimization has to be reevaluated at each
@@ -52,8 +52,9 @@ import numpy as np
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.grid import MOVES, Cell, flat
-from fleet_emu.core.kernels import minpos_parallel, wavefront
+from fleet_emu.core.kernels import wavefront
 from fleet_emu.core.messages import RadioMsg
+from fleet_emu.core.minpos_kernels import minpos_parallel, minpos_parallel_into, seen_words
 
 WAVEFRONTS = ("full", "stop", "parallel")
 REPLANS = ("tick", "observed")
@@ -146,8 +147,9 @@ def stopped_costs(problem: Problem) -> np.ndarray:
     return costs
 
 
-def parallel_choice(problem: Problem) -> int | None:
-    """The cluster the parallel wavefronts of :func:`core.kernels.minpos_parallel` select, None if none."""
+def parallel_choice(problem: Problem, seen: np.ndarray | None = None) -> int | None:
+    """The cluster the parallel wavefronts of :func:`core.minpos_kernels.minpos_parallel` select, None if none;
+    ``seen``: a zeroed bitset of :func:`core.minpos_kernels.seen_words` words or more to work in (and leave zeroed)."""
     shape = problem.belief.shape
     clusters = problem.clusters
     sources = np.concatenate([c.cells for c in clusters]).astype(np.int64) if clusters else np.empty(0, np.int64)
@@ -155,7 +157,10 @@ def parallel_choice(problem: Problem) -> int | None:
     offsets[1:] = np.cumsum([c.size for c in clusters])
     me = flat(shape, problem.poses[problem.me])
     others = np.array([flat(shape, c) for r, c in problem.poses.items() if r != problem.me], dtype=np.int64)
-    j, _, _ = minpos_parallel(problem.passable, sources, offsets, me, others)
+    if seen is None or len(seen) < seen_words(problem.belief.size, len(clusters)):
+        j, _, _ = minpos_parallel(problem.passable, sources, offsets, me, others)
+    else:
+        j, _, _ = minpos_parallel_into(problem.passable, sources, offsets, me, others, seen)
     return None if j < 0 else int(j)
 
 
@@ -171,9 +176,18 @@ class MinPos(Allocator, plugin_name="minpos"):
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
+        self._bits = np.zeros(0, dtype=np.uint64)  # the parallel wavefronts' bitset, kept zeroed across calls
         if self.wavefront == "parallel":  # compile or load the kernel now, not in the first decision
             one = np.zeros(1, dtype=np.int64)
-            minpos_parallel(np.ones((1, 1), dtype=np.bool_), one, np.array([0, 1], dtype=np.int64), 0, one[:0])
+            minpos_parallel_into(np.ones((1, 1), dtype=np.bool_), one, np.array([0, 1], dtype=np.int64), 0, one[:0],
+                                 np.zeros(1, dtype=np.uint64))
+
+    def _seen(self, problem: Problem) -> np.ndarray:
+        """The bitset :func:`parallel_choice` works in, grown (by half again) when the clusters outgrow it."""
+        need = seen_words(problem.belief.size, len(problem.clusters))
+        if len(self._bits) < need:
+            self._bits = np.zeros(need + need // 2, dtype=np.uint64)
+        return self._bits
 
     def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
         if not problem.clusters:
@@ -186,7 +200,7 @@ class MinPos(Allocator, plugin_name="minpos"):
                 j = minpos_choice(decide.costs, problem.index)
                 return Allocation.none() if j is None else Allocation.assigned(problem, j)
         if self.wavefront == "parallel":
-            j = parallel_choice(problem)
+            j = parallel_choice(problem, self._seen(problem))
         elif self.wavefront == "stop":
             j = minpos_choice(stopped_costs(problem), problem.index)
         else:

@@ -14,7 +14,7 @@ from fleet_emu.agents.allocators.minpos import minpos_choice, parallel_choice, p
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import FREE, UNKNOWN, Cell, flat, from_ascii
-from fleet_emu.core.kernels import minpos_parallel
+from fleet_emu.core.minpos_kernels import minpos_parallel, seen_words
 
 VARIANTS = ("full", "stop", "parallel")
 
@@ -197,6 +197,7 @@ def test_stop_and_parallel_equal_full_on_random_problems() -> None:
 
 def test_parallel_kernel_reports_position_and_cost() -> None:
     rng = np.random.default_rng(5)
+    seen = np.zeros(seen_words(30 * 30, 64), dtype=np.uint64)  # one bitset through every call, as MinPos keeps
     for _ in range(100):
         p = random_problem(rng, robots=int(rng.integers(1, 7)))
         shape = p.belief.shape
@@ -205,7 +206,8 @@ def test_parallel_kernel_reports_position_and_cost() -> None:
         others = np.array([flat(shape, c) for r, c in p.poses.items() if r != p.me], dtype=np.int64)
         j, pos, cost = minpos_parallel(p.passable, sources, offsets, flat(shape, p.poses[p.me]), others)
         full = minpos_choice(p.costs, p.index)
-        assert (None if j < 0 else j) == full == parallel_choice(p)
+        assert (None if j < 0 else j) == full == parallel_choice(p) == parallel_choice(p, seen)
+        assert not seen.any()  # the kept bitset is left zeroed for the next call
         if full is not None:
             assert (pos, cost) == (positions(p.costs, p.index)[full], p.costs[p.index, full])
 
