@@ -7,7 +7,7 @@ and hands them to the event loop with ``call_soon_threadsafe`` (docs/design/arch
 from __future__ import annotations
 
 import asyncio
-import contextlib
+import collections
 import json
 import os
 import threading
@@ -124,13 +124,20 @@ def of_run(sample: zenoh.Sample, nonce: bytes) -> bool:
 class Inbox:
     """A queue of ``(key, payload, is_put)`` fed from zenoh callbacks into one asyncio loop. With ``nonce``, a
     message that does not carry it (another run's, a replayed recording's) is dropped in the callback and
-    counted in :attr:`foreign`; liveliness changes carry no nonce and are all let through."""
+    counted in :attr:`foreign`; liveliness changes carry no nonce and are all let through.
+
+    The items go into a deque, and the loop is woken (``call_soon_threadsafe``: a write to its self-pipe, then
+    an epoll wake-up and a read on the loop's side) once per burst, not once per item: a callback finding a
+    wake-up already pending only appends. :meth:`get` takes an item already there without waiting. Netem and
+    the world hear every robot each tick, a robot its observation and rx bundle."""
 
     def __init__(self, loop: asyncio.AbstractEventLoop | None = None, nonce: bytes | None = None) -> None:
         self.loop = loop or asyncio.get_running_loop()
-        self.queue: asyncio.Queue[tuple[str, bytes, bool]] = asyncio.Queue()
         self.nonce = nonce
         self.foreign = 0
+        self._items: collections.deque[tuple[str, bytes, bool]] = collections.deque()  # appends: thread-safe
+        self._waiter: asyncio.Future[None] | None = None  # the pending get's, on the loop
+        self._wake_pending = False  # a wake-up is scheduled on the loop and has not run yet
         self._lock = threading.Lock()  # zenoh calls back from several threads
 
     def callback(self, sample: zenoh.Sample) -> None:
@@ -142,9 +149,29 @@ class Inbox:
         self._enqueue(sample)
 
     def _enqueue(self, sample: zenoh.Sample) -> None:
-        item = (str(sample.key_expr), sample.payload.to_bytes(), sample.kind == zenoh.SampleKind.PUT)
-        with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
-            self.loop.call_soon_threadsafe(self.queue.put_nowait, item)
+        self.put_nowait((str(sample.key_expr), sample.payload.to_bytes(), sample.kind == zenoh.SampleKind.PUT))
+
+    def put_nowait(self, item: tuple[str, bytes, bool]) -> None:
+        """Queue ``item`` (from any thread) and wake the loop unless a wake-up is already pending: that one
+        runs after this append, so it finds the item."""
+        self._items.append(item)
+        with self._lock:
+            if self._wake_pending:
+                return
+            self._wake_pending = True
+        try:
+            self.loop.call_soon_threadsafe(self._wake)
+        except RuntimeError:  # the loop closed during shutdown
+            with self._lock:
+                self._wake_pending = False
+
+    def _wake(self) -> None:
+        """On the loop: let a later item schedule its own wake-up, then settle the pending get."""
+        with self._lock:
+            self._wake_pending = False
+        waiter = self._waiter
+        if waiter is not None and not waiter.done():
+            waiter.set_result(None)
 
     def subscribe(self, session: zenoh.Session, key_expr: str) -> zenoh.Subscriber:
         return session.declare_subscriber(key_expr, self.callback)
@@ -155,9 +182,17 @@ class Inbox:
         return session.liveliness().declare_subscriber(key_expr, self._enqueue, history=True)
 
     async def get(self, timeout: float | None = None) -> tuple[str, bytes, bool] | None:
-        """The next item, or None after ``timeout`` seconds."""
-        try:
-            return await asyncio.wait_for(self.queue.get(), timeout)
-        except TimeoutError:
-            return None
-
+        """The next item, or None after ``timeout`` seconds (one get at a time)."""
+        deadline = None if timeout is None else self.loop.time() + timeout
+        while not self._items:  # a wake-up may come for an item already taken: wait again
+            waiter = self._waiter = self.loop.create_future()
+            try:
+                if deadline is None:
+                    await waiter
+                else:
+                    await asyncio.wait_for(waiter, max(0.0, deadline - self.loop.time()))
+            except TimeoutError:
+                return self._items.popleft() if self._items else None
+            finally:
+                self._waiter = None
+        return self._items.popleft()

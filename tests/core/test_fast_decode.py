@@ -14,7 +14,7 @@ import pytest
 
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
 from fleet_emu.core.codec import Context, DecodeError, decode, decode_payload, generic_decode
-from fleet_emu.core.messages import Envelope, RxBundle, TxBundle
+from fleet_emu.core.messages import Envelope, Observation, RxBundle, TxBundle
 
 CTX = Context(senders=frozenset({"r0", "r1", "r2"}), shape=(4, 5))
 ODD = [None, True, False, -1, 0, 1, 3, 19, 20, 2**40, 1.5, "r1", "r9", "", b"x", [], [1], [1, 2], [2, 1], [0, 1],
@@ -168,3 +168,24 @@ def test_bundle_fast_decoders_agree_with_the_generic_decode(cls: type) -> None:
             *({**good, "msgs": [good["msgs"][0], m]} for m in _mutations(good["msgs"][1]))]
     accepted, rejected = _tally(objs, cls)
     assert accepted > 10 and rejected > 100
+
+
+def test_observation_typed_decoder_agrees_with_the_generic_decode() -> None:
+    """Mutations of an observation (a field removed, added, of another type; a cell or an index outside its own
+    grid, an odd cell value, an int cell size): the typed decode and the generic one agree, and the typed one
+    is the one that accepts a well-formed observation."""
+    from fleet_emu.core import codec
+
+    def obs(**kw: Any) -> dict:
+        fields = dict(src="r1", tick=3, seq=9, robot="r0", cell=(1, 2), shape=(4, 5), cell_size=0.5,
+                      cells=np.array([0, 19], np.int32), values=np.array([0, 100], np.int8)) | kw
+        return Observation(**fields).to_obj()
+
+    good = obs()
+    samples = [good, obs(cells=np.zeros(0, np.int32), values=np.zeros(0, np.int8)), obs(cell=(3, 4)),
+               obs(cells=np.array([20], np.int32), values=np.array([0], np.int8)), obs(cell=(4, 0)),
+               obs(values=np.array([0, 7], np.int8)), obs(cells=np.array([1, 2], np.int64)), obs(cell_size=1),
+               obs(shape=(0, 5)), obs(cell_size=-0.5), obs(cells=np.array([1], np.int32))]
+    accepted, rejected = _tally([*samples, *_mutations(good)], Observation)
+    assert accepted > 5 and rejected > 50
+    assert codec._typed(Observation, msgpack.packb(good, use_bin_type=True), CTX) is not None

@@ -26,7 +26,7 @@ def test_an_old_state_arriving_before_the_awaited_one_is_dropped_not_used() -> N
         inbox = Inbox()
 
         def put(st: WorldState) -> None:
-            inbox.queue.put_nowait((node.keys.state, st.encode(), True))
+            inbox.put_nowait((node.keys.state, st.encode(), True))
 
         put(_state(0, 0.1))
         first = await node._await_state(inbox, 0)
