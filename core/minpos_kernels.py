@@ -122,13 +122,13 @@ def minpos_parallel(passable: np.ndarray, sources: np.ndarray, offsets: np.ndarr
     no wavefront reaches ``me``. Queues share one pool of linked slots, recycled when popped.
     """
     n = passable.shape[0] * passable.shape[1]
-    seen = np.zeros(seen_words(n, len(offsets) - 1), dtype=np.uint64)
+    seen = np.zeros((max(len(offsets) - 1, 1) * n + 63) // 64, dtype=np.uint64)  # seen_words(n, m)
     return minpos_parallel_into(passable, sources, offsets, me, robots, seen)
 
 
-@njit(cache=True)
 def seen_words(n: int, m: int) -> int:
-    """The uint64 words of :func:`minpos_parallel_into`'s ``seen``: a bit per (wavefront, cell)."""
+    """The uint64 words of :func:`minpos_parallel_into`'s ``seen`` for ``m`` wavefronts over ``n`` cells: a bit
+    per (wavefront, cell)."""
     return (max(m, 1) * n + 63) // 64
 
 
