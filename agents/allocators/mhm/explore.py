@@ -81,8 +81,9 @@ def _or_windows(shape: tuple[int, int], parts: Iterable[tuple[tuple[slice, slice
     return mask
 
 
-def safe_area(grid: np.ndarray, relays: Iterable[Cell], r_comm: float) -> np.ndarray:
-    """Known-free cells within r_comm of a relay (a hinged node or the base station), the relays included."""
+def _relay_disks(grid: np.ndarray, relays: Iterable[Cell], r_comm: float, known_free: bool) -> np.ndarray:
+    """The cells within r_comm of a relay that ``grid`` knows to be free (``known_free``) or does not know to be
+    occupied, read only in the box around the relays' disks."""
     relays = list(relays)
     mask = _or_windows(grid.shape, (disk_window(grid.shape, p, r_comm) for p in relays))
     if relays:
@@ -90,16 +91,22 @@ def safe_area(grid: np.ndarray, relays: Iterable[Cell], r_comm: float) -> np.nda
         rc = np.array(relays)
         r0, c0 = np.maximum(rc.min(axis=0) - k, 0)
         r1, c1 = rc.max(axis=0) + k + 1
-        mask[r0:r1, c0:c1] &= grid[r0:r1, c0:c1] == FREE
+        window = grid[r0:r1, c0:c1]
+        mask[r0:r1, c0:c1] &= (window == FREE) if known_free else (window != OCCUPIED)
     return mask
+
+
+def safe_area(grid: np.ndarray, relays: Iterable[Cell], r_comm: float) -> np.ndarray:
+    """Known-free cells within r_comm of a relay (a hinged node or the base station), the relays included."""
+    return _relay_disks(grid, relays, r_comm, known_free=True)
 
 
 def reach_area(belief: np.ndarray, relays: Iterable[Cell], r_comm: float) -> np.ndarray:
     """The cells within r_comm of a relay that ``belief`` does not know to be occupied (unknown cells
     included), the relays too: where an explorer may drive toward a goal the base's map reaches but its own
     map does not know yet (``robot.py``)."""
-    mask = _or_windows(belief.shape, (disk_window(belief.shape, p, r_comm) for p in relays))
-    mask &= belief != OCCUPIED
+    relays = list(relays)
+    mask = _relay_disks(belief, relays, r_comm, known_free=False)
     for p in relays:
         mask[p] = True
     return mask
@@ -146,14 +153,21 @@ def area_clusters(grid: np.ndarray, area: np.ndarray, cluster_max: int) -> list[
     return out
 
 
-def descend(dist: np.ndarray, cell: Cell) -> Cell:
-    """Follow ``dist`` down from ``cell`` to a source (distance 0), first move in the project's order on ties."""
+def _path(dist: np.ndarray, cell: Cell) -> list[Cell]:
+    """The cells down ``dist`` from ``cell`` to its source, both included: first move in the project's order on ties."""
     rows, cols = dist.shape
+    out = [cell]
     while dist[cell] > 0:
         r, c = cell
         cell = next((r + dr, c + dc) for dr, dc in MOVES
                     if 0 <= r + dr < rows and 0 <= c + dc < cols and 0 <= dist[r + dr, c + dc] < dist[r, c])
-    return cell
+        out.append(cell)
+    return out
+
+
+def descend(dist: np.ndarray, cell: Cell) -> Cell:
+    """Follow ``dist`` down from ``cell`` to a source (distance 0), first move in the project's order on ties."""
+    return _path(dist, cell)[-1]
 
 
 def _greedy(dists: Sequence[np.ndarray], robots: Mapping[str, Cell]) -> tuple[dict[str, int], list[tuple]]:
@@ -225,18 +239,6 @@ def _inside(robots: Mapping[str, Cell], box: Box) -> dict[str, Cell]:
 
 def _shift(cell: Cell, box: Box) -> Cell:
     return (cell[0] + box[0], cell[1] + box[1])
-
-
-def _path(dist: np.ndarray, cell: Cell) -> list[Cell]:
-    """The cells down ``dist`` from ``cell`` to its source, both included (as :func:`descend` walks)."""
-    rows, cols = dist.shape
-    out = [cell]
-    while dist[cell] > 0:
-        r, c = cell
-        cell = next((r + dr, c + dc) for dr, dc in MOVES
-                    if 0 <= r + dr < rows and 0 <= c + dc < cols and 0 <= dist[r + dr, c + dc] < dist[r, c])
-        out.append(cell)
-    return out
 
 
 def make_way(passable: np.ndarray, poses: Mapping[str, Cell], targets: Mapping[str, Cell],
