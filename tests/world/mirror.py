@@ -1,5 +1,5 @@
-"""Map mirrors for the tests: the public maps kept beside the repository (``<repo root>/../shared/maps``, laid out
-by origin: ``stage/hospital_section.png``, ``ros/turtlebot3_world/map.pgm``) re-laid as a ``fleet maps fetch
+"""Map mirrors for the tests: the public maps kept beside the repository (:data:`SHARED_MAPS`, laid out by
+origin: ``stage/hospital_section.png``, ``ros/turtlebot3_world/map.pgm``) re-laid as a ``fleet maps fetch
 --mirror`` folder of symlinks (``MIRROR/<map name>/<upstream file name>``), and an HTTP server on 127.0.0.1 that
 serves a folder. The tests reach those maps only through such a mirror, and skip when they are absent."""
 
