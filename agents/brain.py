@@ -42,7 +42,7 @@ from fleet_emu.agents.allocators import (
 )
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.clusters import FrontierClusters
-from fleet_emu.agents.hearing import Beacon, Delta, Heard, as_heard, hear
+from fleet_emu.agents.hearing import Beacon, Delta, Hearing, as_heard, hear
 from fleet_emu.agents.mapsync import MapSync, SyncConfig
 from fleet_emu.agents.navigation import next_move
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
@@ -270,14 +270,14 @@ class Brain:
         decision ran); it goes out as map news with the next step's."""
         self._belief(obs).merge(obs.cells, obs.values)
 
-    def open(self, inbox: Sequence[Envelope]) -> list[Heard]:
+    def open(self, inbox: Sequence[Envelope]) -> Hearing:
         """Decode what the radio delivered, checked against the grid and the team, in the order it came
         (:func:`~fleet_emu.agents.hearing.hear`: teammates' beacons and map deltas as light structs, every
         other kind as a :class:`RadioMsg`). When a message does not validate (an unknown payload kind
         included), the inbox is opened message by message: what does not validate is dropped and reported to
         ``on_drop``, which counts it."""
         assert self.ctx is not None
-        heard = hear(inbox, self.ctx, self.shared_inbox)
+        heard = hear(inbox, self.ctx, self.me, self.shared_inbox)
         if heard is not None:
             return heard
         out = []
@@ -288,7 +288,7 @@ class Brain:
             except DecodeError as exc:
                 if self.on_drop is not None:
                     self.on_drop(f"radio/{env.payload_kind}", str(exc))
-        return as_heard(out)
+        return as_heard(out, self.me)
 
     def relay_inbox(self, inbox: Sequence[Envelope]) -> tuple[list[Envelope], list[Envelope]]:
         """With relaying on: the envelopes of ``inbox`` to deliver (first copies for this robot or everyone)
@@ -361,7 +361,7 @@ class Brain:
         """A ``with`` block whose thread CPU counts to the stage ``name`` of ``cpu_ms``."""
         return _Stage(self, name)
 
-    def _read(self, opened: list[Heard], t: int, belief: Belief, outbox: list[RadioMsg]
+    def _read(self, opened: Hearing, t: int, belief: Belief, outbox: list[RadioMsg]
               ) -> tuple[list[RadioMsg], list[str]]:
         """Teammates' messages of the tick, in the order they came: beacons (:meth:`_beacon`, the usual one
         inline), map deltas and fills (merged into the belief: the ``merge`` stage), and the rest, the
@@ -374,7 +374,8 @@ class Brain:
         protocol: list[RadioMsg] = []
         rejoined: list[str] = []
         joined = False
-        for origin, tick, body in opened:
+        asks = opened.asks if sync is not None else None
+        for i, (origin, tick, body) in enumerate(opened.messages):
             if origin == me:
                 continue
             kind = type(body)
@@ -398,10 +399,10 @@ class Brain:
                     sync.peer(origin).filled(body.seqs, body.upto)
             else:
                 prev = teammates.get(origin)
-                want = body.want
-                if (prev is None or t - prev.heard > resync or (sync is not None and want is not None and me in want)):
+                seqs = asks.get(i) if asks else None
+                if prev is None or t - prev.heard > resync or seqs is not None:
                     joined = joined or prev is None
-                    if self._beacon(origin, tick, body, t, outbox, merges):
+                    if self._beacon(origin, tick, body, t, outbox, merges, seqs):
                         rejoined.append(origin)
                     continue
                 if tick >= prev.heard:  # heard lately, asks nothing of this robot: _beacon's usual case inline
@@ -414,10 +415,10 @@ class Brain:
         return protocol, rejoined
 
     def _beacon(self, origin: str, tick: int, beacon: Beacon | PoseBeacon, t: int, outbox: list[RadioMsg],
-                merges: _Merges) -> bool:
+                merges: _Merges, asks: tuple[int, ...] | None) -> bool:
         """A teammate's beacon: its pose (:meth:`_heard`; True when it rejoined), and with map sync the deltas
-        it numbered so far and those it asks this robot for again. The pending merges go in first whenever
-        the belief is about to be sent."""
+        it numbered so far and ``asks``, those it asks this robot for again (:attr:`Hearing.asks`). The pending
+        merges go in first whenever the belief is about to be sent."""
         prev = self.teammates.get(origin)
         if prev is not None and t - prev.heard <= self.config.resync_after:  # heard lately: its pose only
             if tick >= prev.heard:
@@ -431,12 +432,10 @@ class Brain:
             maps = beacon.maps
             if maps is not None:
                 sync.peer(origin).exists(maps)
-            want = beacon.want
-            if want is not None and self.me in want:
-                seqs = want[self.me]
-                if sync.sends_whole(seqs):
+            if asks is not None:
+                if sync.sends_whole(asks):
                     merges.flush()
-                fill = sync.answer(seqs, merges.belief)
+                fill = sync.answer(asks, merges.belief)
                 if fill is not None:
                     outbox.append(RadioMsg(fill, dst=origin))
         return rejoined

@@ -4,9 +4,10 @@ their payloads into light structs, checked against the team and the grid, with n
 At 100 robots a robot hears about 90 beacons and 90 map deltas a tick; decoding each into a
 :class:`~fleet_emu.agents.protocol.PoseBeacon` or :class:`~fleet_emu.agents.protocol.MapDelta` and a
 :class:`~fleet_emu.core.messages.RadioMsg` cost several microseconds of Python per message, most of the brain's
-CPU outside the allocator. Here the checks that depend on the receiver are in the decoders themselves (a cell
-inside the grid, a request addressed to a teammate: per grid and team, built once), the map deltas' cells are
-checked in one compiled pass over all of them, and the brain reads the structs (:meth:`Brain.open`).
+CPU outside the allocator. Here a beacon's cells are checked by its decoder (per grid and team, built once),
+its requests (``want``) are kept as their bytes and checked for all beacons in one compiled pass, the map
+deltas are read from their bytes in another (:mod:`~fleet_emu.agents.hearing_kernels`), and the brain reads
+the structs (:meth:`Brain.open`).
 
 This decides nothing: :func:`hear` accepts only what the message decoders accept (``agents/protocol.py``; the
 tests compare them on mutated payloads), gives their values, and returns None for an inbox holding anything
@@ -18,16 +19,14 @@ what does not validate, in the order it came.
 from __future__ import annotations
 
 import functools
-import itertools
-import operator
 from collections.abc import Sequence
-from typing import Annotated, Any, Literal, cast
+from typing import Annotated, Any, NamedTuple, cast
 
 import msgspec
 import numpy as np
 
-from fleet_emu.agents.protocol import MAX_SEQS
-from fleet_emu.core import kernels
+from fleet_emu.agents.hearing_kernels import read_deltas, read_wants, team
+from fleet_emu.agents.protocol import MAX_SEQS, PoseBeacon
 from fleet_emu.core.codec import MAX_ARRAY_BYTES, Context
 from fleet_emu.core.envelope import MAX_PAYLOAD_BYTES, MAX_TTL
 from fleet_emu.core.errors import DecodeError
@@ -42,19 +41,28 @@ CACHE = "_heard"
 #: a :class:`RadioMsg` for every other kind).
 Heard = tuple[str, int, Any]
 
-_Seq = Annotated[int, msgspec.Meta(ge=1)]
-_Seqs = Annotated[tuple[_Seq, ...], msgspec.Meta(max_length=MAX_SEQS)]
+
+class Hearing(NamedTuple):
+    """What a robot heard in a tick: the messages in the order they came, and the delta numbers some of them
+    ask this robot for again (a beacon's :attr:`~fleet_emu.agents.protocol.PoseBeacon.want` addressed to it),
+    by their place in ``messages``."""
+
+    messages: list[Heard]
+    asks: dict[int, tuple[int, ...]]
+
 _Count = Annotated[int, msgspec.Meta(ge=0)]
-_Bytes = Annotated[bytes, msgspec.Meta(max_length=MAX_ARRAY_BYTES)]
+_NO_WANT = msgspec.Raw()
 
 
 class Beacon(msgspec.Struct, gc=False):
-    """A pose beacon's fields as heard (:class:`~fleet_emu.agents.protocol.PoseBeacon`'s names and meanings)."""
+    """A pose beacon's fields as heard (:class:`~fleet_emu.agents.protocol.PoseBeacon`'s names and meanings),
+    its requests (``want``) as their MessagePack bytes (empty when it has none): a robot reads only those
+    addressed to it (:attr:`Hearing.asks`)."""
 
     cell: tuple[int, int]
     next: tuple[int, int] | None = None
     maps: int | None = None
-    want: dict[str, tuple[int, ...]] | None = None
+    want: msgspec.Raw = _NO_WANT
 
 
 class Delta(msgspec.Struct, gc=False):
@@ -78,46 +86,20 @@ class Delta(msgspec.Struct, gc=False):
         return self.all_values[self.start:self.end]
 
 
-class _Cells(msgspec.Struct, forbid_unknown_fields=True, gc=False):
-    dtype: Literal["int32"]
-    shape: tuple[_Count]
-    data: _Bytes
-
-
-class _Values(msgspec.Struct, forbid_unknown_fields=True, gc=False):
-    dtype: Literal["int8"]
-    shape: tuple[_Count]
-    data: _Bytes
-
-
-class _DeltaWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
-    """A map delta as the brain sends it (int32 cells, int8 values); any other encoding goes the long way."""
-
-    cells: _Cells
-    values: _Values
-    n: _Seq | None = None
-    covers: _Seqs | None = None
-
-
-_DELTA = msgspec.msgpack.Decoder(_DeltaWire)
-
-
 @functools.lru_cache(maxsize=16)
-def _beacon_decoder(shape: tuple[int, int], senders: frozenset[str]) -> msgspec.msgpack.Decoder:
-    """A beacon decoder for one grid and team: a cell's row and column in range and every request's robot one
-    of the team, checked by msgspec (:meth:`~fleet_emu.agents.protocol.PoseBeacon.validate`'s checks but the
-    next cell's distance and the requests' order)."""
+def _beacon_decoder(shape: tuple[int, int]) -> msgspec.msgpack.Decoder:
+    """A beacon decoder for one grid: a cell's row and column in range, checked by msgspec
+    (:meth:`~fleet_emu.agents.protocol.PoseBeacon.validate`'s checks but the next cell's distance and the
+    requests, which :func:`hear` checks)."""
     cell = tuple[Annotated[int, msgspec.Meta(ge=0, lt=shape[0])], Annotated[int, msgspec.Meta(ge=0, lt=shape[1])]]
-    robot = Literal[tuple(sorted(senders))]  # type: ignore[valid-type]
     wire = msgspec.defstruct("BeaconWire", [("cell", cell), ("next", cell | None, None),
-                                            ("maps", _Count | None, None),
-                                            ("want", dict[robot, _Seqs] | None, None)],  # type: ignore[valid-type]
+                                            ("maps", _Count | None, None), ("want", msgspec.Raw, _NO_WANT)],
                              bases=(Beacon,), forbid_unknown_fields=True, gc=False)
     return msgspec.msgpack.Decoder(wire)
 
 
-def hear(inbox: Sequence[Envelope], ctx: Context, keep: bool = False) -> list[Heard] | None:
-    """The messages of ``inbox`` in order, each checked as :meth:`Envelope.validate` and
+def hear(inbox: Sequence[Envelope], ctx: Context, robot: str, keep: bool = False) -> Hearing | None:
+    """What ``robot`` hears of ``inbox``: its messages in order, each checked as :meth:`Envelope.validate` and
     :func:`~fleet_emu.core.envelope.open_envelope` check it; None when one does not pass (or is not in a form
     decoded here and does not open), and the caller opens the inbox message by message instead. With
     ``keep`` (the memory engine, whose receivers of a broadcast share its envelope object), each message
@@ -125,10 +107,13 @@ def hear(inbox: Sequence[Envelope], ctx: Context, keep: bool = False) -> list[He
     senders, shape = ctx.senders, ctx.shape
     if not senders or shape is None:
         return None
-    beacon, delta = _beacon_decoder(shape, senders).decode, _DELTA.decode
+    decoder = _beacon_decoder(shape)
+    beacon, wire = decoder.decode, decoder.type
     out: list[Any] = []
-    wants: list[dict[str, tuple[int, ...]]] = []  # the beacons' requests, their order checked at the end
-    deltas: list[tuple[int, _DeltaWire]] = []  # the map deltas (index in out, wire), checked at the end
+    wants: list[msgspec.Raw] = []  # the beacons' requests, checked at the end
+    where: list[int] = []  # their places in out
+    maps: list[int] = []  # the map deltas' places in out, read at the end
+    payloads: list[bytes] = []
     fresh: list[tuple[int, Envelope]] = []
     add, max_ttl, max_bytes = out.append, MAX_TTL, MAX_PAYLOAD_BYTES
     try:
@@ -136,6 +121,10 @@ def hear(inbox: Sequence[Envelope], ctx: Context, keep: bool = False) -> list[He
             if keep:
                 cached = _kept(env, ctx)
                 if cached is not None:
+                    body = cached[2]
+                    if type(body) is wire and body.want:
+                        where.append(len(out))
+                        wants.append(body.want)
                     add(cached)
                     continue
                 fresh.append((len(out), env))
@@ -149,20 +138,27 @@ def hear(inbox: Sequence[Envelope], ctx: Context, keep: bool = False) -> list[He
                 if nxt is not None and abs(nxt[0] - b.cell[0]) + abs(nxt[1] - b.cell[1]) > 1:
                     return None
                 if b.want:
+                    where.append(len(out))
                     wants.append(b.want)
                 add((origin, tick, b))
             elif kind == "map":
-                deltas.append((len(out), delta(payload)))
+                maps.append(len(out))
+                payloads.append(payload)
                 add((origin, tick, None))
             else:
                 add((origin, tick, open_envelope(env, ctx)))
-    except (msgspec.MsgspecError, DecodeError):
+    except (msgspec.MsgspecError, DecodeError, UnicodeDecodeError):  # msgspec: a string not UTF-8
         return None
-    if (wants and not _in_order(wants)) or (deltas and not _deltas(out, deltas, shape, keep)):
+    deltas = _deltas(payloads, shape, keep) if payloads else []
+    asks = read_wants(wants, team(senders), robot, MAX_SEQS) if wants else {}
+    if deltas is None or asks is None:
         return None
+    for i, d in zip(maps, deltas, strict=True):
+        origin, tick, _ = out[i]
+        out[i] = (origin, tick, d)
     for i, env in fresh:
         env.__dict__[CACHE] = (ctx, out[i])
-    return out
+    return Hearing(out, {where[j]: seqs for j, seqs in asks.items()})
 
 
 def _kept(env: Envelope, ctx: Context) -> Heard | None:
@@ -175,45 +171,29 @@ def _kept(env: Envelope, ctx: Context) -> Heard | None:
     return None
 
 
-def _in_order(wants: list[dict[str, tuple[int, ...]]]) -> bool:
-    """Every request of more than one number strictly ascending (each number is >= 1 already)."""
-    return _pairs_ascending([s for w in wants for s in w.values() if len(s) > 1])
+def _deltas(payloads: list[bytes], shape: tuple[int, int], own: bool) -> list[Delta] | None:
+    """The map deltas of ``payloads`` read and checked in one compiled pass
+    (:func:`~fleet_emu.agents.hearing_kernels.read_deltas`), their cells and values in two arrays for all,
+    each delta a slice (read by the brain's merge without a copy); with ``own`` each delta gets arrays of its
+    own (its receivers' runs of deltas are not this inbox's). None when one does not pass or is not in the
+    robots' own encoding."""
+    got = read_deltas(payloads, shape[0] * shape[1], MAX_ARRAY_BYTES, MAX_SEQS)
+    if got is None:
+        return None
+    cells, values, rows, covers = got
+    out, a = [], 0
+    for end, n, c0, c1 in rows:
+        cov = tuple(covers[c0:c1]) if c0 >= 0 else None
+        out.append(Delta(cells[a:end], values[a:end], 0, end - a, n or None, cov) if own
+                   else Delta(cells, values, a, end, n or None, cov))
+        a = end
+    return out
 
 
-def _pairs_ascending(multi: list[tuple[int, ...]]) -> bool:
-    """Every tuple of ``multi`` strictly ascending, their pairs compared in one pass in C."""
-    return not multi or all(map(operator.lt, itertools.chain.from_iterable([s[:-1] for s in multi]),
-                                itertools.chain.from_iterable([s[1:] for s in multi])))
-
-
-def _deltas(out: list[Any], deltas: list[tuple[int, _DeltaWire]], shape: tuple[int, int], keep: bool) -> bool:
-    """Check the decoded map deltas (their index in ``out`` and wire) and put them in ``out``; their cells and
-    values checked in one compiled pass over all of them. False when one does not pass. With ``keep`` each
-    delta gets arrays of its own (its receivers' runs of deltas are not this inbox's)."""
-    wires = [w for _, w in deltas]
-    ks = [w.cells.shape[0] for w in wires]
-    if ([w.values.shape[0] for w in wires] != ks or [len(w.values.data) for w in wires] != ks
-            or [len(w.cells.data) for w in wires] != [4 * k for k in ks]):
-        return False
-    covered = [(w.covers, w.n) for w in wires if w.covers is not None]
-    if covered and (any([n is None or (c and c[-1] >= n) for c, n in covered])
-                    or not _pairs_ascending([c for c, _ in covered if len(c) > 1])):
-        return False
-    cells = np.frombuffer(b"".join([w.cells.data for w in wires]), np.int32)
-    values = np.frombuffer(b"".join([w.values.data for w in wires]), np.int8)
-    if not kernels.cells_valid(cells, values, shape[0] * shape[1]):
-        return False
-    a = 0
-    for (i, w), k in zip(deltas, ks, strict=True):
-        origin, tick, _ = out[i]
-        d = Delta(cells[a:a + k], values[a:a + k], 0, k, w.n, w.covers) if keep else \
-            Delta(cells, values, a, a + k, w.n, w.covers)
-        out[i] = (origin, tick, d)
-        a += k
-    return True
-
-
-def as_heard(msgs: Sequence[RadioMsg]) -> list[Heard]:
-    """Messages opened one by one (:meth:`Brain.open`'s long way) in :func:`hear`'s form."""
-    return [(m.origin, m.tick, m) for m in msgs]
+def as_heard(msgs: Sequence[RadioMsg], robot: str) -> Hearing:
+    """Messages opened one by one (:meth:`Brain.open`'s long way) in :func:`hear`'s form, as ``robot`` hears
+    them."""
+    asks = {i: seqs for i, m in enumerate(msgs)
+            if isinstance(m.body, PoseBeacon) and (seqs := m.body.asks(robot)) is not None}
+    return Hearing([(m.origin, m.tick, m) for m in msgs], asks)
 

@@ -20,11 +20,11 @@ import zenoh
 
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import Brain, allocator_config, brain_config, radio_team
+from fleet_emu.agents.hearing_kernels import warm_up
 from fleet_emu.agents.outputs import agent_report, first_cpu_ms, robot_outputs
 from fleet_emu.agents.realtime import Timing, percentiles
 from fleet_emu.core.bus import Inbox
 from fleet_emu.core.codec import Context
-from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import AgentTiming, Command, Envelope, Observation, RxBundle, Stop
 from fleet_emu.core.node import Declared, NodeBase, node_main, undeclare

@@ -47,9 +47,9 @@ COLUMNS = ["decide", "clusters", "merge", "decode", "nav", "news", "other", "out
 def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
     """One map's fleet stepped ``a.ticks`` ticks; ms of thread CPU per robot-tick by stage."""
     from fleet_emu.agents.brain import STAGES
+    from fleet_emu.agents.hearing_kernels import warm_up
     from fleet_emu.core.codec import decode
     from fleet_emu.core.errors import FleetError
-    from fleet_emu.core.kernels import warm_up
     from fleet_emu.core.messages import RxBundle
     from fleet_emu.launch.memory import Fleet
 

@@ -19,7 +19,7 @@ from fleet_emu.core.messages import Observation
 from tests.agents.test_brain import Spy
 from tests.core.test_fast_decode import CTX, SAMPLES, _equal, _mutations
 
-FIELDS = {"pose": ("cell", "next", "maps", "want"), "map": ("cells", "values", "n", "covers")}
+FIELDS = {"pose": ("cell", "next", "maps"), "map": ("cells", "values", "n", "covers")}
 
 
 def _env(kind: str, payload: bytes, src: str = "r1", **head: Any) -> Envelope:
@@ -36,40 +36,46 @@ def test_hear_accepts_only_what_the_payload_decoders_accept_with_their_values(ki
             record: Any = decode_payload(kind, data, CTX)
         except DecodeError:
             record = None
-        got = hear([_env("pose", PoseBeacon(cell=(0, 0)).encode()), _env(kind, data, src="r2")], CTX)
+        inbox = [_env("pose", PoseBeacon(cell=(0, 0)).encode()), _env(kind, data, src="r2")]
+        got = hear(inbox, CTX, "r3")
         if record is None:
             assert got is None, obj  # the brain then opens it message by message, and drops it
             refused += 1
             continue
         if got is None:  # valid, in a form hear leaves to the message decoders (int64 cells, ...)
             continue
-        origin, tick, body = got[1]
+        origin, tick, body = got.messages[1]
         assert (origin, tick) == ("r2", 3) and isinstance(body, Beacon if kind == "pose" else Delta)
         assert all(_equal(getattr(body, f), getattr(record, f)) for f in FIELDS[kind]), obj
+        if kind == "pose":  # a beacon's requests, as each teammate reads those addressed to it
+            for r in CTX.senders:
+                heard = hear(inbox, CTX, r)
+                assert heard is not None and heard.asks.get(1) == record.asks(r), obj
         accepted += 1
     assert accepted > 10 and refused > 50
 
 
 def test_a_header_that_does_not_validate_gives_the_inbox_back() -> None:
     payload = PoseBeacon(cell=(1, 2)).encode()
-    assert hear([_env("pose", payload)], CTX) is not None
+    assert hear([_env("pose", payload)], CTX, "r1") is not None
     for head in ({"ttl": 17}, {"tick": -1}, {"origin": "r9"}, {"src": "r9"}):
-        assert hear([_env("pose", payload), _env("pose", payload, **head)], CTX) is None, head
-    assert hear([_env("nonsense", payload)], CTX) is None  # an unknown kind: dropped message by message
+        assert hear([_env("pose", payload), _env("pose", payload, **head)], CTX, "r1") is None, head
+    assert hear([_env("nonsense", payload)], CTX, "r1") is None  # an unknown kind: dropped message by message
 
 
 def test_other_kinds_are_opened_as_messages_in_their_place() -> None:
     fill = MapFill(cells=np.array([3], np.int32), values=np.array([0], np.int8), seqs=(2,), upto=4)
     inbox = [_env("pose", PoseBeacon(cell=(1, 2)).encode()), _env("mapfill", fill.encode(), src="r2"),
              _env("map", MapDelta(cells=np.array([4], np.int32), values=np.array([100], np.int8)).encode())]
-    got = hear(inbox, CTX)
-    assert got is not None and isinstance(got[0][2], Beacon) and isinstance(got[2][2], Delta)
-    assert _equal(got[1][2].body, fill)
+    got = hear(inbox, CTX, "r0")
+    assert got is not None and isinstance(got.messages[0][2], Beacon) and isinstance(got.messages[2][2], Delta)
+    assert _equal(got.messages[1][2].body, fill)
     assert not any(CACHE in env.__dict__ for env in inbox)  # kept only for receivers that share envelopes
-    kept = hear(inbox, CTX, keep=True)
-    assert kept is not None and all(env.__dict__[CACHE][1] is item for env, item in zip(inbox, kept, strict=True))
-    again = hear(inbox, CTX, keep=True)  # the memory engine's receivers of one broadcast read it once
-    assert again is not None and all(a is b for a, b in zip(again, kept, strict=True))
+    kept = hear(inbox, CTX, "r0", keep=True)
+    assert kept is not None
+    assert all(env.__dict__[CACHE][1] is item for env, item in zip(inbox, kept.messages, strict=True))
+    again = hear(inbox, CTX, "r0", keep=True)  # the memory engine's receivers of one broadcast read it once
+    assert again is not None and all(a is b for a, b in zip(again.messages, kept.messages, strict=True))
 
 
 def test_the_brain_drops_and_counts_a_bad_message_and_hears_the_rest() -> None:
@@ -84,7 +90,7 @@ def test_the_brain_drops_and_counts_a_bad_message_and_hears_the_rest() -> None:
              seal(RadioMsg(MapDelta(cells=np.array([7], np.int32), values=np.array([100], np.int8))), "r1", 3, 2)]
     opened = brain.open(inbox)
     assert drops == ["radio/pose"]
-    assert [(o, type(b)) for o, _, b in opened] == [("r1", RadioMsg), ("r1", RadioMsg)]
+    assert [(o, type(b)) for o, _, b in opened.messages] == [("r1", RadioMsg), ("r1", RadioMsg)]
 
 
 def test_a_brain_hearing_at_once_learns_what_it_learns_message_by_message(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -110,7 +116,7 @@ def test_a_brain_hearing_at_once_learns_what_it_learns_message_by_message(monkey
         monkeypatch.undo()
         return b
 
-    assert hear(inbox, Context(senders=team, shape=(4, 5))) is not None  # heard at once, with no fallback
+    assert hear(inbox, Context(senders=team, shape=(4, 5)), "r0") is not None  # heard at once, with no fallback
     fast, slow = run(True), run(False)
     assert fast.belief is not None and slow.belief is not None
     assert np.array_equal(fast.belief.grid, slow.belief.grid) and fast.belief.known_cells == slow.belief.known_cells

@@ -1,0 +1,302 @@
+"""Teammates' map deltas and beacons' requests read straight from their bytes, all of an inbox's in one
+compiled pass each.
+
+A robot of a hundred hears about sixty map deltas and sixty beacons a tick, the beacons asking teammates for
+about seven lost deltas each (map sync). Decoding all of it into structs and dicts and checking it in Python
+cost more than the merge it feeds. Here :func:`read_deltas` walks every delta's MessagePack bytes
+(``docs/reference/protocol.md``: a map of ``cells``, ``values``, then ``n`` and ``covers`` when map sync numbers
+it), checks what :meth:`~fleet_emu.agents.protocol.MapDelta.validate` checks and copies the cells and values
+into two arrays; :func:`read_wants` checks the beacons' requests (``want``) as
+:meth:`~fleet_emu.agents.protocol.PoseBeacon.validate` does and reads only those addressed to the robot.
+
+Both read only the encoding the robots' own encoder writes (keys in that order, ``bin`` for the arrays,
+unsigned integers, short strings): anything else, valid or not, gets None or False, and the caller opens the
+inbox the general way, message by message, which accepts or refuses each as the message decoders do. The
+kernels accept a subset of what those accept, with the same values (``tests/agents/test_hearing.py`` compares
+them on mutated payloads).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Sequence
+
+import numpy as np
+
+from fleet_emu.core import kernels
+from fleet_emu.core.jit import njit
+
+# the keys and array headers as the encoder writes them (fixstr: 0xa0 + length, then the bytes)
+_CELLS = np.frombuffer(b"\xa5cells\x83\xa5dtype\xa5int32\xa5shape\x91", np.uint8)
+_VALUES = np.frombuffer(b"\xa6values\x83\xa5dtype\xa4int8\xa5shape\x91", np.uint8)
+_DATA = np.frombuffer(b"\xa4data", np.uint8)
+_N = np.frombuffer(b"\xa1n", np.uint8)
+_COVERS = np.frombuffer(b"\xa6covers", np.uint8)
+_MAX_INT = (1 << 63) - 1
+
+
+@njit(cache=True, inline="always")
+def _same(buf: np.ndarray, p: int, end: int, lit: np.ndarray) -> bool:
+    """Whether ``buf[p:]`` starts with ``lit`` before ``end``."""
+    if p + lit.shape[0] > end:
+        return False
+    for i in range(lit.shape[0]):  # noqa: SIM110 (a generator in all() does not compile in numba)
+        if buf[p + i] != lit[i]:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _uint(buf: np.ndarray, p: int, end: int) -> tuple[int, int]:
+    """A non-negative integer (positive fixint or uint 8 to 64) at ``p``: (value, next position), or (-1, p)."""
+    if p >= end:
+        return -1, p
+    b = int(buf[p])
+    if b < 0x80:
+        return b, p + 1
+    width = 1 if b == 0xCC else 2 if b == 0xCD else 4 if b == 0xCE else 8 if b == 0xCF else 0
+    if width == 0 or p + 1 + width > end or (width == 8 and buf[p + 1] >= 0x80):
+        return -1, p  # not such an integer, or above int64's range: the general way
+    v = 0
+    for i in range(width):
+        v = (v << 8) | int(buf[p + 1 + i])
+    return v, p + 1 + width
+
+
+@njit(cache=True)
+def _bin(buf: np.ndarray, p: int, end: int, size: int) -> int:
+    """The position of the bytes of a ``bin`` of ``size`` bytes whose header is at ``p``, or -1."""
+    b = int(buf[p]) if p < end else 0
+    width = 1 if b == 0xC4 else 2 if b == 0xC5 else 4 if b == 0xC6 else 0
+    if width == 0 or p + 1 + width > end:
+        return -1
+    n = 0
+    for i in range(width):
+        n = (n << 8) | int(buf[p + 1 + i])
+    q = p + 1 + width
+    return q if n == size and q + size <= end else -1
+
+
+@njit(cache=True)
+def _array(buf: np.ndarray, p: int, end: int, head: np.ndarray, width: int, max_bytes: int) -> tuple[int, int]:
+    """An array field (``head``, its shape's one number, ``data``) of ``width``-byte items at ``p``: (count,
+    position of its data) or (-1, p)."""
+    if not _same(buf, p, end, head):
+        return -1, p
+    k, p = _uint(buf, p + head.shape[0], end)
+    if k < 0 or k > max_bytes // width or not _same(buf, p, end, _DATA):
+        return -1, p
+    q = _bin(buf, p + _DATA.shape[0], end, k * width)
+    return (k, q) if q >= 0 else (-1, p)
+
+
+@njit(cache=True)
+def _covers(buf: np.ndarray, p: int, end: int, n: int, max_seqs: int, out: np.ndarray, o: int) -> tuple[int, int]:
+    """``covers`` at ``p``: strictly ascending numbers from 1, fewer than ``max_seqs``, the last below ``n``,
+    written at ``out[o:]``. (How many, the position after them), or (-1, p)."""
+    if p >= end:
+        return -1, p
+    b = int(buf[p])
+    if 0x90 <= b <= 0x9F:
+        count, p = b - 0x90, p + 1
+    elif b == 0xDC and p + 3 <= end:
+        count, p = int(buf[p + 1]) << 8 | int(buf[p + 2]), p + 3
+    else:
+        return -1, p
+    if count > max_seqs or o + count > out.shape[0]:
+        return -1, p
+    last = 0
+    for i in range(count):
+        s, p = _uint(buf, p, end)
+        if s <= last:  # also s < 0: not in its shortest form, or not a number
+            return -1, p
+        out[o + i] = s
+        last = s
+    return (count, p) if last < n else (-1, p)
+
+
+@njit(cache=True)
+def _read(buf: np.ndarray, lengths: np.ndarray, size: int, max_bytes: int, max_seqs: int
+          ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every delta (``lengths`` bytes each, one after another in ``buf``) read: (whether all are in the
+    encoder's form and valid, their cells and values one after another, per delta the end of its cells, ``n``
+    or 0 and the span of its ``covers`` in the last array or -1, -1)."""
+    room = buf.shape[0] // 5  # a cell takes at least 5 bytes of its delta: 4 for its index, 1 for its value
+    cells, values = np.empty(room, np.int32), np.empty(room, np.int8)
+    meta = np.empty((lengths.shape[0], 4), np.int64)
+    covers = np.empty(min(buf.shape[0], lengths.shape[0] * max_seqs), np.int64)
+    c, o, end = 0, 0, 0
+    for i in range(lengths.shape[0]):
+        p, end = end, end + lengths[i]
+        if p >= end or not 0x82 <= buf[p] <= 0x84:
+            return False, cells[:c], values[:c], meta, covers[:o]
+        fields = int(buf[p]) - 0x80
+        k, q = _array(buf, p + 1, end, _CELLS, 4, max_bytes)
+        k2, r = _array(buf, q + 4 * k, end, _VALUES, 1, max_bytes) if k >= 0 else (-1, p)
+        if k2 != k or k < 0 or not _cells(buf, q, r, k, size, cells[c:c + k], values[c:c + k]):
+            return False, cells[:c], values[:c], meta, covers[:o]
+        c += k
+        p = r + k
+        n, cov0, cov1 = 0, -1, -1
+        if fields >= 3:
+            n, p = _uint(buf, p + _N.shape[0], end) if _same(buf, p, end, _N) else (-1, p)
+        if fields == 4 and n >= 1:
+            count, p = _covers(buf, p + _COVERS.shape[0], end, n, max_seqs, covers, int(o)) \
+                if _same(buf, p, end, _COVERS) else (-1, p)
+            cov0, cov1 = (o, o + count) if count >= 0 else (-1, -2)
+            o = max(cov1, o)
+        if p != end or (fields >= 3 and n < 1) or cov1 < cov0:
+            return False, cells[:c], values[:c], meta, covers[:o]
+        meta[i, 0], meta[i, 1], meta[i, 2], meta[i, 3] = c, n, cov0, cov1
+    return True, cells[:c], values[:c], meta, covers[:o]
+
+
+@njit(cache=True)
+def _cells(buf: np.ndarray, q: int, r: int, k: int, size: int, cells: np.ndarray, values: np.ndarray) -> bool:
+    """``k`` cells (int32 from ``q``, in the machine's byte order as ``np.frombuffer`` reads them) and values
+    (int8 from ``r``) copied out; False when a cell is outside a grid of ``size`` cells or a value not -1, 0
+    or 100 (``kernels.cells_valid``'s checks)."""
+    src, vals = buf[q:q + 4 * k].view(np.int32), buf[r:r + k].view(np.int8)
+    for j in range(k):
+        c, v = src[j], vals[j]
+        if c < 0 or c >= size or (v != 0 and v != 100 and v != -1):
+            return False
+        cells[j] = c
+        values[j] = v
+    return True
+
+
+def read_deltas(payloads: Sequence[bytes], size: int, max_bytes: int, max_seqs: int
+                ) -> tuple[np.ndarray, np.ndarray, list[list[int]], list[int]] | None:
+    """The map deltas ``payloads`` of a grid of ``size`` cells, read at once: all their cells (int32) and
+    values (int8) one delta after another, read only; per delta the end of its cells, ``n`` (0 when absent) and
+    its ``covers``' span in the last list (-1, -1 when absent). None when one is not in the encoder's form or
+    not valid, for the caller to decode them the general way."""
+    buf = np.frombuffer(b"".join(payloads), np.uint8)
+    ok, cells, values, meta, covers = _read(buf, np.fromiter(map(len, payloads), np.int64, len(payloads)), size,
+                                            max_bytes, max_seqs)
+    if not ok:
+        return None
+    cells.flags.writeable = values.flags.writeable = False  # as arrays read from a message's bytes are
+    return cells, values, meta.tolist(), covers.tolist()
+
+
+@njit(cache=True)
+def _index(buf: np.ndarray, p: int, n: int, table: np.ndarray, names: np.ndarray, starts: np.ndarray) -> int:
+    """Which of the names ``names[starts[j]:starts[j + 1]]`` the ``n`` bytes at ``p`` are, or -1 (``table``:
+    their open-addressing hash table, :func:`team`)."""
+    h = 0
+    for i in range(n):
+        h = (h * 131 + int(buf[p + i])) & 0xFFFFFFFF
+    mask = table.shape[0] - 1
+    s = h & mask
+    while table[s] >= 0:
+        j = table[s]
+        a = starts[j]
+        if starts[j + 1] - a == n:
+            same = True
+            for i in range(n):
+                if buf[p + i] != names[a + i]:
+                    same = False
+                    break
+            if same:
+                return j
+        s = (s + 1) & mask
+    return -1
+
+
+@njit(cache=True)
+def _wants(buf: np.ndarray, lengths: np.ndarray, table: np.ndarray, names: np.ndarray, starts: np.ndarray,
+           me: int, max_seqs: int) -> tuple[bool, np.ndarray, np.ndarray]:
+    """The request maps (``lengths`` bytes each, one after another in ``buf``) checked and read: (whether all
+    are in the encoder's form and valid, each map's count of numbers asked of teammate ``me`` or -1, those
+    numbers map after map). Valid: keys teammates' names, values strictly ascending delta numbers from 1, at
+    most ``max_seqs``; a key twice, the last holds (as in a dict)."""
+    counts = np.full(lengths.shape[0], -1, np.int64)
+    seqs, scratch = np.empty(lengths.shape[0] * max_seqs, np.int64), np.empty(max_seqs, np.int64)
+    o, end = 0, 0
+    for i in range(lengths.shape[0]):
+        p, end = end, end + lengths[i]
+        b = int(buf[p]) if p < end else 0
+        if 0x80 <= b <= 0x8F:
+            count, p = b - 0x80, p + 1
+        elif b == 0xDE and p + 3 <= end:
+            count, p = int(buf[p + 1]) << 8 | int(buf[p + 2]), p + 3
+        else:
+            return False, counts, seqs[:0]
+        base = o
+        for _ in range(count):
+            k = int(buf[p]) - 0xA0 if p < end else -1
+            j = _index(buf, p + 1, k, table, names, starts) if 0 <= k <= 31 and p + 1 + k <= end else -1
+            if j == me:
+                got, p = _covers(buf, p + 1 + k, end, _MAX_INT, max_seqs, seqs, int(base))
+                counts[i], o = got, base + max(got, 0)
+            else:
+                got, p = _covers(buf, p + 1 + k, end, _MAX_INT, max_seqs, scratch, 0)
+            if j < 0 or got < 0:
+                return False, counts, seqs[:0]
+        if p != end:
+            return False, counts, seqs[:0]
+    return True, counts, seqs[:o]
+
+
+@dataclasses.dataclass(frozen=True)
+class Team:
+    """A team's names as :func:`read_wants` looks them up: their UTF-8 bytes one after another (``names``),
+    where each starts, an open-addressing hash table of them, and each name's index."""
+
+    table: np.ndarray
+    names: np.ndarray
+    starts: np.ndarray
+    index: dict[str, int]
+
+
+@functools.lru_cache(maxsize=16)
+def team(members: frozenset[str]) -> Team:
+    """The :class:`Team` of ``members`` (built once per team)."""
+    order = sorted(members)
+    encoded = [name.encode() for name in order]
+    starts = np.zeros(len(encoded) + 1, np.int64)
+    np.cumsum([len(e) for e in encoded], out=starts[1:])
+    table = np.full(1 << (2 * len(encoded)).bit_length(), -1, np.int64)  # at most half full
+    mask = table.shape[0] - 1
+    for j, e in enumerate(encoded):
+        h = 0
+        for byte in e:
+            h = (h * 131 + byte) & 0xFFFFFFFF
+        s = h & mask
+        while table[s] >= 0:
+            s = (s + 1) & mask
+        table[s] = j
+    return Team(table, np.frombuffer(b"".join(encoded), np.uint8), starts, {n: j for j, n in enumerate(order)})
+
+
+def read_wants(wants: Sequence[bytes], members: Team, robot: str, max_seqs: int
+               ) -> dict[int, tuple[int, ...]] | None:
+    """The beacons' request maps ``wants`` (their MessagePack bytes) checked as
+    :meth:`~fleet_emu.agents.protocol.PoseBeacon.validate` checks them (keys teammates of ``members``, delta
+    numbers strictly ascending from 1, at most ``max_seqs``), and what they ask ``robot`` for, by the map's
+    index (a map asking nothing of it left out). None when one is not valid or not in the encoder's form."""
+    buf = np.frombuffer(b"".join(wants), np.uint8)
+    ok, counts, seqs = _wants(buf, np.fromiter(map(len, wants), np.int64, len(wants)), members.table,
+                              members.names, members.starts, members.index.get(robot, -1), max_seqs)
+    if not ok:
+        return None
+    out, flat, a = {}, seqs.tolist(), 0
+    for i in np.flatnonzero(counts >= 0).tolist():
+        out[i] = tuple(flat[a:a + counts[i]])
+        a += int(counts[i])
+    return out
+
+
+def warm_up() -> None:
+    """Compile (or load from cache) every kernel a robot runs, the grid's (``core.kernels.warm_up``) and
+    these, so the first tick does not pay for them."""
+    from fleet_emu.agents.protocol import MapDelta
+
+    kernels.warm_up()
+
+    delta = MapDelta(cells=np.array([0], np.int32), values=np.array([0], np.int8), n=2, covers=(1,)).encode()
+    read_deltas([delta], 1, 1 << 20, 64)
+    read_wants([b"\x81\xa2r1\x91\x01"], team(frozenset({"r1"})), "r1", 64)
