@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fleet_emu.core.grid import UNKNOWN
+from fleet_emu.core.grid import UNKNOWN, distinct
 from fleet_emu.core.kernels import known_grown, merge_parts
 
 
@@ -115,4 +115,4 @@ def _union(parts: list[np.ndarray]) -> np.ndarray:
     """The distinct indices of ``parts``, ascending."""
     if not parts:
         return np.zeros(0, dtype=np.int64)
-    return np.unique(np.concatenate(parts)) if len(parts) > 1 else np.unique(parts[0])
+    return distinct(np.concatenate(parts) if len(parts) > 1 else parts[0])

@@ -60,6 +60,7 @@ import numpy as np
 
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.protocol import MAX_SEQS, MapFill
+from fleet_emu.core.grid import distinct
 
 
 @dataclasses.dataclass(frozen=True)
@@ -201,7 +202,7 @@ class MapSync:
         if not again:
             return cells, None
         extra = np.concatenate([self.history[n] for n in again])
-        out = np.union1d(cells, extra).astype(np.int32)
+        out = distinct(np.concatenate((cells, extra))).astype(np.int32)
         self.resent += len(again)
         self.resent_cells += len(out) - len(cells)
         return out, again

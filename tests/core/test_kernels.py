@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fleet_emu.core.grid import OCCUPIED, flat, from_ascii, to_ascii, unflat
+from fleet_emu.core.grid import OCCUPIED, distinct, flat, from_ascii, to_ascii, unflat
 from fleet_emu.core.kernels import count_walls, label, visible_cells, wavefront
 
 
@@ -22,6 +22,16 @@ def test_ascii_round_trip() -> None:
     assert grid[1, 3] == -1 and grid[0, 0] == OCCUPIED
     assert to_ascii(grid, robots).splitlines()[1] == "#0.?#"
     assert unflat(grid.shape, flat(grid.shape, (2, 3))) == (2, 3)
+
+
+def test_distinct_is_numpy_s_unique() -> None:
+    rng = np.random.default_rng(0)
+    for n in (0, 1, 2, 3, 50, 5000):
+        for dtype in (np.int32, np.int64):
+            a = rng.integers(0, max(2, n // 3), n).astype(dtype)
+            got, want = distinct(a), np.unique(a)
+            assert got.dtype == want.dtype and np.array_equal(got, want), (n, dtype)
+            assert got is not a  # a copy, as np.unique's
 
 
 def test_wavefront_goes_around_walls_and_stops() -> None:
