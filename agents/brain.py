@@ -42,7 +42,7 @@ from fleet_emu.agents.allocators import (
 )
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.clusters import FrontierClusters
-from fleet_emu.agents.hearing import Beacon, Delta, Hearing, as_heard, hear
+from fleet_emu.agents.hearing import Beacon, Delta, Fill, Hearing, as_heard, hear
 from fleet_emu.agents.mapsync import MapSync, SyncConfig
 from fleet_emu.agents.navigation import next_move
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
@@ -393,7 +393,7 @@ class Brain:
                     peer.received(body.n)
                     if body.covers:
                         peer.filled(body.covers, 0)
-            elif kind is MapFill:
+            elif kind is Fill or kind is MapFill:
                 merges.add(body.cells, body.values)
                 if sync is not None:
                     sync.peer(origin).filled(body.seqs, body.upto)

@@ -86,6 +86,26 @@ class Delta(msgspec.Struct, gc=False):
         return self.all_values[self.start:self.end]
 
 
+class Fill(msgspec.Struct, gc=False):
+    """A map fill's fields as heard (:class:`~fleet_emu.agents.protocol.MapFill`'s), its cells and values
+    ``start:end`` of ``all_cells`` and ``all_values`` as a :class:`Delta`'s."""
+
+    all_cells: np.ndarray
+    all_values: np.ndarray
+    start: int
+    end: int
+    seqs: tuple[int, ...] = ()
+    upto: int = 0
+
+    @property
+    def cells(self) -> np.ndarray:
+        return self.all_cells[self.start:self.end]
+
+    @property
+    def values(self) -> np.ndarray:
+        return self.all_values[self.start:self.end]
+
+
 @functools.lru_cache(maxsize=16)
 def _beacon_decoder(shape: tuple[int, int]) -> msgspec.msgpack.Decoder:
     """A beacon decoder for one grid: a cell's row and column in range, checked by msgspec
@@ -112,8 +132,9 @@ def hear(inbox: Sequence[Envelope], ctx: Context, robot: str, keep: bool = False
     out: list[Any] = []
     wants: list[msgspec.Raw] = []  # the beacons' requests, checked at the end
     where: list[int] = []  # their places in out
-    maps: list[int] = []  # the map deltas' places in out, read at the end
+    maps: list[int] = []  # the map deltas' and fills' places in out, read at the end
     payloads: list[bytes] = []
+    fills: list[bool] = []
     fresh: list[tuple[int, Envelope]] = []
     add, max_ttl, max_bytes = out.append, MAX_TTL, MAX_PAYLOAD_BYTES
     try:
@@ -141,15 +162,16 @@ def hear(inbox: Sequence[Envelope], ctx: Context, robot: str, keep: bool = False
                     where.append(len(out))
                     wants.append(b.want)
                 add((origin, tick, b))
-            elif kind == "map":
+            elif kind == "map" or kind == "mapfill":
                 maps.append(len(out))
                 payloads.append(payload)
+                fills.append(kind == "mapfill")
                 add((origin, tick, None))
             else:
                 add((origin, tick, open_envelope(env, ctx)))
     except (msgspec.MsgspecError, DecodeError, UnicodeDecodeError):  # msgspec: a string not UTF-8
         return None
-    deltas = _deltas(payloads, shape, keep) if payloads else []
+    deltas = _deltas(payloads, fills, shape, keep) if payloads else []
     asks = read_wants(wants, team(senders), robot, MAX_SEQS) if wants else {}
     if deltas is None or asks is None:
         return None
@@ -171,21 +193,26 @@ def _kept(env: Envelope, ctx: Context) -> Heard | None:
     return None
 
 
-def _deltas(payloads: list[bytes], shape: tuple[int, int], own: bool) -> list[Delta] | None:
-    """The map deltas of ``payloads`` read and checked in one compiled pass
+def _deltas(payloads: list[bytes], fills: list[bool], shape: tuple[int, int], own: bool
+            ) -> list[Delta | Fill] | None:
+    """The map deltas and fills (``fills``) of ``payloads`` read and checked in one compiled pass
     (:func:`~fleet_emu.agents.hearing_kernels.read_deltas`), their cells and values in two arrays for all,
-    each delta a slice (read by the brain's merge without a copy); with ``own`` each delta gets arrays of its
-    own (its receivers' runs of deltas are not this inbox's). None when one does not pass or is not in the
+    each message a slice (read by the brain's merge without a copy); with ``own`` each gets arrays of its own
+    (its receivers' runs of messages are not this inbox's). None when one does not pass or is not in the
     robots' own encoding."""
-    got = read_deltas(payloads, shape[0] * shape[1], MAX_ARRAY_BYTES, MAX_SEQS)
+    got = read_deltas(payloads, fills, shape[0] * shape[1], MAX_ARRAY_BYTES, MAX_SEQS)
     if got is None:
         return None
-    cells, values, rows, covers = got
-    out, a = [], 0
-    for end, n, c0, c1 in rows:
-        cov = tuple(covers[c0:c1]) if c0 >= 0 else None
-        out.append(Delta(cells[a:end], values[a:end], 0, end - a, n or None, cov) if own
-                   else Delta(cells, values, a, end, n or None, cov))
+    cells, values, rows, seqs = got
+    out: list[Delta | Fill] = []
+    a = 0
+    for (end, n, s0, s1), fill in zip(rows, fills, strict=True):
+        all_cells, all_values, start, stop = (cells[a:end], values[a:end], 0, end - a) if own \
+            else (cells, values, a, end)
+        if fill:
+            out.append(Fill(all_cells, all_values, start, stop, tuple(seqs[s0:s1]), n))
+        else:
+            out.append(Delta(all_cells, all_values, start, stop, n or None, tuple(seqs[s0:s1]) if s0 >= 0 else None))
         a = end
     return out
 

@@ -33,6 +33,8 @@ _VALUES = np.frombuffer(b"\xa6values\x83\xa5dtype\xa4int8\xa5shape\x91", np.uint
 _DATA = np.frombuffer(b"\xa4data", np.uint8)
 _N = np.frombuffer(b"\xa1n", np.uint8)
 _COVERS = np.frombuffer(b"\xa6covers", np.uint8)
+_SEQS = np.frombuffer(b"\xa4seqs", np.uint8)
+_UPTO = np.frombuffer(b"\xa4upto", np.uint8)
 _MAX_INT = (1 << 63) - 1
 
 
@@ -117,39 +119,66 @@ def _covers(buf: np.ndarray, p: int, end: int, n: int, max_seqs: int, out: np.nd
 
 
 @njit(cache=True)
-def _read(buf: np.ndarray, lengths: np.ndarray, size: int, max_bytes: int, max_seqs: int
+def _read(buf: np.ndarray, lengths: np.ndarray, fills: np.ndarray, size: int, max_bytes: int, max_seqs: int
           ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Every delta (``lengths`` bytes each, one after another in ``buf``) read: (whether all are in the
-    encoder's form and valid, their cells and values one after another, per delta the end of its cells, ``n``
-    or 0 and the span of its ``covers`` in the last array or -1, -1)."""
-    room = buf.shape[0] // 5  # a cell takes at least 5 bytes of its delta: 4 for its index, 1 for its value
+    """Every map delta or fill (``fills[i]``; ``lengths`` bytes each, one after another in ``buf``) read:
+    (whether all are in the encoder's form and valid, their cells and values one after another, per message
+    the end of its cells, then ``n`` or 0 and the span of ``covers`` in the last array or -1, -1 for a delta,
+    ``upto`` and the span of ``seqs`` for a fill)."""
+    room = buf.shape[0] // 5  # a cell takes at least 5 bytes of its message: 4 for its index, 1 for its value
     cells, values = np.empty(room, np.int32), np.empty(room, np.int8)
     meta = np.empty((lengths.shape[0], 4), np.int64)
-    covers = np.empty(min(buf.shape[0], lengths.shape[0] * max_seqs), np.int64)
+    seqs = np.empty(min(buf.shape[0], lengths.shape[0] * max_seqs), np.int64)
     c, o, end = 0, 0, 0
     for i in range(lengths.shape[0]):
         p, end = end, end + lengths[i]
         if p >= end or not 0x82 <= buf[p] <= 0x84:
-            return False, cells[:c], values[:c], meta, covers[:o]
+            return False, cells[:c], values[:c], meta, seqs[:o]
         fields = int(buf[p]) - 0x80
         k, q = _array(buf, p + 1, end, _CELLS, 4, max_bytes)
         k2, r = _array(buf, q + 4 * k, end, _VALUES, 1, max_bytes) if k >= 0 else (-1, p)
         if k2 != k or k < 0 or not _cells(buf, q, r, k, size, cells[c:c + k], values[c:c + k]):
-            return False, cells[:c], values[:c], meta, covers[:o]
+            return False, cells[:c], values[:c], meta, seqs[:o]
         c += k
-        p = r + k
-        n, cov0, cov1 = 0, -1, -1
-        if fields >= 3:
-            n, p = _uint(buf, p + _N.shape[0], end) if _same(buf, p, end, _N) else (-1, p)
-        if fields == 4 and n >= 1:
-            count, p = _covers(buf, p + _COVERS.shape[0], end, n, max_seqs, covers, int(o)) \
-                if _same(buf, p, end, _COVERS) else (-1, p)
-            cov0, cov1 = (o, o + count) if count >= 0 else (-1, -2)
-            o = max(cov1, o)
-        if p != end or (fields >= 3 and n < 1) or cov1 < cov0:
-            return False, cells[:c], values[:c], meta, covers[:o]
-        meta[i, 0], meta[i, 1], meta[i, 2], meta[i, 3] = c, n, cov0, cov1
-    return True, cells[:c], values[:c], meta, covers[:o]
+        if fills[i]:
+            n, count, p = _fill_tail(buf, r + k, end, fields, max_seqs, seqs, int(o))
+        else:
+            n, count, p = _delta_tail(buf, r + k, end, fields, max_seqs, seqs, int(o))
+        if p != end or n < 0:
+            return False, cells[:c], values[:c], meta, seqs[:o]
+        meta[i, 0], meta[i, 1] = c, n
+        meta[i, 2], meta[i, 3] = (o, o + count) if count >= 0 else (-1, -1)
+        o += max(count, 0)
+    return True, cells[:c], values[:c], meta, seqs[:o]
+
+
+@njit(cache=True)
+def _delta_tail(buf: np.ndarray, p: int, end: int, fields: int, max_seqs: int, out: np.ndarray, o: int
+                ) -> tuple[int, int, int]:
+    """A delta's fields after its arrays: (``n`` or 0, how many ``covers`` written at ``out[o:]`` or -1
+    without, the position after them); ``n`` -1 when they are not valid."""
+    if fields == 2:
+        return 0, -1, p
+    n, p = _uint(buf, p + _N.shape[0], end) if _same(buf, p, end, _N) else (-1, p)
+    if fields == 3 or n < 1:
+        return (n if n >= 1 else -1), -1, p
+    count, p = _covers(buf, p + _COVERS.shape[0], end, n, max_seqs, out, o) if _same(buf, p, end, _COVERS) \
+        else (-1, p)
+    return (n if count >= 0 else -1), count, p
+
+
+@njit(cache=True)
+def _fill_tail(buf: np.ndarray, p: int, end: int, fields: int, max_seqs: int, out: np.ndarray, o: int
+               ) -> tuple[int, int, int]:
+    """A fill's fields after its arrays, both as its encoder writes them: (``upto``, how many ``seqs`` written
+    at ``out[o:]``, the position after them); ``upto`` -1 when they are not valid."""
+    if fields != 4 or not _same(buf, p, end, _SEQS):
+        return -1, -1, p
+    count, p = _covers(buf, p + _SEQS.shape[0], end, _MAX_INT, max_seqs, out, o)
+    if count < 0 or not _same(buf, p, end, _UPTO):
+        return -1, -1, p
+    upto, p = _uint(buf, p + _UPTO.shape[0], end)
+    return upto, count, p
 
 
 @njit(cache=True)
@@ -167,19 +196,20 @@ def _cells(buf: np.ndarray, q: int, r: int, k: int, size: int, cells: np.ndarray
     return True
 
 
-def read_deltas(payloads: Sequence[bytes], size: int, max_bytes: int, max_seqs: int
+def read_deltas(payloads: Sequence[bytes], fills: Sequence[bool], size: int, max_bytes: int, max_seqs: int
                 ) -> tuple[np.ndarray, np.ndarray, list[list[int]], list[int]] | None:
-    """The map deltas ``payloads`` of a grid of ``size`` cells, read at once: all their cells (int32) and
-    values (int8) one delta after another, read only; per delta the end of its cells, ``n`` (0 when absent) and
-    its ``covers``' span in the last list (-1, -1 when absent). None when one is not in the encoder's form or
-    not valid, for the caller to decode them the general way."""
+    """The map deltas and fills (``fills``) ``payloads`` of a grid of ``size`` cells, read at once: all their
+    cells (int32) and values (int8) one message after another, read only; per message the end of its cells,
+    then ``n`` (0 when absent) and its ``covers``' span in the last list (-1, -1 when absent) for a delta,
+    ``upto`` and its ``seqs``' span for a fill. None when one is not in the encoder's form or not valid, for
+    the caller to decode them the general way."""
     buf = np.frombuffer(b"".join(payloads), np.uint8)
-    ok, cells, values, meta, covers = _read(buf, np.fromiter(map(len, payloads), np.int64, len(payloads)), size,
-                                            max_bytes, max_seqs)
+    ok, cells, values, meta, seqs = _read(buf, np.fromiter(map(len, payloads), np.int64, len(payloads)),
+                                          np.fromiter(fills, np.bool_, len(payloads)), size, max_bytes, max_seqs)
     if not ok:
         return None
     cells.flags.writeable = values.flags.writeable = False  # as arrays read from a message's bytes are
-    return cells, values, meta.tolist(), covers.tolist()
+    return cells, values, meta.tolist(), seqs.tolist()
 
 
 @njit(cache=True)
@@ -293,10 +323,11 @@ def read_wants(wants: Sequence[bytes], members: Team, robot: str, max_seqs: int
 def warm_up() -> None:
     """Compile (or load from cache) every kernel a robot runs, the grid's (``core.kernels.warm_up``) and
     these, so the first tick does not pay for them."""
-    from fleet_emu.agents.protocol import MapDelta
+    from fleet_emu.agents.protocol import MapDelta, MapFill
 
     kernels.warm_up()
 
     delta = MapDelta(cells=np.array([0], np.int32), values=np.array([0], np.int8), n=2, covers=(1,)).encode()
-    read_deltas([delta], 1, 1 << 20, 64)
+    fill = MapFill(cells=np.array([0], np.int32), values=np.array([0], np.int8), seqs=(1,), upto=1).encode()
+    read_deltas([delta, fill], [False, True], 1, 1 << 20, 64)
     read_wants([b"\x81\xa2r1\x91\x01"], team(frozenset({"r1"})), "r1", 64)

@@ -1,4 +1,4 @@
-"""The hearing kernels read map deltas and beacons' requests straight from their bytes: on the robots' own
+"""The hearing kernels read map deltas, fills and beacons' requests straight from their bytes: on the robots' own
 encodings and on damaged copies of them (a byte changed, cut, added or removed), what :func:`hear` accepts the
 message decoders accept too, with the same values; what they refuse, it refuses (the brain then opens the inbox
 message by message, as it does for a valid message in another encoding)."""
@@ -10,9 +10,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fleet_emu.agents.hearing import Beacon, Delta, hear
+from fleet_emu.agents.hearing import Beacon, Delta, Fill, hear
 from fleet_emu.agents.hearing_kernels import read_deltas, read_wants, team
-from fleet_emu.agents.protocol import MAX_SEQS, MapDelta, PoseBeacon
+from fleet_emu.agents.protocol import MAX_SEQS, MapDelta, MapFill, PoseBeacon
 from fleet_emu.core.codec import Context, DecodeError, decode_payload
 from fleet_emu.core.envelope import Envelope
 
@@ -31,6 +31,11 @@ def _deltas(rng: np.random.Generator, count: int) -> list[MapDelta]:
         covers = tuple(sorted(set(rng.integers(1, n, 4).tolist()))) if n and n > 1 and i % 2 else None
         out.append(MapDelta(cells=cells, values=values, n=n, covers=covers))
     return out
+
+
+def _fills(rng: np.random.Generator, count: int) -> list[MapFill]:
+    return [MapFill(cells=d.cells, values=d.values, seqs=d.covers or (), upto=int(rng.integers(0, 300)))
+            for d in _deltas(rng, count)]
 
 
 def _beacons(rng: np.random.Generator, count: int) -> list[PoseBeacon]:
@@ -65,17 +70,24 @@ def _env(kind: str, payload: bytes) -> Envelope:
     return Envelope(src="r1", tick=3, seq=7, origin="r1", dst="*", ttl=0, payload_kind=kind, payload=payload)
 
 
-def test_the_robots_own_deltas_are_read_from_their_bytes_as_decoded() -> None:
-    deltas = _deltas(np.random.default_rng(0), 60)
-    got = read_deltas([d.encode() for d in deltas], 40 * 50, 1 << 26, MAX_SEQS)
+def test_the_robots_own_deltas_and_fills_are_read_from_their_bytes_as_decoded() -> None:
+    rng = np.random.default_rng(0)
+    messages: list[MapDelta | MapFill] = [m for pair in zip(_deltas(rng, 40), _fills(rng, 40), strict=True)
+                                          for m in pair]
+    got = read_deltas([m.encode() for m in messages], [isinstance(m, MapFill) for m in messages], 40 * 50,
+                      1 << 26, MAX_SEQS)
     assert got is not None  # every one the fast way
-    cells, values, rows, covers = got
+    cells, values, rows, seqs = got
     assert not cells.flags.writeable and cells.dtype == np.int32 and values.dtype == np.int8
     a = 0
-    for d, (end, n, c0, c1) in zip(deltas, rows, strict=True):
-        assert np.array_equal(cells[a:end], d.cells) and np.array_equal(values[a:end], d.values)
-        assert (n or None, tuple(covers[c0:c1]) if c0 >= 0 else None) == (d.n, d.covers)
+    for m, (end, n, s0, s1) in zip(messages, rows, strict=True):
+        assert np.array_equal(cells[a:end], m.cells) and np.array_equal(values[a:end], m.values)
+        if isinstance(m, MapFill):
+            assert (n, tuple(seqs[s0:s1])) == (m.upto, m.seqs)
+        else:
+            assert (n or None, tuple(seqs[s0:s1]) if s0 >= 0 else None) == (m.n, m.covers)
         a = end
+    assert read_deltas([messages[0].encode()], [True], 40 * 50, 1 << 26, MAX_SEQS) is None  # a delta is no fill
 
 
 def test_the_robots_own_requests_are_checked_and_read_for_the_robot_asked() -> None:
@@ -88,10 +100,11 @@ def test_the_robots_own_requests_are_checked_and_read_for_the_robot_asked() -> N
     assert read_wants(wants, team(TEAM - {"r2"}), "r1", MAX_SEQS) is None  # a request to a stranger
 
 
-@pytest.mark.parametrize("kind", ["map", "pose"])
+@pytest.mark.parametrize("kind", ["map", "mapfill", "pose"])
 def test_damaged_bytes_are_refused_or_read_as_the_decoders_read_them(kind: str) -> None:
     rng = np.random.default_rng(2)
-    messages = _deltas(rng, 40) if kind == "map" else _beacons(rng, 40)
+    make = {"map": _deltas, "mapfill": _fills, "pose": _beacons}[kind]
+    messages: list[Any] = make(rng, 40)
     fast = refused = 0
     for msg in messages:
         for _ in range(60):
@@ -108,6 +121,10 @@ def test_damaged_bytes_are_refused_or_read_as_the_decoders_read_them(kind: str) 
                     assert isinstance(body, Delta) and np.array_equal(body.cells, record.cells)
                     assert np.array_equal(body.values, record.values)
                     assert (body.n, body.covers) == (record.n, record.covers)
+                elif kind == "mapfill":
+                    assert isinstance(body, Fill) and np.array_equal(body.cells, record.cells)
+                    assert np.array_equal(body.values, record.values)
+                    assert (body.seqs, body.upto) == (record.seqs, record.upto)
                 else:
                     assert isinstance(body, Beacon) and (body.cell, body.next, body.maps) == \
                         (record.cell, record.next, record.maps)
