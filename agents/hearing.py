@@ -220,7 +220,7 @@ def _deltas(payloads: list[bytes], fills: list[bool], shape: tuple[int, int], ow
 def as_heard(msgs: Sequence[RadioMsg], robot: str) -> Hearing:
     """Messages opened one by one (:meth:`Brain.open`'s long way) in :func:`hear`'s form, as ``robot`` hears
     them."""
-    asks = {i: seqs for i, m in enumerate(msgs)
-            if isinstance(m.body, PoseBeacon) and (seqs := m.body.asks(robot)) is not None}
+    asks = {i: m.body.want[robot] for i, m in enumerate(msgs)
+            if isinstance(m.body, PoseBeacon) and m.body.want and robot in m.body.want}
     return Hearing([(m.origin, m.tick, m) for m in msgs], asks)
 

@@ -67,10 +67,6 @@ class PoseBeacon(Payload):
         """Where the robot stands once its command of the beacon's tick is applied, if the move succeeds."""
         return self.cell if self.next is None else self.next
 
-    def asks(self, robot: str) -> tuple[int, ...] | None:
-        """The delta numbers this beacon asks ``robot`` for again, or None."""
-        return self.want.get(robot) if self.want else None
-
     def validate(self, ctx: Context | None) -> None:
         check_cell(self.cell, ctx.shape if ctx else None, "pose")
         if self.next is not None:
