@@ -1,13 +1,13 @@
-"""What a robot hears in a tick, decoded at once: its teammates' pose beacons and map deltas read straight from
-their payloads into light structs, checked against the team and the grid, with no record built per message.
+"""What a robot hears in a tick, decoded at once: its teammates' pose beacons, map deltas and fills read straight
+from their payloads into light structs, checked against the team and the grid, with no record built per message.
 
 At 100 robots a robot hears about 90 beacons and 90 map deltas a tick; decoding each into a
 :class:`~fleet_emu.agents.protocol.PoseBeacon` or :class:`~fleet_emu.agents.protocol.MapDelta` and a
 :class:`~fleet_emu.core.messages.RadioMsg` cost several microseconds of Python per message, most of the brain's
-CPU outside the allocator. Here a beacon's cells are checked by its decoder (per grid and team, built once),
-its requests (``want``) are kept as their bytes and checked for all beacons in one compiled pass, the map
-deltas are read from their bytes in another (:mod:`~fleet_emu.agents.hearing_kernels`), and the brain reads
-the structs (:meth:`Brain.open`).
+CPU outside the allocator. Here a beacon's cells are checked by its decoder (per grid, built once), its
+requests (``want``) are kept as their bytes and checked for all beacons in one compiled pass, which also picks
+out those addressed to the robot (:attr:`Hearing.asks`); the map deltas and fills are read from their bytes
+in another (:mod:`~fleet_emu.agents.hearing_kernels`), and the brain reads the structs (:meth:`Brain.open`).
 
 This decides nothing: :func:`hear` accepts only what the message decoders accept (``agents/protocol.py``; the
 tests compare them on mutated payloads), gives their values, and returns None for an inbox holding anything
@@ -37,8 +37,8 @@ from fleet_emu.core.messages import Envelope, RadioMsg, open_envelope
 #: it is (as :func:`~fleet_emu.core.envelope.open_envelope` keeps its opened message).
 CACHE = "_heard"
 
-#: One message heard: its origin, its envelope's tick, and its body (a :class:`Beacon`, a :class:`Delta`, or
-#: a :class:`RadioMsg` for every other kind).
+#: One message heard: its origin, its envelope's tick, and its body (a :class:`Beacon`, a :class:`Delta`, a
+#: :class:`Fill`, or a :class:`RadioMsg` for every other kind).
 Heard = tuple[str, int, Any]
 
 

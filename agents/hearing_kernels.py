@@ -2,18 +2,20 @@
 compiled pass each.
 
 A robot of a hundred hears about sixty map deltas and sixty beacons a tick, the beacons asking teammates for
-about seven lost deltas each (map sync). Decoding all of it into structs and dicts and checking it in Python
-cost more than the merge it feeds. Here :func:`read_deltas` walks every delta's MessagePack bytes
-(``docs/reference/protocol.md``: a map of ``cells``, ``values``, then ``n`` and ``covers`` when map sync numbers
-it), checks what :meth:`~fleet_emu.agents.protocol.MapDelta.validate` checks and copies the cells and values
-into two arrays; :func:`read_wants` checks the beacons' requests (``want``) as
+about seven lost deltas each (map sync), and in its first ticks a whole map from most teammates. Decoding all
+of it into structs and dicts and checking it in Python cost more than the merge it feeds. Here
+:func:`read_deltas` walks every map delta's and fill's MessagePack bytes (``docs/reference/protocol.md``: a map
+of ``cells``, ``values``, then a delta's ``n`` and ``covers`` when map sync numbers it, a fill's ``seqs`` and
+``upto``), checks what :meth:`~fleet_emu.agents.protocol.MapDelta.validate` and
+:meth:`~fleet_emu.agents.protocol.MapFill.validate` check and copies the cells and values into two arrays;
+:func:`read_wants` checks the beacons' requests (``want``) as
 :meth:`~fleet_emu.agents.protocol.PoseBeacon.validate` does and reads only those addressed to the robot.
 
 Both read only the encoding the robots' own encoder writes (keys in that order, ``bin`` for the arrays,
 unsigned integers, short strings): anything else, valid or not, gets None or False, and the caller opens the
 inbox the general way, message by message, which accepts or refuses each as the message decoders do. The
-kernels accept a subset of what those accept, with the same values (``tests/agents/test_hearing.py`` compares
-them on mutated payloads).
+kernels accept a subset of what those accept, with the same values (``tests/agents/test_hearing_kernels.py``
+compares them on damaged bytes of the robots' own messages, ``tests/agents/test_hearing.py`` on mutated maps).
 """
 
 from __future__ import annotations
@@ -95,8 +97,8 @@ def _array(buf: np.ndarray, p: int, end: int, head: np.ndarray, width: int, max_
 
 @njit(cache=True)
 def _covers(buf: np.ndarray, p: int, end: int, n: int, max_seqs: int, out: np.ndarray, o: int) -> tuple[int, int]:
-    """``covers`` at ``p``: strictly ascending numbers from 1, fewer than ``max_seqs``, the last below ``n``,
-    written at ``out[o:]``. (How many, the position after them), or (-1, p)."""
+    """A list of delta numbers at ``p`` (``covers``, ``seqs``, a request): strictly ascending from 1, at most
+    ``max_seqs``, the last below ``n``, written at ``out[o:]``. (How many, the position after them), or (-1, p)."""
     if p >= end:
         return -1, p
     b = int(buf[p])
@@ -111,7 +113,7 @@ def _covers(buf: np.ndarray, p: int, end: int, n: int, max_seqs: int, out: np.nd
     last = 0
     for i in range(count):
         s, p = _uint(buf, p, end)
-        if s <= last:  # also s < 0: not in its shortest form, or not a number
+        if s <= last:  # also s < 0: not an unsigned integer
             return -1, p
         out[o + i] = s
         last = s
