@@ -214,42 +214,22 @@ def read_deltas(payloads: Sequence[bytes], fills: Sequence[bool], size: int, max
     return cells, values, meta.tolist(), seqs.tolist()
 
 
-@njit(cache=True)
-def _index(buf: np.ndarray, p: int, n: int, table: np.ndarray, names: np.ndarray, starts: np.ndarray) -> int:
-    """Which of the names ``names[starts[j]:starts[j + 1]]`` the ``n`` bytes at ``p`` are, or -1 (``table``:
-    their open-addressing hash table, :func:`team`)."""
-    h = 0
-    for i in range(n):
-        h = (h * 131 + int(buf[p + i])) & 0xFFFFFFFF
-    mask = table.shape[0] - 1
-    s = h & mask
-    while table[s] >= 0:
-        j = table[s]
-        a = starts[j]
-        if starts[j + 1] - a == n:
-            same = True
-            for i in range(n):
-                if buf[p + i] != names[a + i]:
-                    same = False
-                    break
-            if same:
-                return j
-        s = (s + 1) & mask
-    return -1
+_HASH = -7046029254386353131  # 0x9E3779B97F4A7C15 (Fibonacci hashing) as a signed 64-bit number
 
 
 @njit(cache=True)
-def _wants(buf: np.ndarray, lengths: np.ndarray, table: np.ndarray, names: np.ndarray, starts: np.ndarray,
-           me: int, max_seqs: int) -> tuple[bool, np.ndarray, np.ndarray]:
+def _wants(buf: np.ndarray, lengths: np.ndarray, keys: np.ndarray, ids: np.ndarray, me: int, max_seqs: int
+           ) -> tuple[bool, np.ndarray, np.ndarray]:
     """The request maps (``lengths`` bytes each, one after another in ``buf``) checked and read: (whether all
     are in the encoder's form and valid, each map's count of numbers asked of teammate ``me`` or -1, those
-    numbers map after map). Valid: keys teammates' names, values strictly ascending delta numbers from 1, at
-    most ``max_seqs``; a key twice, the last holds (as in a dict)."""
+    numbers map after map). Valid: keys teammates' names (``keys``/``ids``: :class:`Team`'s table), values
+    strictly ascending delta numbers from 1, at most ``max_seqs``; a key twice, the last holds (as in a dict).
+    One function, its steps written out: helpers called per request cost several times the work."""
     counts = np.full(lengths.shape[0], -1, np.int64)
-    seqs, scratch = np.empty(lengths.shape[0] * max_seqs, np.int64), np.empty(max_seqs, np.int64)
-    o, end = 0, 0
+    seqs = np.empty(lengths.shape[0] * max_seqs, np.int64)
+    mask, o, end, p = keys.shape[0] - 1, 0, 0, 0
     for i in range(lengths.shape[0]):
-        p, end = end, end + lengths[i]
+        p, end = end, end + int(lengths[i])
         b = int(buf[p]) if p < end else 0
         if 0x80 <= b <= 0x8F:
             count, p = b - 0x80, p + 1
@@ -257,17 +237,38 @@ def _wants(buf: np.ndarray, lengths: np.ndarray, table: np.ndarray, names: np.nd
             count, p = int(buf[p + 1]) << 8 | int(buf[p + 2]), p + 3
         else:
             return False, counts, seqs[:0]
-        base = o
+        base = int(o)
         for _ in range(count):
-            k = int(buf[p]) - 0xA0 if p < end else -1
-            j = _index(buf, p + 1, k, table, names, starts) if 0 <= k <= 31 and p + 1 + k <= end else -1
-            if j == me:
-                got, p = _covers(buf, p + 1 + k, end, _MAX_INT, max_seqs, seqs, int(base))
-                counts[i], o = got, base + max(got, 0)
-            else:
-                got, p = _covers(buf, p + 1 + k, end, _MAX_INT, max_seqs, scratch, 0)
-            if j < 0 or got < 0:
+            k = int(buf[p]) - 0xA0 if p < end else -1  # a name of up to 7 bytes, packed with its length
+            if not 0 <= k <= 7 or p + 2 + k > end:
                 return False, counts, seqs[:0]
+            x = k << 56
+            for q in range(k):
+                x |= int(buf[p + 1 + q]) << (8 * q)
+            s, j = ((x * _HASH) >> 40) & mask, -1
+            while ids[s] >= 0 and j < 0:
+                j = ids[s] if keys[s] == x else -1
+                s = (s + 1) & mask
+            p += 1 + k
+            a = int(buf[p])
+            if 0x90 <= a <= 0x9F:
+                n, p = a - 0x90, p + 1
+            elif a == 0xDC and p + 3 <= end:
+                n, p = int(buf[p + 1]) << 8 | int(buf[p + 2]), p + 3
+            else:
+                return False, counts, seqs[:0]
+            if j < 0 or n > max_seqs:
+                return False, counts, seqs[:0]
+            last = 0
+            for m in range(n):
+                v, p = _uint(buf, p, end)
+                if v <= last:  # also v < 0: not an unsigned integer
+                    return False, counts, seqs[:0]
+                last = v
+                if j == me:
+                    seqs[base + m] = v
+            if j == me:
+                counts[i], o = n, base + n
         if p != end:
             return False, counts, seqs[:0]
     return True, counts, seqs[:o]
@@ -275,12 +276,13 @@ def _wants(buf: np.ndarray, lengths: np.ndarray, table: np.ndarray, names: np.nd
 
 @dataclasses.dataclass(frozen=True)
 class Team:
-    """A team's names as :func:`read_wants` looks them up: their UTF-8 bytes one after another (``names``),
-    where each starts, an open-addressing hash table of them, and each name's index."""
+    """A team's names as :func:`read_wants` looks them up: an open-addressing hash table of the names packed in
+    a number each (their UTF-8 bytes and length: ``keys``, their index in ``ids``, -1 where empty), and each
+    name's index; ``keys`` is None when a name is longer than 7 bytes (a robot's id is ``r0`` to ``r255``, the
+    base station's ``base``), and such a team's requests go the general way."""
 
-    table: np.ndarray
-    names: np.ndarray
-    starts: np.ndarray
+    keys: np.ndarray | None
+    ids: np.ndarray
     index: dict[str, int]
 
 
@@ -288,20 +290,19 @@ class Team:
 def team(members: frozenset[str]) -> Team:
     """The :class:`Team` of ``members`` (built once per team)."""
     order = sorted(members)
+    index = {name: j for j, name in enumerate(order)}
     encoded = [name.encode() for name in order]
-    starts = np.zeros(len(encoded) + 1, np.int64)
-    np.cumsum([len(e) for e in encoded], out=starts[1:])
-    table = np.full(1 << (2 * len(encoded)).bit_length(), -1, np.int64)  # at most half full
-    mask = table.shape[0] - 1
+    size = 1 << (2 * len(encoded)).bit_length()  # at most half full
+    keys, ids = np.zeros(size, np.int64), np.full(size, -1, np.int64)
+    if any(len(e) > 7 for e in encoded):
+        return Team(None, ids, index)
     for j, e in enumerate(encoded):
-        h = 0
-        for byte in e:
-            h = (h * 131 + byte) & 0xFFFFFFFF
-        s = h & mask
-        while table[s] >= 0:
-            s = (s + 1) & mask
-        table[s] = j
-    return Team(table, np.frombuffer(b"".join(encoded), np.uint8), starts, {n: j for j, n in enumerate(order)})
+        x = int.from_bytes(e, "little") | len(e) << 56
+        s = ((x * _HASH) % (1 << 64) >> 40) & (size - 1)  # the kernel's wrapping product, shifted
+        while ids[s] >= 0:
+            s = (s + 1) & (size - 1)
+        keys[s], ids[s] = x, j
+    return Team(keys, ids, index)
 
 
 def read_wants(wants: Sequence[bytes], members: Team, robot: str, max_seqs: int
@@ -310,9 +311,11 @@ def read_wants(wants: Sequence[bytes], members: Team, robot: str, max_seqs: int
     :meth:`~fleet_emu.agents.protocol.PoseBeacon.validate` checks them (keys teammates of ``members``, delta
     numbers strictly ascending from 1, at most ``max_seqs``), and what they ask ``robot`` for, by the map's
     index (a map asking nothing of it left out). None when one is not valid or not in the encoder's form."""
+    if members.keys is None:
+        return None
     buf = np.frombuffer(b"".join(wants), np.uint8)
-    ok, counts, seqs = _wants(buf, np.fromiter(map(len, wants), np.int64, len(wants)), members.table,
-                              members.names, members.starts, members.index.get(robot, -1), max_seqs)
+    ok, counts, seqs = _wants(buf, np.fromiter(map(len, wants), np.int64, len(wants)), members.keys, members.ids,
+                              members.index.get(robot, -1), max_seqs)
     if not ok:
         return None
     out, flat, a = {}, seqs.tolist(), 0

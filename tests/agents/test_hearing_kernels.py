@@ -16,7 +16,7 @@ from fleet_emu.agents.protocol import MAX_SEQS, MapDelta, MapFill, PoseBeacon
 from fleet_emu.core.codec import Context, DecodeError, decode_payload
 from fleet_emu.core.envelope import Envelope
 
-TEAM = frozenset({"r0", "r1", "r2", "robot-10", "ü"})
+TEAM = frozenset({"r0", "r1", "r2", "r10", "ü", "base"})
 CTX = Context(senders=TEAM, shape=(40, 50))
 
 
@@ -98,6 +98,7 @@ def test_the_robots_own_requests_are_checked_and_read_for_the_robot_asked() -> N
         got = read_wants(wants, team(TEAM), robot, MAX_SEQS)
         assert got == {i: b.want[robot] for i, b in enumerate(beacons) if b.want and robot in b.want}
     assert read_wants(wants, team(TEAM - {"r2"}), "r1", MAX_SEQS) is None  # a request to a stranger
+    assert read_wants(wants, team(TEAM | {"robot-10"}), "r1", MAX_SEQS) is None  # a long name: the general way
 
 
 @pytest.mark.parametrize("kind", ["map", "mapfill", "pose"])
