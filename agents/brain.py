@@ -48,6 +48,7 @@ from fleet_emu.agents.navigation import next_move
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
 from fleet_emu.agents.relay import Relay
 from fleet_emu.core.codec import Context
+from fleet_emu.core.envelope import AnyEnvelope, as_envelope
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import FREE, MOVES, STAY, Cell
 from fleet_emu.core.kernels import wavefront
@@ -270,7 +271,7 @@ class Brain:
         decision ran); it goes out as map news with the next step's."""
         self._belief(obs).merge(obs.cells, obs.values)
 
-    def open(self, inbox: Sequence[Envelope]) -> Hearing:
+    def open(self, inbox: Sequence[AnyEnvelope]) -> Hearing:
         """Decode what the radio delivered, checked against the grid and the team, in the order it came
         (:func:`~fleet_emu.agents.hearing.hear`: teammates' beacons and map deltas as light structs, every
         other kind as a :class:`RadioMsg`). When a message does not validate (an unknown payload kind
@@ -281,7 +282,7 @@ class Brain:
         if heard is not None:
             return heard
         out = []
-        for env in inbox:
+        for env in map(as_envelope, inbox):
             try:
                 env.validate(self.ctx)
                 out.append(open_envelope(env, self.ctx))
@@ -290,14 +291,15 @@ class Brain:
                     self.on_drop(f"radio/{env.payload_kind}", str(exc))
         return as_heard(out, self.me)
 
-    def relay_inbox(self, inbox: Sequence[Envelope]) -> tuple[list[Envelope], list[Envelope]]:
+    def relay_inbox(self, inbox: Sequence[AnyEnvelope]) -> tuple[list[AnyEnvelope], list[Envelope]]:
         """With relaying on: the envelopes of ``inbox`` to deliver (first copies for this robot or everyone)
         and the copies to forward (:meth:`Relay.handle`); a header that does not validate is dropped and
         counted, never forwarded. Without relaying, the inbox as it is and nothing to forward."""
         if self.relay is None:
             return list(inbox), []
-        deliver, forward = [], []
-        for env in inbox:
+        deliver: list[AnyEnvelope] = []
+        forward: list[Envelope] = []
+        for env in map(as_envelope, inbox):
             try:
                 env.validate(self.ctx)
             except DecodeError as exc:
@@ -311,13 +313,13 @@ class Brain:
                 forward.append(d.forward)
         return deliver, forward
 
-    def step(self, obs: Observation, inbox: Sequence[Envelope]) -> tuple[Command, tuple[Envelope, ...]]:
+    def step(self, obs: Observation, inbox: Sequence[AnyEnvelope]) -> tuple[Command, tuple[Envelope, ...]]:
         """Decide the move for ``obs.tick`` and the radio messages to send (with relaying on, the copies it
         forwards go out after its own): :meth:`perceive`, then :meth:`act` with the allocator's decision. Each
         stage's thread CPU is added to ``cpu_ms`` (:data:`STAGES`), the whole step's to ``step_cpu_ms``."""
         return self.act(self.perceive(obs, inbox))
 
-    def perceive(self, obs: Observation, inbox: Sequence[Envelope]) -> Percept:
+    def perceive(self, obs: Observation, inbox: Sequence[AnyEnvelope]) -> Percept:
         """The first half of :meth:`step`: merge the observation and what the radio delivered, hear teammates,
         cluster frontiers; the :class:`Percept` holds the allocator's problem (a learned policy reads it)."""
         c0 = time.thread_time()

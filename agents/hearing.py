@@ -28,7 +28,7 @@ import numpy as np
 from fleet_emu.agents.hearing_kernels import read_deltas, read_wants, team
 from fleet_emu.agents.protocol import MAX_SEQS, PoseBeacon
 from fleet_emu.core.codec import MAX_ARRAY_BYTES, Context
-from fleet_emu.core.envelope import MAX_PAYLOAD_BYTES, MAX_TTL
+from fleet_emu.core.envelope import MAX_PAYLOAD_BYTES, MAX_TTL, AnyEnvelope, as_envelope
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.messages import Envelope, RadioMsg, open_envelope
 
@@ -118,12 +118,13 @@ def _beacon_decoder(shape: tuple[int, int]) -> msgspec.msgpack.Decoder:
     return msgspec.msgpack.Decoder(wire)
 
 
-def hear(inbox: Sequence[Envelope], ctx: Context, robot: str, keep: bool = False) -> Hearing | None:
+def hear(inbox: Sequence[AnyEnvelope], ctx: Context, robot: str, keep: bool = False) -> Hearing | None:
     """What ``robot`` hears of ``inbox``: its messages in order, each checked as :meth:`Envelope.validate` and
     :func:`~fleet_emu.core.envelope.open_envelope` check it; None when one does not pass (or is not in a form
     decoded here and does not open), and the caller opens the inbox message by message instead. With
     ``keep`` (the memory engine, whose receivers of a broadcast share its envelope object), each message
-    decoded is kept on its envelope for the next receiver of the same team and grid, and one kept is used."""
+    decoded is kept on its envelope for the next receiver of the same team and grid, and one kept is used
+    (an envelope as read from an rx bundle, a :class:`~fleet_emu.core.envelope.WireEnvelope`, keeps nothing)."""
     senders, shape = ctx.senders, ctx.shape
     if not senders or shape is None:
         return None
@@ -135,7 +136,7 @@ def hear(inbox: Sequence[Envelope], ctx: Context, robot: str, keep: bool = False
     maps: list[int] = []  # the map deltas' and fills' places in out, read at the end
     payloads: list[bytes] = []
     fills: list[bool] = []
-    fresh: list[tuple[int, Envelope]] = []
+    fresh: list[tuple[int, AnyEnvelope]] = []
     add, max_ttl, max_bytes = out.append, MAX_TTL, MAX_PAYLOAD_BYTES
     try:
         for env in inbox:
@@ -168,7 +169,7 @@ def hear(inbox: Sequence[Envelope], ctx: Context, robot: str, keep: bool = False
                 fills.append(kind == "mapfill")
                 add((origin, tick, None))
             else:
-                add((origin, tick, open_envelope(env, ctx)))
+                add((origin, tick, open_envelope(as_envelope(env), ctx)))
     except (msgspec.MsgspecError, DecodeError, UnicodeDecodeError):  # msgspec: a string not UTF-8
         return None
     deltas = _deltas(payloads, fills, shape, keep) if payloads else []
@@ -179,13 +180,14 @@ def hear(inbox: Sequence[Envelope], ctx: Context, robot: str, keep: bool = False
         origin, tick, _ = out[i]
         out[i] = (origin, tick, d)
     for i, env in fresh:
-        env.__dict__[CACHE] = (ctx, out[i])
+        if type(env) is Envelope:
+            env.__dict__[CACHE] = (ctx, out[i])
     return Hearing(out, {where[j]: seqs for j, seqs in asks.items()})
 
 
-def _kept(env: Envelope, ctx: Context) -> Heard | None:
+def _kept(env: AnyEnvelope, ctx: Context) -> Heard | None:
     """What :func:`hear` kept on ``env`` for a context of the same team and grid as ``ctx``, or None."""
-    cached = env.__dict__.get(CACHE)
+    cached = env.__dict__.get(CACHE) if type(env) is Envelope else None
     if cached is not None:
         seen = cached[0]
         if seen is ctx or (seen.senders is ctx.senders and seen.shape == ctx.shape):

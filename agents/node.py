@@ -25,6 +25,7 @@ from fleet_emu.agents.outputs import agent_report, first_cpu_ms, robot_outputs
 from fleet_emu.agents.realtime import Timing, percentiles
 from fleet_emu.core.bus import Inbox
 from fleet_emu.core.codec import Context
+from fleet_emu.core.envelope import AnyEnvelope, RxWire, read_rx
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import AgentTiming, Command, Envelope, Observation, RxBundle, Stop
 from fleet_emu.core.node import Declared, NodeBase, node_main, undeclare
@@ -89,7 +90,7 @@ class AgentNode(NodeBase):
     async def _lockstep(self, inbox: Inbox) -> int:
         """Act on every tick whose observation and rx bundle have both come, until the stop; the next tick."""
         obs: dict[int, Observation] = {}
-        rx: dict[int, RxBundle] = {}
+        rx: dict[int, RxBundle | RxWire] = {}
         tick = 0
         while True:
             item = await inbox.get()
@@ -109,7 +110,7 @@ class AgentNode(NodeBase):
                 elif o is not None:  # a second one of a tick: first wins
                     self.drop(key, "observation for another robot, a past tick or a tick already observed")
             elif channel == "rx":
-                b = self.decode(key, data, RxBundle)  # loosely: the brain checks each envelope against the team
+                b = self._rx(key, data)  # loosely: the brain checks each envelope against the team
                 if b is not None and b.dst == self.robot and b.tick >= tick and b.tick not in rx:
                     rx[b.tick] = b
                 elif b is not None:  # a second one of a tick: first wins
@@ -118,10 +119,19 @@ class AgentNode(NodeBase):
                 self._act(obs.pop(tick), rx.pop(tick))
                 tick += 1
 
-    def _act(self, obs: Observation, bundle: RxBundle) -> None:
+    def _act(self, obs: Observation, bundle: RxBundle | RxWire) -> None:
         """One tick: the brain's decision, then the tx bundle, the command and (every few ticks) the belief."""
         self._start_clocks()
         self._send(obs, *self.brain.step(obs, bundle.msgs))
+
+    def _rx(self, key: str, data: bytes) -> RxBundle | RxWire | None:
+        """An rx bundle, its envelopes as read (:func:`~fleet_emu.core.envelope.read_rx`: the brain builds an
+        ``Envelope`` only for one it opens message by message or relays), or decoded and checked as any other
+        message when its bytes are in another form; None when dropped."""
+        wire = read_rx(data)
+        if wire is None:
+            return self.decode(key, data, RxBundle)
+        return wire if self.may_write(key, wire.src) else None
 
     def _start_clocks(self) -> None:
         """Start the report's CPU clocks when the first step begins."""
@@ -159,7 +169,7 @@ class AgentNode(NodeBase):
         stop; the last tick seen plus one."""
         latest = -1
         absorbed: list[Observation] = []  # came while a decision ran: merged at the start of the next
-        received: list[Envelope] = []  # radio messages for the next decision
+        received: list[AnyEnvelope] = []  # radio messages for the next decision
         worker: asyncio.Future | None = None
         getter = asyncio.ensure_future(inbox.get())
         try:
@@ -201,7 +211,7 @@ class AgentNode(NodeBase):
                     else:
                         absorbed.append(o)
                 elif channel == "rx":
-                    b = self.decode(key, data, RxBundle)
+                    b = self._rx(key, data)
                     if b is not None and b.dst == self.robot:
                         received.extend(b.msgs)
                     elif b is not None:
@@ -209,7 +219,7 @@ class AgentNode(NodeBase):
         finally:
             getter.cancel()
 
-    def _decide(self, obs: Observation, absorbed: list[Observation], received: list[Envelope]) -> asyncio.Future:
+    def _decide(self, obs: Observation, absorbed: list[Observation], received: list[AnyEnvelope]) -> asyncio.Future:
         """One decision in a worker thread: merge ``absorbed``, step on ``obs`` with ``received``. The future
         gives ``(obs, command, tx messages, wall ms)``."""
         self._start_clocks()

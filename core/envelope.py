@@ -344,9 +344,11 @@ _NonNeg = Annotated[int, msgspec.Meta(ge=0)]
 _Version = Annotated[int, msgspec.Meta(le=SCHEMA_VERSION)]
 
 
-class _EnvelopeWire(msgspec.Struct, forbid_unknown_fields=True, gc=False, kw_only=True):
+class WireEnvelope(msgspec.Struct, forbid_unknown_fields=True, gc=False, kw_only=True):
     """An envelope's map as the wire has it, each field's type and range checked by msgspec (``kind`` a field,
-    not msgspec's tag, which a lone struct does not require)."""
+    not msgspec's tag, which a lone struct does not require). A robot hears its rx bundle's envelopes as these
+    (:func:`read_rx`), with :class:`Envelope`'s fields, and builds an :class:`Envelope` (:meth:`envelope`)
+    only for one it opens message by message or relays."""
 
     kind: Literal["radio"]
     v: _Version = 1
@@ -359,6 +361,14 @@ class _EnvelopeWire(msgspec.Struct, forbid_unknown_fields=True, gc=False, kw_onl
     payload_kind: str
     payload: Annotated[bytes, msgspec.Meta(max_length=min(MAX_PAYLOAD_BYTES, MAX_ARRAY_BYTES))]
 
+    def envelope(self) -> Envelope:
+        """The :class:`Envelope` of these fields."""
+        env = object.__new__(Envelope)
+        d = env.__dict__  # its fields set one by one: a third faster than update() with keywords, per envelope
+        d["src"], d["tick"], d["seq"], d["origin"] = self.src, self.tick, self.seq, self.origin
+        d["dst"], d["ttl"], d["payload_kind"], d["payload"] = self.dst, self.ttl, self.payload_kind, self.payload
+        return env
+
 
 class _TxWire(msgspec.Struct, forbid_unknown_fields=True, gc=False, kw_only=True):
     kind: Literal["tx"]
@@ -366,40 +376,55 @@ class _TxWire(msgspec.Struct, forbid_unknown_fields=True, gc=False, kw_only=True
     src: str
     tick: _NonNeg
     seq: _NonNeg
-    msgs: list[_EnvelopeWire]
+    msgs: list[WireEnvelope]
 
 
-class _RxWire(msgspec.Struct, forbid_unknown_fields=True, gc=False, kw_only=True):
+class RxWire(msgspec.Struct, forbid_unknown_fields=True, gc=False, kw_only=True):
+    """An rx bundle's map as the wire has it (:class:`RxBundle`'s fields, its envelopes as read)."""
+
     kind: Literal["rx"]
     v: _Version = 1
     src: str
     tick: _NonNeg
     seq: _NonNeg
     dst: str
-    msgs: list[_EnvelopeWire]
+    msgs: list[WireEnvelope]
 
 
 _TX_DECODER = msgspec.msgpack.Decoder(_TxWire)
-_RX_DECODER = msgspec.msgpack.Decoder(_RxWire)
+_RX_DECODER = msgspec.msgpack.Decoder(RxWire)
 
 
-def _envelopes(wire: _TxWire | _RxWire, ctx: Context | None, same_src: bool) -> tuple[Envelope, ...] | None:
+def _envelopes(wire: _TxWire | RxWire, ctx: Context | None, same_src: bool) -> tuple[Envelope, ...] | None:
     """A decoded bundle's envelopes as :class:`Envelope` records, when every sender and origin is one of the
     context's (and, with ``same_src``, every envelope's ``src`` the bundle's); None otherwise."""
     senders = ctx.senders if ctx is not None else None
     if senders is not None and wire.src not in senders:
         return None
-    out = []
-    new, src = object.__new__, wire.src
+    src = wire.src
     for w in wire.msgs:
         if (senders is not None and (w.src not in senders or w.origin not in senders)) or (same_src and w.src != src):
             return None
-        env = new(Envelope)
-        d = env.__dict__  # its fields set one by one: a third faster than update() with keywords, per envelope
-        d["src"], d["tick"], d["seq"], d["origin"] = w.src, w.tick, w.seq, w.origin
-        d["dst"], d["ttl"], d["payload_kind"], d["payload"] = w.dst, w.ttl, w.payload_kind, w.payload
-        out.append(env)
-    return tuple(out)
+    return tuple([w.envelope() for w in wire.msgs])
+
+
+#: What a robot hears: envelopes as built (the memory engine, relays) or as read from an rx bundle.
+AnyEnvelope = Envelope | WireEnvelope
+
+
+def as_envelope(env: AnyEnvelope) -> Envelope:
+    """``env`` as an :class:`Envelope` (built from a :class:`WireEnvelope`)."""
+    return env.envelope() if isinstance(env, WireEnvelope) else env
+
+
+def read_rx(data: bytes) -> RxWire | None:
+    """An rx bundle's bytes read as :class:`RxWire` (its envelopes :class:`WireEnvelope`, not built into
+    :class:`Envelope`): what :func:`~fleet_emu.core.codec.decode` accepts of them without its context, the
+    same fields; None for bytes in another form, which ``decode`` then decides on."""
+    try:
+        return _RX_DECODER.decode(data)
+    except Exception:  # msgspec's errors, a string not UTF-8: the checking decode says why
+        return None
 
 
 @typed_decoder(TxBundle)

@@ -84,12 +84,16 @@ class NodeBase:
         except DecodeError as exc:
             self.drop(key, str(exc))
             return None
+        return msg if self.may_write(key, msg.src) else None
+
+    def may_write(self, key: str, src: str) -> bool:
+        """Whether ``src`` may write on ``key``; a message from anyone else is counted and dropped."""
         parsed = self.keys.parse(key)
         allowed = allowed_src(parsed) if parsed is not None else frozenset()
-        if allowed is not None and msg.src not in allowed:
-            self.drop(key, f"{msg.src!r} may not write on this key")
-            return None
-        return msg
+        if allowed is not None and src not in allowed:
+            self.drop(key, f"{src!r} may not write on this key")
+            return False
+        return True
 
     def drop(self, key: str, why: str) -> None:
         self.dropped += 1

@@ -4,6 +4,7 @@ message and drops (and counts) what does not validate."""
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import msgpack
@@ -15,7 +16,7 @@ from fleet_emu.agents.brain import Brain, BrainConfig
 from fleet_emu.agents.hearing import CACHE, Beacon, Delta, Fill, hear
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
 from fleet_emu.core.codec import Context, DecodeError, decode_payload
-from fleet_emu.core.envelope import Envelope, RadioMsg, seal
+from fleet_emu.core.envelope import Envelope, RadioMsg, RxBundle, WireEnvelope, read_rx, seal
 from fleet_emu.core.messages import Observation
 from tests.agents.test_brain import Spy
 from tests.core.test_fast_decode import CTX, SAMPLES, _equal, _mutations
@@ -129,3 +130,34 @@ def test_a_brain_hearing_at_once_learns_what_it_learns_message_by_message(monkey
     assert np.array_equal(fast.belief.grid, slow.belief.grid) and fast.belief.known_cells == slow.belief.known_cells
     assert fast.teammates == slow.teammates and list(fast.teammates) == ["r1", "r2", "r3"]
     assert fast.belief.known_cells > 5
+
+
+@pytest.mark.parametrize("config", [BrainConfig(map_sync=True), BrainConfig(map_sync=True, relay="flood", relay_ttl=2)])
+def test_a_robot_steps_alike_on_its_rx_bundle_s_envelopes_as_read_or_built(config: BrainConfig) -> None:
+    """An agent hears its rx bundle's envelopes as read (``WireEnvelope``), building an ``Envelope`` only for
+    one it opens message by message or relays: the command, the messages sent and the drops are those of
+    built envelopes, at once and (a bad message in the inbox) message by message."""
+    team = frozenset({"r0", "r1", "r2", "r3"})
+    fill = MapFill(cells=np.array([3, 4], np.int32), values=np.array([0, 100], np.int8), seqs=(2,), upto=3)
+    delta = MapDelta(cells=np.array([5, 6], np.int32), values=np.array([0, 0], np.int8), n=3)
+    inbox = [seal(RadioMsg(PoseBeacon(cell=(0, 1), next=(0, 2), maps=3, want={"r0": (1, 2), "r3": (4,)})), "r1", 3, 1),
+             seal(RadioMsg(delta), "r1", 3, 2), seal(RadioMsg(fill, dst="r0"), "r2", 3, 1),
+             seal(RadioMsg(TradeNumber(number=2)), "r3", 3, 1),
+             seal(RadioMsg(PoseBeacon(cell=(1, 1), want={"r1": (1,)})), "r2", 3, 2)]
+    obs = Observation(src="world", tick=4, seq=1, robot="r0", cell=(3, 4), shape=(4, 5), cell_size=0.5,
+                      cells=np.array([19], np.int32), values=np.array([0], np.int8))
+    bad = _env("pose", msgpack.packb({"cell": [9, 9]}, use_bin_type=True), src="r2")
+    for messages in (inbox, [*inbox, bad]):
+        wires = read_rx(RxBundle(src="netem", tick=3, seq=1, dst="r0", msgs=tuple(messages)).encode())
+        assert wires is not None and all(isinstance(w, WireEnvelope) for w in wires.msgs)
+        outcomes = []
+        for given in (messages, wires.msgs):
+            drops: list[str] = []
+            b = Brain("r0", Spy(), np.random.default_rng(0), config, team=team,
+                      on_drop=lambda key, why, drops=drops: drops.append(key))
+            cmd, out = b.step(obs, given)
+            assert b.belief is not None
+            outcomes.append((dataclasses.replace(cmd, decision_ms=0.0).encode(), [e.encode() for e in out],
+                             list(drops), b.belief.grid.tobytes()))
+        assert outcomes[0] == outcomes[1]
+        assert len(outcomes[0][1]) > 2 and outcomes[0][2] == (["radio/pose"] if bad in messages else [])
