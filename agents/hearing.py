@@ -28,7 +28,7 @@ import numpy as np
 from fleet_emu.agents.hearing_kernels import read_deltas, read_wants, team
 from fleet_emu.agents.protocol import MAX_SEQS, PoseBeacon
 from fleet_emu.core.codec import MAX_ARRAY_BYTES, Context
-from fleet_emu.core.envelope import MAX_PAYLOAD_BYTES, MAX_TTL, AnyEnvelope, as_envelope
+from fleet_emu.core.envelope import MAX_PAYLOAD_BYTES, MAX_TTL, AnyEnvelope, WireEnvelope, as_envelope
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.messages import Envelope, RadioMsg, open_envelope
 
@@ -151,9 +151,9 @@ def hear(inbox: Sequence[AnyEnvelope], ctx: Context, robot: str, keep: bool = Fa
                     continue
                 fresh.append((len(out), env))
             origin, tick, payload, kind = env.origin, env.tick, env.payload, env.payload_kind
-            if not (env.src in senders and origin in senders and tick >= 0 and env.seq >= 0
-                    and 0 <= env.ttl <= max_ttl and len(payload) <= max_bytes):
-                return None  # Envelope.validate's common case, inlined; anything else goes the long way
+            if not (env.src in senders and origin in senders and (type(env) is WireEnvelope or (
+                    tick >= 0 and env.seq >= 0 and 0 <= env.ttl <= max_ttl and len(payload) <= max_bytes))):
+                return None  # Envelope.validate's common case (a wire's numbers checked when read), inlined
             if kind == "pose":
                 b = beacon(payload)
                 nxt = b.next
