@@ -22,8 +22,9 @@ its first tick):
 - ``other``: the rest of ``Brain.step`` (teammates' poses, map sync's bookkeeping and whole maps for teammates
   heard again, the problem, the command); ``outside``: everything but ``decide`` (the target is at most
   1 ms); ``step``: the whole of ``Brain.step``;
-- ``rx codec``: what an agent process also does per tick before its brain runs (not in ``step``): decoding its
-  rx bundle from bytes (``core.codec.decode``), timed on the bundle netem would send it.
+- ``rx codec``: what an agent process also does per tick before its brain runs (not in ``step``): reading its
+  rx bundle from bytes (``core.envelope.read_rx``), timed on the bundle netem would send it; without
+  ``--shared`` the brain then hears those envelopes as read, as an agent process does.
 
 The last column is the 1-minute load average at the end of the row. Progress goes to stderr.
 """
@@ -48,7 +49,7 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
     """One map's fleet stepped ``a.ticks`` ticks; ms of thread CPU per robot-tick by stage."""
     from fleet_emu.agents.brain import STAGES
     from fleet_emu.agents.hearing_kernels import warm_up
-    from fleet_emu.core.codec import decode
+    from fleet_emu.core.envelope import read_rx
     from fleet_emu.core.errors import FleetError
     from fleet_emu.core.messages import RxBundle
     from fleet_emu.launch.memory import Fleet
@@ -69,11 +70,13 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
     rx_cpu = 0.0
     robot_ticks = 0
     while not fleet.done:
-        for r in fleet.agents:  # the agent process's decode of its rx bundle, which the brain does not count
+        for r in fleet.agents:  # the agent process's read of its rx bundle, which the brain does not count
             data = RxBundle(src="netem", tick=0, seq=1, dst=r, msgs=fleet.rx.get(r, ())).encode()
             c = time.thread_time()
-            decode(data, None, RxBundle)
+            wire = read_rx(data)
             rx_cpu += time.thread_time() - c
+            if not a.shared and wire is not None:  # the brain hears them as read, as over Zenoh
+                fleet.rx[r] = tuple(wire.msgs)
         robot_ticks += len(fleet.agents)
         fleet.step()
     if not robot_ticks:
@@ -90,8 +93,8 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
 def _own_copy(open_: Any) -> Any:
     """``Brain.open`` that decodes every envelope afresh (over Zenoh every receiver decodes its own copy)."""
     def opened(inbox: Any) -> Any:
-        for env in inbox:
-            env.__dict__.pop("_opened", None)
+        for env in inbox:  # an envelope as read from an rx bundle keeps nothing
+            getattr(env, "__dict__", {}).pop("_opened", None)
         return open_(inbox)
     return opened
 
