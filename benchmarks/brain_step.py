@@ -35,7 +35,6 @@ import argparse
 import os
 import sys
 import time
-from typing import Any
 
 from benchmarks import scale  # the maps, the start and the scenario
 from benchmarks._common import REAL_MAP, FittedMap, fail, fitted_maps, machine, parser
@@ -59,8 +58,7 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
     fleet.reset()
     if not a.shared:
         for brain in fleet.brains.values():
-            brain.shared_inbox = False  # each decodes its own copy, as over Zenoh
-            brain.open = _own_copy(brain.open)  # type: ignore[method-assign]
+            brain.shared_inbox = False  # each decodes its own copy (of its rx bundle's envelopes), as over Zenoh
     for _ in range(a.skip):  # tick 0 at least: the kernels warm_up leaves out (the allocator's) load then
         if not fleet.done:
             fleet.step()
@@ -75,7 +73,9 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
             c = time.thread_time()
             wire = read_rx(data)
             rx_cpu += time.thread_time() - c
-            if not a.shared and wire is not None:  # the brain hears them as read, as over Zenoh
+            if wire is None:
+                raise FleetError(f"{r}'s rx bundle does not read as an agent process reads it")
+            if not a.shared:  # the brain hears them as read, as over Zenoh
                 fleet.rx[r] = tuple(wire.msgs)
         robot_ticks += len(fleet.agents)
         fleet.step()
@@ -88,15 +88,6 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
             "nav": per["navigation"], "news": per["news"], "other": step - sum(per.values()),
             "outside": step - per["decision"], "step": step, "rx codec": rx_cpu * 1000.0 / robot_ticks,
             "robot_ticks": robot_ticks}
-
-
-def _own_copy(open_: Any) -> Any:
-    """``Brain.open`` that decodes every envelope afresh (over Zenoh every receiver decodes its own copy)."""
-    def opened(inbox: Any) -> Any:
-        for env in inbox:  # an envelope as read from an rx bundle keeps nothing
-            getattr(env, "__dict__", {}).pop("_opened", None)
-        return open_(inbox)
-    return opened
 
 
 def main(argv: list[str] | None = None) -> None:
