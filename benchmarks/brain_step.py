@@ -35,6 +35,7 @@ import argparse
 import os
 import sys
 import time
+from typing import Any, cast
 
 from benchmarks import scale  # the maps, the start and the scenario
 from benchmarks._common import REAL_MAP, FittedMap, fail, fitted_maps, machine, parser
@@ -76,7 +77,7 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
             if wire is None:
                 raise FleetError(f"{r}'s rx bundle does not read as an agent process reads it")
             if not a.shared:  # the brain hears them as read, as over Zenoh
-                fleet.rx[r] = tuple(wire.msgs)
+                fleet.rx[r] = cast(Any, tuple(wire.msgs))  # Fleet.rx holds built envelopes otherwise
         robot_ticks += len(fleet.agents)
         fleet.step()
     if not robot_ticks:
