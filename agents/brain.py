@@ -51,7 +51,7 @@ from fleet_emu.core.codec import Context
 from fleet_emu.core.envelope import AnyEnvelope, as_envelope
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import FREE, MOVES, STAY, Cell
-from fleet_emu.core.kernels import wavefront
+from fleet_emu.core.kernels import wavefront, wavefront_into
 from fleet_emu.core.keys import BASE, robot_ids
 from fleet_emu.core.messages import Command, Envelope, Observation, RadioMsg, open_envelope, seal
 from fleet_emu.core.scenario import Scenario
@@ -109,10 +109,16 @@ class Plan:
     target: Cell | None
     status: str
     blocked: frozenset[Cell] = frozenset()
+    passable: np.ndarray | None = None  # with ``sources``: ``dist`` is that wavefront, grown on the first step
+    sources: np.ndarray | None = None
 
     def step(self, cell: Cell) -> Cell:
         """The next step along the plan from ``cell`` (stay when at the target, or off the plan's wavefront)."""
-        return STAY if self.dist is None else next_move(self.dist, cell, self.blocked)
+        dist = self.dist
+        if dist is None and self.sources is not None and self.passable is not None:
+            dist = wavefront(self.passable, self.sources, -1)  # only real time steps on a plan
+            object.__setattr__(self, "dist", dist)
+        return STAY if dist is None else next_move(dist, cell, self.blocked)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -476,7 +482,7 @@ class Brain:
         self.last_target = alloc.target
         move = STAY
         wants = False  # the robot wants to move but a teammate stands on every way down the wavefront
-        dist, blocked = None, set()
+        dist, blocked, sources = None, set(), None
         going = alloc.status is AllocStatus.GOAL and alloc.target is not None  # a planner's goal cell (mhm)
         if (alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None) or going:
             blocked = {expected[r] for r, tm in self.teammates.items()
@@ -484,16 +490,38 @@ class Brain:
             if going:
                 mask = alloc.passable if alloc.passable is not None else problem.passable
                 dist = goal_wavefront(mask, alloc.target)  # type: ignore[arg-type]
+                move = next_move(dist, cell, blocked)
+                wants = move == STAY and dist[cell] > 0
+            elif "wavefronts" in problem.__dict__:  # the allocator computed them all
+                dist = problem.wavefronts[alloc.cluster]  # type: ignore[index]
+                move = next_move(dist, cell, blocked)
+                wants = move == STAY and dist[cell] > 0
             else:
-                dist = problem.wavefront_to(alloc.cluster)  # type: ignore[arg-type]
-            move = next_move(dist, cell, blocked)
-            wants = move == STAY and dist[cell] > 0
+                sources = problem.clusters[alloc.cluster].cells.astype(np.int64)  # type: ignore[index]
+                move, wants = self._descend(problem.passable, sources, cell, blocked)
         if alloc.routes is not None and self.relay is not None:
             self.relay.set_routes(alloc.routes)  # a base planner's tree (mhm), for the next ticks' forwarding
-        self.plan = Plan(dist, alloc.target, alloc.status.name, frozenset(blocked))
+        self.plan = Plan(dist, alloc.target, alloc.status.name, frozenset(blocked),
+                         problem.passable if sources is not None else None, sources)
         assert self.belief is not None
         return self._unstick(cell, move, wants, self.belief.grid, set(expected.values()),
                              alloc.passable if going else None)
+
+    def _descend(self, passable: np.ndarray, sources: np.ndarray, cell: Cell, blocked: set[Cell]) -> tuple[Cell, bool]:
+        """The move down the wavefront from ``sources`` (:func:`~fleet_emu.agents.navigation.next_move`) and
+        whether the robot wants to move but cannot. The wavefront stops at the robot's cell (the descent from
+        there reads only nearer cells) and is grown in arrays kept per thread and set back after: a fresh one
+        writes its whole grid-sized array each tick, the cold memory a robot among a hundred processes pays
+        most for."""
+        rows, cols = passable.shape
+        dist, queue = _scratch(rows * cols)
+        count = wavefront_into(passable, sources, cell[0] * cols + cell[1], dist, queue)
+        try:
+            grid = dist.reshape(rows, cols)
+            move = next_move(grid, cell, blocked)
+            return move, bool(move == STAY and grid[cell] > 0)
+        finally:
+            dist[queue[:count]] = -1
 
     def _news(self, obs: Observation, move: Cell, want: dict[str, tuple[int, ...]] | None,
               outbox: list[RadioMsg], forwards: list[Envelope]) -> tuple[Envelope, ...]:
@@ -561,6 +589,18 @@ class Brain:
                 move = options[int(self.rng.integers(len(options)))]
         self.last_cell, self.last_move = cell, move
         return move
+
+
+_SCRATCH = threading.local()
+
+
+def _scratch(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """A wavefront's arrays for a grid of ``n`` cells, every distance -1, kept per thread (the memory engine's
+    brains step one after another in one)."""
+    kept = getattr(_SCRATCH, "arrays", None)
+    if kept is None or kept[0].size != n:
+        kept = _SCRATCH.arrays = (np.full(n, -1, dtype=np.int32), np.empty(n, dtype=np.int64))
+    return kept
 
 
 def goal_wavefront(passable: np.ndarray, goal: Cell) -> np.ndarray:

@@ -38,9 +38,19 @@ def wavefront(passable: np.ndarray, sources: np.ndarray, stop: int = -1) -> np.n
     (MinPos section 4.3, "wavefront propagation stopping").
     """
     rows, cols = passable.shape
+    dist = np.full(rows * cols, -1, dtype=np.int32)
+    wavefront_into(passable, sources, stop, dist, np.empty(rows * cols, dtype=np.int64))
+    return dist.reshape(rows, cols)
+
+
+@njit(cache=True)
+def wavefront_into(passable: np.ndarray, sources: np.ndarray, stop: int, dist: np.ndarray, queue: np.ndarray
+                   ) -> int:
+    """:func:`wavefront` into ``dist`` (flat, every cell -1 on entry), with ``queue`` (flat, as long) for its
+    queue: how many cells it reached, whose flat indices are then ``queue[:count]``. A caller that keeps both
+    arrays sets those cells back to -1 and pays for the cells the wavefront reached, not for the grid."""
+    rows, cols = passable.shape
     n = rows * cols
-    dist = np.full(n, -1, dtype=np.int32)
-    queue = np.empty(n, dtype=np.int64)
     head = 0
     tail = 0
     flat_pass = passable.ravel()
@@ -50,7 +60,7 @@ def wavefront(passable: np.ndarray, sources: np.ndarray, stop: int = -1) -> np.n
             queue[tail] = s
             tail += 1
             if s == stop:
-                return dist.reshape(rows, cols)
+                return tail
     while head < tail:
         cur = queue[head]
         head += 1
@@ -61,11 +71,11 @@ def wavefront(passable: np.ndarray, sources: np.ndarray, stop: int = -1) -> np.n
                 continue
             if dist[nxt] < 0 and flat_pass[nxt]:
                 dist[nxt] = d
-                if nxt == stop:
-                    return dist.reshape(rows, cols)
                 queue[tail] = nxt
                 tail += 1
-    return dist.reshape(rows, cols)
+                if nxt == stop:
+                    return tail
+    return tail
 
 
 @njit(cache=True)
@@ -259,6 +269,7 @@ def warm_up() -> None:
     occ = np.zeros((3, 3), dtype=np.bool_)
     sources = np.array([0], dtype=np.int64)
     wavefront(~occ, sources, -1)
+    wavefront_into(~occ, sources, 4, np.full(9, -1, dtype=np.int32), np.empty(9, dtype=np.int64))  # navigation
     sources.flags.writeable = False  # a frontier cluster's cells (MinPos with stopped wavefronts)
     wavefront(~occ, sources, -1)
     visible_cells(occ, 1, 1, 1.5)
