@@ -113,6 +113,23 @@ def test_navigation_follows_a_moving_teammate_and_steps_around_a_standing_one(nx
     assert cmd.move == move
 
 
+def test_navigation_leaves_its_kept_wavefront_blank_and_the_plan_grows_the_whole_one() -> None:
+    """Navigation's wavefront is grown in arrays kept per thread, stopped at the robot: after a step every
+    distance is -1 again (the next robot or tick starts from a blank grid); the plan grows the cluster's whole
+    wavefront when real time steps on it, and from the robot's cell it gives the move the step made."""
+    from fleet_emu.agents.brain import _scratch
+
+    brain = Brain("r1", make_allocator({"type": "minpos", "wavefront": "parallel"}), np.random.default_rng(0),
+                  BrainConfig(), team=frozenset({"r0", "r1"}))  # an allocator that grows no whole wavefront
+    cmd, _ = brain.step(_obs(FOLLOW, "r1", 0), ())
+    grid, _ = from_ascii(FOLLOW)
+    dist, _ = _scratch(grid.size)
+    assert (dist == -1).all()
+    assert brain.plan is not None and brain.plan.dist is None and brain.plan.sources is not None
+    assert brain.plan.step(_obs(FOLLOW, "r1", 0).cell) == cmd.move != (0, 0)
+    assert brain.plan.dist is not None and (brain.plan.dist >= 0).sum() > 3  # grown past the robot
+
+
 def test_the_beacon_decodes_with_and_without_its_next_cell() -> None:
     ctx = Context(shape=(3, 11))
     with_next = PoseBeacon(cell=(1, 2), next=(1, 3))
