@@ -65,45 +65,38 @@ class Beacon(msgspec.Struct, gc=False):
     want: msgspec.Raw = _NO_WANT
 
 
-class Delta(msgspec.Struct, gc=False):
-    """A map delta's fields as heard (:class:`~fleet_emu.agents.protocol.MapDelta`'s): its cells and values are
-    ``start:end`` of ``all_cells`` (int32) and ``all_values`` (int8), every delta of the inbox's in turn, read
-    only (the brain merges a run of them at once, without a copy of each)."""
+class _Part(msgspec.Struct, gc=False):
+    """Cells and values heard, ``start:end`` of ``all_cells`` (int32) and ``all_values`` (int8): every delta and
+    fill of the inbox's in turn, read only (the brain merges a run of them at once, without a copy of each)."""
 
     all_cells: np.ndarray
     all_values: np.ndarray
     start: int
     end: int
+
+    @property
+    def cells(self) -> np.ndarray:
+        return self.all_cells[self.start:self.end]
+
+    @property
+    def values(self) -> np.ndarray:
+        return self.all_values[self.start:self.end]
+
+
+class Delta(_Part, gc=False):
+    """A map delta's fields as heard (:class:`~fleet_emu.agents.protocol.MapDelta`'s), its cells and values a
+    :class:`_Part`."""
+
     n: int | None = None
     covers: tuple[int, ...] | None = None
 
-    @property
-    def cells(self) -> np.ndarray:
-        return self.all_cells[self.start:self.end]
 
-    @property
-    def values(self) -> np.ndarray:
-        return self.all_values[self.start:self.end]
+class Fill(_Part, gc=False):
+    """A map fill's fields as heard (:class:`~fleet_emu.agents.protocol.MapFill`'s), its cells and values a
+    :class:`_Part`."""
 
-
-class Fill(msgspec.Struct, gc=False):
-    """A map fill's fields as heard (:class:`~fleet_emu.agents.protocol.MapFill`'s), its cells and values
-    ``start:end`` of ``all_cells`` and ``all_values`` as a :class:`Delta`'s."""
-
-    all_cells: np.ndarray
-    all_values: np.ndarray
-    start: int
-    end: int
     seqs: tuple[int, ...] = ()
     upto: int = 0
-
-    @property
-    def cells(self) -> np.ndarray:
-        return self.all_cells[self.start:self.end]
-
-    @property
-    def values(self) -> np.ndarray:
-        return self.all_values[self.start:self.end]
 
 
 @functools.lru_cache(maxsize=16)
