@@ -453,8 +453,7 @@ class Brain:
         heard, expected = {}, {}
         for r, tm in self.teammates.items():
             heard[r] = tm.heard
-            nxt = tm.cell if tm.next is None else tm.next
-            expected[r] = tm.cell if nxt == mine else nxt
+            expected[r] = tm.expected(mine)
         return heard, expected
 
     def _requests(self, t: int, heard: dict[str, int], rejoined: list[str]) -> dict[str, tuple[int, ...]] | None:
