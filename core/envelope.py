@@ -440,9 +440,9 @@ def _typed_tx(data: bytes, ctx: Context | None) -> TxBundle | None:
 
 @typed_decoder(RxBundle)
 def _typed_rx(data: bytes, ctx: Context | None) -> RxBundle | None:
-    wire = _RX_DECODER.decode(data)
-    msgs = _envelopes(wire, ctx, False)
-    if msgs is None:
+    wire = read_rx(data)
+    msgs = _envelopes(wire, ctx, False) if wire is not None else None
+    if wire is None or msgs is None:
         return None
     bundle = object.__new__(RxBundle)
     bundle.__dict__.update(src=wire.src, tick=wire.tick, seq=wire.seq, dst=wire.dst, msgs=msgs)
