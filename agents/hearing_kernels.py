@@ -250,6 +250,8 @@ def _wants(buf: np.ndarray, lengths: np.ndarray, keys: np.ndarray, ids: np.ndarr
                 j = ids[s] if keys[s] == x else -1
                 s = (s + 1) & mask
             p += 1 + k
+            # :func:`_covers`, written out: called here it makes this kernel four times as slow (23 against
+            # 5.7 us a robot-tick at 100 robots)
             a = int(buf[p])
             if 0x90 <= a <= 0x9F:
                 n, p = a - 0x90, p + 1
