@@ -5,8 +5,7 @@ for it (``dst`` is its id or ``*``), and whether to send it on, once, with one h
 function of the envelope's header only (payloads stay opaque, docs/reference/protocol.md), of the robot's id,
 of a forwarding policy, and of a cache of the message ids already seen.
 
-Rules (the choices are ours; the issue fixes only "forward once, deduplicated by origin and id, while hops
-remain"):
+Rules (beyond "forward once, deduplicated by origin and id, while hops remain", the choices are ours):
 
 - A message's id is ``(origin, seq)``; ``seq`` comes from the origin's one counter, so the pair is unique.
   The first copy heard is handled; every later copy (another relay's forward, an echo of our own) is a
