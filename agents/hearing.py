@@ -25,7 +25,7 @@ from typing import Annotated, Any, NamedTuple, cast
 import msgspec
 import numpy as np
 
-from fleet_emu.agents.hearing_kernels import read_deltas, read_wants, team
+from fleet_emu.agents.hearing_kernels import FILL, MAP, WANT, read, team
 from fleet_emu.agents.protocol import MAX_SEQS, PoseBeacon
 from fleet_emu.core.codec import MAX_ARRAY_BYTES, Context
 from fleet_emu.core.envelope import MAX_PAYLOAD_BYTES, MAX_TTL, AnyEnvelope, WireEnvelope, as_envelope
@@ -124,11 +124,9 @@ def hear(inbox: Sequence[AnyEnvelope], ctx: Context, robot: str, keep: bool = Fa
     decoder = _beacon_decoder(shape)
     beacon, wire = decoder.decode, decoder.type
     out: list[Any] = []
-    wants: list[msgspec.Raw] = []  # the beacons' requests, checked at the end
-    where: list[int] = []  # their places in out
-    maps: list[int] = []  # the map deltas' and fills' places in out, read at the end
+    places: list[int] = []  # the places in out of the payloads read at the end: map deltas, fills, requests
     payloads: list[bytes] = []
-    fills: list[bool] = []
+    kinds: list[int] = []
     fresh: list[tuple[int, AnyEnvelope]] = []
     add, max_ttl, max_bytes = out.append, MAX_TTL, MAX_PAYLOAD_BYTES
     try:
@@ -138,8 +136,9 @@ def hear(inbox: Sequence[AnyEnvelope], ctx: Context, robot: str, keep: bool = Fa
                 if cached is not None:
                     body = cached[2]
                     if type(body) is wire and body.want:
-                        where.append(len(out))
-                        wants.append(body.want)
+                        places.append(len(out))
+                        payloads.append(body.want)
+                        kinds.append(WANT)
                     add(cached)
                     continue
                 fresh.append((len(out), env))
@@ -153,29 +152,26 @@ def hear(inbox: Sequence[AnyEnvelope], ctx: Context, robot: str, keep: bool = Fa
                 if nxt is not None and abs(nxt[0] - b.cell[0]) + abs(nxt[1] - b.cell[1]) > 1:
                     return None
                 if b.want:
-                    where.append(len(out))
-                    wants.append(b.want)
+                    places.append(len(out))
+                    payloads.append(b.want)
+                    kinds.append(WANT)
                 add((origin, tick, b))
             elif kind == "map" or kind == "mapfill":
-                maps.append(len(out))
+                places.append(len(out))
                 payloads.append(payload)
-                fills.append(kind == "mapfill")
+                kinds.append(MAP if kind == "map" else FILL)
                 add((origin, tick, None))
             else:
                 add((origin, tick, open_envelope(as_envelope(env), ctx)))
     except (msgspec.MsgspecError, DecodeError, UnicodeDecodeError):  # msgspec: a string not UTF-8
         return None
-    deltas = _deltas(payloads, fills, shape, keep) if payloads else []
-    asks = read_wants(wants, team(senders), robot, MAX_SEQS) if wants else {}
-    if deltas is None or asks is None:
+    asks: dict[int, tuple[int, ...]] = {}
+    if payloads and not _read_into(out, asks, places, payloads, kinds, senders, shape, robot, keep):
         return None
-    for i, d in zip(maps, deltas, strict=True):
-        origin, tick, _ = out[i]
-        out[i] = (origin, tick, d)
     for i, env in fresh:
         if type(env) is Envelope:
             env.__dict__[CACHE] = (ctx, out[i])
-    return Hearing(out, {where[j]: seqs for j, seqs in asks.items()})
+    return Hearing(out, asks)
 
 
 def _kept(env: AnyEnvelope, ctx: Context) -> Heard | None:
@@ -188,28 +184,34 @@ def _kept(env: AnyEnvelope, ctx: Context) -> Heard | None:
     return None
 
 
-def _deltas(payloads: list[bytes], fills: list[bool], shape: tuple[int, int], own: bool
-            ) -> list[Delta | Fill] | None:
-    """The map deltas and fills (``fills``) of ``payloads`` read and checked in one compiled pass
-    (:func:`~fleet_emu.agents.hearing_kernels.read_deltas`), their cells and values in two arrays for all,
-    each message a slice (read by the brain's merge without a copy); with ``own`` each gets arrays of its own
-    (its receivers' runs of messages are not this inbox's). None when one does not pass or is not in the
-    robots' own encoding."""
-    got = read_deltas(payloads, fills, shape[0] * shape[1], MAX_ARRAY_BYTES, MAX_SEQS)
+def _read_into(out: list[Any], asks: dict[int, tuple[int, ...]], places: list[int], payloads: list[bytes],
+               kinds: list[int], senders: frozenset[str], shape: tuple[int, int], robot: str, own: bool) -> bool:
+    """The map deltas, fills and beacons' requests of ``payloads`` (``kinds``, at ``places`` in ``out``) read
+    and checked in one compiled pass (:func:`~fleet_emu.agents.hearing_kernels.read`): a delta or fill becomes
+    its :class:`Delta` or :class:`Fill` in ``out``, their cells and values in two arrays for all, each message a
+    slice (read by the brain's merge without a copy), or with ``own`` arrays of its own (its receivers' runs of
+    messages are not this inbox's); what a request asks ``robot`` for goes in ``asks``. False when one does not
+    pass or is not in the robots' own encoding."""
+    got = read(payloads, kinds, shape[0] * shape[1], team(senders), robot, MAX_ARRAY_BYTES, MAX_SEQS)
     if got is None:
-        return None
+        return False
     cells, values, rows, seqs = got
-    out: list[Delta | Fill] = []
     a = 0
-    for (end, n, s0, s1), fill in zip(rows, fills, strict=True):
+    for i, kind, (end, n, s0, s1) in zip(places, kinds, rows, strict=True):
+        if kind == WANT:
+            if s0 >= 0:
+                asks[i] = tuple(seqs[s0:s1])
+            continue
         all_cells, all_values, start, stop = (cells[a:end], values[a:end], 0, end - a) if own \
             else (cells, values, a, end)
-        if fill:
-            out.append(Fill(all_cells, all_values, start, stop, tuple(seqs[s0:s1]), n))
+        origin, tick, _ = out[i]
+        if kind == FILL:
+            out[i] = (origin, tick, Fill(all_cells, all_values, start, stop, tuple(seqs[s0:s1]), n))
         else:
-            out.append(Delta(all_cells, all_values, start, stop, n or None, tuple(seqs[s0:s1]) if s0 >= 0 else None))
+            out[i] = (origin, tick, Delta(all_cells, all_values, start, stop, n or None,
+                                          tuple(seqs[s0:s1]) if s0 >= 0 else None))
         a = end
-    return out
+    return True
 
 
 def as_heard(msgs: Sequence[RadioMsg], robot: str) -> Hearing:
