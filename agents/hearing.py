@@ -25,7 +25,7 @@ from typing import Annotated, Any, NamedTuple, cast
 import msgspec
 import numpy as np
 
-from fleet_emu.agents.hearing_kernels import FILL, MAP, WANT, read, team
+from fleet_emu.agents.hearing_kernels import read, team
 from fleet_emu.agents.protocol import MAX_SEQS, PoseBeacon
 from fleet_emu.core.codec import MAX_ARRAY_BYTES, Context
 from fleet_emu.core.envelope import MAX_PAYLOAD_BYTES, MAX_TTL, AnyEnvelope, WireEnvelope, as_envelope
@@ -124,9 +124,11 @@ def hear(inbox: Sequence[AnyEnvelope], ctx: Context, robot: str, keep: bool = Fa
     decoder = _beacon_decoder(shape)
     beacon, wire = decoder.decode, decoder.type
     out: list[Any] = []
-    places: list[int] = []  # the places in out of the payloads read at the end: map deltas, fills, requests
-    payloads: list[bytes] = []
-    kinds: list[int] = []
+    maps: list[bytes] = []  # the map deltas' and fills' payloads, read at the end
+    fills: list[bool] = []
+    map_places: list[int] = []  # their places in out
+    wants: list[msgspec.Raw] = []  # the beacons' requests, read at the end with them
+    want_places: list[int] = []
     fresh: list[tuple[int, AnyEnvelope]] = []
     add, max_ttl, max_bytes = out.append, MAX_TTL, MAX_PAYLOAD_BYTES
     try:
@@ -136,9 +138,8 @@ def hear(inbox: Sequence[AnyEnvelope], ctx: Context, robot: str, keep: bool = Fa
                 if cached is not None:
                     body = cached[2]
                     if type(body) is wire and body.want:
-                        places.append(len(out))
-                        payloads.append(body.want)
-                        kinds.append(WANT)
+                        want_places.append(len(out))
+                        wants.append(body.want)
                     add(cached)
                     continue
                 fresh.append((len(out), env))
@@ -152,21 +153,21 @@ def hear(inbox: Sequence[AnyEnvelope], ctx: Context, robot: str, keep: bool = Fa
                 if nxt is not None and abs(nxt[0] - b.cell[0]) + abs(nxt[1] - b.cell[1]) > 1:
                     return None
                 if b.want:
-                    places.append(len(out))
-                    payloads.append(b.want)
-                    kinds.append(WANT)
+                    want_places.append(len(out))
+                    wants.append(b.want)
                 add((origin, tick, b))
             elif kind == "map" or kind == "mapfill":
-                places.append(len(out))
-                payloads.append(payload)
-                kinds.append(MAP if kind == "map" else FILL)
+                map_places.append(len(out))
+                maps.append(payload)
+                fills.append(kind == "mapfill")
                 add((origin, tick, None))
             else:
                 add((origin, tick, open_envelope(as_envelope(env), ctx)))
     except (msgspec.MsgspecError, DecodeError, UnicodeDecodeError):  # msgspec: a string not UTF-8
         return None
     asks: dict[int, tuple[int, ...]] = {}
-    if payloads and not _read_into(out, asks, places, payloads, kinds, senders, shape, robot, keep):
+    if (maps or wants) and not _read_into(out, asks, (map_places, maps, fills), (want_places, wants), ctx, robot,
+                                          keep):
         return None
     for i, env in fresh:
         if type(env) is Envelope:
@@ -184,33 +185,36 @@ def _kept(env: AnyEnvelope, ctx: Context) -> Heard | None:
     return None
 
 
-def _read_into(out: list[Any], asks: dict[int, tuple[int, ...]], places: list[int], payloads: list[bytes],
-               kinds: list[int], senders: frozenset[str], shape: tuple[int, int], robot: str, own: bool) -> bool:
-    """The map deltas, fills and beacons' requests of ``payloads`` (``kinds``, at ``places`` in ``out``) read
-    and checked in one compiled pass (:func:`~fleet_emu.agents.hearing_kernels.read`): a delta or fill becomes
-    its :class:`Delta` or :class:`Fill` in ``out``, their cells and values in two arrays for all, each message a
-    slice (read by the brain's merge without a copy), or with ``own`` arrays of its own (its receivers' runs of
-    messages are not this inbox's); what a request asks ``robot`` for goes in ``asks``. False when one does not
-    pass or is not in the robots' own encoding."""
-    got = read(payloads, kinds, shape[0] * shape[1], team(senders), robot, MAX_ARRAY_BYTES, MAX_SEQS)
+def _read_into(out: list[Any], asks: dict[int, tuple[int, ...]],
+               maps: tuple[list[int], list[bytes], list[bool]], wants: tuple[list[int], list[msgspec.Raw]],
+               ctx: Context, robot: str, own: bool) -> bool:
+    """The map deltas and fills (their places in ``out``, payloads, whether each is a fill) and the beacons'
+    requests (their places and bytes) read and checked in one compiled pass
+    (:func:`~fleet_emu.agents.hearing_kernels.read`): a delta or fill becomes its :class:`Delta` or
+    :class:`Fill` in ``out``, their cells and values in two arrays for all, each message a slice (read by the
+    brain's merge without a copy), or with ``own`` arrays of its own (its receivers' runs of messages are not
+    this inbox's); what a request asks ``robot`` for goes in ``asks``. False when one does not pass or is not
+    in the robots' own encoding."""
+    (map_places, payloads, fills), (want_places, requests) = maps, wants
+    assert ctx.senders is not None and ctx.shape is not None
+    got = read(payloads, fills, cast(list[bytes], requests), ctx.shape[0] * ctx.shape[1], team(ctx.senders),
+               robot, MAX_ARRAY_BYTES, MAX_SEQS)
     if got is None:
         return False
-    cells, values, rows, seqs = got
+    cells, values, rows, seqs = got.cells, got.values, got.maps, got.seqs
     a = 0
-    for i, kind, (end, n, s0, s1) in zip(places, kinds, rows, strict=True):
-        if kind == WANT:
-            if s0 >= 0:
-                asks[i] = tuple(seqs[s0:s1])
-            continue
+    for i, fill, (end, n, s0, s1) in zip(map_places, fills, rows, strict=True):
         all_cells, all_values, start, stop = (cells[a:end], values[a:end], 0, end - a) if own \
             else (cells, values, a, end)
         origin, tick, _ = out[i]
-        if kind == FILL:
+        if fill:
             out[i] = (origin, tick, Fill(all_cells, all_values, start, stop, tuple(seqs[s0:s1]), n))
         else:
             out[i] = (origin, tick, Delta(all_cells, all_values, start, stop, n or None,
                                           tuple(seqs[s0:s1]) if s0 >= 0 else None))
         a = end
+    for j, s0, s1 in got.asked:
+        asks[want_places[j]] = tuple(seqs[s0:s1])
     return True
 
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -122,51 +122,51 @@ def _covers(buf: np.ndarray, p: int, end: int, n: int, max_seqs: int, out: np.nd
     return (count, p) if last < n else (-1, p)
 
 
-#: :func:`read`'s kinds of payload: a map delta, a map fill, a beacon's requests (its ``want`` map's bytes).
-MAP, FILL, WANT = 0, 1, 2
-
-
 @njit(cache=True)
-def _read(buf: np.ndarray, lengths: np.ndarray, kinds: np.ndarray, size: int, keys: np.ndarray, ids: np.ndarray,
-          me: int, max_bytes: int, max_seqs: int) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Every payload (``kinds[i]``: :data:`MAP`, :data:`FILL` or :data:`WANT`; ``lengths`` bytes each, one after
-    another in ``buf``) read: (whether all are in the encoder's form and valid, the deltas' and fills' cells and
-    values one after another, per payload the end of its cells and three numbers, the delta numbers). A delta's
-    three: ``n`` or 0 and the span of ``covers`` in the last array (-1, -1 without); a fill's: ``upto`` and the
-    span of ``seqs``; a request map's: how many numbers it asks teammate ``me`` for (-1: none) and their span."""
+def _read(buf: np.ndarray, lengths: np.ndarray, fills: np.ndarray, size: int, keys: np.ndarray, ids: np.ndarray,
+          me: int, max_bytes: int, max_seqs: int
+          ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every payload (``lengths`` bytes each, one after another in ``buf``) read: first map deltas and fills
+    (``fills[i]``), then beacons' request maps. (Whether all are in the encoder's form and valid; the deltas' and
+    fills' cells and values one after another; per delta or fill the end of its cells and three numbers; per
+    request map asking teammate ``me`` for deltas its index among the request maps and the span of the numbers;
+    the delta numbers.) A delta's three: ``n`` or 0 and the span of ``covers`` in the last array (-1, -1
+    without); a fill's: ``upto`` and the span of ``seqs``."""
     room = buf.shape[0] // 5  # a cell takes at least 5 bytes of its message: 4 for its index, 1 for its value
     cells, values = np.empty(room, np.int32), np.empty(room, np.int8)
-    meta = np.empty((lengths.shape[0], 4), np.int64)
+    maps = fills.shape[0]
+    meta = np.empty((maps, 4), np.int64)
+    asked = np.empty((lengths.shape[0] - maps, 3), np.int64)
     seqs = np.empty(min(buf.shape[0], lengths.shape[0] * max_seqs), np.int64)
-    c, o, end = 0, 0, 0
+    c, o, a, end = 0, 0, 0, 0
     for i in range(lengths.shape[0]):
         p, end = end, end + lengths[i]
-        if kinds[i] == WANT:
+        if i >= maps:
             count, p = _want(buf, p, end, keys, ids, me, max_seqs, seqs, int(o))
             if p != end:
-                return False, cells[:c], values[:c], meta, seqs[:o]
-            meta[i, 0], meta[i, 1] = c, count
-            meta[i, 2], meta[i, 3] = (o, o + count) if count >= 0 else (-1, -1)
-            o += max(count, 0)
+                return False, cells[:c], values[:c], meta, asked[:a], seqs[:o]
+            if count >= 0:
+                asked[a, 0], asked[a, 1], asked[a, 2] = i - maps, o, o + count
+                a, o = a + 1, o + count
             continue
         if p >= end or not 0x82 <= buf[p] <= 0x84:
-            return False, cells[:c], values[:c], meta, seqs[:o]
+            return False, cells[:c], values[:c], meta, asked[:a], seqs[:o]
         fields = int(buf[p]) - 0x80
         k, q = _array(buf, p + 1, end, _CELLS, 4, max_bytes)
         k2, r = _array(buf, q + 4 * k, end, _VALUES, 1, max_bytes) if k >= 0 else (-1, p)
         if k2 != k or k < 0 or not _cells(buf, q, r, k, size, cells[c:c + k], values[c:c + k]):
-            return False, cells[:c], values[:c], meta, seqs[:o]
+            return False, cells[:c], values[:c], meta, asked[:a], seqs[:o]
         c += k
-        if kinds[i] == FILL:
+        if fills[i]:
             n, count, p = _fill_tail(buf, r + k, end, fields, max_seqs, seqs, int(o))
         else:
             n, count, p = _delta_tail(buf, r + k, end, fields, max_seqs, seqs, int(o))
         if p != end or n < 0:
-            return False, cells[:c], values[:c], meta, seqs[:o]
+            return False, cells[:c], values[:c], meta, asked[:a], seqs[:o]
         meta[i, 0], meta[i, 1] = c, n
         meta[i, 2], meta[i, 3] = (o, o + count) if count >= 0 else (-1, -1)
         o += max(count, 0)
-    return True, cells[:c], values[:c], meta, seqs[:o]
+    return True, cells[:c], values[:c], meta, asked[:a], seqs[:o]
 
 
 @njit(cache=True)
@@ -305,25 +305,37 @@ def team(members: frozenset[str]) -> Team:
     return Team(keys, ids, index)
 
 
-def read(payloads: Sequence[bytes], kinds: Sequence[int], size: int, members: Team, robot: str, max_bytes: int,
-         max_seqs: int) -> tuple[np.ndarray, np.ndarray, list[list[int]], list[int]] | None:
-    """The map deltas, fills and beacons' request maps ``payloads`` (``kinds``: :data:`MAP`, :data:`FILL`,
-    :data:`WANT`) of a grid of ``size`` cells and a team ``members``, read at once: the deltas' and fills' cells
-    (int32) and values (int8) one message after another, read only; per payload the end of its cells and three
-    numbers (:func:`_read`: ``n`` and the span of ``covers`` for a delta, ``upto`` and that of ``seqs`` for a
-    fill, what a request map asks ``robot`` for); the delta numbers those spans index. A request map is checked
-    as :meth:`~fleet_emu.agents.protocol.PoseBeacon.validate` checks it (keys teammates, numbers strictly
-    ascending from 1, at most ``max_seqs``). None when one is not in the encoder's form or not valid, for the
-    caller to decode them the general way."""
+class Read(NamedTuple):
+    """What :func:`read` read: the deltas' and fills' cells (int32) and values (int8) one message after another,
+    read only; per delta or fill the end of its cells and three numbers (``n`` or 0 and the span of
+    ``covers`` in ``seqs``, -1, -1 without, for a delta; ``upto`` and the span of ``seqs`` for a fill); per
+    request map that asks the robot for deltas, its index among the request maps and the span of the numbers
+    asked; the delta numbers those spans index."""
+
+    cells: np.ndarray
+    values: np.ndarray
+    maps: list[list[int]]
+    asked: list[list[int]]
+    seqs: list[int]
+
+
+def read(maps: list[bytes], fills: list[bool], wants: list[bytes], size: int, members: Team, robot: str,
+         max_bytes: int, max_seqs: int) -> Read | None:
+    """The map deltas and fills ``maps`` (``fills``) of a grid of ``size`` cells, and the beacons' request maps
+    ``wants`` (their MessagePack bytes) of a team ``members``, read at once (:class:`Read`). A request map is
+    checked as :meth:`~fleet_emu.agents.protocol.PoseBeacon.validate` checks it (keys teammates, delta numbers
+    strictly ascending from 1, at most ``max_seqs``), and only what it asks ``robot`` for is read. None when one
+    is not in the encoder's form or not valid, for the caller to decode them the general way."""
+    payloads = maps + wants
     buf = np.frombuffer(b"".join(payloads), np.uint8)
     keys = members.keys if members.keys is not None else _NO_KEYS
-    ok, cells, values, meta, seqs = _read(buf, np.fromiter(map(len, payloads), np.int64, len(payloads)),
-                                          np.array(kinds, np.int8), size, keys, members.ids,
-                                          members.index.get(robot, -1), max_bytes, max_seqs)
+    ok, cells, values, meta, asked, seqs = _read(buf, np.fromiter(map(len, payloads), np.int64, len(payloads)),
+                                                 np.array(fills, np.bool_), size, keys, members.ids,
+                                                 members.index.get(robot, -1), max_bytes, max_seqs)
     if not ok:
         return None
     cells.flags.writeable = values.flags.writeable = False  # as arrays read from a message's bytes are
-    return cells, values, meta.tolist(), seqs.tolist()
+    return Read(cells, values, meta.tolist(), asked.tolist(), seqs.tolist())
 
 
 def warm_up() -> None:
@@ -335,4 +347,4 @@ def warm_up() -> None:
 
     delta = MapDelta(cells=np.array([0], np.int32), values=np.array([0], np.int8), n=2, covers=(1,)).encode()
     fill = MapFill(cells=np.array([0], np.int32), values=np.array([0], np.int8), seqs=(1,), upto=1).encode()
-    read([delta, fill, b"\x81\xa2r1\x91\x01"], [MAP, FILL, WANT], 1, team(frozenset({"r1"})), "r1", 1 << 20, 64)
+    read([delta, fill], [False, True], [b"\x81\xa2r1\x91\x01"], 1, team(frozenset({"r1"})), "r1", 1 << 20, 64)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from fleet_emu.agents.hearing import Beacon, Delta, Fill, hear
-from fleet_emu.agents.hearing_kernels import FILL, MAP, WANT, read, team
+from fleet_emu.agents.hearing_kernels import read, team
 from fleet_emu.agents.protocol import MAX_SEQS, MapDelta, MapFill, PoseBeacon
 from fleet_emu.core.codec import Context, DecodeError, decode_payload
 from fleet_emu.core.envelope import Envelope
@@ -74,10 +74,10 @@ def test_the_robots_own_deltas_and_fills_are_read_from_their_bytes_as_decoded() 
     rng = np.random.default_rng(0)
     messages: list[MapDelta | MapFill] = [m for pair in zip(_deltas(rng, 40), _fills(rng, 40), strict=True)
                                           for m in pair]
-    got = read([m.encode() for m in messages], [FILL if isinstance(m, MapFill) else MAP for m in messages], 40 * 50,
-               team(TEAM), "r1", 1 << 26, MAX_SEQS)
-    assert got is not None  # every one the fast way
-    cells, values, rows, seqs = got
+    got = read([m.encode() for m in messages], [isinstance(m, MapFill) for m in messages], [], 40 * 50, team(TEAM),
+               "r1", 1 << 26, MAX_SEQS)
+    assert got is not None and not got.asked  # every one the fast way
+    cells, values, rows, seqs = got.cells, got.values, got.maps, got.seqs
     assert not cells.flags.writeable and cells.dtype == np.int32 and values.dtype == np.int8
     a = 0
     for m, (end, n, s0, s1) in zip(messages, rows, strict=True):
@@ -87,7 +87,7 @@ def test_the_robots_own_deltas_and_fills_are_read_from_their_bytes_as_decoded() 
         else:
             assert (n or None, tuple(seqs[s0:s1]) if s0 >= 0 else None) == (m.n, m.covers)
         a = end
-    assert read([messages[0].encode()], [FILL], 40 * 50, team(TEAM), "r1", 1 << 26, MAX_SEQS) is None  # no fill
+    assert read([messages[0].encode()], [True], [], 40 * 50, team(TEAM), "r1", 1 << 26, MAX_SEQS) is None  # no fill
 
 
 def test_the_robots_own_requests_are_checked_and_read_for_the_robot_asked() -> None:
@@ -95,16 +95,14 @@ def test_the_robots_own_requests_are_checked_and_read_for_the_robot_asked() -> N
     wants = [PoseBeacon(cell=(0, 0), want=b.want).encode()[len(PoseBeacon(cell=(0, 0)).encode()) + 5:]
              for b in beacons]  # the want map's own bytes: after the cell and the key "want"
     delta = MapDelta(cells=np.array([5], np.int32), values=np.array([100], np.int8), n=3, covers=(1, 2)).encode()
-    payloads, kinds = [delta, *wants, delta], [MAP, *[WANT] * len(wants), MAP]  # read with deltas, in turn
     for robot in [*TEAM, "r9"]:
-        got = read(payloads, kinds, 40 * 50, team(TEAM), robot, 1 << 26, MAX_SEQS)
+        got = read([delta, delta], [False, False], wants, 40 * 50, team(TEAM), robot, 1 << 26, MAX_SEQS)  # together
         assert got is not None
-        cells, _, rows, seqs = got
-        asked = {i - 1: tuple(seqs[s0:s1]) for i, (_, _, s0, s1) in enumerate(rows) if kinds[i] == WANT and s0 >= 0}
+        asked = {j: tuple(got.seqs[s0:s1]) for j, s0, s1 in got.asked}
         assert asked == {i: b.want[robot] for i, b in enumerate(beacons) if b.want and robot in b.want}
-        assert cells.tolist() == [5, 5] and [tuple(seqs[r[2]:r[3]]) for r in (rows[0], rows[-1])] == [(1, 2)] * 2
-    assert read(wants, [WANT] * len(wants), 1, team(TEAM - {"r2"}), "r1", 1, MAX_SEQS) is None  # to a stranger
-    assert read(wants, [WANT] * len(wants), 1, team(TEAM | {"robot-10"}), "r1", 1, MAX_SEQS) is None  # a long name
+        assert got.cells.tolist() == [5, 5] and [tuple(got.seqs[r[2]:r[3]]) for r in got.maps] == [(1, 2)] * 2
+    assert read([], [], wants, 1, team(TEAM - {"r2"}), "r1", 1, MAX_SEQS) is None  # a request to a stranger
+    assert read([], [], wants, 1, team(TEAM | {"robot-10"}), "r1", 1, MAX_SEQS) is None  # a long name: the long way
 
 
 @pytest.mark.parametrize("kind", ["map", "mapfill", "pose"])
