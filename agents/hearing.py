@@ -18,9 +18,8 @@ what does not validate, in the order it came.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Sequence
-from typing import Annotated, Any, NamedTuple, cast
+from typing import Any, NamedTuple, cast
 
 import msgspec
 import numpy as np
@@ -50,19 +49,14 @@ class Hearing(NamedTuple):
     messages: list[Heard]
     asks: dict[int, tuple[int, ...]]
 
-_Count = Annotated[int, msgspec.Meta(ge=0)]
-_NO_WANT = msgspec.Raw()
-
 
 class Beacon(msgspec.Struct, gc=False):
-    """A pose beacon's fields as heard (:class:`~fleet_emu.agents.protocol.PoseBeacon`'s names and meanings),
-    its requests (``want``) as their MessagePack bytes (empty when it has none): a robot reads only those
-    addressed to it (:attr:`Hearing.asks`)."""
+    """A pose beacon's fields as heard (:class:`~fleet_emu.agents.protocol.PoseBeacon`'s names and meanings) but
+    its requests (``want``): a robot reads only those addressed to it (:attr:`Hearing.asks`)."""
 
     cell: tuple[int, int]
     next: tuple[int, int] | None = None
     maps: int | None = None
-    want: msgspec.Raw = _NO_WANT
 
 
 class _Part(msgspec.Struct, gc=False):
@@ -99,18 +93,6 @@ class Fill(_Part, gc=False):
     upto: int = 0
 
 
-@functools.lru_cache(maxsize=16)
-def _beacon_decoder(shape: tuple[int, int]) -> msgspec.msgpack.Decoder:
-    """A beacon decoder for one grid: a cell's row and column in range, checked by msgspec
-    (:meth:`~fleet_emu.agents.protocol.PoseBeacon.validate`'s checks but the next cell's distance and the
-    requests, which :func:`hear` checks)."""
-    cell = tuple[Annotated[int, msgspec.Meta(ge=0, lt=shape[0])], Annotated[int, msgspec.Meta(ge=0, lt=shape[1])]]
-    wire = msgspec.defstruct("BeaconWire", [("cell", cell), ("next", cell | None, None),
-                                            ("maps", _Count | None, None), ("want", msgspec.Raw, _NO_WANT)],
-                             bases=(Beacon,), forbid_unknown_fields=True, gc=False)
-    return msgspec.msgpack.Decoder(wire)
-
-
 def hear(inbox: Sequence[AnyEnvelope], ctx: Context, robot: str, keep: bool = False) -> Hearing | None:
     """What ``robot`` hears of ``inbox``: its messages in order, each checked as :meth:`Envelope.validate` and
     :func:`~fleet_emu.core.envelope.open_envelope` check it; None when one does not pass (or is not in a form
@@ -121,89 +103,89 @@ def hear(inbox: Sequence[AnyEnvelope], ctx: Context, robot: str, keep: bool = Fa
     senders, shape = ctx.senders, ctx.shape
     if not senders or shape is None:
         return None
-    decoder = _beacon_decoder(shape)
-    beacon, wire = decoder.decode, decoder.type
     out: list[Any] = []
     maps: list[bytes] = []  # the map deltas' and fills' payloads, read at the end
     fills: list[bool] = []
     map_places: list[int] = []  # their places in out
-    wants: list[msgspec.Raw] = []  # the beacons' requests, read at the end with them
+    beacons: list[bytes] = []  # the beacons' payloads, read with them
+    beacon_places: list[int] = []
+    wants: list[bytes] = []  # the requests of beacons kept on a shared envelope, read for this robot
     want_places: list[int] = []
     fresh: list[tuple[int, AnyEnvelope]] = []
     add, max_ttl, max_bytes = out.append, MAX_TTL, MAX_PAYLOAD_BYTES
-    try:
-        for env in inbox:
-            if keep:
-                cached = _kept(env, ctx)
-                if cached is not None:
-                    body = cached[2]
-                    if type(body) is wire and body.want:
-                        want_places.append(len(out))
-                        wants.append(body.want)
-                    add(cached)
-                    continue
-                fresh.append((len(out), env))
-            origin, tick, payload, kind = env.origin, env.tick, env.payload, env.payload_kind
-            if not (env.src in senders and origin in senders and (type(env) is WireEnvelope or (
-                    tick >= 0 and env.seq >= 0 and 0 <= env.ttl <= max_ttl and len(payload) <= max_bytes))):
-                return None  # Envelope.validate's common case (a wire's numbers checked when read), inlined
-            if kind == "pose":
-                b = beacon(payload)
-                nxt = b.next
-                if nxt is not None and abs(nxt[0] - b.cell[0]) + abs(nxt[1] - b.cell[1]) > 1:
-                    return None
-                if b.want:
+    for env in inbox:
+        if keep:
+            cached = _kept(env, ctx)
+            if cached is not None:
+                heard, want = cached
+                if want:
                     want_places.append(len(out))
-                    wants.append(b.want)
-                add((origin, tick, b))
-            elif kind == "map" or kind == "mapfill":
-                map_places.append(len(out))
-                maps.append(payload)
-                fills.append(kind == "mapfill")
-                add((origin, tick, None))
-            else:
+                    wants.append(want)
+                add(heard)
+                continue
+            fresh.append((len(out), env))
+        origin, tick, payload, kind = env.origin, env.tick, env.payload, env.payload_kind
+        if not (env.src in senders and origin in senders and (type(env) is WireEnvelope or (
+                tick >= 0 and env.seq >= 0 and 0 <= env.ttl <= max_ttl and len(payload) <= max_bytes))):
+            return None  # Envelope.validate's common case (a wire's numbers checked when read), inlined
+        if kind == "pose":
+            beacon_places.append(len(out))
+            beacons.append(payload)
+        elif kind == "map" or kind == "mapfill":
+            map_places.append(len(out))
+            maps.append(payload)
+            fills.append(kind == "mapfill")
+        else:
+            try:
                 add((origin, tick, open_envelope(as_envelope(env), ctx)))
-    except (msgspec.MsgspecError, DecodeError, UnicodeDecodeError):  # msgspec: a string not UTF-8
-        return None
+            except (msgspec.MsgspecError, DecodeError, UnicodeDecodeError):  # msgspec: a string not UTF-8
+                return None
+            continue
+        add((origin, tick, None))
     asks: dict[int, tuple[int, ...]] = {}
-    if (maps or wants) and not _read_into(out, asks, (map_places, maps, fills), (want_places, wants), ctx, robot,
-                                          keep):
-        return None
+    requests: dict[int, bytes] | None = {}
+    if maps or beacons or wants:
+        requests = _read_into(out, asks, (map_places, maps, fills), (beacon_places, beacons),
+                              (want_places, wants), ctx, robot, keep)
+        if requests is None:
+            return None
     for i, env in fresh:
         if type(env) is Envelope:
-            env.__dict__[CACHE] = (ctx, out[i])
+            env.__dict__[CACHE] = (ctx, out[i], requests.get(i))
     return Hearing(out, asks)
 
 
-def _kept(env: AnyEnvelope, ctx: Context) -> Heard | None:
-    """What :func:`hear` kept on ``env`` for a context of the same team and grid as ``ctx``, or None."""
+def _kept(env: AnyEnvelope, ctx: Context) -> tuple[Heard, bytes | None] | None:
+    """What :func:`hear` kept on ``env`` for a context of the same team and grid as ``ctx``, with a beacon's
+    request map's bytes (read again for each robot), or None."""
     cached = env.__dict__.get(CACHE) if type(env) is Envelope else None
     if cached is not None:
         seen = cached[0]
         if seen is ctx or (seen.senders is ctx.senders and seen.shape == ctx.shape):
-            return cast(Heard, cached[1])
+            return cast(Heard, cached[1]), cached[2]
     return None
 
 
 def _read_into(out: list[Any], asks: dict[int, tuple[int, ...]],
-               maps: tuple[list[int], list[bytes], list[bool]], wants: tuple[list[int], list[msgspec.Raw]],
-               ctx: Context, robot: str, own: bool) -> bool:
-    """The map deltas and fills (their places in ``out``, payloads, whether each is a fill) and the beacons'
-    requests (their places and bytes) read and checked in one compiled pass
-    (:func:`~fleet_emu.agents.hearing_kernels.read`): a delta or fill becomes its :class:`Delta` or
-    :class:`Fill` in ``out``, their cells and values in two arrays for all, each message a slice (read by the
-    brain's merge without a copy), or with ``own`` arrays of its own (its receivers' runs of messages are not
-    this inbox's); what a request asks ``robot`` for goes in ``asks``. False when one does not pass or is not
-    in the robots' own encoding."""
-    (map_places, payloads, fills), (want_places, requests) = maps, wants
+               maps: tuple[list[int], list[bytes], list[bool]], beacons: tuple[list[int], list[bytes]],
+               wants: tuple[list[int], list[bytes]], ctx: Context, robot: str, own: bool
+               ) -> dict[int, bytes] | None:
+    """The map deltas and fills (their places in ``out``, payloads, whether each is a fill), the beacons
+    (places, payloads) and the lone requests of beacons kept on a shared envelope (places, bytes) read and
+    checked in one compiled pass (:func:`~fleet_emu.agents.hearing_kernels.read`): each delta, fill or beacon
+    becomes its :class:`Delta`, :class:`Fill` or :class:`Beacon` in ``out`` (the cells and values of all in two
+    arrays, each message a slice read by the brain's merge without a copy, or with ``own`` arrays of its own:
+    its receivers' runs of messages are not this inbox's); what a request asks ``robot`` for goes in ``asks``.
+    With ``own``, the beacons' request maps' bytes by place (for the next receiver); None when one does not
+    pass or is not in the robots' own encoding."""
+    (map_places, payloads, fills), (beacon_places, poses), (want_places, requests) = maps, beacons, wants
     assert ctx.senders is not None and ctx.shape is not None
-    got = read(payloads, fills, cast(list[bytes], requests), ctx.shape[0] * ctx.shape[1], team(ctx.senders),
-               robot, MAX_ARRAY_BYTES, MAX_SEQS)
+    got = read(payloads, fills, poses, requests, ctx.shape, team(ctx.senders), robot, MAX_ARRAY_BYTES, MAX_SEQS)
     if got is None:
-        return False
-    cells, values, rows, seqs = got.cells, got.values, got.maps, got.seqs
+        return None
+    cells, values, seqs = got.cells, got.values, got.seqs
     a = 0
-    for i, fill, (end, n, s0, s1) in zip(map_places, fills, rows, strict=True):
+    for i, fill, (end, n, s0, s1) in zip(map_places, fills, got.maps, strict=True):
         all_cells, all_values, start, stop = (cells[a:end], values[a:end], 0, end - a) if own \
             else (cells, values, a, end)
         origin, tick, _ = out[i]
@@ -213,9 +195,15 @@ def _read_into(out: list[Any], asks: dict[int, tuple[int, ...]],
             out[i] = (origin, tick, Delta(all_cells, all_values, start, stop, n or None,
                                           tuple(seqs[s0:s1]) if s0 >= 0 else None))
         a = end
+    for i, (r, c, nr, nc, count, _) in zip(beacon_places, got.poses, strict=True):
+        origin, tick, _ = out[i]
+        out[i] = (origin, tick, Beacon((r, c), (nr, nc) if nr >= 0 else None, count if count >= 0 else None))
+    places = beacon_places + want_places
     for j, s0, s1 in got.asked:
-        asks[want_places[j]] = tuple(seqs[s0:s1])
-    return True
+        asks[places[j]] = tuple(seqs[s0:s1])
+    if not own:
+        return {}
+    return {i: payload[w:] for i, payload, (*_, w) in zip(beacon_places, poses, got.poses, strict=True) if w >= 0}
 
 
 def as_heard(msgs: Sequence[RadioMsg], robot: str) -> Hearing:

@@ -37,6 +37,10 @@ _N = np.frombuffer(b"\xa1n", np.uint8)
 _COVERS = np.frombuffer(b"\xa6covers", np.uint8)
 _SEQS = np.frombuffer(b"\xa4seqs", np.uint8)
 _UPTO = np.frombuffer(b"\xa4upto", np.uint8)
+_CELL = np.frombuffer(b"\xa4cell\x92", np.uint8)
+_NEXT = np.frombuffer(b"\xa4next", np.uint8)
+_MAPS = np.frombuffer(b"\xa4maps", np.uint8)
+_WANT = np.frombuffer(b"\xa4want", np.uint8)
 _MAX_INT = (1 << 63) - 1
 _HASH = -7046029254386353131  # 0x9E3779B97F4A7C15 (Fibonacci hashing) as a signed 64-bit number
 _NO_KEYS = np.zeros(0, np.int64)  # a team whose names are not packed: its requests go the general way
@@ -123,50 +127,100 @@ def _covers(buf: np.ndarray, p: int, end: int, n: int, max_seqs: int, out: np.nd
 
 
 @njit(cache=True)
-def _read(buf: np.ndarray, lengths: np.ndarray, fills: np.ndarray, size: int, keys: np.ndarray, ids: np.ndarray,
-          me: int, max_bytes: int, max_seqs: int
-          ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _read(buf: np.ndarray, lengths: np.ndarray, fills: np.ndarray, beacons: int, rows: int, cols: int,
+          keys: np.ndarray, ids: np.ndarray, me: int, max_bytes: int, max_seqs: int
+          ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Every payload (``lengths`` bytes each, one after another in ``buf``) read: first map deltas and fills
-    (``fills[i]``), then beacons' request maps. (Whether all are in the encoder's form and valid; the deltas' and
-    fills' cells and values one after another; per delta or fill the end of its cells and three numbers; per
-    request map asking teammate ``me`` for deltas its index among the request maps and the span of the numbers;
-    the delta numbers.) A delta's three: ``n`` or 0 and the span of ``covers`` in the last array (-1, -1
-    without); a fill's: ``upto`` and the span of ``seqs``."""
+    (``fills[i]``), then ``beacons`` pose beacons, then beacons' request maps alone. (Whether all are in the
+    encoder's form and valid; the deltas' and fills' cells and values one after another; per delta or fill the
+    end of its cells and three numbers; per beacon its cell, next cell (-1, -1: none), ``maps`` (-1: none) and
+    the offset of its request map in its bytes (-1: none); per request map (in a beacon or alone) that asks
+    teammate ``me`` for deltas, its index among the beacons and request maps and the span of the numbers; the
+    delta numbers.) A delta's three: ``n`` or 0 and the span of ``covers`` in the last array (-1, -1 without);
+    a fill's: ``upto`` and the span of ``seqs``. The grid has ``rows`` x ``cols`` cells."""
     room = buf.shape[0] // 5  # a cell takes at least 5 bytes of its message: 4 for its index, 1 for its value
     cells, values = np.empty(room, np.int32), np.empty(room, np.int8)
-    maps = fills.shape[0]
+    maps, size = fills.shape[0], rows * cols
     meta = np.empty((maps, 4), np.int64)
+    poses = np.empty((beacons, 6), np.int64)
     asked = np.empty((lengths.shape[0] - maps, 3), np.int64)
     seqs = np.empty(min(buf.shape[0], lengths.shape[0] * max_seqs), np.int64)
     c, o, a, end = 0, 0, 0, 0
     for i in range(lengths.shape[0]):
         p, end = end, end + lengths[i]
         if i >= maps:
-            count, p = _want(buf, p, end, keys, ids, me, max_seqs, seqs, int(o))
+            count = -1
+            if i < maps + beacons:
+                start = p
+                p = _pose(buf, p, end, rows, cols, poses[i - maps])
+                if p >= 0 and p < end:  # its request map, the last field
+                    poses[i - maps, 5] = p - start
+                    count, p = _want(buf, p, end, keys, ids, me, max_seqs, seqs, int(o))
+            else:
+                count, p = _want(buf, p, end, keys, ids, me, max_seqs, seqs, int(o))
             if p != end:
-                return False, cells[:c], values[:c], meta, asked[:a], seqs[:o]
+                return False, cells[:c], values[:c], meta, poses, asked[:a], seqs[:o]
             if count >= 0:
                 asked[a, 0], asked[a, 1], asked[a, 2] = i - maps, o, o + count
                 a, o = a + 1, o + count
             continue
         if p >= end or not 0x82 <= buf[p] <= 0x84:
-            return False, cells[:c], values[:c], meta, asked[:a], seqs[:o]
+            return False, cells[:c], values[:c], meta, poses, asked[:a], seqs[:o]
         fields = int(buf[p]) - 0x80
         k, q = _array(buf, p + 1, end, _CELLS, 4, max_bytes)
         k2, r = _array(buf, q + 4 * k, end, _VALUES, 1, max_bytes) if k >= 0 else (-1, p)
         if k2 != k or k < 0 or not _cells(buf, q, r, k, size, cells[c:c + k], values[c:c + k]):
-            return False, cells[:c], values[:c], meta, asked[:a], seqs[:o]
+            return False, cells[:c], values[:c], meta, poses, asked[:a], seqs[:o]
         c += k
         if fills[i]:
             n, count, p = _fill_tail(buf, r + k, end, fields, max_seqs, seqs, int(o))
         else:
             n, count, p = _delta_tail(buf, r + k, end, fields, max_seqs, seqs, int(o))
         if p != end or n < 0:
-            return False, cells[:c], values[:c], meta, asked[:a], seqs[:o]
+            return False, cells[:c], values[:c], meta, poses, asked[:a], seqs[:o]
         meta[i, 0], meta[i, 1] = c, n
         meta[i, 2], meta[i, 3] = (o, o + count) if count >= 0 else (-1, -1)
         o += max(count, 0)
-    return True, cells[:c], values[:c], meta, asked[:a], seqs[:o]
+    return True, cells[:c], values[:c], meta, poses, asked[:a], seqs[:o]
+
+
+@njit(cache=True)
+def _pose(buf: np.ndarray, p: int, end: int, rows: int, cols: int, out: np.ndarray) -> int:
+    """A pose beacon's fields at ``p`` before its request map, as its encoder writes them (``cell``, ``next``,
+    then ``maps`` and ``want`` when present) and checked as
+    :meth:`~fleet_emu.agents.protocol.PoseBeacon.validate` checks them: ``out`` its cell, next cell (-1, -1:
+    none), ``maps`` (-1: none), -1 (no request map). The position of its request map's bytes, ``end`` without
+    one, or -1 when they are not in that form or not valid."""
+    fields = int(buf[p]) - 0x80 if p < end else -1
+    if not 2 <= fields <= 4 or not _same(buf, p + 1, end, _CELL):
+        return -1
+    r, p = _uint(buf, p + 1 + _CELL.shape[0], end)
+    col, p = _uint(buf, p, end) if r >= 0 else (-1, p)
+    if not (0 <= r < rows and 0 <= col < cols) or not _same(buf, p, end, _NEXT):
+        return -1
+    p += _NEXT.shape[0]
+    nr = nc = -1
+    if p < end and buf[p] == 0xC0:
+        p += 1
+    elif p < end and buf[p] == 0x92:
+        nr, p = _uint(buf, p + 1, end)
+        nc, p = _uint(buf, p, end) if nr >= 0 else (-1, p)
+        if not (0 <= nr < rows and 0 <= nc < cols) or abs(nr - r) + abs(nc - col) > 1:
+            return -1
+    else:
+        return -1
+    maps = -1
+    if fields > 2 and _same(buf, p, end, _MAPS):
+        maps, p = _uint(buf, p + _MAPS.shape[0], end)
+        if maps < 0:
+            return -1
+        fields -= 1
+    out[0], out[1], out[2], out[3], out[4], out[5] = r, col, nr, nc, maps, -1
+    if fields == 2:
+        return p
+    if fields == 3 and _same(buf, p, end, _WANT) and p + _WANT.shape[0] < end:
+        return p + _WANT.shape[0]
+    return -1
 
 
 @njit(cache=True)
@@ -309,42 +363,46 @@ class Read(NamedTuple):
     """What :func:`read` read: the deltas' and fills' cells (int32) and values (int8) one message after another,
     read only; per delta or fill the end of its cells and three numbers (``n`` or 0 and the span of
     ``covers`` in ``seqs``, -1, -1 without, for a delta; ``upto`` and the span of ``seqs`` for a fill); per
-    request map that asks the robot for deltas, its index among the request maps and the span of the numbers
-    asked; the delta numbers those spans index."""
+    beacon its cell's row and column, its next cell's (-1, -1: none), ``maps`` (-1: none) and the offset of its
+    request map in its bytes (-1: none); per request map that asks the robot for deltas, its index among the
+    beacons and lone request maps and the span of the numbers asked; the delta numbers those spans index."""
 
     cells: np.ndarray
     values: np.ndarray
     maps: list[list[int]]
+    poses: list[list[int]]
     asked: list[list[int]]
     seqs: list[int]
 
 
-def read(maps: list[bytes], fills: list[bool], wants: list[bytes], size: int, members: Team, robot: str,
-         max_bytes: int, max_seqs: int) -> Read | None:
-    """The map deltas and fills ``maps`` (``fills``) of a grid of ``size`` cells, and the beacons' request maps
-    ``wants`` (their MessagePack bytes) of a team ``members``, read at once (:class:`Read`). A request map is
-    checked as :meth:`~fleet_emu.agents.protocol.PoseBeacon.validate` checks it (keys teammates, delta numbers
-    strictly ascending from 1, at most ``max_seqs``), and only what it asks ``robot`` for is read. None when one
-    is not in the encoder's form or not valid, for the caller to decode them the general way."""
-    payloads = maps + wants
+def read(maps: list[bytes], fills: list[bool], beacons: list[bytes], wants: list[bytes], shape: tuple[int, int],
+         members: Team, robot: str, max_bytes: int, max_seqs: int) -> Read | None:
+    """The map deltas and fills ``maps`` (``fills``), pose beacons ``beacons`` and lone request maps ``wants``
+    (their MessagePack bytes) of a grid of ``shape`` and a team ``members``, read at once (:class:`Read`), each
+    checked as its ``validate`` checks it. A request map's keys are teammates, its delta numbers strictly
+    ascending from 1, at most ``max_seqs``, and only what it asks ``robot`` for is read. None when one is not
+    in the encoder's form or not valid, for the caller to decode them the general way."""
+    payloads = maps + beacons + wants
     buf = np.frombuffer(b"".join(payloads), np.uint8)
     keys = members.keys if members.keys is not None else _NO_KEYS
-    ok, cells, values, meta, asked, seqs = _read(buf, np.fromiter(map(len, payloads), np.int64, len(payloads)),
-                                                 np.array(fills, np.bool_), size, keys, members.ids,
-                                                 members.index.get(robot, -1), max_bytes, max_seqs)
+    ok, cells, values, meta, poses, asked, seqs = _read(
+        buf, np.fromiter(map(len, payloads), np.int64, len(payloads)), np.array(fills, np.bool_), len(beacons),
+        shape[0], shape[1], keys, members.ids, members.index.get(robot, -1), max_bytes, max_seqs)
     if not ok:
         return None
     cells.flags.writeable = values.flags.writeable = False  # as arrays read from a message's bytes are
-    return Read(cells, values, meta.tolist(), asked.tolist(), seqs.tolist())
+    return Read(cells, values, meta.tolist(), poses.tolist(), asked.tolist(), seqs.tolist())
 
 
 def warm_up() -> None:
     """Compile (or load from cache) every kernel a robot runs, the grid's (``core.kernels.warm_up``) and
     these, so the first tick does not pay for them."""
-    from fleet_emu.agents.protocol import MapDelta, MapFill
+    from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
 
     kernels.warm_up()
 
     delta = MapDelta(cells=np.array([0], np.int32), values=np.array([0], np.int8), n=2, covers=(1,)).encode()
     fill = MapFill(cells=np.array([0], np.int32), values=np.array([0], np.int8), seqs=(1,), upto=1).encode()
-    read([delta, fill], [False, True], [b"\x81\xa2r1\x91\x01"], 1, team(frozenset({"r1"})), "r1", 1 << 20, 64)
+    beacon = PoseBeacon(cell=(0, 0), next=(0, 0), maps=2, want={"r1": (1,)}).encode()
+    read([delta, fill], [False, True], [beacon], [b"\x81\xa2r1\x91\x01"], (1, 1), team(frozenset({"r1"})), "r1",
+         1 << 20, 64)

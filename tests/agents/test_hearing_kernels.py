@@ -74,8 +74,8 @@ def test_the_robots_own_deltas_and_fills_are_read_from_their_bytes_as_decoded() 
     rng = np.random.default_rng(0)
     messages: list[MapDelta | MapFill] = [m for pair in zip(_deltas(rng, 40), _fills(rng, 40), strict=True)
                                           for m in pair]
-    got = read([m.encode() for m in messages], [isinstance(m, MapFill) for m in messages], [], 40 * 50, team(TEAM),
-               "r1", 1 << 26, MAX_SEQS)
+    got = read([m.encode() for m in messages], [isinstance(m, MapFill) for m in messages], [], [], (40, 50),
+               team(TEAM), "r1", 1 << 26, MAX_SEQS)
     assert got is not None and not got.asked  # every one the fast way
     cells, values, rows, seqs = got.cells, got.values, got.maps, got.seqs
     assert not cells.flags.writeable and cells.dtype == np.int32 and values.dtype == np.int8
@@ -87,22 +87,26 @@ def test_the_robots_own_deltas_and_fills_are_read_from_their_bytes_as_decoded() 
         else:
             assert (n or None, tuple(seqs[s0:s1]) if s0 >= 0 else None) == (m.n, m.covers)
         a = end
-    assert read([messages[0].encode()], [True], [], 40 * 50, team(TEAM), "r1", 1 << 26, MAX_SEQS) is None  # no fill
+    assert read([messages[0].encode()], [True], [], [], (40, 50), team(TEAM), "r1", 1 << 26, MAX_SEQS) is None
 
 
-def test_the_robots_own_requests_are_checked_and_read_for_the_robot_asked() -> None:
-    beacons = [b for b in _beacons(np.random.default_rng(1), 80) if b.want]
+def test_the_robots_own_beacons_and_requests_are_checked_and_read_for_the_robot_asked() -> None:
+    beacons = _beacons(np.random.default_rng(1), 80)
     wants = [PoseBeacon(cell=(0, 0), want=b.want).encode()[len(PoseBeacon(cell=(0, 0)).encode()) + 5:]
-             for b in beacons]  # the want map's own bytes: after the cell and the key "want"
+             for b in beacons if b.want]  # a request map's own bytes: after the cell and the key "want"
     delta = MapDelta(cells=np.array([5], np.int32), values=np.array([100], np.int8), n=3, covers=(1, 2)).encode()
     for robot in [*TEAM, "r9"]:
-        got = read([delta, delta], [False, False], wants, 40 * 50, team(TEAM), robot, 1 << 26, MAX_SEQS)  # together
+        got = read([delta, delta], [False, False], [b.encode() for b in beacons], wants, (40, 50), team(TEAM), robot,
+                   1 << 26, MAX_SEQS)  # all kinds together
         assert got is not None
+        assert [(r, c, nr, nc, maps) for r, c, nr, nc, maps, _ in got.poses] == [(3, 4, 3, 5, b.maps) for b in beacons]
         asked = {j: tuple(got.seqs[s0:s1]) for j, s0, s1 in got.asked}
-        assert asked == {i: b.want[robot] for i, b in enumerate(beacons) if b.want and robot in b.want}
+        expected = [b.want.get(robot) if b.want else None for b in beacons]
+        expected += [b.want.get(robot) for b in beacons if b.want]  # the lone request maps, after the beacons
+        assert asked == {j: seqs for j, seqs in enumerate(expected) if seqs is not None}
         assert got.cells.tolist() == [5, 5] and [tuple(got.seqs[r[2]:r[3]]) for r in got.maps] == [(1, 2)] * 2
-    assert read([], [], wants, 1, team(TEAM - {"r2"}), "r1", 1, MAX_SEQS) is None  # a request to a stranger
-    assert read([], [], wants, 1, team(TEAM | {"robot-10"}), "r1", 1, MAX_SEQS) is None  # a long name: the long way
+    assert read([], [], [], wants, (1, 1), team(TEAM - {"r2"}), "r1", 1, MAX_SEQS) is None  # a request to a stranger
+    assert read([], [], [], wants, (1, 1), team(TEAM | {"robot-10"}), "r1", 1, MAX_SEQS) is None  # a long name
 
 
 @pytest.mark.parametrize("kind", ["map", "mapfill", "pose"])
