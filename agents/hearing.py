@@ -1,13 +1,12 @@
 """What a robot hears in a tick, decoded at once: its teammates' pose beacons, map deltas and fills read straight
 from their payloads into light structs, checked against the team and the grid, with no record built per message.
 
-At 100 robots a robot hears about 90 beacons and 90 map deltas a tick; decoding each into a
+At 100 robots a robot hears about 60 beacons and 60 map deltas a tick; decoding each into a
 :class:`~fleet_emu.agents.protocol.PoseBeacon` or :class:`~fleet_emu.agents.protocol.MapDelta` and a
 :class:`~fleet_emu.core.messages.RadioMsg` cost several microseconds of Python per message, most of the brain's
-CPU outside the allocator. Here a beacon's cells are checked by its decoder (per grid, built once), its
-requests (``want``) are kept as their bytes and checked for all beacons in one compiled pass, which also picks
-out those addressed to the robot (:attr:`Hearing.asks`); the map deltas and fills are read from their bytes
-in another (:mod:`~fleet_emu.agents.hearing_kernels`), and the brain reads the structs (:meth:`Brain.open`).
+CPU outside the allocator. Here the beacons, map deltas and fills of an inbox are read from their bytes and
+checked in one compiled pass (:mod:`~fleet_emu.agents.hearing_kernels`), which also picks out the requests
+(``want``) addressed to the robot (:attr:`Hearing.asks`), and the brain reads the structs (:meth:`Brain.open`).
 
 This decides nothing: :func:`hear` accepts only what the message decoders accept (``agents/protocol.py``; the
 tests compare them on mutated payloads), gives their values, and returns None for an inbox holding anything
@@ -31,9 +30,10 @@ from fleet_emu.core.envelope import MAX_PAYLOAD_BYTES, MAX_TTL, AnyEnvelope, Wir
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.messages import Envelope, RadioMsg, open_envelope
 
-#: The envelope attribute under which a message heard is kept with its context: the memory engine hands one
-#: broadcast envelope object to every receiver, and the next receiver of the same team and grid reads it as
-#: it is (as :func:`~fleet_emu.core.envelope.open_envelope` keeps its opened message).
+#: The envelope attribute under which a message heard is kept with its context (and a beacon's request map's
+#: bytes, which each receiver reads for itself): the memory engine hands one broadcast envelope object to every
+#: receiver, and the next receiver of the same team and grid reads it as it is (as
+#: :func:`~fleet_emu.core.envelope.open_envelope` keeps its opened message).
 CACHE = "_heard"
 
 #: One message heard: its origin, its envelope's tick, and its body (a :class:`Beacon`, a :class:`Delta`, a
@@ -143,12 +143,13 @@ def hear(inbox: Sequence[AnyEnvelope], ctx: Context, robot: str, keep: bool = Fa
             continue
         add((origin, tick, None))
     asks: dict[int, tuple[int, ...]] = {}
-    requests: dict[int, bytes] | None = {}
+    requests: dict[int, bytes] = {}
     if maps or beacons or wants:
-        requests = _read_into(out, asks, (map_places, maps, fills), (beacon_places, beacons),
-                              (want_places, wants), ctx, robot, keep)
-        if requests is None:
+        got = _read_into(out, asks, (map_places, maps, fills), (beacon_places, beacons), (want_places, wants),
+                         ctx, robot, keep)
+        if got is None:
             return None
+        requests = got
     for i, env in fresh:
         if type(env) is Envelope:
             env.__dict__[CACHE] = (ctx, out[i], requests.get(i))
