@@ -86,6 +86,16 @@ def test_other_kinds_are_opened_as_messages_in_their_place() -> None:
     assert again is not None and all(a is b for a, b in zip(again.messages, kept.messages, strict=True))
 
 
+def test_a_shared_beacon_asks_each_receiver_for_its_own_deltas() -> None:
+    beacon = PoseBeacon(cell=(1, 2), next=(1, 3), maps=4, want={"r0": (1, 2), "r2": (3,)})
+    inbox = [_env("pose", beacon.encode())]
+    first = hear(inbox, CTX, "r0", keep=True)
+    assert first is not None and first.asks == {0: (1, 2)}
+    for robot, asks in (("r2", {0: (3,)}), ("r1", {}), ("r0", {0: (1, 2)})):  # each reads the kept request map
+        got = hear(inbox, CTX, robot, keep=True)
+        assert got is not None and got.asks == asks and got.messages[0] is first.messages[0]
+
+
 def test_the_brain_drops_and_counts_a_bad_message_and_hears_the_rest() -> None:
     drops: list[str] = []
     brain = Brain("r0", Spy(), np.random.default_rng(0), BrainConfig(), team=frozenset({"r0", "r1", "r2"}),
