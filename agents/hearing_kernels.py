@@ -331,7 +331,7 @@ def _want(buf: np.ndarray, p: int, end: int, keys: np.ndarray, ids: np.ndarray, 
 
 @dataclasses.dataclass(frozen=True)
 class Team:
-    """A team's names as :func:`read_wants` looks them up: an open-addressing hash table of the names packed in
+    """A team's names as :func:`read` looks them up: an open-addressing hash table of the names packed in
     a number each (their UTF-8 bytes and length: ``keys``, their index in ``ids``, -1 where empty), and each
     name's index; ``keys`` is None when a name is longer than 7 bytes (a robot's id is ``r0`` to ``r255``, the
     base station's ``base``), and such a team's requests go the general way."""
