@@ -139,6 +139,11 @@ class Inbox:
         self._waiter: asyncio.Future[None] | None = None  # the pending get's, on the loop
         self._wake_pending = False  # a wake-up is scheduled on the loop and has not run yet
         self._lock = threading.Lock()  # zenoh calls back from several threads
+        #: A key whose items are queued without waking the loop (None: every item wakes it), set by the loop: a
+        #: robot waiting for its rx bundle has no use for its observation alone, which comes first. The loop
+        #: clears it before it needs such an item, then finds any queued meanwhile (:meth:`get` takes an item
+        #: already there without waiting; a callback appends its item before it reads this).
+        self.quiet: str | None = None
 
     def callback(self, sample: zenoh.Sample) -> None:
         """The zenoh callback: drop a message of another run, else copy the bytes out and return at once."""
@@ -155,6 +160,8 @@ class Inbox:
         """Queue ``item`` (from any thread) and wake the loop unless a wake-up is already pending: that one
         runs after this append, so it finds the item."""
         self._items.append(item)
+        if item[0] == self.quiet:
+            return
         with self._lock:
             if self._wake_pending:
                 return

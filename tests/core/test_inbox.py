@@ -49,3 +49,28 @@ def test_a_wake_up_for_an_item_already_taken_does_not_end_the_next_get() -> None
             later.join()
 
     assert asyncio.run(go()) == ("b", b"2", True)
+
+
+def test_an_item_of_the_quiet_key_schedules_no_wake_up_and_the_next_one_takes_it() -> None:
+    async def go() -> None:
+        inbox = Inbox()
+        inbox.quiet = "obs"
+
+        def put(item: tuple[str, bytes, bool]) -> None:
+            t = threading.Thread(target=inbox.put_nowait, args=(item,))
+            t.start()
+            t.join()
+
+        put(("obs", b"1", True))
+        assert not inbox._wake_pending  # queued, and the loop not woken for it
+        put(("rx", b"2", True))
+        assert inbox._wake_pending
+        assert await inbox.get(timeout=10.0) == ("obs", b"1", True)  # that wake-up takes both, in order
+        assert await inbox.get(timeout=0.0) == ("rx", b"2", True)
+        await asyncio.sleep(0)  # the wake-up runs
+        inbox.quiet = None
+        put(("obs", b"3", True))
+        assert inbox._wake_pending  # no longer quiet: it wakes the loop
+        assert await inbox.get(timeout=10.0) == ("obs", b"3", True)
+
+    asyncio.run(go())
