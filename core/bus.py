@@ -157,8 +157,8 @@ class Inbox:
         self.put_nowait((str(sample.key_expr), sample.payload.to_bytes(), sample.kind == zenoh.SampleKind.PUT))
 
     def put_nowait(self, item: tuple[str, bytes, bool]) -> None:
-        """Queue ``item`` (from any thread) and wake the loop unless a wake-up is already pending: that one
-        runs after this append, so it finds the item."""
+        """Queue ``item`` (from any thread) and wake the loop unless its key is :attr:`quiet` or a wake-up is
+        already pending: that one runs after this append, so it finds the item."""
         self._items.append(item)
         if item[0] == self.quiet:
             return
