@@ -9,6 +9,9 @@ Each generated part sits between an opening and a closing comment, and ``python 
 - ``<!-- api -->`` ... ``<!-- /api -->``: a section per name of ``fleet_emu.__all__``, grouped as its source
   groups them (a comment line per group), from the docstrings of the module that defines each.
 - ``<!-- doc: fleet_emu.core.messages.Links -->`` ... ``<!-- /doc -->``: one class's or function's section.
+- ``<!-- claims: bautin-fig5 -->`` ... ``<!-- /claims -->``: a paper study's claims, judged with their intervals
+  by the tool itself on the study's results kept in ``docs/performance/claims/NAME`` (``python docs/hooks.py
+  --keep RESULTS`` keeps them), so that the papers page cannot say other than the tool.
 
 Docstrings are written in one style, reStructuredText's as Sphinx reads it (``literal``, ``:class:`Name```,
 ``:func:`name```, a ``::`` paragraph before an indented example), the style mkdocs.yml gives mkdocstrings
@@ -31,10 +34,18 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The pages holding generated parts.
-PAGES = ("reference/cli.md", "reference/api.md", "reference/protocol.md")
+PAGES = ("reference/cli.md", "reference/api.md", "reference/protocol.md", "performance/papers.md")
 CLI_HELP = re.compile(r"<!--\s*cli-help:\s*(?P<arg>[\w-]*)\s*-->.*?<!--\s*/cli-help\s*-->", re.S)
 API = re.compile(r"<!--\s*api\s*-->(?P<arg>).*?<!--\s*/api\s*-->", re.S)
 DOC = re.compile(r"<!--\s*doc:\s*(?P<arg>[\w.]+)\s*-->.*?<!--\s*/doc\s*-->", re.S)
+CLAIMS = re.compile(r"<!--\s*claims:\s*(?P<arg>[\w.-]+)\s*-->.*?<!--\s*/claims\s*-->", re.S)
+MEANS = re.compile(r"<!--\s*means:\s*(?P<arg>[\w.-]+)\s*-->.*?<!--\s*/means\s*-->", re.S)
+#: Where a paper study's results are kept for the claims tables (``python docs/hooks.py --keep RESULTS``).
+KEPT = ROOT / "docs" / "performance" / "claims"
+#: The columns of a sweep's rows that the claims read (the rest are left out of the kept copy).
+KEPT_COLUMNS = ("id", "status", "completed", "ticks", "coverage", "connected_fraction", "path_length", "robots",
+                "map", "comm", "loss_applied", "map_sync", "scenario.map_sync", "scenario.radio.bandwidth",
+                "base_connected_fraction.overall", "radio.bytes_sent")
 ROLE = re.compile(r":(?:py:)?(?:class|func|meth|mod|attr|data|exc|obj|const|ref):`~?\.?([^`]+)`")
 
 
@@ -204,7 +215,83 @@ def refresh(markdown: str) -> str:
     markdown = CLI_HELP.sub(lambda m: block("cli-help", m["arg"], f"```text\n{cli_help(m['arg']).rstrip()}\n```"),
                             markdown)
     markdown = API.sub(lambda m: block("api", "", api_page()), markdown)
+    markdown = CLAIMS.sub(lambda m: block("claims", m["arg"], claims_table(m["arg"])), markdown)
+    markdown = MEANS.sub(lambda m: block("means", m["arg"], means_table(m["arg"])), markdown)
     return DOC.sub(lambda m: block("doc", m["arg"], doc_section(m["arg"])), markdown)
+
+
+def claims_table(name: str) -> str:
+    """A paper study's claims judged on its kept results (:data:`KEPT` / NAME), as ``fleet sweep report`` judges
+    them (each at the look that decided it), in Markdown, with the command that shows the same."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from fleet_emu.sweep.decide import judged_as_decided
+    from fleet_emu.sweep.intervals import Bootstrap, level_text
+    from fleet_emu.sweep.report import load
+    from fleet_emu.sweep.verdicts import markdown
+
+    folder = KEPT / name
+    rows, study, _ = load(folder)
+    _, entries, level, _ = judged_as_decided(study, rows, study.get("study", {}).get("baseline"), folder, Bootstrap())
+    runs = len(rows)
+    looks = {e.get("replicates") for e in entries if e.get("replicates")}
+    return (f"{markdown(entries)}\n{level_text(level)} intervals over replicates (n), {runs} runs"
+            + (f"; replicates looked at: {', '.join(map(str, sorted(looks)))}" if looks else "")
+            + f". `fleet sweep report docs/performance/claims/{name} --no-plots` prints the same from the kept "
+            f"results.")
+
+
+def means_table(name: str) -> str:
+    """A paper study's kept results as a table of means: robot counts by allocators (time to the target, mean ±
+    std, and the % difference to the baseline's mean) when the study varies the robot count, else a line per
+    allocator (time, moves, connected time, runs that reached the target); n is every cell's number of runs."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from fleet_emu.sweep.report import by, load, summary
+
+    rows, study, _ = load(KEPT / name)
+    head = study.get("study", {})
+    base = head.get("baseline")
+    lines = summary(rows, base, head.get("replicates", []))
+    allocs = list(dict.fromkeys(str(ln["allocator"]) for ln in lines))
+    counts = {ln["runs"] for ln in lines}
+    def cell(ms: tuple[float, float, int]) -> str:
+        return "-" if not ms[2] else f"{ms[0]:.1f} ± {ms[1]:.1f}"
+    if len({ln["robots"] for ln in lines}) > 1:
+        out = ["| robots | " + " | ".join(allocs) + " |", "| --- |" + " --- |" * len(allocs)]
+        for (robots,), group in by(lines, "robots").items():
+            of = {str(ln["allocator"]): ln for ln in group}
+            cells = [cell(of[a]["ticks"]) + ("" if a == base or of[a]["vs_baseline_pct"] != of[a]["vs_baseline_pct"]
+                                             else f" ({of[a]['vs_baseline_pct']:+.1f} %)") for a in allocs]
+            out.append(f"| {robots} | " + " | ".join(cells) + " |")
+    else:
+        out = ["| allocator | ticks to the target | moves | connected % | reached |", "| --- | --- | --- | --- | --- |"]
+        out += [f"| {ln['allocator']} | {cell(ln['ticks'])} | {cell(ln['moves'])} | {cell(ln['connected_pct'])} | "
+                f"{ln['reached']} / {ln['runs']} |" for ln in lines]
+    n = f"n = {counts.pop()} runs per cell" if len(counts) == 1 else "n = " + ", ".join(map(str, sorted(counts)))
+    return "\n".join(out) + f"\n\nMean ± std over each cell's runs that reached the target; {n}."
+
+
+def keep(results: Path) -> Path:
+    """Copy what the claims of a sweep's results read (``study.toml``, ``decided.json``, the rows' claim columns
+    as Parquet) into :data:`KEPT` / the study's name."""
+    import shutil
+    import tomllib
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    study = tomllib.loads((results / "study.toml").read_text())
+    folder = KEPT / study["study"]["name"]
+    folder.mkdir(parents=True, exist_ok=True)
+    table = pq.read_table(results / "results.parquet")
+    cols = [c for c in table.column_names if c.startswith("param.") or c in KEPT_COLUMNS]
+    pq.write_table(pa.Table.from_pylist(table.select(cols).to_pylist()), folder / "results.parquet",
+                   compression="zstd")
+    shutil.copyfile(results / "study.toml", folder / "study.toml")
+    if (results / "decided.json").is_file():
+        shutil.copyfile(results / "decided.json", folder / "decided.json")
+    return folder
 
 
 def on_page_markdown(markdown: str, **_: Any) -> str:
@@ -213,7 +300,11 @@ def on_page_markdown(markdown: str, **_: Any) -> str:
 
 
 def main() -> int:
-    """``python docs/hooks.py``: rewrite the generated parts of :data:`PAGES`; print the pages that changed."""
+    """``python docs/hooks.py``: rewrite the generated parts of :data:`PAGES`; print the pages that changed.
+    ``python docs/hooks.py --keep RESULTS``: first keep a paper study's results for its claims table."""
+    if sys.argv[1:2] == ["--keep"]:
+        for results in sys.argv[2:]:
+            print(f"kept {keep(Path(results)).relative_to(ROOT)}")
     for page in PAGES:
         path = ROOT / "docs" / page
         text = path.read_text()

@@ -1,5 +1,6 @@
 """A study's ``[[paper.claims]]``: each of the paper's findings with a machine-checkable criterion, judged on
-the sweep's numbers as *reproduced*, *not reproduced* or *no data*.
+the sweep's runs with an interval over replicates as *reproduced*, *not reproduced*, *inconclusive* or *too few
+runs* (:mod:`fleet_emu.sweep.intervals`).
 
 ```toml
 [[paper.claims]]
@@ -11,30 +12,43 @@ robots = [2, 3, 4]
 each = "robots"                # optional: the criterion holds for each value the selection lists
 within = [0, 25]               # the criterion, one of:
 # at_least = 25 / at_most = 80 / above = 0 / below = 0     a bound (>=, <=, >, <)
-# below = {allocator = "nearest"}                          ... or another selection's value of the metric,
-# at_most = {allocator = "minpos", times = 1.8}             times a factor; a list of tables: each of them
+# below = {allocator = "nearest"}                          ... or another selection's: the paired difference
+# at_most = {allocator = "minpos", times = 1.8}             ... or, with a factor, the ratio; a list: each of them
 # near = 42.7, tolerance = 10                              |ours - near| <= tolerance
 # increasing = "loss"                                      strictly, over the listed values in their order
 ```
 
-``[paper] beside = "map_sync"`` judges every claim once per value of that ``[grid]`` key, side by side (a claim
-that names the key itself keeps its own). A claim that is a plain string is the paper's words, not judged.
+``[paper] beside = "map_sync"`` (any ``[grid]`` key) judges every claim once per value of that key, side by side
+(a claim that names the key itself keeps its own). A claim that is a plain string is the paper's words, not
+judged.
 
-Pure: :func:`parse` reads the claims, :func:`judge` applies one to a function that gives our number for a
-selection and a metric (``fleet sweep report`` passes one over its rows, :func:`row_value`).
+Pure: :func:`parse` reads the claims, :func:`judge` applies one to a sweep's runs
+(:class:`~fleet_emu.sweep.figures.Runs`): every figure of the claim (one per ``each`` value, per other
+selection, per step of a monotone claim) on every replicate and on bootstrap resamples of them, its interval,
+and the verdict the interval allows.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import itertools
-import json
 import math
-from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.sweep.figures import Figure, Runs, difference, ratio, value
+from fleet_emu.sweep.intervals import (
+    Bootstrap,
+    Interval,
+    Region,
+    Verdict,
+    decide,
+    interval,
+    replicates_needed,
+    resample_weights,
+)
 
 #: Keys a claim selects runs by.
 SELECT = ("allocator", "robots", "loss", "map_sync")
@@ -43,10 +57,6 @@ CRITERIA = ("within", "near", "increasing", "decreasing", *BOUNDS)
 _KEYS = {"text", "metric", "each", "tolerance", *SELECT, *CRITERIA}
 #: Metrics besides the per-run ones of ``sweep.report.METRICS``.
 AGGREGATES = ("vs_baseline_pct", "mean_std_ticks", "vs_loss0_pct", "std_ticks", "reached_pct")
-REPRODUCED, NOT_REPRODUCED, NO_DATA, NOT_JUDGED = "reproduced", "not reproduced", "no data", "not judged"
-
-#: Our number for a selection (``SELECT`` keys) and a metric; None when no run gives it.
-Value = Callable[[dict[str, Any], str], "float | None"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,6 +73,11 @@ class Claim:
     arg: Any = None
     tolerance: float = 0.0
     each: str | None = None
+
+    @property
+    def others(self) -> tuple[tuple[dict[str, Any], float], ...]:
+        """The other selections a bound compares with, each with its factor (none for a number)."""
+        return self.arg if self.kind in BOUNDS and isinstance(self.arg, tuple) else ()
 
     def criterion(self) -> str:
         """The criterion as text: ``vs_baseline_pct in [0, 25], each robots``."""
@@ -81,16 +96,6 @@ class Claim:
         return f"{self.metric} {what}" + (f", each {self.each}" if self.each else "")
 
 
-@dataclasses.dataclass(frozen=True)
-class Verdict:
-    """A claim judged: our numbers as text (``ours``) and the verdict (:data:`REPRODUCED` ...)."""
-
-    claim: Claim
-    ours: str
-    verdict: str
-    where: dict[str, Any] = dataclasses.field(default_factory=dict)
-
-
 # --- reading -----------------------------------------------------------------------------------------------
 
 def parse(paper: dict[str, Any], where: str = "study", grid: dict[str, Any] | None = None) -> list[Claim]:
@@ -105,7 +110,36 @@ def parse(paper: dict[str, Any], where: str = "study", grid: dict[str, Any] | No
     beside = paper.get("beside")
     if beside is not None and grid is not None and (not isinstance(beside, str) or beside not in grid):
         raise ConfigError(f"{where}: [paper] beside must name a [grid] key (got {beside!r})")
-    return [_claim(c, f"{where}: claim {i + 1}", metrics) for i, c in enumerate(raw)]
+    out = [_claim(c, f"{where}: claim {i + 1}", metrics) for i, c in enumerate(raw)]
+    for i, c in enumerate(out):
+        if grid is not None:
+            _in_grid(c, grid, f"{where}: claim {i + 1}")
+    return out
+
+
+def _in_grid(claim: Claim, grid: dict[str, Any], where: str) -> None:
+    """Every value a claim selects by a ``[grid]`` key is one of that key's (a value absent from the grid has
+    no runs: the claim would say "no data" for ever)."""
+    tables = [claim.select, *(o for o, _ in claim.others)]
+    for table in tables:
+        for k, v in table.items():
+            if k not in grid or k == "map_sync":
+                continue
+            known = [_plain(x) for x in grid[k]]
+            for x in (v if isinstance(v, list) else [v]):
+                if _plain(x) not in known:
+                    raise ConfigError(f"{where}: {k} = {x!r} is not in the [grid]'s {k} "
+                                      f"({', '.join(map(str, grid[k]))}): no run would have it")
+
+
+def _plain(x: Any) -> Any:
+    """A grid value as the claims compare it: a table by its label (``trade(tasks=regions)``), numbers as
+    floats."""
+    if isinstance(x, dict):
+        from fleet_emu.sweep.study import param_label
+
+        return param_label(x)
+    return float(x) if isinstance(x, int | float) and not isinstance(x, bool) else x
 
 
 def _claim(c: Any, where: str, metrics: set[str]) -> Claim:
@@ -165,94 +199,143 @@ def _arg(kind: str, v: Any, where: str) -> Any:
 
 
 def _is_num(x: Any) -> bool:
-    return isinstance(x, int | float) and not isinstance(x, bool) and not math.isnan(x)
+    """A finite number (an infinite bound or tolerance would hold whatever the runs say)."""
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
 
 
 # --- judging -----------------------------------------------------------------------------------------------
 
-def judge(claim: Claim, value: Value, where: dict[str, Any] | None = None) -> Verdict:
-    """The claim on our numbers (``value``), for the runs ``where`` also selects (``beside``'s value; the
-    claim's own selection wins)."""
+@dataclasses.dataclass(frozen=True)
+class Part:
+    """One figure of a claim (a robot count of ``each``, one of several other selections, a step of a monotone
+    claim): what it is (``label``, ``figure``), its interval, where it must lie and the verdict."""
+
+    label: str
+    figure: str
+    interval: Interval
+    region: Region
+    verdict: Verdict
+    needed: int | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Judged:
+    """A claim judged under one setting (``where``: ``beside``'s value): its parts and the claim's verdict,
+    reproduced when every part is, not reproduced when one part is, else what the undecided parts say."""
+
+    claim: Claim
+    where: dict[str, Any]
+    parts: tuple[Part, ...] = ()
+    verdict: Verdict = Verdict.NOT_JUDGED
+
+    @property
+    def main(self) -> Part | None:
+        """The part that decides the claim: a failing one, else the undecided one needing the most replicates,
+        else the one nearest its criterion."""
+        if not self.parts:
+            return None
+        for want in (Verdict.NOT_REPRODUCED, Verdict.NO_DATA, Verdict.TOO_FEW):
+            for p in self.parts:
+                if p.verdict == want:
+                    return p
+        open_ = [p for p in self.parts if p.verdict == Verdict.INCONCLUSIVE]
+        if open_:
+            return max(open_, key=lambda p: p.needed or 10**9)
+        return min(self.parts, key=lambda p: min(p.region.distance(p.interval.low),
+                                                 p.region.distance(p.interval.high)))
+
+
+def judge(claim: Claim, runs: Runs, where: dict[str, Any] | None = None, boot: Bootstrap | None = None,
+          level: float | None = None) -> Judged:
+    """The claim on the runs (those ``where`` also selects; the claim's own selection wins), each figure with
+    its bootstrap interval over replicates at ``level`` (default ``boot.level``)."""
     where = where or {}
     if not claim.kind:
-        return Verdict(claim, "", NOT_JUDGED, where)
-    base = where | claim.select
+        return Judged(claim, where)
+    boot = boot or Bootstrap()
+    level = boot.level if level is None else level
+    n = len(runs.units)
+    w = np.vstack([np.ones((1, n)), resample_weights(n, boot)]) if n else np.ones((1, 0))
+    parts = [_part(label, what, fig, region, level) for label, what, fig, region in _figures(claim, runs,
+                                                                                           where | claim.select, w)]
+    return Judged(claim, where, tuple(parts), _overall([p.verdict for p in parts]))
+
+
+def _part(label: str, what: str, fig: Figure, region: Region, level: float) -> Part:
+    iv = interval(float(fig.values[0]), fig.values[1:], fig.n, level)
+    verdict = decide(iv, region)
+    needed = replicates_needed(iv, region) if verdict in (Verdict.INCONCLUSIVE, Verdict.TOO_FEW) else None
+    return Part(label, what, iv, region, verdict, needed)
+
+
+Figures = list[tuple[str, str, Figure, Region]]
+
+
+def _figures(claim: Claim, runs: Runs, base: dict[str, Any], w: np.ndarray) -> Figures:
+    """Every part of a claim: (label, what the figure is, the figure, the region where it must lie)."""
     if claim.kind in ("increasing", "decreasing"):
-        return _monotone(claim, value, base, where)
-    parts, verdicts = [], []
+        key = claim.arg
+        vals = [value(runs, base | {key: v}, claim.metric, w) for v in base[key]]
+        region = Region(low=0.0, low_closed=False) if claim.kind == "increasing" else Region(high=0.0,
+                                                                                             high_closed=False)
+        return [(f"{key} {_num(a)} → {_num(b)}", f"{claim.metric} at {_num(b)} - at {_num(a)}",
+                 difference(vb, va), region) for (a, va), (b, vb) in itertools.pairwise(zip(base[key], vals,
+                                                                                              strict=True))]
+    out: Figures = []
     for label, sel in _each(claim, base):
-        text, ok = _one(claim, value, sel)
-        parts.append(f"{label}: {text}" if label else text)
-        verdicts.append(ok)
-    return Verdict(claim, "; ".join(parts), _overall(verdicts), where)
+        ours = value(runs, sel, claim.metric, w)
+        if not claim.others:
+            out.append((label, claim.metric, ours, _region(claim)))
+            continue
+        for other, times in claim.others:
+            theirs = value(runs, sel | other, claim.metric, w)
+            vs = ", ".join(str(v) if k == "allocator" else f"{k}={_num(v)}" for k, v in other.items())
+            if times != 1.0:  # a factor: the ratio against it
+                fig, what, bound = ratio(ours, theirs), f"{claim.metric} / {vs}'s", times
+            else:  # the paired difference against 0
+                fig, what, bound = difference(ours, theirs), f"{claim.metric} - {vs}'s", 0.0
+            out.append((", ".join(x for x in (label, f"vs {vs}") if x), what, fig,
+                        _region(claim, bound)))
+    return out
 
 
 def _each(claim: Claim, base: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
     """The selections to judge: one, or one per value ``each`` lists."""
     if claim.each is None:
         return [("", base)]
-    return [(f"{_num(v)}", base | {claim.each: v}) for v in base[claim.each]]
+    return [(f"{claim.each} {_num(v)}", base | {claim.each: v}) for v in base[claim.each]]
 
 
-def _one(claim: Claim, value: Value, sel: dict[str, Any]) -> tuple[str, bool | None]:
-    """Our number for one selection as text, and whether the criterion holds (None: no data)."""
-    ours = _clean(value(sel, claim.metric))
+def _region(claim: Claim, bound: float | None = None) -> Region:
+    """Where the figure must lie: the criterion's bound (or ``bound``, a factor or 0 for another selection)."""
     if claim.kind == "within":
-        lo, hi = claim.arg
-        return _num(ours), None if ours is None else lo <= ours <= hi
+        return Region(claim.arg[0], claim.arg[1])
     if claim.kind == "near":
-        return _num(ours), None if ours is None else abs(ours - claim.arg) <= claim.tolerance
-    if not isinstance(claim.arg, tuple):
-        return _num(ours), None if ours is None else _holds(claim.kind, ours, claim.arg)
-    texts, oks = [], []
-    for other, times in claim.arg:
-        theirs = _clean(value(sel | other, claim.metric))
-        texts.append(f"{_other(other, times)} {_num(theirs)}")
-        oks.append(None if ours is None or theirs is None else _holds(claim.kind, ours, times * theirs))
-    return f"{_num(ours)} vs " + ", ".join(texts), _overall_bool(oks)
+        return Region(claim.arg - claim.tolerance, claim.arg + claim.tolerance)
+    b = float(claim.arg) if bound is None else bound
+    return {"at_least": Region(low=b), "at_most": Region(high=b), "above": Region(low=b, low_closed=False),
+            "below": Region(high=b, high_closed=False)}[claim.kind]
 
 
-def _holds(kind: str, ours: float, bound: float) -> bool:
-    return {"at_least": ours >= bound, "at_most": ours <= bound, "above": ours > bound, "below": ours < bound}[kind]
-
-
-def _monotone(claim: Claim, value: Value, base: dict[str, Any], where: dict[str, Any]) -> Verdict:
-    """Strictly increasing (decreasing) over the listed values of the key, in their order."""
-    key = claim.arg
-    vals = [_clean(value(base | {key: v}, claim.metric)) for v in base[key]]
-    text = " → ".join(f"{_num(k)}: {_num(v)}" for k, v in zip(base[key], vals, strict=True))
-    if any(v is None for v in vals):
-        return Verdict(claim, text, NO_DATA, where)
-    pairs = itertools.pairwise(v for v in vals if v is not None)
-    ok = all((b > a) if claim.kind == "increasing" else (b < a) for a, b in pairs)
-    return Verdict(claim, text, REPRODUCED if ok else NOT_REPRODUCED, where)
-
-
-def _overall_bool(oks: list[bool | None]) -> bool | None:
-    """False when one fails, else None when one has no data, else True."""
-    if any(ok is False for ok in oks):
-        return False
-    return None if any(ok is None for ok in oks) else True
-
-
-def _overall(oks: list[bool | None]) -> str:
-    ok = _overall_bool(oks)
-    return NO_DATA if ok is None else REPRODUCED if ok else NOT_REPRODUCED
-
-
-def _clean(v: float | None) -> float | None:
-    return None if v is None or math.isnan(v) else float(v)
+def _overall(verdicts: list[Verdict]) -> Verdict:
+    """A claim's verdict from its parts' (every part must hold)."""
+    if not verdicts:
+        return Verdict.NO_DATA
+    for v in (Verdict.NOT_REPRODUCED, Verdict.NO_DATA, Verdict.TOO_FEW, Verdict.INCONCLUSIVE):
+        if v in verdicts:
+            return v
+    return Verdict.REPRODUCED
 
 
 def _num(v: Any) -> str:
-    """A number as a table shows it: ``-`` for none, integers bare, else one decimal."""
-    if v is None:
+    """A number as a table shows it: ``-`` for none, integers bare, else three significant figures."""
+    if v is None or (isinstance(v, float) and math.isnan(v)):
         return "-"
     if isinstance(v, bool) or not isinstance(v, int | float):
         return str(v).lower() if isinstance(v, bool) else str(v)
-    if float(v).is_integer():
+    if float(v).is_integer() and abs(v) < 1e6:
         return str(int(v))
-    return f"{v:.1f}" if abs(v) >= 1 else f"{v:.2g}"
+    return f"{v:.1f}" if abs(v) >= 100 else f"{v:.3g}"
 
 
 def _other(other: dict[str, Any], times: float) -> str:
@@ -260,36 +343,7 @@ def _other(other: dict[str, Any], times: float) -> str:
     return f"{_num(times)} x {sel}" if times != 1.0 else sel
 
 
-# --- the report --------------------------------------------------------------------------------------------
-
-def row_value(rows: list[dict[str, Any]], lines: list[dict[str, Any]], baseline: str | None) -> Value:
-    """Our number for a selection and a metric, from a sweep's rows (every run, failed ones too) and its
-    summary lines against ``baseline`` (``sweep.report.summary``): ``reached_pct`` over every run selected,
-    the rest as ``[[paper.rows]]`` get theirs (``sweep.report.paper_value``, over the runs that did not fail)."""
-    from fleet_emu.sweep.report import paper_value
-
-    ok = [r for r in rows if r.get("status") == "ok"]
-
-    def value(sel: dict[str, Any], metric: str) -> float | None:
-        if metric == "reached_pct":
-            mine = [r for r in rows if _selected(r, sel)]
-            done = sum(bool(r.get("completed")) and r.get("status") == "ok" for r in mine)
-            return 100.0 * done / len(mine) if mine else None
-        return paper_value(sel | {"metric": metric}, ok, lines, baseline)
-
-    return value
-
-
-def _selected(row: dict[str, Any], sel: dict[str, Any]) -> bool:
-    """Whether a sweep row is one of a selection's runs (a list: any of its values)."""
-    for k, want in sel.items():
-        got = row.get({"allocator": "param.allocator", "loss": "loss_applied"}.get(k, k))
-        if k == "map_sync":
-            got = got is not False
-        if not (got in want if isinstance(want, list) else got == want):
-            return False
-    return True
-
+# --- a study's claims --------------------------------------------------------------------------------------
 
 def settings(study: dict[str, Any]) -> list[dict[str, Any]]:
     """The selections the claims are judged under: one per value of ``[paper] beside`` in the grid, or {}."""
@@ -297,42 +351,11 @@ def settings(study: dict[str, Any]) -> list[dict[str, Any]]:
     return [{beside: v} for v in study.get("grid", {}).get(beside, [])] if beside else [{}]
 
 
-def evaluate(study: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict[str, Any]],
-             baseline: str | None) -> list[list[Verdict]]:
-    """Every claim of a study (its TOML as a dict) judged on the rows, once per :func:`settings` entry."""
+def evaluate(study: dict[str, Any], rows: list[dict[str, Any]], baseline: str | None,
+             boot: Bootstrap | None = None, level: float | None = None) -> list[Judged]:
+    """Every claim of a study (its TOML as a dict) judged on the rows, once per :func:`settings` entry, paired
+    by the study's replicates (its seeds and ``[study] replicates`` keys)."""
     claims = parse(study.get("paper", {}), f"study {study.get('study', {}).get('name', '')}".strip(),
                    study.get("grid", {}))
-    value = row_value(rows, lines, baseline)
-    return [[judge(c, value, w) for w in settings(study)] for c in claims]
-
-
-def table(judged: list[list[Verdict]], source: str) -> Any:
-    """``claim | criterion | ours | verdict``, an ours and a verdict column per setting (``beside``)."""
-    from rich.table import Table
-
-    t = Table(title=f"the paper's claims, judged on ours — {source}")
-    t.add_column("claim")
-    t.add_column("criterion")
-    heads = [_setting(v.where) for v in judged[0]] if judged else [""]
-    for head in heads:
-        t.add_column(f"ours{head}")
-        t.add_column(f"verdict{head}", no_wrap=True)
-    style = {REPRODUCED: "green", NOT_REPRODUCED: "red", NO_DATA: "dim", NOT_JUDGED: "dim"}
-    for verdicts in judged:
-        claim = verdicts[0].claim
-        cells = [x for v in verdicts for x in (v.ours or "-", f"[{style[v.verdict]}]{v.verdict}[/]")]
-        t.add_row(claim.text, claim.criterion(), *cells)
-    return t
-
-
-def _setting(where: dict[str, Any]) -> str:
-    return "".join(f", {k} = {_num(v)}" for k, v in where.items())
-
-
-def write_json(judged: list[list[Verdict]], path: Path) -> Path:
-    """The verdicts as JSON (``claims.json`` beside the results): per claim its text, criterion, and per setting
-    the selection it adds, our numbers and the verdict."""
-    doc = [{"claim": v[0].claim.text, "criterion": v[0].claim.criterion(),
-            "judged": [{"where": x.where, "ours": x.ours, "verdict": x.verdict} for x in v]} for v in judged]
-    path.write_text(json.dumps(doc, indent=1, ensure_ascii=False) + "\n")
-    return path
+    runs = Runs(rows, baseline, study.get("study", {}).get("replicates", []))
+    return [judge(c, runs, w, boot, level) for c in claims for w in settings(study)]

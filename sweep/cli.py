@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import errno
 import os
-import shutil
 import signal
 import sys
 import time
@@ -26,6 +26,7 @@ from types import FrameType
 from typing import Any
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.spelling import plural
 
 FAILED_BASE = 200
 DISK_FULL = 1  # the sweep's own files (rows, tables) could not be written: a full disk
@@ -56,17 +57,27 @@ def add_parser(sub: Any) -> None:
     s.add_argument("--format", choices=("table", "csv", "markdown"), default=None,
                    help="report: the tables fitted to the terminal (table, the default; full width when piped), or "
                         "as CSV or Markdown on standard output (the other lines on standard error)")
+    s.add_argument("--until-decided", action="store_true",
+                   help="run the study's replicates, then more in doubling batches until every claim is decided "
+                        "(reproduced or not) or --max-seeds is reached; looks corrected for (Bonferroni)")
+    s.add_argument("--max-seeds", type=int, metavar="N",
+                   help="with --until-decided: the most replicates (seeds, or the values of a study's [study] more "
+                        "key); default 4 x the study's seeds, or every value listed")
+    s.add_argument("--level", type=float, metavar="L",
+                   help="the claims' confidence level, 0.5 to 0.999 (default 0.95)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.add_argument("--overwrite", action="store_true", help="rerun: replace the run that --out DIR holds")
 
 
 #: The options each action of ``fleet sweep`` takes (the rest are refused, not ignored).
-USES = {"sweep": {"out", "jobs", "dask", "maps", "limit", "quick", "seeds", "quiet"},
-        "report": {"baseline", "no_plots", "seeds", "format"},
+USES = {"sweep": {"out", "jobs", "dask", "maps", "limit", "quick", "seeds", "quiet", "until_decided", "max_seeds",
+                  "level"},
+        "report": {"baseline", "no_plots", "seeds", "format", "level"},
         "rerun": {"out", "maps", "overwrite", "quiet"}}
 OPTIONS = {"out": "--out", "jobs": "--jobs", "dask": "--dask", "maps": "--maps", "limit": "--limit", "quick": "--quick",
            "seeds": "--seeds", "baseline": "--baseline", "no_plots": "--no-plots", "quiet": "--quiet",
-           "overwrite": "--overwrite", "format": "--format"}
+           "overwrite": "--overwrite", "format": "--format", "until_decided": "--until-decided",
+           "max_seeds": "--max-seeds", "level": "--level"}
 
 
 def refuse_unused(args: argparse.Namespace, action: str) -> None:
@@ -95,7 +106,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         from fleet_emu.sweep.report import report
 
         report(Path(args.args[1]), baseline=args.baseline, plots=not args.no_plots, seeds=args.seeds,
-               fmt=args.format or "table")
+               fmt=args.format or "table", boot=bootstrap(args.level))
         return 0
     if action == "rerun":
         if len(args.args) != 3:
@@ -108,13 +119,37 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise ConfigError("usage: fleet sweep STUDY --out DIR (or --list, or report RESULTS, or rerun RESULTS ID)")
     if args.out is None:
         raise ConfigError("fleet sweep needs --out DIR (where the results go)")
+    if args.max_seeds is not None and not args.until_decided:
+        raise ConfigError("--max-seeds goes with --until-decided")
     return sweep(args.args[0], args.out, jobs=args.jobs, dask=args.dask, maps=args.maps, limit=args.limit,
-                 seeds=args.seeds, quiet=args.quiet, quick=args.quick)
+                 seeds=args.seeds, quiet=args.quiet, quick=args.quick,
+                 until=Until(args.max_seeds, bootstrap(args.level)) if args.until_decided else None)
+
+
+def bootstrap(level: float | None) -> Any:
+    """The claims' interval settings from ``--level`` (one line when out of range)."""
+    from fleet_emu.sweep.intervals import Bootstrap
+
+    if level is None:
+        return Bootstrap()
+    if not (isinstance(level, float) and 0.5 <= level <= 0.999):
+        raise ConfigError(f"--level must be a confidence level from 0.5 to 0.999 (got {level})")
+    return Bootstrap(level=level)
+
+
+@dataclasses.dataclass(frozen=True)
+class Until:
+    """``--until-decided``: the cap on replicates (None: the plan's default) and the intervals' settings."""
+
+    cap: int | None
+    boot: Any
 
 
 def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | None = None, maps: Path | None = None,
-          limit: int | None = None, seeds: int | None = None, quiet: bool = False, quick: bool = False) -> int:
-    """Run a study into ``out``, resuming what is there; the exit code (see the module docstring)."""
+          limit: int | None = None, seeds: int | None = None, quiet: bool = False, quick: bool = False,
+          until: Until | None = None) -> int:
+    """Run a study into ``out``, resuming what is there; the exit code (see the module docstring). ``until``:
+    add replicates until every claim is decided (:mod:`fleet_emu.sweep.decide`)."""
     from fleet_emu.sweep.execute import connect_dask
     from fleet_emu.sweep.spread import spread
     from fleet_emu.sweep.study import Study, param_label
@@ -128,6 +163,13 @@ def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | No
         raise ConfigError(f"--seeds must be at least 1 (got {seeds})")
     if quick and limit is not None:
         raise ConfigError("--quick is --limit <the grid's points>: give one of them")
+    if until is not None and (quick or limit is not None or seeds is not None):
+        raise ConfigError("--until-decided chooses the replicates itself: it does not take --quick, --limit or "
+                          "--seeds")
+    if until is not None:
+        from fleet_emu.sweep.decide import plan
+
+        plan(study, until.cap, until.boot.level)  # a cap the study cannot meet: one line, before anything runs
     points = study.points(maps)
     if seeds is not None:
         points = [p for p in points if p.params["seed"] in study.seeds[:seeds]]
@@ -142,7 +184,22 @@ def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | No
         make_folder(out)
         stack.callback(lock_folder(out).release)  # one sweep at a time in ``out``: refused naming the other's pid
         _claim(out, study)
+        if until is not None:
+            from fleet_emu.sweep.decide import until_decided
+
+            def run(grown: Any) -> int:
+                return _run(grown, grown.points(maps), out, jobs, client, dask, None, quiet)
+
+            return until_decided(study, out, run, until.cap, until.boot, _say if not quiet else _silent)
         return _run(study, points, out, jobs, client, dask, limit, quiet)
+
+
+def _say(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def _silent(_line: str) -> None:
+    """``--quiet``: the looks of ``--until-decided`` are not told (``decided.json`` keeps them)."""
 
 
 @contextlib.contextmanager
@@ -173,10 +230,10 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
     done = {r["id"] for r in read_rows(out) if r.get("status") == "ok"}
     todo = [p for p in points if p.id not in done][:limit]
     jobs = jobs or os.cpu_count() or 1
-    console = Console(stderr=True)
-    console.print(f"[bold]{study.name}[/bold]: {len(points)} runs, {sum(p.id in done for p in points)} done, "
-                  f"{len(todo)} to run "
-                  f"({study.engine} engine, {'Dask ' + dask if dask else f'{jobs} jobs'}) -> {out}")
+    console = Console(stderr=True, quiet=quiet)  # --quiet: no status line, no bar; errors still one line each
+    console.print(f"[bold]{study.name}[/bold]: {plural(len(points), 'run')}, {sum(p.id in done for p in points)} "
+                  f"done, {len(todo)} to run ({study.engine} engine, "
+                  f"{'Dask ' + dask if dask else plural(jobs, 'job')}) -> {out}")
     interrupted = False
     disk: str | None = None
     t0 = time.monotonic()
@@ -196,10 +253,10 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
     missing = [p.id for p in points if p.id not in {r["id"] for r in rows}]
     failed_all = sum(r.get("status") != "ok" for r in rows) + (0 if limit or interrupted else len(missing))
     kept = sum(bool(r.get("run_dir")) for r in rows)
-    console.print(f"{len(rows)} rows of {len(points)} points ({failed_all} failed) in "
+    console.print(f"{plural(len(rows), 'row')} of {plural(len(points), 'point')} ({failed_all} failed) in "
                   f"{' and '.join(str(t) for t in tables) or 'no table'}; this call ran {on_row.ran} of "
                   f"{len(todo)} in {time.monotonic() - t0:.1f} s"
-                  + (f"; {kept} runs kept in {out / 'runs'} (record = {study.record!r})" if kept else ""))
+                  + (f"; {plural(kept, 'run')} kept in {out / 'runs'} (record = {study.record!r})" if kept else ""))
     if interrupted:
         print(f"fleet: interrupted; the finished runs are in {out} (run again to resume)", file=sys.stderr)
         return 128 + (signals[0] if signals else signal.SIGINT)
@@ -210,7 +267,8 @@ def _run(study: Any, points: list[Any], out: Path, jobs: int | None, client: Any
     if failed_all:
         gone = f"; {len(missing)} points have no row: {_ids(missing)} (run again)" if missing and not limit else ""
         ids = _ids([r["id"] for r in rows if r.get("status") != "ok"])
-        print(f"fleet: error: {failed_all} of {len(points)} runs failed (their rows hold the error): {ids}{gone}",
+        print(f"fleet: error: {failed_all} of {plural(len(points), 'run')} failed (their rows hold the error): "
+              f"{ids}{gone}",
               file=sys.stderr)
         return min(FAILED_BASE + failed_all, 255)
     return 0
@@ -288,12 +346,22 @@ def _claim(out: Path, study: Any) -> None:
             if other.name != study.name or other.fleet != study.fleet or not _grown(other.grid, study.grid):
                 raise ConfigError(f"--out {out} holds the results of another study ({other.name}); "
                                   f"choose another directory")
-            if other.grid != study.grid and study.path is not None:
-                shutil.copyfile(study.path, kept)  # the grid grew: its finished runs stay, the new points run
+            if study.path is not None and study.path.resolve() != kept.resolve():
+                # the grid grew (its finished runs stay, the new points run) or the [paper] changed: the report
+                # judges the study as it is now
+                _keep_study(study, kept)
         elif study.path is not None:
-            shutil.copyfile(study.path, kept)
+            _keep_study(study, kept)
     except OSError as exc:
         raise ConfigError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+
+
+def _keep_study(study: Any, kept: Path) -> None:
+    """The study's text as ``study.toml`` in the results folder, renamed into place (a link is not followed)."""
+    from fleet_emu.core.files import write_atomic
+
+    text = study.text or Path(study.path).read_text()
+    write_atomic(kept, lambda tmp: tmp.write_text(text))
 
 
 def _grown(old: dict[str, list[Any]], new: dict[str, list[Any]]) -> bool:

@@ -24,6 +24,8 @@ import numpy as np
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.radio import bytes_per_robot_tick
 from fleet_emu.sweep.execute import PARQUET
+from fleet_emu.sweep.figures import Runs
+from fleet_emu.sweep.intervals import Bootstrap
 
 GROUP = ("map", "comm", "loss_applied", "bandwidth", "map_sync", "robots")
 #: Grid keys the columns of :data:`GROUP` already show (or that every line splits by: allocator, seed).
@@ -54,7 +56,7 @@ def load(results: Path) -> tuple[list[dict[str, Any]], dict[str, Any], Path]:
             table = pq.read_table(path)
     except Exception as exc:
         raise ConfigError(f"cannot read sweep results {path}: {exc}") from None
-    study = tomllib.loads((out / "study.toml").read_text()) if (out / "study.toml").exists() else {}
+    study = _study_of(out)
     rows = table.to_pylist()
     for r in rows:  # the radio's rate: absent from an unlimited run's scenario; map sync, absent when on
         r["bandwidth"] = float(r.get("scenario.radio.bandwidth") or 0.0)
@@ -62,6 +64,19 @@ def load(results: Path) -> tuple[list[dict[str, Any]], dict[str, Any], Path]:
         if "param.allocator" not in r and r.get("allocator") is not None:  # set in [fleet], not a grid axis
             r["param.allocator"] = r["allocator"]
     return rows, study, out
+
+
+def _study_of(out: Path) -> dict[str, Any]:
+    """The results folder's ``study.toml`` (or {}): read only when a regular file, and within a size limit."""
+    from fleet_emu.core.files import read_regular
+
+    path = out / "study.toml"
+    if not path.exists():
+        return {}
+    try:
+        return tomllib.loads(read_regular(path, 4 << 20).decode())
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ConfigError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
 
 
 def map_sync(row: dict[str, Any]) -> bool:
@@ -106,22 +121,22 @@ def sent_kb(row: dict[str, Any]) -> float:
     return math.nan if rate is None else rate / 1e3
 
 
+def mispredicted_pct(row: dict[str, Any]) -> float:
+    """The % of robot pair-ticks where eq. 4 alone (what the connectivity allocator predicts from) disagreed with
+    the link netem applied under shadowing (``radio.prediction``); NaN for a run without shadowing."""
+    pairs = row.get("radio.prediction.pair_ticks")
+    if not pairs:
+        return math.nan
+    wrong = (row.get("radio.prediction.false_links") or 0) + (row.get("radio.prediction.missed_links") or 0)
+    return 100.0 * wrong / pairs
+
+
 METRICS: dict[str, Callable[[dict[str, Any]], float]] = {
-    "sent_kb": sent_kb,
+    "sent_kb": sent_kb, "mispredicted_pct": mispredicted_pct,
     "ticks": time_to_target, "moves": moves, "connected_pct": connected_pct,
     "coverage_pct": lambda r: 100.0 * r["coverage"] if r.get("coverage") is not None else math.nan,
     "base_connected_pct": base_connected_pct, "missed_coverage_pct": missed_coverage,
 }
-
-
-def ci95(values: np.ndarray) -> float:
-    """Half-width of the 95 % confidence interval of the mean (Student's t)."""
-    n = len(values)
-    if n < 2:
-        return math.nan
-    from scipy.stats import t
-
-    return float(t.ppf(0.975, n - 1) * values.std(ddof=1) / math.sqrt(n))
 
 
 def stats(rows: Iterable[dict[str, Any]], metric: str) -> tuple[float, float, int]:
@@ -194,11 +209,11 @@ def summary(rows: list[dict[str, Any]], baseline: str | None, replicates: Iterab
 
 
 def report(results: Path, baseline: str | None = None, plots: bool = True, seeds: int | None = None,
-           fmt: str = "table") -> None:
+           fmt: str = "table", boot: Bootstrap | None = None) -> None:
     """Print the tables (and draw the figures) of a sweep's results; with ``seeds``, only the runs of the
     study's first N seeds (every point then has the same seeds); ``fmt``: how the tables are printed
     (:mod:`fleet_emu.sweep.tables`: fitted to the terminal, or ``csv`` / ``markdown``, the other lines then on
-    standard error)."""
+    standard error); ``boot``: the claims' intervals (level, resamples, seed)."""
     from rich.console import Console
 
     from fleet_emu.sweep.tables import FORMATS, show
@@ -206,6 +221,7 @@ def report(results: Path, baseline: str | None = None, plots: bool = True, seeds
     if fmt not in FORMATS:
         raise ConfigError(f"--format must be one of {', '.join(FORMATS)} (got {fmt!r})")
 
+    boot = boot or Bootstrap()
     rows, study, out = load(results)
     if seeds is not None:
         listed = study.get("study", {}).get("seeds", 0)
@@ -227,27 +243,31 @@ def report(results: Path, baseline: str | None = None, plots: bool = True, seeds
     paper = study.get("paper", {})
     if paper:  # the paper's rows compare with the study's own baseline (the paper's), whatever --baseline says
         base = head.get("baseline") or baseline
-        base_lines = lines if base == baseline else summary(rows, base, replicates)
-        show(tables, _paper_table(paper, ok, base_lines, base), fmt)
-        _claims(console, tables, fmt, study, rows, base_lines, base, out)
+        runs = Runs(rows, base, replicates)
+        show(tables, _paper_table(paper, runs, base), fmt)
+        _claims(console, tables, fmt, study, rows, base, out, boot)
     if plots and ok:
         from fleet_emu.sweep.plots import draw
 
-        for path in draw(ok, out):
+        for path in draw(ok, out, replicates, boot.level):
             console.print(f"wrote {path}")
 
 
 def _claims(console: Any, tables: Any, fmt: str, study: dict[str, Any], rows: list[dict[str, Any]],
-            lines: list[dict[str, Any]], baseline: str | None, out: Path) -> None:
-    """The ``[[paper.claims]]`` judged (:mod:`fleet_emu.sweep.claims`): a table (on ``tables``, in ``fmt``), and
-    ``claims.json`` in ``out`` (said on ``console``)."""
-    from fleet_emu.sweep import claims
+            baseline: str | None, out: Path, boot: Bootstrap) -> None:
+    """The ``[[paper.claims]]`` judged (:mod:`fleet_emu.sweep.claims`) with their intervals: a table (on
+    ``tables``, in ``fmt``), and ``claims.json`` in ``out`` (said on ``console``). After ``--until-decided``
+    each claim is judged as its look decided it (:mod:`fleet_emu.sweep.decide`)."""
+    from fleet_emu.sweep import verdicts
+    from fleet_emu.sweep.decide import judged_as_decided
     from fleet_emu.sweep.tables import show
 
-    judged = claims.evaluate(study, rows, lines, baseline)
+    judged, entries, level, note = judged_as_decided(study, rows, baseline, out, boot)
     if judged:
-        show(tables, claims.table(judged, str(study.get("paper", {}).get("source", ""))), fmt)
-        console.print(f"wrote {claims.write_json(judged, out / 'claims.json')}")
+        show(tables, verdicts.table(judged, str(study.get("paper", {}).get("source", "")), level), fmt)
+        if note:
+            console.print(note, soft_wrap=True)
+        console.print(f"wrote {verdicts.write_json(entries, out / 'claims.json')}")
 
 
 def _odd_runs(console: Any, rows: list[dict[str, Any]], out: Path, most: int = 10) -> None:
@@ -310,8 +330,7 @@ def _radio(line: dict[str, Any]) -> str:
     return (f"{line['comm']}, loss {loss:g}" if isinstance(loss, int | float) else str(line["comm"])) + rate + sync
 
 
-def _paper_table(paper: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict[str, Any]],
-                 baseline: str | None) -> Any:
+def _paper_table(paper: dict[str, Any], runs: Runs, baseline: str | None) -> Any:
     """The paper's rows (``[[paper.rows]]``: what, allocator, metric, value, and optional robots/loss filters)
     with ours beside them; ``metric`` is one of :data:`METRICS`, ``std_ticks``, ``vs_baseline_pct`` (mean over
     the matching groups), ``mean_std_ticks`` (the time's std, mean over the matching groups) or ``vs_loss0_pct``
@@ -325,41 +344,18 @@ def _paper_table(paper: dict[str, Any], rows: list[dict[str, Any]], lines: list[
         if isinstance(claim, str):  # a claim with a criterion is judged in the claims' table
             t.add_row(claim, "", "")
     for pr in paper.get("rows", []):
-        ours = paper_value(pr, rows, lines, baseline)
+        ours = paper_value(pr, runs)
         t.add_row(str(pr.get("what", pr.get("metric"))), str(pr.get("value", "")),
                   "-" if ours is None or math.isnan(ours) else f"{ours:.1f}")
     return t
 
 
-def paper_value(pr: dict[str, Any], rows: list[dict[str, Any]], lines: list[dict[str, Any]],
-                baseline: str | None) -> float | None:
-    """Our number for one ``[[paper.rows]]`` entry."""
-    keep: dict[str, Any] = {k: pr[k] for k in ("allocator", "robots", "loss", "map_sync") if k in pr}
-    metric = pr.get("metric", "ticks")
-    if metric == "vs_baseline_pct":
-        vals = [ln["vs_baseline_pct"] for ln in lines if _matches(ln, keep, "allocator")]
-        vals = [v for v in vals if not math.isnan(v)]
-        return float(np.mean(vals)) if vals else None
-    if metric == "mean_std_ticks":
-        stds = [ln["ticks"][1] for ln in lines if _matches(ln, keep, "allocator") and ln["ticks"][2] > 1]
-        return float(np.mean(stds)) if stds else None
-    sel = [r for r in rows if _matches(r, keep, "param.allocator")]
-    if metric == "vs_loss0_pct":  # the sum over robot counts of the mean times, at the loss and at no loss
-        zero = by([r for r in rows if _matches(r, keep | {"loss": 0.0}, "param.allocator")], "robots")
-        at = by(sel, "robots")
-        both = [n for n in at if n in zero]
-        return pct(sum(stats(at[n], "ticks")[0] for n in both), sum(stats(zero[n], "ticks")[0] for n in both))
-    if metric == "std_ticks":
-        return stats(sel, "ticks")[1]
-    return stats(sel, metric)[0] if sel else None
+def paper_value(pr: dict[str, Any], runs: Runs) -> float | None:
+    """Our number for one ``[[paper.rows]]`` entry: the figure of :mod:`fleet_emu.sweep.figures` on every
+    replicate once (the claims read the same definition)."""
+    from fleet_emu.sweep.claims import SELECT
+    from fleet_emu.sweep.figures import value
 
-
-def _matches(r: dict[str, Any], keep: dict[str, Any], alloc_key: str) -> bool:
-    """Whether a row (or a summary line) is one a paper row is about; a list matches any of its values."""
-    for k, want in keep.items():
-        got = r.get(alloc_key if k == "allocator" else "loss_applied" if k == "loss" else k)
-        if k == "map_sync":  # absent: on
-            got = got is not False
-        if not (got in want if isinstance(want, list) else got == want):
-            return False
-    return True
+    keep: dict[str, Any] = {k: pr[k] for k in SELECT if k in pr}
+    v = float(value(runs, keep, pr.get("metric", "ticks"), np.ones((1, len(runs.units)))).values[0])
+    return None if math.isnan(v) else v

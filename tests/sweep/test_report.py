@@ -9,7 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fleet_emu.sweep.report import ci95, paired, paper_value, summary
+from fleet_emu.sweep.figures import Runs
+from fleet_emu.sweep.plots import t_half
+from fleet_emu.sweep.report import paired, paper_value, summary
 
 
 def row(alloc: str, robots: int, ticks: int, loss: float = 0.0, completed: bool = True) -> dict:
@@ -36,15 +38,15 @@ def test_summary_means_stds_and_percent_to_the_baseline() -> None:
 
 
 def test_paper_rows_pick_their_runs() -> None:
-    lines = summary(ROWS, "nearest")
-    assert paper_value({"allocator": "minpos", "metric": "vs_baseline_pct"}, ROWS, lines, "nearest") == \
+    runs = Runs(ROWS, "nearest")
+    assert paper_value({"allocator": "minpos", "metric": "vs_baseline_pct"}, runs) == \
         pytest.approx(-22.5)
-    assert paper_value({"allocator": "minpos", "robots": [1], "metric": "vs_baseline_pct"}, ROWS, lines,
-                       "nearest") == pytest.approx(-25.0)
-    assert paper_value({"allocator": "minpos", "loss": 0.5, "metric": "vs_loss0_pct"}, ROWS, lines,
-                       "nearest") == pytest.approx(100.0 * (96 - 48) / 48)
-    assert paper_value({"allocator": "nearest", "metric": "connected_pct"}, ROWS, lines, "nearest") == 50.0
-    assert paper_value({"allocator": "nearest", "metric": "mean_std_ticks"}, ROWS, lines, "nearest") == \
+    assert paper_value({"allocator": "minpos", "robots": [1], "metric": "vs_baseline_pct"}, runs) == \
+        pytest.approx(-25.0)
+    assert paper_value({"allocator": "minpos", "loss": 0.5, "metric": "vs_loss0_pct"}, runs) == \
+        pytest.approx(100.0 * (96 - 48) / 48)
+    assert paper_value({"allocator": "nearest", "metric": "connected_pct"}, runs) == 50.0
+    assert paper_value({"allocator": "nearest", "metric": "mean_std_ticks"}, runs) == \
         pytest.approx(20.0 / 2)
 
 
@@ -91,10 +93,10 @@ def test_another_grid_axis_splits_the_lines_and_a_replicate_axis_is_pooled_and_p
     assert len(every) == 6 and all(ln["runs"] == 1 for ln in every)
 
 
-def test_ci95_is_students_t_half_width() -> None:
+def test_t_half_is_students_t_half_width() -> None:
     v = np.array([1.0, 2.0, 3.0, 4.0])
-    assert ci95(v) == pytest.approx(3.182446 * v.std(ddof=1) / 2, rel=1e-5)
-    assert math.isnan(ci95(np.array([1.0])))
+    assert t_half(v, 0.95) == pytest.approx(3.182446 * v.std(ddof=1) / 2, rel=1e-5)
+    assert math.isnan(t_half(np.array([1.0]), 0.95))
 
 
 def test_the_paired_difference_matches_seeds_and_leaves_out_runs_that_did_not_finish() -> None:
@@ -164,8 +166,11 @@ def test_the_figures_have_titles_and_one_robot_count_a_narrow_axis(tmp_path: Pat
     monkeypatch.setattr(plots, "_save", lambda fig, path: figures.setdefault(path.name, fig) and path)
     one = [r | {"curve": json.dumps([0.1, 0.5]), "curve_every": 5} for r in ROWS if r["robots"] == 2]
     plots.draw(one, tmp_path)
-    ax = figures["time_vs_robots.png"].axes[0]
-    assert ax.get_title() == "Time to the target against the robot count"
+    fig = figures["time_vs_robots.png"]
+    ax = fig.axes[0]
+    assert fig._suptitle.get_text() == "Time to the target against the robot count"
+    assert [a.get_title() for a in fig.axes] == ["loss 0", "loss 0.5"]  # a panel per loss, never pooled
     assert ax.get_xlim() == (1.0, 3.0) and [t.get_text() for t in ax.get_xticklabels()] == ["2"]
-    assert figures["time_vs_loss.png"].axes[0].get_title() == "Time to the target against the loss"
-    assert figures["coverage_vs_tick.png"].axes[0].get_title() == "Coverage by tick"  # one robot count: one panel
+    assert figures["time_vs_loss.png"]._suptitle.get_text() == "Time to the target against the loss"
+    assert len(figures["time_vs_loss.png"].axes) == 1  # the loss is its axis: one panel
+    assert [a.get_title() for a in figures["coverage_vs_tick.png"].axes] == ["loss 0", "loss 0.5"]

@@ -68,7 +68,7 @@ def test_a_row_cut_mid_line_runs_again_and_a_missing_point_is_never_success(stud
     cut = json.loads(lines[-1])["id"]
     (out / ROWS).write_bytes(b"".join(lines[:-1]) + lines[-1][:40])  # the disk took 40 bytes of the last row
     assert cut not in {r["id"] for r in read_rows(out)}
-    code, _, err = run_cli(["sweep", str(study_dir / "tiny.toml"), "--out", str(out), "--jobs", "1", "--quiet"])
+    code, _, err = run_cli(["sweep", str(study_dir / "tiny.toml"), "--out", str(out), "--jobs", "1"])
     assert code == 0, err
     assert "8 rows of 8 points (0 failed)" in err and "ran 1 of 1" in err
     assert cut in {r["id"] for r in read_rows(out)}  # the row appended after the cut one is whole
