@@ -78,7 +78,7 @@ def fetch_maps(names: list[str], *, every: bool = False, mirror: str | None = No
     if every == bool(names):
         raise ConfigError("fleet maps fetch needs map names or --all (not both); `fleet maps` lists them")
     for entry in entries_in(list(registry()) if every else names):
-        with _sigterm_unwinds():
+        with sigterm_unwinds():
             done = fetch(entry, mirror, force=force)
         files = ", ".join(f.path for f in entry.files)
         via = "" if done.cached or mirror is None else f" via {mirror}"
@@ -89,7 +89,7 @@ def fetch_maps(names: list[str], *, every: bool = False, mirror: str | None = No
 
 
 @contextlib.contextmanager
-def _sigterm_unwinds() -> Iterator[None]:
+def sigterm_unwinds() -> Iterator[None]:
     """SIGTERM ends a fetch as Ctrl-C does, by an exception (exit 143), so that the fetch removes what it
     wrote; by default it would end the process on the spot. (On the main thread only: signals go there.)"""
     if threading.current_thread() is not threading.main_thread():

@@ -19,8 +19,15 @@ def add_radio_flags(parser: argparse.ArgumentParser) -> None:
         extra: dict[str, Any] = {"choices": s.choices} if s.choices else {"type": s.kind, "metavar": s.metavar}
         span = "" if s.choices else f"; {s.span()}"
         group.add_argument(s.flag, dest=s.name, default=None, **extra, help=f"{s.help}{span} (default {s.default})")
+    group.add_argument("--radio-profile", metavar="PROFILE.toml", default=None,
+                       help="a measured radio profile (`fleet radio fit SITE --out PROFILE.toml`): its path loss, "
+                            "dB per wall and range as the wall model's settings, under the radio flags given "
+                            "(docs/guides/radio-measured.md)")
 
 
 def radio_overrides(args: argparse.Namespace) -> dict[str, Any]:
-    """The radio flags given, by field name, for :meth:`Scenario.override`."""
-    return {s.name: getattr(args, s.name) for s in radio_settings() if getattr(args, s.name, None) is not None}
+    """The radio flags given, by field name, for :meth:`Scenario.override`; ``--radio-profile`` as a ``radio``
+    table naming the profile (the flags given win over it)."""
+    flags = {s.name: getattr(args, s.name) for s in radio_settings() if getattr(args, s.name, None) is not None}
+    profile = getattr(args, "radio_profile", None)
+    return flags if profile is None else {"radio": {"profile": profile}, **flags}

@@ -1,4 +1,5 @@
-"""Downloading a registry map into the cache: every file to a temporary folder beside the cache, each checked
+"""Downloading a registry map (or a radio site, ``world/sites.py``: any :class:`~fleet_emu.world.registry.Pinned`
+entry) into the cache: every file to a temporary folder beside the cache, each checked
 against its sha256, and the folder renamed into place only when all are good, so that a failed fetch (an
 unreachable source, a checksum mismatch, Ctrl-C) leaves nothing in the cache.
 
@@ -10,7 +11,7 @@ Nothing can hold a fetch: each file must arrive whole within :data:`DEADLINE` se
 byte now and then is cut off then, not only one silent for :data:`TIMEOUT`), a mirror folder's files are read
 only when regular (a symlink to one included: a FIFO or a device is refused, never waited on), and SIGINT or
 SIGTERM during a fetch remove its temporary folder (the caller turns SIGTERM into an exception:
-``launch/maps_cli.py``).
+``launch/maps_cli.py``, ``launch/radio_cli.py``).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from fleet_emu.core.errors import MapError
-from fleet_emu.world.registry import MapFile, RegistryMap, cache_dir, lookup, verified
+from fleet_emu.world.registry import MapFile, Pinned, RegistryMap, cache_dir, lookup, verified
 
 #: Seconds to wait for a server to connect or send anything; the largest map file is under 2 MB.
 TIMEOUT = 30.0
@@ -48,13 +49,13 @@ class Fetched:
     """What a fetch did: the map's folder in the cache, where its files came from, and whether they were
     already there (nothing downloaded)."""
 
-    entry: RegistryMap
+    entry: Pinned
     folder: Path
     origins: tuple[str, ...]
     cached: bool
 
 
-def origin(entry: RegistryMap, f: MapFile, mirror: str | None) -> str:
+def origin(entry: Pinned, f: MapFile, mirror: str | None) -> str:
     """Where ``f`` is read from: its upstream URL, or the mirror's ``<name>/<file name>`` (a URL or a path)."""
     if mirror is None:
         return entry.url(f)
@@ -67,10 +68,10 @@ def _is_url(text: str) -> bool:
     return text.startswith(("http://", "https://"))
 
 
-def fetch(entry: RegistryMap, mirror: str | None = None, *, force: bool = False) -> Fetched:
+def fetch(entry: Pinned, mirror: str | None = None, *, force: bool = False) -> Fetched:
     """Put ``entry``'s files in the cache (a map already there and intact is kept, unless ``force``); a
     one-line MapError when a source cannot be read or a file's sha256 differs, with nothing left behind."""
-    root = cache_dir()
+    root = cache_dir(entry.cache)
     folder = root / entry.name
     origins = tuple(origin(entry, f, mirror) for f in entry.files)
     if not force and verified(entry, folder):
@@ -81,7 +82,8 @@ def fetch(entry: RegistryMap, mirror: str | None = None, *, force: bool = False)
             root.mkdir(parents=True, exist_ok=True)
             tmp = Path(tempfile.mkdtemp(prefix=f".{entry.name}.", suffix=".part", dir=root))
         except OSError as exc:
-            raise MapError(f"map {entry.name}: cannot write to the cache {root} ({exc.strerror or exc})") from None
+            raise MapError(f"{entry.kind} {entry.name}: cannot write to the cache {root} "
+                           f"({exc.strerror or exc})") from None
     hint = "; without the internet, use --mirror DIR|URL" if mirror is None else ""
     try:
         for f, where in zip(entry.files, origins, strict=True):
@@ -114,7 +116,7 @@ def _missing_ancestors(path: Path) -> list[Path]:
     return out
 
 
-def _download(entry: RegistryMap, f: MapFile, where: str, dest: Path, hint: str) -> None:
+def _download(entry: Pinned, f: MapFile, where: str, dest: Path, hint: str) -> None:
     """Copy ``where`` into ``dest``, hashing on the way; MapError on a read error, an oversize file or a
     sha256 that is not the registry's."""
     h = hashlib.sha256()
@@ -124,17 +126,17 @@ def _download(entry: RegistryMap, f: MapFile, where: str, dest: Path, hint: str)
             for block in iter(src.read, b""):
                 size += len(block)
                 if size > MAX_BYTES:
-                    raise MapError(f"map {entry.name}: {where} is larger than {MAX_BYTES >> 20} MB; nothing was "
-                                   "kept")
+                    raise MapError(f"{entry.kind} {entry.name}: {where} is larger than {MAX_BYTES >> 20} MB; "
+                                   "nothing was kept")
                 h.update(block)
                 out.write(block)
     except MapError:
         raise
     except (OSError, ValueError, urllib.error.URLError) as exc:  # HTTPError, timeouts and refusals are OSErrors
-        raise MapError(f"map {entry.name}: cannot read {where} ({_reason(exc)}); nothing was kept{hint}") \
+        raise MapError(f"{entry.kind} {entry.name}: cannot read {where} ({_reason(exc)}); nothing was kept{hint}") \
             from None
     if h.hexdigest() != f.sha256:
-        raise MapError(f"map {entry.name}: {f.name} from {where} has sha256 {h.hexdigest()[:16]}..., not the "
+        raise MapError(f"{entry.kind} {entry.name}: {f.name} from {where} has sha256 {h.hexdigest()[:16]}..., not the "
                        f"registry's {f.sha256[:16]}...; nothing was kept")
 
 
@@ -204,7 +206,7 @@ def _reason(exc: BaseException) -> str:
     return getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
 
 
-def _install(entry: RegistryMap, tmp: Path, folder: Path) -> None:
+def _install(entry: Pinned, tmp: Path, folder: Path) -> None:
     """Rename the checked temporary folder into place (a stale or altered copy is replaced); when another
     fetch got there first with the same files, its copy stands."""
     if folder.exists():
@@ -215,8 +217,8 @@ def _install(entry: RegistryMap, tmp: Path, folder: Path) -> None:
         os.rename(tmp, folder)
     except OSError as exc:
         if not verified(entry, folder):
-            raise MapError(f"map {entry.name}: cannot move it into the cache {folder} ({exc.strerror or exc})") \
-                from None
+            raise MapError(f"{entry.kind} {entry.name}: cannot move it into the cache {folder} "
+                           f"({exc.strerror or exc})") from None
 
 
 def _remove_if_empty(path: Path) -> None:

@@ -17,9 +17,10 @@ import functools
 import hashlib
 import tomllib
 from pathlib import Path, PurePosixPath
-from typing import Any
+from typing import Any, ClassVar, Protocol
 
 from fleet_emu.core.errors import MapError
+from fleet_emu.core.spelling import near
 
 REGISTRY_FILE = Path(__file__).resolve().parent / "registry.toml"
 RAW_URL = "https://raw.githubusercontent.com/{repo}/{commit}/{path}"
@@ -56,6 +57,9 @@ class RegistryMap:
     scale: str
     yaml: str | None = None
     world_size: tuple[float, float] | None = None
+    #: What it is, as errors name it, and its folder under the user cache (:func:`cache_dir`).
+    kind: ClassVar[str] = "map"
+    cache: ClassVar[str] = "maps"
 
     def url(self, f: MapFile) -> str:
         """The file's upstream address, pinned to the commit."""
@@ -75,6 +79,28 @@ class RegistryMap:
     def entry_file(self) -> str:
         """The file the loader opens: the YAML, or the bitmap."""
         return self.yaml if self.yaml is not None else self.files[0].name
+
+
+class Pinned(Protocol):
+    """What fetching needs of a registry entry, a map or a radio site (``world/sites.py``): its name, its files
+    and their pinned addresses, its licence, what it is (``kind``, for messages) and its cache folder's name."""
+
+    kind: ClassVar[str]
+    cache: ClassVar[str]
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def files(self) -> tuple[MapFile, ...]: ...
+
+    @property
+    def licence(self) -> str: ...
+
+    @property
+    def source(self) -> str: ...
+
+    def url(self, f: MapFile) -> str: ...
 
 
 def _entry(name: str, raw: dict[str, Any], sources: dict[str, Any]) -> RegistryMap:
@@ -99,15 +125,16 @@ def lookup(name: str) -> RegistryMap:
     try:
         return registry()[name]
     except KeyError:
-        raise MapError(f"unknown map {name!r} (the registry has: {', '.join(registry())}; `fleet maps` lists "
-                       "them)") from None
+        raise MapError(f"unknown map {name!r}{near(name, registry())} (the registry has: {', '.join(registry())}; "
+                       "`fleet maps` lists them)") from None
 
 
-def cache_dir() -> Path:
-    """Where fetched maps are kept (the module docstring says where that is on each system)."""
+def cache_dir(kind: str = "maps") -> Path:
+    """Where fetched maps are kept (the module docstring says where that is on each system); ``kind``
+    ``"radio"``: where fetched radio sites are, beside them."""
     import platformdirs
 
-    return Path(platformdirs.user_cache_dir("fleet-emu", appauthor=False)) / "maps"
+    return Path(platformdirs.user_cache_dir("fleet-emu", appauthor=False)) / kind
 
 
 def fetch_command(name: str) -> str:
@@ -122,7 +149,7 @@ def sha256_of(path: Path) -> str:
     return h.hexdigest()
 
 
-def verified(entry: RegistryMap, folder: Path) -> bool:
+def verified(entry: Pinned, folder: Path) -> bool:
     """Whether ``folder`` holds every file of ``entry`` with its sha256."""
     try:
         return all(sha256_of(folder / f.name) == f.sha256 for f in entry.files)
