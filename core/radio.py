@@ -10,7 +10,9 @@ Pure functions of arrays: netem uses them on the true map, agents on their belie
 
 Radio models (``RadioConfig.comm``), loss orthogonal to range: ``wall`` (eq. 4 decides the link), ``disk``
 (linked within ``comm_range`` metres, straight-line), ``full`` (every pair linked), and ``ideal`` (``full``
-with no loss, kept for comparison). The loss probability applies on every model but ``ideal``.
+with no loss, kept for comparison). The loss probability applies on every model but ``ideal``. netem may add
+correlated shadowing to the signal (``shadowing_db``, :mod:`fleet_emu.core.shadowing`); the connectivity
+allocator's prediction never does.
 """
 
 from __future__ import annotations
@@ -60,6 +62,11 @@ class RadioConfig:
                                help="each sender's queue on a limited radio (drop-tail)")
     jitter: int = setting(0, unit="ticks", low=0, high=10**6, metavar="TICKS",
                           help="most ticks (seeded, uniform) added to the latency of each message")
+    shadowing_db: float = setting(0.0, unit="dB", low=0.0, high=100.0, metavar="DB",
+                                  help="standard deviation of the correlated shadowing added to every link's "
+                                       "signal (core/shadowing.py); 0: off")
+    shadowing_m: float = setting(1.0, unit="m", low=0.0, high=1e6, low_open=True, metavar="M",
+                                 help="the shadowing's decorrelation distance (its correlation is 1/e there)")
 
     @property
     def applied_loss(self) -> float:
@@ -79,7 +86,8 @@ class RadioConfig:
     def sure_range(self) -> float:
         """The distance in metres within which two endpoints are linked whatever lies between them: ``disk``,
         its range; ``wall``, eq. 4 solved for ``P = threshold`` with ``max_walls`` walls (the most it counts);
-        ``full`` and ``ideal`` (or a path loss of 0), infinite."""
+        ``full`` and ``ideal`` (or a path loss of 0), infinite. Shadowing (``shadowing_db``) is not counted: it
+        can take a link within this range away, as a robot that predicts from eq. 4 does not know."""
         if self.comm == "disk":
             return self.comm_range
         if self.comm == "wall" and self.path_loss > 0:
@@ -133,11 +141,12 @@ def signal_db(distance_m: float, walls: int, p: RadioConfig) -> float:
 
 
 def link_matrix(occupied: np.ndarray, cells: Sequence[Cell], cell_size: float,
-                p: RadioConfig) -> tuple[np.ndarray, np.ndarray]:
+                p: RadioConfig, shadow: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Signal strength (dB, symmetric, ``inf`` on the diagonal) and links (bool, no self-links) between
-    robots at ``cells`` on a map whose walls are ``occupied``. The strength is eq. 4's on every model; the
-    link follows the model: eq. 4's threshold (``wall``), distance within ``comm_range`` (``disk``), or every
-    pair (``full``, ``ideal``)."""
+    robots at ``cells`` on a map whose walls are ``occupied``. The strength is eq. 4's on every model, plus
+    ``shadow`` (dB per pair, symmetric: the correlated shadowing of :mod:`fleet_emu.core.shadowing`) when given;
+    the link follows the model: that strength's threshold (``wall``), distance within ``comm_range``
+    (``disk``), or every pair (``full``, ``ideal``)."""
     from fleet_emu.core.kernels import count_walls  # numba: imported on first use, not with the CLI
 
     n = len(cells)
@@ -148,6 +157,8 @@ def link_matrix(occupied: np.ndarray, cells: Sequence[Cell], cell_size: float,
             d = math.hypot(r1 - r0, c1 - c0) * cell_size
             walls = int(count_walls(occupied, r0, c0, r1, c1))
             strength[i, j] = strength[j, i] = signal_db(d, walls, p)
+    if shadow is not None:
+        strength += shadow
     if p.comm == "wall":
         link = strength >= p.threshold
     elif p.comm == "disk":

@@ -26,6 +26,7 @@ from fleet_emu.core.keys import BASE
 from fleet_emu.core.messages import Envelope, Links, RxBundle, WorldState
 from fleet_emu.core.radio import RadioConfig, connected, link_matrix
 from fleet_emu.core.rng import generator
+from fleet_emu.core.shadowing import Shadowing, shadowing
 from fleet_emu.netem.medium import Medium
 
 UNLIMITED = 1 << 62  # a medium's capacity when only a jitter is set
@@ -40,16 +41,36 @@ class Counters:
     bytes_sent: int = 0
     bytes_by: collections.Counter[str] = dataclasses.field(default_factory=collections.Counter)  # per sender
     delay: collections.Counter[int] = dataclasses.field(default_factory=collections.Counter)  # emissions by delay
+    pair_ticks: int = 0  # with shadowing: robot pairs over ticks, and eq. 4's wrong calls (count_predictions)
+    false_links: int = 0
+    missed_links: int = 0
 
 
 def endpoint_links(occupied: np.ndarray, robots: tuple[str, ...], cells: list[tuple[int, int]],
-                   base: tuple[int, int] | None, cell_size: float, radio: RadioConfig
-                   ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+                   base: tuple[int, int] | None, cell_size: float, radio: RadioConfig,
+                   shadow: np.ndarray | None = None) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
     """The radio endpoints of a tick (the live ``robots`` at ``cells``, then the base station at its fixed
-    cell ``base`` when the run has one) and their signal (dB) and link matrices, in that order."""
+    cell ``base`` when the run has one) and their signal (dB) and link matrices, in that order; ``shadow``: the
+    shadowing term of each pair of them (:meth:`Shadowing.pair_db`), added to the signal."""
     nodes = robots + ((BASE,) if base is not None else ())
-    strength, link = link_matrix(occupied, [*cells, *([base] if base is not None else [])], cell_size, radio)
+    strength, link = link_matrix(occupied, [*cells, *([base] if base is not None else [])], cell_size, radio,
+                                 shadow)
     return nodes, strength, link
+
+
+def count_predictions(counters: Counters, strength: np.ndarray, shadow: np.ndarray, link: np.ndarray, n: int,
+                      radio: RadioConfig) -> None:
+    """Add a tick's robot pairs (the first ``n`` endpoints) to ``counters``, and those whose link eq. 4 without
+    the shadowing (the connectivity allocator's model, on the true map and cells) calls wrongly: a link where
+    there is none (``false_links``), none where there is one (``missed_links``). Only the ``wall`` model decides
+    links by the signal; on the others the field changes no link."""
+    upper = np.triu_indices(n, 1)
+    actual = link[:n, :n][upper]
+    eq4 = (strength[:n, :n] - shadow[:n, :n])[upper]
+    predicted = eq4 >= radio.threshold if radio.comm == "wall" else actual
+    counters.pair_ticks += len(actual)
+    counters.false_links += int(np.count_nonzero(predicted & ~actual))
+    counters.missed_links += int(np.count_nonzero(~predicted & actual))
 
 
 def links_message(tick: int, seq: int, nodes: tuple[str, ...], strength: np.ndarray, link: np.ndarray,
@@ -66,7 +87,8 @@ def links_message(tick: int, seq: int, nodes: tuple[str, ...], strength: np.ndar
         dropped_loss=c.dropped_loss, dropped_signal=c.dropped_signal, bytes_sent=c.bytes_sent, dropped=dropped,
         bytes_by=dict(c.bytes_by),
         base_strength=strength[:n, n].astype(np.float32) if has_base else None,
-        base_link=link[:n, n].copy() if has_base else None, **airtime(counters, medium))
+        base_link=link[:n, n].copy() if has_base else None, pair_ticks=c.pair_ticks, false_links=c.false_links,
+        missed_links=c.missed_links, **airtime(counters, medium))
 
 
 def airtime(counters: Counters, medium: Medium | None) -> dict[str, Any]:
@@ -84,29 +106,40 @@ def airtime(counters: Counters, medium: Medium | None) -> dict[str, Any]:
             "medium_capacity": medium.capacity if medium.capacity < UNLIMITED else 0}
 
 
-def make_channel(seed: int, radio: RadioConfig, tick_s: float) -> Channel:
+def make_channel(seed: int, radio: RadioConfig, tick_s: float, shape: tuple[int, int] | None = None,
+                 cell_size: float = 0.5) -> Channel:
     """A run's channel, as both engines build it: its seeded loss draws (``netem``, and ``netem/base`` for the
-    base station's pairs) and, with a bandwidth or a jitter, a :class:`Medium` on generators of its own (the
-    loss draws stay those of an unlimited radio's stream)."""
+    base station's pairs), with a bandwidth or a jitter a :class:`Medium` on generators of its own (the loss
+    draws stay those of an unlimited radio's stream), and with ``shadowing_db`` the shadowing field over a map
+    of ``shape`` cells of ``cell_size`` metres, from a generator of its own too (``netem/shadowing``)."""
+    if radio.shadowing_db > 0 and shape is None:
+        raise ValueError("a radio with shadowing needs the map's shape")
     medium = None
     if radio.limited or radio.jitter:
         capacity = max(1, int(radio.capacity(tick_s))) if radio.limited else UNLIMITED
         medium = Medium(capacity, radio.queue_bytes, radio.latency, radio.jitter, generator(seed, "netem", "medium"),
                         generator(seed, "netem", "jitter"))
-    return Channel(radio.applied_loss, generator(seed, "netem"), radio.latency, generator(seed, "netem", BASE), medium)
+    field = shadowing(generator(seed, "netem", "shadowing"), shape, cell_size, radio.shadowing_db,
+                      radio.shadowing_m) if shape is not None else None
+    return Channel(radio.applied_loss, generator(seed, "netem"), radio.latency, generator(seed, "netem", BASE), medium,
+                   field)
 
 
 class Channel:
     """Decides, per receiver, whether each radio message arrives, and when (``latency`` ticks later); with a
-    :class:`~fleet_emu.netem.medium.Medium` (a bandwidth or a jitter set) messages queue for airtime first."""
+    :class:`~fleet_emu.netem.medium.Medium` (a bandwidth or a jitter set) messages queue for airtime first.
+    ``shadowing``: the run's field (:mod:`fleet_emu.core.shadowing`), which :func:`radio_tick` adds to the
+    links' signal."""
 
     def __init__(self, loss: float, rng: np.random.Generator, latency: int = 1,
-                 base_rng: np.random.Generator | None = None, medium: Medium | None = None) -> None:
+                 base_rng: np.random.Generator | None = None, medium: Medium | None = None,
+                 shadowing: Shadowing | None = None) -> None:
         self.loss = loss
         self.rng = rng
         self.base_rng = base_rng if base_rng is not None else rng
         self.latency = latency
         self.medium = medium
+        self.shadowing = shadowing
         self.counters = Counters()
         self._pending: dict[int, dict[str, list[Envelope]]] = defaultdict(lambda: defaultdict(list))
 
@@ -195,7 +228,12 @@ def radio_tick(channel: Channel, occupied: np.ndarray, robots: Sequence[str], ba
     base station at ``base``), and the deliveries due at its tick; ``seq`` draws netem's sequence numbers
     (the links first); ``dropped``: the messages netem has dropped so far as malformed or spoofed."""
     live = tuple(r for r in robots if r in state.live)
-    nodes, strength, link = endpoint_links(occupied, live, [state.poses[r] for r in live], base, cell_size, radio)
+    cells = [state.poses[r] for r in live]
+    field = channel.shadowing
+    shadow = field.pair_db([*cells, *([base] if base is not None else [])]) if field is not None else None
+    nodes, strength, link = endpoint_links(occupied, live, cells, base, cell_size, radio, shadow)
+    if shadow is not None:
+        count_predictions(channel.counters, strength, shadow, link, len(live), radio)
     t = state.tick
     links = links_message(t, seq(), nodes, strength, link, channel.counters, dropped, channel.medium)
     if state.done:

@@ -51,7 +51,8 @@ class NetemNode(NodeBase):
         self.robots = robot_ids(scenario.robots)
         self.occupied = map_data.grid > 0
         self.base = base  # a fixed radio endpoint, in a run with a base station
-        self.channel = make_channel(scenario.seed, scenario.radio, scenario.tick_s)
+        self.channel = make_channel(scenario.seed, scenario.radio, scenario.tick_s, map_data.grid.shape,
+                                    scenario.cell_size)
         self.base_sends = self.base is not None and scenario.plans_at_base  # the base's orders (mhm)
         senders = frozenset(self.robots) | ({BASE} if self.base_sends else set())
         self.ctx_tx = Context(senders=senders, shape=map_data.grid.shape)

@@ -40,3 +40,20 @@ def test_radio_cost_times_the_limited_radio_s_own_code(capsys: pytest.CaptureFix
     assert 0 < float(r["radio s"]) < float(r["rest s"])
     code, _, err = bench("radio_cost", "--bandwidths", "0", capsys=capsys)
     assert code == 2 and err.strip().startswith("radio_cost: error:")
+
+
+def test_radio_cost_times_the_shadowing_s_own_code(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("radio_cost", "--shadowing", "--robots", "3", "--seeds", "1", "--max-ticks", "15",
+                           capsys=capsys)
+    assert code == 0, err[-2000:]
+    lines = [ln for ln in out.splitlines() if not ln.startswith("#")]
+    labels = ["shadowing", "robot-ticks", "delivered", "ms/robot-tick", "vs off", "calls", "shadow s", "rest s",
+              "share"]
+    off, only, on = (fields(lines[0], ln, labels) for ln in lines[1:4])
+    assert [ln[:9].strip() for ln in lines[1:4]] == ["off", "code only", "8 dB"]
+    assert off["calls"] == "1" and float(off["shadow s"]) < 0.01  # off draws no field: one call that returns
+    assert int(only["calls"]) == int(on["calls"]) > 16  # the field once, then the terms and the count each tick
+    assert (only["robot-ticks"], only["delivered"]) == (off["robot-ticks"], off["delivered"])  # the run of off
+    assert 0 < float(only["shadow s"]) < float(only["rest s"])
+    code, _, err = bench("radio_cost", "--shadowing", "--shadowing-db", "0", capsys=capsys)
+    assert code == 2 and err.strip().startswith("radio_cost: error:")
