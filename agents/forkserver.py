@@ -43,6 +43,7 @@ import socket
 import sys
 import time
 import traceback
+from pathlib import Path
 from typing import Any
 
 # What a robot runs, imported here once, before any fork (numpy and numba come with it; zenoh is only
@@ -52,6 +53,7 @@ from fleet_emu.agents.brain import allocator_config
 from fleet_emu.agents.hearing_kernels import warm_up
 from fleet_emu.agents.node import main as agent_main
 from fleet_emu.core.errors import FleetError
+from fleet_emu.core.files import create_new
 from fleet_emu.core.scenario import Scenario
 
 #: Modules a node imports on use, loaded here only when the run's allocator needs them (mhm: the base planner's
@@ -119,7 +121,7 @@ class Server:
     def fork(self, name: str, argv: list[str], log: str | None, secret: int | None, module: str = AGENTS) -> int:
         """Fork one node, ``python -m module argv`` (its credential pipe ``secret`` becomes its standard input);
         in the child, never return."""
-        logfd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644) if log else None
+        logfd = create_new(Path(log)) if log else None  # a new file: a link planted there is refused
         sys.stdout.flush()
         sys.stderr.flush()
         gc.freeze()  # what the server built is never scanned by the robots' collector: its pages stay shared

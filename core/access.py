@@ -31,6 +31,7 @@ which subscribes to ``fleet/<run>/**``, never sees it.
 from __future__ import annotations
 
 import dataclasses
+import errno
 import json
 import os
 import secrets
@@ -40,7 +41,9 @@ from pathlib import Path
 from typing import Any
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.files import TooLarge, open_regular
 from fleet_emu.core.keys import BASE, HOST_ID, HOST_ROOT, ROOT, ParsedKey
+from fleet_emu.core.limits import MAX_FILE_BYTES
 
 WORLD, NETEM, LAUNCHER, RECORDER = "world", "netem", "launcher", "recorder"
 SERVICES = (WORLD, NETEM, LAUNCHER, RECORDER)
@@ -242,9 +245,11 @@ def read_users(path: Path, option: str = "--credentials") -> dict[str, str]:
     ConfigError naming ``chmod 600`` when its group or others may read or write it (its passwords are then no
     one's own), or when it cannot be read; ``option`` names it for the user."""
     try:
-        with path.open("rb") as f:
+        with open_regular(path) as f:  # a FIFO or a device refused at once, never waited on
             mode = os.fstat(f.fileno()).st_mode
-            data = b"" if mode & 0o077 else f.read()
+            data = b"" if mode & 0o077 else f.read(MAX_FILE_BYTES + 1)
+        if len(data) > MAX_FILE_BYTES:
+            raise TooLarge(errno.EFBIG, f"larger than {MAX_FILE_BYTES >> 20} MiB")
     except OSError as exc:
         raise ConfigError(f"{option} {path}: cannot read it ({exc.strerror or exc})") from None
     if mode & 0o077:

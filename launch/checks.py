@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import zenoh
 
 from fleet_emu.agents.allocators import make_allocator
+from fleet_emu.agents.allocators.policy import pin_policy
 from fleet_emu.agents.brain import allocator_config
 from fleet_emu.core.access import LAUNCHER, Credential, fleet_nodes, make_credentials, read_users
 from fleet_emu.core.bus import client_config, shm_enabled
@@ -38,6 +39,16 @@ MAX_HZ = MAX_REALTIME_HZ  # the fastest real-time rate accepted
 
 def new_run_id() -> str:
     return time.strftime("%Y%m%d-%H%M%S") + "-" + secrets.token_hex(2)
+
+
+def pinned(scenario: Scenario) -> Scenario:
+    """``scenario`` with its policy file's sha256 among the allocator's parameters (:func:`pin_policy`: the file
+    read once, here, before any robot starts; every robot verifies it), or as it is for another allocator."""
+    alloc = scenario.allocator
+    if not isinstance(alloc, dict):
+        return scenario
+    pin = pin_policy(alloc)
+    return scenario if pin == alloc else scenario.override(allocator=pin)
 
 
 def check(scenario: Scenario) -> MapData:

@@ -22,6 +22,8 @@ import time
 from pathlib import Path
 from typing import IO
 
+from fleet_emu.core.files import open_new
+
 FORK_TIMEOUT = 120.0  # seconds a request may wait for the server (its imports, on a loaded machine)
 NOT_STARTED = -1  # the pid of a robot that was never forked (and its exit code)
 
@@ -61,7 +63,7 @@ class ForkServer:
     def __init__(self, log: Path | None = None, scenario: Path | None = None, modules: tuple[str, ...] = ()) -> None:
         """``modules``: the other node modules (``fleet_emu.world.node``...) the server imports before any fork,
         so that a request naming their package forks a process that has them loaded."""
-        stderr: IO[bytes] | None = open(log, "wb") if log is not None else None  # noqa: SIM115 (closed in close)
+        stderr: IO[bytes] | None = open_new(log) if log is not None else None  # closed in close
         self._log = stderr
         preload = ["--scenario", str(scenario)] if scenario is not None else []
         preload += [arg for module in modules for arg in ("--preload", module)]
@@ -167,10 +169,15 @@ class ForkServer:
 
     def close(self, grace: float = 2.0) -> None:
         """End the server (it ends the robots it has left, reaps and reports them), SIGKILL its process group
-        after ``grace`` seconds, and wait for the last reports."""
+        after ``grace`` seconds, and wait for the last reports. A server that forked nothing (the run ended before
+        its first node: the hosts did not come) has nothing to reap or report: it is killed at once, not waited
+        for while it is still loading the code."""
         with contextlib.suppress(OSError, ValueError):
             self._sock.close()
-        deadline = time.monotonic() + grace + 2.5  # the server's own SIGTERM grace to its robots, and more
+        with self.changed:
+            forked = bool(self._by_pid or self._pending)
+        # the server's own SIGTERM grace to its robots, and more
+        deadline = time.monotonic() + (grace + 2.5 if forked else 0.0)
         try:
             self.proc.wait(max(0.0, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:

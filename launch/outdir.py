@@ -6,7 +6,9 @@ before anything is written there and keeps it to the last write: a second run (o
 run (:data:`RUN_MARKERS`) is refused too, unless ``overwrite``, which first removes every file that run left
 (:func:`run_files`: its logs, plots and metrics as well). Every file goes through :func:`write_atomic`: a
 temporary file beside it and a rename, the temporary file removed on any error, so a reader, a crash or a full
-disk never leaves half a file or a stray temporary one.
+disk never leaves half a file or a stray temporary one; every other file (the processes' logs, the recording) is
+created new (:func:`~fleet_emu.core.files.create_new`). A folder holding a symbolic link to a file (where a run
+file goes: ``r0.log``, ``.fleet.lock``...) is refused in one line (:func:`refuse_links`), never followed.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import fcntl
 import os
 import re
 import shutil
+import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,7 +29,7 @@ from fleet_emu.core.files import write_atomic, write_json
 from fleet_emu.core.spelling import option
 
 __all__ = ["DiskFault", "FolderLock", "claim", "claimed", "disk_fault", "lock_folder", "make_folder", "refuse_held",
-           "run_files",
+           "refuse_links", "run_files",
            "write_atomic", "write_json"]
 
 LOCK = ".fleet.lock"
@@ -69,11 +72,17 @@ def lock_folder(folder: Path, flag: str = "--out") -> FolderLock:
     ConfigError naming the pid of the process that holds it. Safe against a lock file removed by its previous
     owner meanwhile: the lock is taken again on the file now at the path."""
     path = folder / LOCK
+    refuse_links(folder, flag)
     for _ in range(10):
         try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | os.O_NOFOLLOW, 0o644)
         except OSError as exc:
+            if exc.errno == errno.ELOOP:  # a link planted there since refuse_links looked
+                raise _link_refusal(folder, flag, [LOCK]) from None
             raise ConfigError(f"{flag} {folder}: cannot write there ({exc.strerror or exc})") from None
+        if os.fstat(fd).st_nlink != 1 or not stat.S_ISREG(os.fstat(fd).st_mode):  # a hard link: never truncated
+            os.close(fd)
+            raise _link_refusal(folder, flag, [LOCK])
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:
@@ -99,6 +108,25 @@ def lock_folder(folder: Path, flag: str = "--out") -> FolderLock:
             raise ConfigError(f"{flag} {folder}: cannot write there ({exc.strerror or exc})") from None
         return FolderLock(folder, fd)
     raise ConfigError(f"{flag} {folder}: its lock file keeps changing (another run is starting there)")
+
+
+def refuse_links(folder: Path, flag: str = "--out") -> None:
+    """A ConfigError of one line when ``folder`` holds a symbolic link that is not to a folder (a run's files
+    are never symbolic links: one where ``r0.log``, ``result.json`` or ``.fleet.lock`` goes would have a run
+    overwrite its target), naming them."""
+    links = []
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(folder):
+            if entry.is_symlink() and not entry.is_dir(follow_symlinks=True):
+                links.append(entry.name)
+    if links:
+        raise _link_refusal(folder, flag, sorted(links))
+
+
+def _link_refusal(folder: Path, flag: str, names: list[str]) -> ConfigError:
+    shown = ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
+    return ConfigError(f"{flag} {folder} holds symbolic links where a run's files go ({shown}): a run never "
+                       f"follows them; remove them or choose another folder")
 
 
 def _holder(path: Path) -> str:

@@ -16,12 +16,12 @@ longer holds logins that act on another's runs (docs/design/security.md).
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
 from fleet_emu.core.access import acl_config, dictionary_text, fleet_nodes, make_credentials, read_users
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.files import write_atomic
 from fleet_emu.core.keys import RUN_ID, host_ids, robot_ids
 from fleet_emu.core.scenario import MAX_ROBOTS
 
@@ -43,12 +43,9 @@ def run_users_file(users: Path, run: str) -> Path:
 
 
 def _write_dictionary(path: Path, users: dict[str, str]) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
+    text = dictionary_text(users)
     try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-        with os.fdopen(fd, "w") as f:
-            f.write(dictionary_text(users))
-        os.replace(tmp, path)
+        write_atomic(path, lambda tmp: tmp.write_text(text), mode=0o600)  # never through a link planted there
     except OSError as exc:
         raise ConfigError(f"--users {path}: cannot write it ({exc.strerror or exc})") from None
 

@@ -32,6 +32,7 @@ import zenoh
 from fleet_emu.core.access import Credential, Grant, acl_config, dictionary_text
 from fleet_emu.core.bus import router_config, router_locators
 from fleet_emu.core.errors import RunError
+from fleet_emu.core.files import open_new
 
 MODULE = "fleet_emu.launch.router_process"
 READY_TIMEOUT = 30.0  # seconds for the child to open its router and print its endpoints
@@ -63,7 +64,7 @@ def router_process(run_id: str, creds: dict[str, Credential] | None, listen: lis
     with tempfile.TemporaryDirectory(prefix="fleet-router-") as private:  # mode 0700
         spec_file = Path(private) / "router.json"
         _write_private(spec_file, json.dumps(router_spec(Path(private), run_id, creds, listen, tls, grants)))
-        err = open(log, "wb") if log is not None else None  # noqa: SIM115 (closed below)
+        err = open_new(log) if log is not None else None  # never through a link planted there; closed below
         try:
             proc = subprocess.Popen([sys.executable, "-m", MODULE, str(spec_file)],
                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE,

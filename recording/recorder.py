@@ -26,6 +26,7 @@ from typing import Any
 from mcap.writer import CompressionType, Writer
 
 from fleet_emu.core.codec import peek_tick
+from fleet_emu.core.files import open_new
 from fleet_emu.core.radio import RadioConfig
 from fleet_emu.core.version import SCHEMA_VERSION, __version__
 from fleet_emu.recording.clock import RunClock
@@ -43,7 +44,7 @@ class Recorder:
     def __init__(self, path: Path, metadata: dict[str, Any], clock: RunClock | None = None) -> None:
         self.path = path
         self.clock = clock = clock or RunClock.now()
-        self._file = open(path, "wb")  # noqa: SIM115 (closed in close())
+        self._file = open_new(path)  # a new file, never through a link planted there; closed in close()
         self.failed: OSError | None = None
         self._writer = Writer(self._file, compression=CompressionType.ZSTD, chunk_size=CHUNK_SIZE)
         self._writer.start(profile="", library="fleet-emu")

@@ -20,10 +20,17 @@ at the scenario's target coverage and is truncated at ``max_cycles`` ticks (or w
 rules end it). The observation returned with the last step repeats the robot's last decision's. The run's
 ``result.json`` (``env.fleet.result()``) is a run's in every key but the allocator's name, which stays the
 scenario's: the policy took its seat.
+
+Every constructor argument is declared once (:class:`EnvOptions`, with :func:`~fleet_emu.core.fields.setting`,
+as a scenario's settings are) and checked the same way, and so is every action: a bad one is a
+:class:`~fleet_emu.core.errors.ConfigError` of one line, as is :meth:`FleetParallelEnv.step` before
+:meth:`~FleetParallelEnv.reset`.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import numbers
 from collections.abc import Mapping
 from typing import Any
 
@@ -32,15 +39,50 @@ import numpy as np
 from pettingzoo import ParallelEnv
 
 from fleet_emu.agents.allocators import Allocation, Allocator, Problem
-from fleet_emu.agents.allocators.policy import DEFAULT_K, FEATURES, candidates, target_features
+from fleet_emu.agents.allocators.policy import DEFAULT_K, FEATURES, MAX_K, candidates, target_features
 from fleet_emu.agents.brain import Brain, Percept
+from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.fields import check_all, setting
 from fleet_emu.core.grid import FREE, MOVES, STAY, UNKNOWN, Cell
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.rl.render import render_rgb
 
+RENDER_MODES = ("rgb_array",)
 #: Raw moves (``moves=True``): action i moves by ``ACTION_MOVES[i]``.
 ACTION_MOVES: tuple[Cell, ...] = (STAY, *MOVES)
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvOptions:
+    """The environment's own settings (its other keywords are scenario overrides), each declared once."""
+
+    k: int = setting(DEFAULT_K, low=1, high=MAX_K, help="candidate frontier targets per robot (K + 1 actions)")
+    crop: int = setting(8, unit="cells", low=0, high=256, help="the map observation's half side")
+    time_cost: float = setting(0.0, low=0.0, high=1e6, help="reward taken off every robot each tick")
+    overlap_cost: float = setting(0.0, low=0.0, high=1e6, help="reward taken off for each teammate on the same target")
+
+
+def check_options(k: Any, crop: Any, time_cost: Any, overlap_cost: Any, moves: Any, render_mode: Any) -> None:
+    """A ConfigError of one line on the first argument of :class:`FleetParallelEnv` that is not accepted."""
+    check_all(EnvOptions(k, crop, time_cost, overlap_cost))
+    if not isinstance(moves, bool):
+        raise ConfigError(f"moves must be True or False (got {moves!r})")
+    if render_mode is not None and not isinstance(render_mode, str):  # a mode it does not draw renders None
+        raise ConfigError(f"render_mode must be None or a name such as {', '.join(RENDER_MODES)} "
+                          f"(got {render_mode!r})")
+
+
+def check_action(robot: str, action: Any, n_actions: int) -> int | None:
+    """``action`` as the index it names (None for none): a whole number in ``[0, n_actions)`` (numpy's too, or
+    an array of one), else a ConfigError of one line naming the robot."""
+    if action is None:
+        return None
+    value = action.item() if isinstance(action, np.ndarray) and action.size == 1 else action
+    if not isinstance(value, numbers.Integral) or isinstance(value, bool | np.bool_) or not 0 <= int(value) < n_actions:
+        raise ConfigError(f"the action of {robot} must be a whole number from 0 to {n_actions - 1} or None "
+                          f"(got {action!r})")
+    return int(value)
 
 
 class Chosen(Allocator):
@@ -57,12 +99,15 @@ class Chosen(Allocator):
 class FleetParallelEnv(ParallelEnv):
     """The fleet of ``scenario`` as a PettingZoo parallel environment (module docstring)."""
 
-    metadata = {"name": "fleet_emu_v0", "render_modes": ["rgb_array"], "is_parallelizable": True, "render_fps": 10}
+    metadata = {"name": "fleet_emu_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True, "render_fps": 10}
 
     def __init__(self, scenario: Scenario | str = "default", *, k: int = DEFAULT_K, crop: int = 8,
                  max_cycles: int | None = None, moves: bool = False, time_cost: float = 0.0,
                  overlap_cost: float = 0.0, render_mode: str | None = None, **overrides: Any) -> None:
+        check_options(k, crop, time_cost, overlap_cost, moves, render_mode)
         s = Scenario.load(scenario) if isinstance(scenario, str) else scenario
+        if not isinstance(s, Scenario):
+            raise ConfigError(f"scenario must be a Scenario or a scenario's name or file (got {scenario!r})")
         if max_cycles is not None:
             overrides["max_ticks"] = max_cycles
         self.scenario = s.override(**overrides) if overrides else s
@@ -135,10 +180,19 @@ class FleetParallelEnv(ParallelEnv):
     def step(self, actions: Mapping[str, Any]) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, float],
                                                         dict[str, bool], dict[str, bool], dict[str, Any]]:
         """Every live robot acts on its action (none for a missing one), netem sends, the world moves."""
+        if not self.agents:
+            raise ConfigError("step() before reset(), or after the run ended: call reset() first")
+        if not isinstance(actions, Mapping):
+            raise ConfigError(f"actions must be a mapping of robot to action (got {type(actions).__name__})")
+        unknown = sorted(map(str, set(actions) - set(self.possible_agents)))
+        if unknown:
+            raise ConfigError(f"actions for unknown robot(s) {', '.join(unknown)} (robots: "
+                              f"{', '.join(self.possible_agents)})")
+        n_actions = len(ACTION_MOVES) if self.moves else self.k + 1
+        chosen = {r: check_action(r, actions.get(r), n_actions) for r in self.agents}
         targets: dict[str, Cell | None] = {}
         for r in self.agents:
-            a = actions.get(r)
-            alloc = self._allocation(self._percepts[r], None if a is None else int(a))
+            alloc = self._allocation(self._percepts[r], chosen[r])
             chooser = self.fleet.brains[r].allocator
             assert isinstance(chooser, Chosen)
             chooser.allocation = alloc

@@ -109,13 +109,10 @@ def bridge(access: BusAccess, opts: Ros2Options) -> Iterator[Bridge]:
 def write_viewer(path: Path, password: str) -> Path:
     """The viewer's users file (``ros2:PASSWORD``, mode 0600), in the format ``--credentials`` takes; written
     to a temporary name and renamed, so a script that waits for it never reads it half written."""
-    import os
+    from fleet_emu.core.files import write_atomic
 
-    tmp = path.with_name(f".{path.name}.tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "w") as f:
-        f.write(dictionary_text({VIEWER: password}))
-    os.replace(tmp, path)
+    text = dictionary_text({VIEWER: password})
+    write_atomic(path, lambda tmp: tmp.write_text(text), mode=0o600)  # never through a link planted there
     return path
 
 

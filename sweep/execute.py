@@ -18,12 +18,14 @@ import json
 import multiprocessing
 import os
 import signal
+import threading
 import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
+from fleet_emu.launch.result import unexpected_failures
 from fleet_emu.sweep import record
 from fleet_emu.sweep.record import Keep
 from fleet_emu.sweep.study import Point
@@ -32,6 +34,8 @@ ROWS = "rows.jsonl"
 PARQUET = "results.parquet"
 CSV = "results.csv"
 CURVE_EVERY = 5
+#: Seconds a Dask scheduler has to answer ``--dask``'s handshake.
+HANDSHAKE_S = 10.0
 
 
 def run_point(point: Point, keep: Keep | None = None) -> dict[str, Any]:
@@ -54,9 +58,9 @@ def run_point(point: Point, keep: Keep | None = None) -> dict[str, Any]:
     seconds, cpu = round(time.perf_counter() - t0, 3), round(time.process_time() - cpu0, 3)
     data = dict(flatten(result.to_dict()))
     data.pop("engine", None)
-    failed = data.get("failed") not in (None, "[]")
+    unasked = unexpected_failures(result.to_dict())  # a robot the scenario crashed ([[faults]]) is no failure
     return record.settle(point, keep, row | data | {
-        "status": "failed" if failed else "ok", "error": f"robots failed: {data['failed']}" if failed else None,
+        "status": "failed" if unasked else "ok", "error": f"robots failed: {json.dumps(unasked)}" if unasked else None,
         "point_seconds": seconds, "point_cpu_seconds": cpu, "curve_every": CURVE_EVERY, "curve": curve(result)})
 
 
@@ -109,7 +113,8 @@ class RowWriter:
     own (the cut one is skipped when read: its point runs again). An OSError (a full disk) is the caller's."""
 
     def __init__(self, out: Path) -> None:
-        self._fd = os.open(out / ROWS, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        # never through a link planted there (an ELOOP, said by the caller as any OSError)
+        self._fd = os.open(out / ROWS, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
         self._torn = os.fstat(self._fd).st_size > 0 and _last_byte(out / ROWS) != b"\n"
 
     def write(self, row: dict[str, Any]) -> None:
@@ -164,18 +169,66 @@ def _interrupt_workers() -> None:
                 os.kill(proc.pid, signal.SIGINT)
 
 
-def connect_dask(address: str) -> Any:
-    """A client of the Dask scheduler at ``address``; a ConfigError (one line) when none answers in 10 s."""
+def connect_dask(address: str, seconds: float = HANDSHAKE_S) -> Any:
+    """A client of the Dask scheduler at ``address``; a ConfigError (one line) when none answers within
+    ``seconds``: the scheduler's handshake is tried first under that deadline (:func:`scheduler_answers`), as the
+    client's own connect waits without one on a peer that accepts the connection and stays silent."""
     from fleet_emu.core.errors import ConfigError
 
     try:
         from distributed import Client
     except ImportError:
         raise ConfigError("--dask needs dask[distributed]: pip install 'fleet-emu[sweep]'") from None
+    scheduler_answers(address, seconds)
     try:
-        return Client(address, timeout="10s")
+        return Client(address, timeout=f"{seconds:g}s")
     except (OSError, TimeoutError, ValueError) as exc:
         raise ConfigError(f"--dask {address}: no Dask scheduler answered ({exc})") from None
+
+
+def scheduler_answers(address: str, seconds: float = HANDSHAKE_S) -> None:
+    """Connect to ``address`` and ask the scheduler who it is, the whole exchange within ``seconds``; a
+    ConfigError of one line when it refuses, is not a Dask scheduler, or stays silent. Ctrl-C ends the wait."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    from fleet_emu.core.errors import ConfigError
+
+    async def identity() -> Any:
+        comm = await connect(address, timeout=seconds)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    outcome: dict[str, Any] = {}
+
+    def probe() -> None:
+        try:
+            outcome["reply"] = asyncio.run(asyncio.wait_for(identity(), seconds))
+        except BaseException as exc:  # handed to the waiting thread
+            outcome["error"] = exc
+
+    # on its own thread: this one waits in a join, which SIGINT interrupts (asyncio's own SIGINT handling does
+    # not reach a connect that is waiting), and SIGTERM's default ends the process
+    thread = threading.Thread(target=probe, name="dask-handshake", daemon=True)
+    thread.start()
+    thread.join(seconds + 2.0)
+    try:
+        if thread.is_alive():
+            raise TimeoutError
+        if "error" in outcome:
+            raise outcome["error"]
+        reply = outcome["reply"]
+    except TimeoutError:
+        raise ConfigError(f"--dask {address}: no Dask scheduler answered within {seconds:g} s") from None
+    except (OSError, ValueError, TypeError) as exc:  # refused, unreachable, a bad address, the comm closed
+        raise ConfigError(f"--dask {address}: no Dask scheduler answered ({type(exc).__name__}: "
+                          f"{str(exc).splitlines()[0] if str(exc) else 'no reason given'})") from None
+    if not (isinstance(reply, dict) and reply.get("type") == "Scheduler"):
+        raise ConfigError(f"--dask {address}: the peer there is not a Dask scheduler")
 
 
 def _on_dask(points: list[Point], client: Any, on_row: Callable[[dict[str, Any]], None], keep: Keep | None) -> None:

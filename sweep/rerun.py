@@ -9,7 +9,6 @@ from __future__ import annotations
 import itertools
 import json
 import sys
-import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -52,7 +51,7 @@ def find_point(out: Path, row: dict[str, Any], maps: Path | None) -> Point:
     kept = out / "study.toml"
     if not kept.exists():
         raise ConfigError(f"{out} has no study.toml: its points cannot be re-created")
-    study = Study.from_dict(tomllib.loads(kept.read_text()), kept)
+    study = Study.load(kept)  # a regular file of bounded size, or one line (a FIFO is never waited on)
     keys = list(study.grid)
     for values in itertools.product(*(study.grid[k] for k in keys)):
         params = dict(zip(keys, values, strict=True))

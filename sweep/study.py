@@ -8,6 +8,7 @@ engine = "memory"          # or "processes": each point a real fleet over Zenoh
 seeds = 2                  # seeds 0..1, or a list [0, 5, 7]
 baseline = "nearest"       # the allocator `fleet sweep report` compares the others with
 replicates = []            # grid keys whose values are repetitions, like seeds: the report pools them
+# more = {start = [[3, 4]]}  # further values of a replicates key that `--until-decided` may add
 record = "failed"          # keep the recordings of the runs that failed or missed the target; "all"; "none"
 [grid]                     # every key a list; the points are their product
 allocator = ["nearest", {type = "minpos", wavefront = "stop"}]
@@ -17,6 +18,7 @@ comm = ["ideal"]
 map = ["office"]
 waf = [3.1, 6.0]           # a radio setting by name, or several in a table:
 radio = [{comm = "wall"}, {comm = "disk", comm_range = 6.0}]
+faults = [[], [{robot = 0, tick = 30, kind = "crash"}]]  # robot failures (docs/guides/faults.md)
 [fleet]                    # any scenario field, fixed for every point (radio settings flat or in [fleet.radio])
 max_ticks = 3000
 ```
@@ -33,6 +35,7 @@ import dataclasses
 import hashlib
 import itertools
 import json
+import math
 import os
 import tomllib
 from collections.abc import Iterator
@@ -40,16 +43,21 @@ from pathlib import Path
 from typing import Any
 
 from fleet_emu.core.errors import ConfigError
-from fleet_emu.core.limits import check_text
+from fleet_emu.core.files import read_regular
+from fleet_emu.core.limits import MAX_FILE_BYTES, check_text
 from fleet_emu.core.radio import radio_settings
 from fleet_emu.core.scenario import Scenario
+from fleet_emu.core.spelling import file_spelling, near
 from fleet_emu.sweep import claims
 
 STUDIES = Path(__file__).resolve().parent / "studies"
 ENGINES = ("memory", "processes")
-_STUDY_KEYS = {"name", "description", "engine", "seeds", "baseline", "maps", "record", "replicates"}
+_STUDY_KEYS = {"name", "description", "engine", "seeds", "baseline", "maps", "record", "replicates", "more"}
 #: ``[study] record``: which runs keep their folder (``run.mcap``, ``result.json``...) under ``DIR/runs/ID``.
 RECORD = ("failed", "all", "none")
+#: The most runs one study's grid may hold (grid values times seeds): a larger one is refused before it is
+#: expanded, as expanding it alone would take minutes and memory (a day of the largest runs is a few thousand).
+MAX_POINTS = 100_000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,20 +86,22 @@ class Study:
     path: Path | None = None
     text: str = ""
     replicates: tuple[str, ...] = ()
+    more: dict[str, list[Any]] = dataclasses.field(default_factory=dict)
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> Study:
         """A study file, or the name of a shipped one (``fleet sweep --list``)."""
         p = Path(name_or_path)
-        if not p.exists() and (STUDIES / f"{name_or_path}.toml").exists():
+        if not p.is_file() and (STUDIES / f"{name_or_path}.toml").exists():  # a folder named so: the shipped study
             p = STUDIES / f"{name_or_path}.toml"
         try:
-            text = p.read_text()
+            text = read_regular(p, MAX_FILE_BYTES).decode()  # a FIFO or a device refused at once, never waited on
         except FileNotFoundError:
-            raise ConfigError(f"study {name_or_path} not found (a TOML file, or one of: {', '.join(shipped())})") \
-                from None
+            known = shipped()
+            raise ConfigError(f"study {name_or_path} not found{near(str(name_or_path), known)} (a TOML file, or one "
+                              f"of: {', '.join(known)})") from None
         except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"cannot read study {p}: {exc}") from None
+            raise ConfigError(f"cannot read study {p}: {getattr(exc, 'strerror', None) or exc}") from None
         check_text(text, f"study {p}")  # size and nesting before the parser recurses
         try:
             raw = tomllib.loads(text)
@@ -118,26 +128,34 @@ class Study:
             raise ConfigError(f"{where}: record must be one of {', '.join(RECORD)} (got {record!r})")
         seeds = head.get("seeds", 1)
         if isinstance(seeds, int) and not isinstance(seeds, bool) and seeds >= 1:
+            check_grid_size({}, seeds, where)  # a count of seeds is a list of them: bounded before it is made
             seeds = list(range(seeds))
         if not (isinstance(seeds, list) and seeds and all(isinstance(s, int) and s >= 0 for s in seeds)):
             raise ConfigError(f"{where}: seeds must be a count N >= 1 (seeds 0..N-1) or a list of seeds")
         for k, v in grid.items():
             if not isinstance(v, list) or not v:
                 raise ConfigError(f"{where}: [grid] {k} must be a non-empty list")
+        check_grid_size(grid, len(seeds), where)
         replicates = head.get("replicates", [])
         if not (isinstance(replicates, list) and all(isinstance(k, str) and k in grid for k in replicates)):
             raise ConfigError(f"{where}: replicates must be a list of [grid] keys (got {replicates!r})")
+        more = head.get("more", {})
+        if not (isinstance(more, dict) and len(more) <= 1 and all(k in replicates and isinstance(v, list) and v
+                                                                   for k, v in more.items())):
+            raise ConfigError(f"{where}: more must be a table of one replicates key and the further values "
+                              f"--until-decided may add (got {more!r})")
         name = head.get("name") or (path.stem if path else "study")
         study = cls(name=str(name), grid=dict(grid), seeds=list(seeds), fleet=dict(fleet), engine=engine,
                     record=record, baseline=head.get("baseline"), description=str(head.get("description", "")),
                     maps_hint=str(head.get("maps", "")), paper=dict(raw.get("paper", {})), path=path, text=text,
-                    replicates=tuple(replicates))
+                    replicates=tuple(replicates), more=dict(more))
         paper = raw.get("paper", {})
         if not isinstance(paper, dict):
             raise ConfigError(f"{where}: [paper] must be a table")
         claims.parse(paper, where, grid)  # a bad claim fails now, not when the sweep is reported
         first = {k: v[0] for k, v in grid.items()}  # bad values fail now, each with the other keys' first
-        for params in [first, *(first | {k: v} for k, values in grid.items() for v in values[1:])]:
+        extra = [first | {k: v} for k, values in more.items() for v in values]
+        for params in [first, *(first | {k: v} for k, values in grid.items() for v in values[1:]), *extra]:
             study.scenario(params, seeds[0], resolve=False)
         return study
 
@@ -159,15 +177,26 @@ class Study:
                 memo[name] = resolve_map(name, self, maps_dir)
             flat["map"] = memo[name]
         try:
-            s = Scenario().override(**flat)
+            with file_spelling(self._keys(params, flat)):  # ``study s.toml: [grid] robots must be ...``
+                s = Scenario().override(**flat)
         except ConfigError as exc:
-            raise ConfigError(f"study {self.name}: {exc}") from None
+            raise ConfigError(f"study {self.path or self.name}: {exc}") from None
         if resolve and not s.cell_size_given:
             from fleet_emu.world.maps import is_bare_bitmap, no_scale_error
 
             if is_bare_bitmap(s.map):
                 raise ConfigError(f"study {self.name}: {no_scale_error(s.map)}")
         return s
+
+    def _keys(self, params: dict[str, Any], flat: dict[str, Any]) -> dict[str, str]:
+        """Where each value of a point came from, as the file writes it: ``[grid] robots``, ``[fleet] loss``,
+        ``[grid] radio.waf`` (the grid's win over ``[fleet]``'s, a flat name over its layer's table)."""
+        keys = {k: f"[{'grid' if k in params else 'fleet'}] {k}" for k in flat}
+        for k in flat["radio"]:
+            layer, table = next(((n, t) for n, t in (("grid", params), ("fleet", self.fleet))
+                                 if k in t or k in (t.get("radio") or {})), ("fleet", self.fleet))
+            keys[k] = f"[{layer}] {k}" if k in table else f"[{layer}] radio.{k}"
+        return keys
 
     def _radio(self, params: dict[str, Any], names: set[str]) -> dict[str, Any]:
         """The radio settings of a point, layered: ``[fleet]``'s ``radio`` table, its flat names (``names``),
@@ -196,15 +225,32 @@ class Study:
         return out
 
 
+def check_grid_size(grid: dict[str, list[Any]], seeds: int, where: str) -> None:
+    """A ConfigError, before any point is built, when the grid (every key's values times the seeds) holds more
+    than :data:`MAX_POINTS` runs, saying how many: counted from the lists' lengths, never expanded."""
+    runs = math.prod(len(v) for v in grid.values()) * seeds
+    if runs > MAX_POINTS:
+        sizes = " x ".join(f"{len(v)} {k}" for k, v in grid.items())
+        raise ConfigError(f"{where}: its grid is {runs:,} runs ({sizes} x {seeds} seeds), more than the "
+                          f"{MAX_POINTS:,} a sweep takes: split it into several studies")
+
+
 def param_label(value: Any) -> Any:
     """A grid value as a column: an allocator table becomes ``minpos(wavefront=stop)``, a radio table
-    ``comm=wall,waf=6.0``."""
+    ``comm=wall,waf=6.0``, a list of faults ``crash r0@30`` (``none`` when empty)."""
+    if isinstance(value, list) and all(isinstance(f, dict) and "tick" in f for f in value):
+        return " ".join(f"{f.get('kind', 'crash')} {_robot(f.get('robot'))}@{f['tick']}" for f in value) or "none"
     if isinstance(value, dict) and "type" in value:
         extra = ",".join(f"{k}={v}" for k, v in sorted(value.items()) if k != "type")
         return f"{value.get('type')}({extra})" if extra else str(value.get("type"))
     if isinstance(value, dict):  # a radio table: ``comm=wall,waf=6.0``
         return ",".join(f"{k}={v}" for k, v in sorted(value.items()))
     return value
+
+
+def _robot(robot: Any) -> str:
+    """A fault's robot as its id: ``r0`` for ``0``."""
+    return f"r{robot}" if isinstance(robot, int) else str(robot)
 
 
 def point_id(params: dict[str, Any], seed: int) -> str:
@@ -247,7 +293,8 @@ def resolve_map(name: str, study: Study, maps_dir: Path | None) -> str:
             if (root / p).exists():
                 return str((root / p).resolve())
     hint = f"; get it from {study.maps_hint}" if study.maps_hint else ""
-    raise ConfigError(f"study {study.name}: map {name} not found (pass --maps DIR or set FLEET_MAPS to the "
+    close = near(name, [*BUILTIN_MAPS, *registry()])  # a typo'd built-in or registry name
+    raise ConfigError(f"study {study.name}: map {name} not found{close} (pass --maps DIR or set FLEET_MAPS to the "
                       f"folder that holds it){hint}")
 
 

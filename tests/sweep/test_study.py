@@ -81,3 +81,35 @@ def test_the_shipped_studies_load() -> None:
                                              {"type": "hungarian", "tasks": "regions"}]
     assert regions.grid["loss"] == yan.grid["loss"] and regions.fleet == yan.fleet | {"map_sync": False}
     assert len(regions.points()) == 4 * 3 * 4 * 10
+
+
+def test_the_mukhija_studies_run_the_papers_setting() -> None:
+    from fleet_emu.world.maps import load_map
+
+    fig5 = Study.load("mukhija-fig5")
+    assert fig5.grid == {"robots": [10, 12, 14], "allocator": ["mhm", {"type": "mhm", "method": "shm"}]}
+    assert fig5.baseline == "mhm(method=shm)" and len(fig5.seeds) >= 5 and len(fig5.points()) == 3 * 2 * 5
+    scenario = fig5.points()[0].scenario
+    grid = load_map(scenario["map"], scenario["cell_size"], 0).grid  # the open map shipped beside the study
+    assert grid.shape == (512, 512) and (grid[1:-1, 1:-1] == 0).all() and (grid[0] == 100).all()
+    assert (scenario["radio"]["comm_range"], scenario["sensor_range"], scenario["cell_size"]) == (40.0, 15.0, 1.0)
+    fig7 = Study.load("mukhija-fig7")
+    assert fig7.grid == {"robots": [10, 20, 30, 40, 50]} and fig7.fleet["allocator"] == "mhm"
+    assert fig7.fleet["comm_range"] / fig7.fleet["cell_size"] == 40.0
+    assert fig7.fleet["sensor_range"] / fig7.fleet["cell_size"] == 15.0
+
+
+def test_yan_maps_compares_on_five_registry_maps_at_no_loss() -> None:
+    maps = Study.load("yan-maps")
+    assert len(maps.grid["map"]) >= 5 and maps.fleet["loss"] == 0.0 and maps.fleet["map_sync"] is False
+    assert maps.paper["beside"] == "map" and len(maps.points()) == 5 * 3 * 4 * 10
+
+
+def test_a_shipped_study_is_found_by_name_beside_a_folder_of_that_name(tmp_path: Path,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """``fleet sweep benavides --out benavides`` run twice: the second call finds the study, not the results."""
+    from fleet_emu.sweep.study import Study
+
+    (tmp_path / "benavides").mkdir()
+    monkeypatch.chdir(tmp_path)
+    assert Study.load("benavides").name == "benavides"
