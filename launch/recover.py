@@ -63,10 +63,12 @@ def is_cut(folder: Path) -> bool:
 
 
 @contextlib.contextmanager
-def reporting(paths: list[Path]) -> Iterator[list[str]]:
+def reporting(paths: list[Path], partial: bool = False) -> Iterator[list[str]]:
     """For ``fleet report``: each run folder among ``paths`` (a folder, or its ``run.mcap``) locked while the
     report writes there (refused while a run does), and recovered first when its recording is cut; yields what
-    the recoveries did."""
+    the recoveries did. A cut recording beside a ``result.json`` is not a crashed run's (its launcher wrote the
+    result, so it closed the recording): it was cut since, and is refused, saying how much of it reads, unless
+    ``partial``."""
     folders = sorted({run_folder(p) for p in paths if p.is_dir() or (p.name == RECORDING and p.is_file())}, key=str)
     locks: list[FolderLock] = []
     said: list[str] = []
@@ -74,11 +76,25 @@ def reporting(paths: list[Path]) -> Iterator[list[str]]:
         for folder in folders:
             locks.append(lock_folder(folder, flag="fleet report:"))
             if is_cut(folder):
+                if not partial and (folder / RESULT).exists():
+                    raise ReportError(_cut_line(folder))
                 said += _recover(folder)
         yield said
     finally:
         for lock in locks:
             lock.release()
+
+
+def _cut_line(folder: Path) -> str:
+    """The refusal of a finished run's cut recording: how much of it reads."""
+    from fleet_emu.recording.read import recorded_count
+    from fleet_emu.recording.recover import readable
+
+    mcap = folder / RECORDING if (folder / RECORDING).exists() else folder / CUT
+    messages, read, size = readable(mcap)
+    of = f" of the {recorded} its run recorded" if (recorded := recorded_count(folder / RECORDING)) else ""
+    return (f"{mcap} is cut: {messages} messages read{of}, {read} of its {size} bytes; pass --partial to report "
+            "that much")
 
 
 def _recover(folder: Path) -> list[str]:

@@ -7,7 +7,10 @@ SDK's typed message (``foxglove.Grid``, ``foxglove.SceneUpdate``, ``foxglove.Log
 ``/viz/stats``, as JSON on a channel with its JSON schema. Logging never waits for a viewer: the SDK queues each
 client's messages (at most :data:`BACKLOG`, dropping the oldest for a slow one), a viewer that stops reading is
 dropped (:class:`~fleet_emu.recording.viewers.ViewerWatch`), and the server's stop has a deadline. The grids
-are latched: a client that subscribes mid-run gets the latest of each at once.
+are latched: a client that subscribes mid-run gets the latest of each with the run's next messages. The SDK
+can only log to every subscriber of a channel, so the latest grids go to all of them again; they go once for
+all the viewers that subscribed within :data:`RESEND_S` (twenty viewers arriving one by one would otherwise
+send each grid twenty times to each of them).
 
 Every channel of the run (:func:`~fleet_emu.recording.foxglove.live_topics`: the scene, the maps, each robot's
 belief, the log, the stats) exists before the server starts: a client is advertised all of them in the one
@@ -33,12 +36,13 @@ from foxglove.websocket import ChannelView, Client, ServerListener
 from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.foxglove import Derived
 from fleet_emu.recording.stats import SCHEMA_STATS, STATS_SCHEMA
-from fleet_emu.recording.viewers import ViewerWatch, drop
+from fleet_emu.recording.viewers import ViewerWatch
 
 log = logging.getLogger(__name__)
 
 DEFAULT_HOST = "127.0.0.1"
 BACKLOG = 4096  # messages queued per client before the oldest are dropped
+RESEND_S = 1.0  # seconds between two sends of the latched grids to viewers that subscribed meanwhile
 LINGER = 0.5  # seconds the server stays up after the run, for its last messages to reach the viewers
 STOP_S = 2.0  # seconds the server's stop may take before every viewer still connected is dropped
 
@@ -109,7 +113,9 @@ class LiveServer(ServerListener):
         self._channels: dict[str, Any] = {}
         for topic, schema in topics:  # advertised from the start: see the module's docstring
             self._channel(topic, schema)
-        self._latest: dict[str, tuple[Any, int]] = {}  # latched topics (the grids): last message, log time
+        self._latest: dict[str, tuple[Any, int, int]] = {}  # latched topics (the grids): last message, time, bytes
+        self._resend: set[str] = set()  # latched topics a viewer subscribed to since they were last sent
+        self._resend_at = 0.0  # the monotonic time before which they are not sent again
         self._lock = threading.Lock()
         self.failed = False
         self.first_tick = 0.0  # the monotonic time before which the run's first tick must not come (launch/live.py)
@@ -118,7 +124,8 @@ class LiveServer(ServerListener):
         self.server = foxglove.start_server(name=name, host=host, port=port, context=self.context,
                                             server_listener=self, message_backlog_size=BACKLOG)
         self.host = host
-        self.viewers = ViewerWatch(self.server.port)
+        self.published_bytes = 0  # what the viewers were sent, roughly (the JSON form): bounds a stalled one's queue
+        self.viewers = ViewerWatch(self.server.port, lambda: self.published_bytes)
 
     @property
     def port(self) -> int:
@@ -134,6 +141,7 @@ class LiveServer(ServerListener):
         if self.failed:
             return
         try:
+            self._send_latched()
             for d in derived:
                 self._publish(d)
         except Exception:
@@ -151,9 +159,25 @@ class LiveServer(ServerListener):
             else:
                 msg = typed(_TOP[d.schema][0], d.obj())
             if d.schema == "foxglove.Grid":
-                self._latest[d.topic] = (msg, t)
+                self._latest[d.topic] = (msg, t, len(d.data))
             channel.log(msg, log_time=t)
             self.published += 1
+            self.published_bytes += len(d.data)
+
+    def _send_latched(self) -> None:
+        """The latest grid of each topic viewers subscribed to since the last send, once for them all (see the
+        module); at most every :data:`RESEND_S`."""
+        now = time.monotonic()
+        if not self._resend or now < self._resend_at:
+            return
+        self._resend_at = now + RESEND_S
+        with self._lock:
+            for topic in list(self._resend):
+                self._resend.discard(topic)
+                latest = self._latest.get(topic)
+                if latest is not None:
+                    self._channels[topic].log(latest[0], log_time=latest[1])
+                    self.published_bytes += latest[2]
 
     def _channel(self, topic: str, schema: str) -> Any:
         if schema == SCHEMA_STATS:
@@ -166,14 +190,11 @@ class LiveServer(ServerListener):
     # --- the SDK's ServerListener ------------------------------------------------------------------------
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
-        """A viewer subscribed: send it the topic's latest grid (to all subscribers: a grid is idempotent)."""
+        """A viewer subscribed: its topic's latest grid goes out with the run's next messages (see the module;
+        nothing here waits on the run's thread)."""
         self.watched = True
-        try:  # no lock here: the dicts are only ever added to, and logging must not wait on the run's thread
-            latest = self._latest.get(channel.topic)
-            if latest is not None:
-                self._channels[channel.topic].log(latest[0], log_time=latest[1])
-        except Exception:
-            log.exception("live view: cannot send the latest grid")
+        if channel.topic in self._latest:
+            self._resend.add(channel.topic)
 
     def close(self) -> None:
         """Stop serving; a watched run first lingers a moment (stopping drops what is still queued). The SDK's
@@ -182,12 +203,13 @@ class LiveServer(ServerListener):
         if self.watched:
             time.sleep(LINGER)
         self.viewers.close()
-        port = self.port
         stopper = threading.Thread(target=self.server.stop, name="live-stop", daemon=True)
         stopper.start()
         stopper.join(STOP_S)
         if stopper.is_alive():
-            self.viewers.dropped += drop(port, None, f"the server's stop waited {STOP_S:g} s for it")
+            self.viewers.drop_all(f"the server's stop waited {STOP_S:g} s for it")
             stopper.join(STOP_S)
         if stopper.is_alive():
             log.warning("live: the server did not stop within %g s; the run goes on without it", 2 * STOP_S)
+        else:
+            self.viewers.release()

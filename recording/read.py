@@ -8,6 +8,12 @@ was killed) reads up to its last complete chunk: the recorder flushes one at lea
 The recorder writes the schema version into the ``scenario`` metadata (``schema_version``); a recording without it
 is of the first layout (schema 1), and one from a newer schema than :data:`fleet_emu.core.version.SCHEMA_VERSION`
 is refused before anything else of it is read.
+
+A recording is untrusted input. The scenario it carries is checked with a scenario file's limits
+(:func:`scenario_of`: size, nesting, then :meth:`~fleet_emu.core.scenario.Scenario.from_dict`) before anything is
+sized from it, so a few hundred bytes saying ``robots = 100000000`` are one line, not gigabytes. A recording cut
+inside a record, or holding fewer messages than the ``result.json`` beside it says were recorded, is refused with
+how much of it could be read, unless the caller asks for that much (``partial=True``, the CLI's ``--partial``).
 """
 
 from __future__ import annotations
@@ -21,12 +27,17 @@ from mcap.records import Channel, Metadata
 from mcap.records import Message as McapMessage
 from mcap.stream_reader import StreamReader
 
-from fleet_emu.core.errors import ReportError
+from fleet_emu.core.errors import ConfigError, ReportError
+from fleet_emu.core.limits import check_text
+from fleet_emu.core.radio import radio_settings
+from fleet_emu.core.scenario import Scenario
+from fleet_emu.core.spelling import file_spelling
 from fleet_emu.core.version import SCHEMA_VERSION
 from fleet_emu.recording.metrics import RunMetrics
 from fleet_emu.recording.recorder import SCENARIO_METADATA
 
 MAGIC = b"\x89MCAP0\r\n"
+MAX_RESULT_BYTES = 64 << 20  # a result.json beside a recording larger than this is not read (256 robots: < 1 MB)
 
 
 class Run:
@@ -39,20 +50,30 @@ class Run:
     """
 
     def __init__(self, path: Path, fold: RunMetrics, messages: int, truncated: bool, schema_version: int,
-                 fleet_emu_version: str | None) -> None:
+                 fleet_emu_version: str | None, read_bytes: int = 0) -> None:
         self.path = path
         self.fold = fold
         self.messages = messages  # every message in the file (the Foxglove channels too)
-        self.truncated = truncated  # the recording was cut (no summary): read up to its last complete chunk
+        self.cut = truncated  # it ends inside a record: read up to its last complete one
+        self.recorded = recorded_count(path)  # what the result.json beside it says was recorded (None: no result)
+        # the recording was cut (it ends inside a record), or holds fewer messages than its run recorded
+        self.truncated = truncated or (self.recorded is not None and messages < self.recorded)
+        self.read_bytes = read_bytes  # bytes up to the end of its last complete record
         self.schema_version = schema_version
         self.fleet_emu_version = fleet_emu_version  # None for a first-round recording
         self.result = fold.result(str(path))
         self.result["recording"]["messages"] = messages
-        self.metrics = self.result | fold.analysis(self.result) | {"truncated": truncated}
+        self.metrics = self.result | fold.analysis(self.result) | {"truncated": self.truncated}
 
     @property
     def scenario(self) -> dict[str, Any]:
         return self.fold.scenario
+
+    @property
+    def extent(self) -> str:
+        """How much of the file was read: its messages and bytes."""
+        size = self.path.stat().st_size if self.path.exists() else 0
+        return f"{self.messages} messages read, {self.read_bytes} of its {size} bytes"
 
     @property
     def name(self) -> str:
@@ -82,11 +103,14 @@ def resolve(path: Path) -> Path:
     return path
 
 
-def load_recording(path: str | Path) -> Run:
-    """Read and fold one recording (RUN_DIR or RUN.mcap), a cut last chunk included; prints and writes nothing.
+def load_recording(path: str | Path, partial: bool = False) -> Run:
+    """Read and fold one recording (RUN_DIR or RUN.mcap); prints and writes nothing.
 
     Raises :class:`~fleet_emu.core.errors.ReportError` (one line) when the path is missing, not an MCAP file,
-    not a fleet recording, or written by a newer fleet_emu.
+    not a fleet recording, carries a scenario a scenario file could not hold, or was written by a newer
+    fleet_emu; and, unless ``partial``, when it is cut (it ends inside a record: the launcher was killed, or the
+    file was cut short) or holds fewer messages than its run's ``result.json`` says were recorded. With
+    ``partial`` such a recording is read up to its last complete record (``Run.truncated``).
     """
     mcap = resolve(Path(path))
     try:
@@ -97,7 +121,54 @@ def load_recording(path: str | Path) -> Run:
         if f.read(len(MAGIC)) != MAGIC:
             raise ReportError(f"{mcap} is not an MCAP file")
         f.seek(0)
-        return _read(f, mcap)
+        run = _read(f, mcap)
+    if not partial:
+        complete(run)
+    return run
+
+
+def complete(run: Run) -> None:
+    """ReportError, saying how much was read, when ``run`` is cut or holds fewer messages than its result says."""
+    if run.cut:
+        raise ReportError(f"{run.path} is cut: {run.extent}; pass --partial (partial=True) to read that much")
+    if run.recorded is not None and run.recorded != run.messages:
+        raise ReportError(f"{run.path} is inconsistent with its result.json: it holds {run.messages} messages, the "
+                          f"run recorded {run.recorded}; pass --partial (partial=True) to read what it holds")
+
+
+def recorded_count(mcap: Path) -> int | None:
+    """The messages the ``result.json`` beside ``mcap`` (a run folder's ``run.mcap``) says its run recorded; None
+    without one (or an unreadable one: a report does not judge the result, only the recording against it)."""
+    result = mcap.parent / "result.json"
+    try:
+        if mcap.name != "run.mcap" or not result.is_file() or result.stat().st_size > MAX_RESULT_BYTES:
+            return None
+        messages = json.loads(result.read_text())["recording"]["messages"]
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        return None
+    return messages if isinstance(messages, int) and not isinstance(messages, bool) else None
+
+
+def scenario_of(metadata: dict[str, str], mcap: Path) -> dict[str, Any]:
+    """The scenario a recording carries, checked as a scenario file is (its size and nesting, then every value
+    with :meth:`Scenario.from_dict`) before anything is sized from it; the recorded keys as they are, any the
+    folds read and the recording lacks at their defaults. ReportError (one line) otherwise."""
+    where = f"{mcap}: its recorded scenario"
+    text = metadata.get("scenario")
+    if not isinstance(text, str):
+        raise ReportError(f"{mcap}: unreadable scenario metadata (no scenario in it)")
+    try:
+        check_text(text, where)
+        raw = json.loads(text)
+        if not isinstance(raw, dict):
+            raise ReportError(f"{where} is a JSON {type(raw).__name__}, not a table: unreadable scenario metadata")
+        with file_spelling({s.name: f"radio.{s.name}" for s in radio_settings()}):  # named as the JSON keys
+            return Scenario.from_dict(raw, where=where).to_dict() | raw
+    except ConfigError as exc:
+        text = str(exc)
+        raise ReportError(text if text.startswith(where) else f"{where}: {text}") from None
+    except (ValueError, RecursionError) as exc:
+        raise ReportError(f"{mcap}: unreadable scenario metadata ({str(exc) or type(exc).__name__})") from None
 
 
 def recorded_scenario(path: str | Path) -> dict[str, Any]:
@@ -112,10 +183,7 @@ def recorded_scenario(path: str | Path) -> dict[str, Any]:
             for rec in StreamReader(f, record_size_limit=max(mcap.stat().st_size, 1)).records:
                 if isinstance(rec, Metadata) and rec.name == SCENARIO_METADATA:
                     _versions(rec.metadata, mcap)
-                    scenario = json.loads(rec.metadata.get("scenario", "null"))
-                    if not isinstance(scenario, dict):
-                        raise ReportError(f"{mcap}: unreadable scenario metadata")
-                    return scenario
+                    return scenario_of(rec.metadata, mcap)
     except OSError as exc:
         raise ReportError(f"cannot read {mcap}: {exc.strerror or exc}") from None
     except ReportError:
@@ -131,7 +199,7 @@ def _read(f: BinaryIO, mcap: Path) -> Run:
     pending: list[tuple[str, bytes, int]] = []
     fold: RunMetrics | None = None
     versions: tuple[int, str | None] = (1, None)
-    messages = 0
+    messages = read_bytes = 0
     truncated = False
     records = StreamReader(f, record_size_limit=max(mcap.stat().st_size, 1)).records
     while True:
@@ -142,6 +210,7 @@ def _read(f: BinaryIO, mcap: Path) -> Run:
         except Exception:  # the file ends inside a record (a cut recording): keep what was read
             truncated = True
             break
+        read_bytes = f.tell()
         if isinstance(rec, McapMessage):
             messages += 1
             ch = channels.get(rec.channel_id)
@@ -163,7 +232,7 @@ def _read(f: BinaryIO, mcap: Path) -> Run:
         if truncated and not messages:
             raise ReportError(f"{mcap} was cut before anything was flushed to it")
         raise ReportError(f"{mcap} has no '{SCENARIO_METADATA}' metadata: not a fleet recording")
-    return Run(mcap, fold, messages, truncated, *versions)
+    return Run(mcap, fold, messages, truncated, *versions, read_bytes=read_bytes)
 
 
 def _versions(metadata: dict[str, str], mcap: Path) -> tuple[int, str | None]:
@@ -180,9 +249,8 @@ def _versions(metadata: dict[str, str], mcap: Path) -> tuple[int, str | None]:
 
 
 def _fold_for(metadata: dict[str, str], mcap: Path) -> RunMetrics:
+    scenario = scenario_of(metadata, mcap)  # checked before the fold sizes anything from it
     try:
-        scenario = json.loads(metadata["scenario"])
-        run_id = metadata.get("run_id", "")
-        return RunMetrics(scenario, run_id, metadata.get("engine"))
-    except (KeyError, ValueError, TypeError) as exc:
+        return RunMetrics(scenario, str(metadata.get("run_id", "")), metadata.get("engine"))
+    except (KeyError, ValueError, TypeError, AttributeError) as exc:
         raise ReportError(f"{mcap}: unreadable scenario metadata ({exc})") from None

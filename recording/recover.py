@@ -100,6 +100,17 @@ def _records(f: Any, size: int) -> Any:
             return
 
 
+def readable(path: Path) -> tuple[int, int, int]:
+    """How much of the MCAP file ``path`` reads front to back: its messages, the bytes up to its last complete
+    record, and its size."""
+    messages = read = 0
+    with open(path, "rb") as f:
+        for rec in _records(f, path.stat().st_size):
+            messages += isinstance(rec, McapMessage)
+            read = f.tell()
+    return messages, read, path.stat().st_size
+
+
 def crashed_result(run: Run, wall_seconds: float) -> dict[str, Any]:
     """``result.json`` of a run whose launcher died: what the recording ``run`` holds, ``reason`` ``crashed``,
     not completed, no signal known; ``wall_seconds`` as the recording's wall clock spans."""

@@ -50,12 +50,17 @@ def write_report(run: Run, plots: bool = True) -> dict[str, Path]:
 
 
 def report(paths: list[Path], compare: bool = False, out: Path | None = None, plots: bool = True,
-           console: Console | None = None) -> list[Run]:
-    """What ``fleet report`` does; raises ReportError on bad input."""
+           console: Console | None = None, partial: bool = False) -> list[Run]:
+    """What ``fleet report`` does; raises ReportError on bad input (a cut or inconsistent recording too, unless
+    ``partial``: then it is reported as far as it reads, and a line says how far)."""
     console = console or Console()
     if out is not None and not compare:
         raise ReportError("--out goes with --compare (a single report is written beside its recording)")
-    runs = [load_recording(p) for p in paths]
+    runs = [load_recording(p, partial=partial) for p in paths]
+    for run in runs:
+        if run.truncated:
+            of = f" (its run recorded {run.recorded} messages)" if run.recorded is not None else ""
+            console.print(f"{run.path}: partial: {run.extent}{of}; reported as far as it reads", soft_wrap=True)
     if compare:
         out = out or Path("compare.png")
         if out.is_dir():

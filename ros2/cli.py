@@ -69,13 +69,16 @@ def companions(args: argparse.Namespace) -> Companions | None:
 
 
 def add_export(sub: Any) -> None:
-    """``fleet export ros2 RUN_DIR [--out BAG]``."""
+    """``fleet export ros2 RUN_DIR [--out BAG] [--partial]``."""
     ex = sub.add_parser("export", help="convert a recording to another format (ros2: a rosbag2)")
     kinds = ex.add_subparsers(dest="format", metavar="FORMAT", parser_class=type(ex))
     kinds.required = True
     r = kinds.add_parser("ros2", help="a rosbag2 (MCAP storage, CDR) of the run's ROS 2 topics")
     r.add_argument("run", type=Path, metavar="RUN", help="a run directory or its run.mcap")
     r.add_argument("--out", type=Path, metavar="BAG", help="the bag's directory (default RUN_DIR/ros2; must not exist)")
+    r.add_argument("--partial", action="store_true",
+                   help="export what a cut or inconsistent recording holds (without it: refused, saying how much "
+                        "reads)")
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -83,6 +86,6 @@ def cmd_export(args: argparse.Namespace) -> int:
     from fleet_emu.ros2.types import typestore
 
     typestore()
-    out, counts = export(args.run, args.out)
+    out, counts = export(args.run, args.out, partial=args.partial)
     print(f"{out}: {sum(counts.values())} messages on {len(counts)} topics")
     return 0
