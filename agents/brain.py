@@ -41,6 +41,7 @@ from fleet_emu.agents.allocators import (
     make_allocator,
 )
 from fleet_emu.agents.belief import Belief
+from fleet_emu.agents.bodies import SILENT_AFTER, WreckNotice, Wrecks, as_cells, clear_of
 from fleet_emu.agents.clusters import FrontierClusters
 from fleet_emu.agents.hearing import Beacon, Delta, Fill, Hearing, as_heard, hear
 from fleet_emu.agents.mapsync import MapSync, SyncConfig
@@ -81,6 +82,7 @@ class BrainConfig:
     relay: str = "none"
     relay_ttl: int = 0
     deflate_maps: bool = False
+    silent_after: int = SILENT_AFTER  # ticks unheard after which a teammate's body is a wreck (agents/bodies.py)
 
 
 @dataclasses.dataclass
@@ -258,6 +260,7 @@ class Brain:
         # relaying (agents/relay.py); under ``tree`` its routes come from ``relay.set_routes`` (the hook a
         # base-station allocator fills; with none, ``tree`` forwards nothing)
         self.relay: Relay | None = Relay(me, config.relay) if config.relay != "none" else None
+        self.wrecks = Wrecks(config.silent_after)  # bodies of robots that no longer speak (agents/bodies.py)
 
     def next_seq(self) -> int:
         """The robot's one sequence counter: envelopes, commands, bundles and reports all draw from it."""
@@ -340,11 +343,15 @@ class Brain:
         protocol, rejoined = self._read(opened, t, belief, outbox)
         heard, expected = self._poses(obs.cell)
         want = self._requests(t, heard, rejoined)
+        wrecks = self.wrecks.update(obs, self.teammates)
+        notice = self.wrecks.notice(t)
+        if notice is not None:
+            outbox.append(RadioMsg(notice))
         with self._stage("clusters"):
             assert self.frontiers is not None
-            clusters = list(self.frontiers.update(belief.grid, belief.take_changed()))
+            clusters = clear_of(list(self.frontiers.update(belief.grid, belief.take_changed())), wrecks, obs.shape[1])
         problem = Problem(me=self.me, poses={self.me: obs.cell} | expected, belief=belief.grid, clusters=clusters,
-                          tick=t, heard=heard, previous_target=self.last_target)
+                          tick=t, heard=heard, previous_target=self.last_target, obstacles=wrecks)
         self.step_cpu_ms += (time.thread_time() - c0) * 1000.0
         return Percept(obs, problem, protocol, outbox, want, forwards, expected)
 
@@ -388,6 +395,9 @@ class Brain:
                 continue
             kind = type(body)
             if kind is RadioMsg:  # opened message by message: its record's class says what it is
+                if isinstance(body.body, WreckNotice):  # a teammate's wrecks (agents/bodies.py)
+                    self.wrecks.hear(body.body)
+                    continue
                 if not isinstance(body.body, (PoseBeacon, MapDelta, MapFill)):
                     protocol.append(body)
                     continue
@@ -486,6 +496,8 @@ class Brain:
         if (alloc.status is AllocStatus.ASSIGNED and alloc.cluster is not None) or going:
             blocked = {expected[r] for r, tm in self.teammates.items()
                        if tm.heard >= t - 1 and expected[r] == tm.cell}
+            if problem.obstacles:
+                blocked |= as_cells(problem.obstacles, problem.belief.shape[1])
             if going:
                 mask = alloc.passable if alloc.passable is not None else problem.passable
                 dist = goal_wavefront(mask, alloc.target)  # type: ignore[arg-type]
@@ -503,8 +515,8 @@ class Brain:
         self.plan = Plan(dist, alloc.target, alloc.status.name, frozenset(blocked),
                          problem.passable if sources is not None else None, sources)
         assert self.belief is not None
-        return self._unstick(cell, move, wants, self.belief.grid, set(expected.values()),
-                             alloc.passable if going else None)
+        occupied = set(expected.values()) | as_cells(problem.obstacles, problem.belief.shape[1])
+        return self._unstick(cell, move, wants, self.belief.grid, occupied, alloc.passable if going else None)
 
     def _descend(self, passable: np.ndarray, sources: np.ndarray, cell: Cell, blocked: set[Cell]) -> tuple[Cell, bool]:
         """The move down the wavefront from ``sources`` (:func:`~fleet_emu.agents.navigation.next_move`) and

@@ -26,6 +26,7 @@ from fleet_emu.agents.realtime import Timing, percentiles
 from fleet_emu.core.bus import Inbox
 from fleet_emu.core.codec import Context
 from fleet_emu.core.envelope import AnyEnvelope, RxWire, read_rx
+from fleet_emu.core.faults import crashes
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import AgentTiming, Command, Envelope, Observation, RxBundle, Stop
 from fleet_emu.core.node import Declared, NodeBase, node_main, undeclare
@@ -50,6 +51,7 @@ class AgentNode(NodeBase):
         self.cpu0: float | None = None  # the process's CPU time when its first step began (AgentReport)
         self.loop_cpu0 = 0.0  # the event loop thread's CPU time then
         self.first_cpu_ms: dict[str, float] = {}  # the first step's CPU (AgentReport.first_cpu_ms)
+        self.crash_at = dict(crashes(scenario.faults)).get(robot)  # the tick the scenario crashes it at, if any
 
     def next_seq(self) -> int:
         """The robot's one counter, shared with its brain."""
@@ -72,6 +74,8 @@ class AgentNode(NodeBase):
         handles += [*([pub_timing] if pub_timing else []), *self.declare_presence(session, inbox)]
         try:
             tick = await (self._realtime(inbox) if self.realtime else self._lockstep(inbox))
+            if self.crash_at is not None and tick >= self.crash_at:  # crashed ([[faults]]): as a process killed
+                return  # then (the launcher's, unless it runs in the launcher's process), it says nothing more
             if pub_timing is not None:
                 tm = self.timing
                 pub_timing.put(AgentTiming(

@@ -110,9 +110,16 @@ def check_robot_cells(cells: dict[str, Cell], ctx: Context | None, what: str) ->
 
 # --- world -> agent ---------------------------------------------------------------------------------
 
+#: An observation's ``bodies`` when the sensor found none (read-only, shared).
+NO_BODIES: np.ndarray = np.zeros(0, dtype=np.int32)
+NO_BODIES.flags.writeable = False
+
+
 @dataclasses.dataclass(frozen=True)
 class Observation(Message):
-    """What one robot's sensor saw at ``tick``, and its true pose (world/obs/<robot>)."""
+    """What one robot's sensor saw at ``tick``, and its true pose (world/obs/<robot>). ``values`` are the map's
+    (a robot's body is not written into them: it moves on); ``bodies`` are the cells among ``cells`` where the
+    sensor found another robot's body this tick, a teammate's or a failed robot's (flat indices)."""
 
     KIND = "obs"
     robot: str
@@ -121,6 +128,7 @@ class Observation(Message):
     cell_size: float
     cells: np.ndarray
     values: np.ndarray
+    bodies: np.ndarray = dataclasses.field(default_factory=lambda: NO_BODIES)
 
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)
@@ -128,6 +136,9 @@ class Observation(Message):
             raise DecodeError("obs: bad grid shape or cell size")
         check_cell(self.cell, self.shape, "obs")
         check_cells(self.cells, self.values, self.shape, "obs")
+        b = self.bodies
+        if b.ndim != 1 or b.dtype.kind not in "iu" or (len(b) and _out_of_range(b, self.shape)):
+            raise DecodeError("obs: a body's cell outside the grid")
 
 
 class _PackedWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
@@ -151,6 +162,7 @@ class _ObsWire(msgspec.Struct, forbid_unknown_fields=True, gc=False, kw_only=Tru
     cell_size: Any
     cells: _PackedWire
     values: _PackedWire
+    bodies: _PackedWire | msgspec.UnsetType = msgspec.UNSET  # absent: none (as the checking decode reads it)
 
 
 _OBS_DECODER = msgspec.msgpack.Decoder(_ObsWire)
@@ -165,11 +177,13 @@ def _typed_obs(data: bytes, ctx: Context | None) -> Observation | None:
         return None
     c, v = w.cells, w.values
     cells, values = array_of(c.dtype, c.shape, c.data), array_of(v.dtype, v.shape, v.data)
-    if cells is None or values is None:
+    b = w.bodies
+    bodies = NO_BODIES if b is msgspec.UNSET else array_of(b.dtype, b.shape, b.data)
+    if cells is None or values is None or bodies is None:
         return None
     obs = object.__new__(Observation)
     obs.__dict__.update(src=w.src, tick=w.tick, seq=w.seq, robot=w.robot, cell=w.cell, shape=w.shape,
-                        cell_size=w.cell_size, cells=cells, values=values)
+                        cell_size=w.cell_size, cells=cells, values=values, bodies=bodies)
     obs.validate(ctx)  # the shape, the cell and the cells (raises: then the checking decode says why)
     return obs
 
@@ -178,7 +192,9 @@ def _typed_obs(data: bytes, ctx: Context | None) -> Observation | None:
 class WorldState(Message):
     """All true poses, coverage and the run's status at ``tick`` (world/state); ``dropped`` counts the
     messages the world has dropped so far (malformed, or from a sender that may not write on their key),
-    ``foreign`` those it dropped for not carrying the run's nonce (another run's, a replayed recording's)."""
+    ``foreign`` those it dropped for not carrying the run's nonce (another run's, a replayed recording's);
+    ``blocked``, in the last state of a run that missed its target: each failed robot whose body cuts the live
+    robots off from cells still to sense, and how many (``world.sim.World.blocking``)."""
 
     KIND = "state"
     poses: dict[str, Cell]
@@ -189,6 +205,7 @@ class WorldState(Message):
     reason: str | None = None
     dropped: int = 0
     foreign: int = 0
+    blocked: dict[str, int] = dataclasses.field(default_factory=dict)
 
 
 # --- agent -> world -----------------------------------------------------------------------------------
@@ -256,6 +273,11 @@ class Links(Message):
     medium_capacity: int = 0
     # each sender's part of ``bytes_sent`` (cumulative; the base station's too)
     bytes_by: dict[str, int] = dataclasses.field(default_factory=dict)
+    # with shadowing (``[radio] shadowing_db``), cumulative over the robots' pairs and ticks: the pairs, those
+    # eq. 4 without the field (the connectivity allocator's model) called linked that were not, and the reverse
+    pair_ticks: int = 0
+    false_links: int = 0
+    missed_links: int = 0
 
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)

@@ -82,6 +82,9 @@ class Fleet:
 
     def __init__(self, scenario: Scenario, *, run_id: str = "memory", tap: Tap | None = None,
                  map_data: MapData | None = None, starts: Mapping[str, Cell] | Sequence[Cell] | None = None) -> None:
+        from fleet_emu.launch.checks import pinned
+
+        scenario = pinned(scenario)  # a policy file read once: every robot's allocator verifies its sha256
         scenario.validate()
         make_allocator(allocator_config(scenario))  # a ConfigError now, not at the first reset
         self.scenario = scenario
@@ -106,7 +109,7 @@ class Fleet:
         self.map = self._map_data if self._map_data is not None else fleet_map(s)
         self.world = build_world(s, self.map, self._starts)
         self.occupied = self.map.grid > 0
-        self.channel = make_channel(s.seed, s.radio, s.tick_s)
+        self.channel = make_channel(s.seed, s.radio, s.tick_s, self.map.grid.shape, s.cell_size)
         self.dropped = dict.fromkeys(self.possible_agents, 0)
         self.base: BaseStation | None = None
         self._base_dropped = 0
@@ -167,7 +170,8 @@ class Fleet:
         gain = w.coverage - before
         rewards = dict.fromkeys(live, gain)
         terminations: dict[str, bool] = {r: self.done and self.reason == "coverage" for r in live}
-        truncations: dict[str, bool] = {r: self.done and self.reason != "coverage" for r in live}
+        truncations: dict[str, bool] = {r: self.reason != "coverage" if self.done else r not in self.agents
+                                        for r in live}  # a robot that failed (a crash fault) leaves here
         infos = {r: {"tick": w.tick, "coverage": w.coverage} for r in live}
         return dict(self.obs), rewards, terminations, truncations, infos
 
@@ -349,9 +353,10 @@ def run_memory(scenario: Scenario, out_dir: Path | None = None, *, record: bool 
     (:mod:`~fleet_emu.launch.outdir`: locked, refused when it holds a run unless ``overwrite``); a write that
     fails ends the run with :class:`~fleet_emu.launch.outdir.DiskFault`. ``live`` serves the run to Foxglove
     (``fleet run --live``). The recording's clock counts the scenario's ``tick_s`` seconds per tick."""
-    from fleet_emu.launch.checks import check, check_machine, new_run_id
+    from fleet_emu.launch.checks import check, check_machine, new_run_id, pinned
     from fleet_emu.launch.outdir import claimed
 
+    scenario = pinned(scenario)
     map_data = check(scenario)
     check_machine(scenario, map_data, "memory")
     run_id = run_id or new_run_id()

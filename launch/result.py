@@ -28,6 +28,13 @@ def deterministic(data: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
+def unexpected_failures(data: Mapping[str, Any]) -> list[str]:
+    """The robots of ``result.json``'s ``failed`` that no fault of the scenario crashed (``faults``): the failures
+    nobody asked for, which make a run's exit code 1 and a study's row failed."""
+    crashed = {f.get("robot") for f in data.get("faults", []) if isinstance(f, dict)}
+    return [r for r in data.get("failed", []) if r not in crashed]
+
+
 @dataclasses.dataclass(frozen=True)
 class Result(Mapping[str, Any]):
     """A run's result: ``result["ticks"]`` (or ``result.ticks`` for the main keys) reads ``result.json``'s keys;
@@ -83,7 +90,7 @@ def _validator() -> Any:
     try:
         import jsonschema
     except ImportError:
-        raise ImportError("validate_result needs the jsonschema package (pip install 'fleet-emu[test]')") from None
+        raise ImportError("validate_result needs the jsonschema package (pip install 'fleet-emu[dev]')") from None
     schema = result_schema()
     jsonschema.Draft202012Validator.check_schema(schema)
     return jsonschema.Draft202012Validator(schema)

@@ -21,6 +21,7 @@ import zenoh
 from fleet_emu.core.access import LAUNCHER, RECORDER, Credential, Grant
 from fleet_emu.core.bus import Publisher, client_config, new_nonce, publisher, router_config, router_locators
 from fleet_emu.core.errors import RunError
+from fleet_emu.core.faults import crashes
 from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import Failed, Stop
@@ -34,6 +35,7 @@ from fleet_emu.launch.checks import (
     check_options,
     credentials,
     new_run_id,
+    pinned,
 )
 from fleet_emu.launch.forked import fork_server_enabled
 from fleet_emu.launch.hosts import (
@@ -76,6 +78,7 @@ class RunOptions:
     tls_ca: Path | None = None  # with a ``tls/`` ``connect``: the CA certificate that signed the router's
     interrupts: Interrupts | None = None  # the CLI's signal state (None: Ctrl-C raises KeyboardInterrupt)
     on_warning: Callable[[str], None] | None = None  # told once the input is checked (an unauthenticated bus)
+    on_note: Callable[[str], None] | None = None  # told what the run waits for (its hosts), for the console
     on_spawn: Callable[[dict[str, Any]], None] | None = None  # told result.json's ``pids`` once the nodes start
     fork_server: bool | None = None  # robots forked from one fork server (None: unless FLEET_FORK_SERVER=0)
     listen: str | None = None  # the embedded router's endpoint (default: loopback, a port the OS picks)
@@ -120,6 +123,7 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
     scenario, the options, an unwritable ``out_dir``, one that holds a run without ``opts.overwrite``, one
     another run holds) raises ConfigError before any process starts and leaves no output directory behind.
     The folder is locked (:mod:`~fleet_emu.launch.outdir`) from before the first write to after the last."""
+    scenario = pinned(scenario)  # a policy file read once, here: the robots verify its sha256
     map_data = check(scenario)
     check_machine(scenario, map_data, "in-process" if opts.in_process else "processes",
                   not opts.in_process and fork_server_enabled(opts.fork_server))
@@ -241,7 +245,9 @@ class _Run:
         for companion in opts.companions:
             stack.enter_context(companion(access))
         hosts = self.scenario.hosts
-        self.remote = stack.enter_context(Hosts(self.session, hosts, opts.host_timeout)) if hosts else None
+        reach = opts.connect or opts.listen or endpoint  # the endpoint the hosts connect to
+        self.remote = stack.enter_context(Hosts(self.session, hosts, opts.host_timeout, reach,
+                                                opts.on_note)) if hosts else None
         self.consumer = Consumer(keys, self.samples, self.monitor, self.recorder, pub_ready, self.viz)
         self.consumer.start()
 
@@ -302,7 +308,8 @@ class _Run:
                                                    reason="process exited").encode(),
                         congestion_control=zenoh.CongestionControl.BLOCK, attachment=nonce)
 
-        self.error = wait_for_end(monitor, self.consumer, self.sup, self.nodes_thread, self.opts.on_progress,
+        crash = _Crashes(self.scenario, self.sup, self.opts.on_progress)
+        self.error = wait_for_end(monitor, self.consumer, self.sup, self.nodes_thread, crash.watch,
                                   self.requested, failed, self.router_child,
                                   None if self.opts.realtime_hz else self.scenario.barrier_timeout)
 
@@ -373,6 +380,27 @@ class _Run:
         if failure == "error" and self.consumer.fault is not None and self.error == self.consumer.fault:
             failure = "disk"
         return Result(data, tuple(self.monitor.coverage_curve), recording.parent if recording else None), failure
+
+
+class _Crashes:
+    """The scenario's crash faults in the processes engine: once the world's state shows a robot it crashed
+    (``world/sim.py`` takes it out of the run at its tick, in every engine alike), its process is killed, as
+    ``kill -9`` would (robots in the launcher's process, ``--in-process``, are left to the run's stop). Called
+    with the monitor every time the launcher's watch wakes, before ``on_progress``."""
+
+    def __init__(self, scenario: Scenario, sup: Supervisor, on_progress: Callable[[Monitor], None] | None) -> None:
+        self.pending = dict(crashes(scenario.faults))
+        self.sup, self.on_progress = sup, on_progress
+
+    def watch(self, monitor: Monitor) -> None:
+        st = monitor.state
+        if self.pending and st is not None:
+            for robot, tick in list(self.pending.items()):
+                if st.tick >= tick and robot not in st.live:
+                    del self.pending[robot]
+                    self.sup.kill(robot)
+        if self.on_progress is not None:
+            self.on_progress(monitor)
 
 
 def _write_result(work: Path, result: Result, failure: str | None) -> None:

@@ -16,6 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Protocol
 
+from fleet_emu.core.files import open_new
 from fleet_emu.launch.forked import ForkServer
 
 AGENTS = "fleet_emu.agents"
@@ -65,7 +66,7 @@ class Supervisor:
             return child
         stderr = None
         if self.log_dir is not None:
-            stderr = open(self.log_dir / f"{name}.log", "wb")  # noqa: SIM115 (closed in kill_all)
+            stderr = open_new(self.log_dir / f"{name}.log")  # never through a link planted there; closed in kill_all
             self._logs.append(stderr)
         proc = subprocess.Popen([sys.executable, "-m", module, *args],
                                 stdin=subprocess.DEVNULL if secret is None else subprocess.PIPE,
@@ -107,6 +108,16 @@ class Supervisor:
                 next_again += AGAIN
             time.sleep(0.05)
         return all(p.poll() is not None for p in self.children.values())
+
+    def kill(self, name: str) -> bool:
+        """SIGKILL the process group of the child ``name`` (a robot the scenario crashes, ``[[faults]]``), as
+        ``kill -9`` would; False when there is no such child or it already exited. It is reaped with the
+        others (:meth:`kill_all`)."""
+        child = self.children.get(name)
+        if child is None or child.poll() is not None:
+            return False
+        _signal_group(child, signal.SIGKILL)
+        return True
 
     def kill_all(self, grace: float = 2.0) -> None:
         """SIGTERM every child's process group, then SIGKILL what is left after ``grace`` seconds."""

@@ -14,6 +14,7 @@ import numpy as np
 
 from fleet_emu.core.access import allowed_src
 from fleet_emu.core.codec import DecodeError, decode
+from fleet_emu.core.faults import applied
 from fleet_emu.core.grid import Cell
 from fleet_emu.core.keys import BASE, parse_key
 from fleet_emu.core.messages import (
@@ -67,6 +68,30 @@ def airtime_result(lk: Links | None) -> dict[str, Any]:
                  "max": int(ticks[hist > 0].max())}
     return {"airtime_bytes": lk.airtime_bytes if lk else 0, "dropped_queue": lk.dropped_queue if lk else 0,
             "queued_max_bytes": lk.queued_max_bytes if lk else 0, "delay_ticks": delay}
+
+
+def prediction_result(lk: Links | None, radio: dict[str, Any]) -> dict[str, Any]:
+    """``result.json``'s ``radio.prediction`` in a run with shadowing (``shadowing_db`` > 0; nothing otherwise):
+    the robot pairs over the ticks, and those whose link eq. 4 without the field called wrongly
+    (``netem.channel.count_predictions``)."""
+    if not radio.get("shadowing_db"):
+        return {}
+    return {"prediction": {"pair_ticks": lk.pair_ticks if lk else 0, "false_links": lk.false_links if lk else 0,
+                           "missed_links": lk.missed_links if lk else 0}}
+
+
+def fault_result(scenario: dict[str, Any], st: WorldState | None) -> dict[str, Any]:
+    """``result.json``'s ``faults``, in a run whose scenario has some (docs/guides/faults.md): the entries of a
+    tick the run reached, applied; and ``blocked_by``, in a run that missed its target where a failed robot's
+    body cuts the live robots off from cells still to sense: each such robot, its cell and how many cells it
+    holds off (``world.sim.World.blocking``)."""
+    out: dict[str, Any] = {}
+    if "faults" in scenario:
+        out["faults"] = applied(scenario["faults"], st.tick if st else 0)
+    if st is not None and st.blocked:
+        out["blocked_by"] = {r: {"cell": list(st.poses[r]), "cut_off": n} for r, n in sorted(st.blocked.items())
+                             if r in st.poses}
+    return out
 
 
 def allocator_params(scenario: dict[str, Any]) -> dict[str, Any]:
@@ -297,7 +322,7 @@ class Monitor:
                 "dropped_loss": lk.dropped_loss if lk else 0,
                 "dropped_signal": lk.dropped_signal if lk else 0,
                 "bytes_sent": lk.bytes_sent if lk else 0,
-            } | airtime_result(lk),
+            } | airtime_result(lk) | prediction_result(lk, scenario["radio"]),
             "decision_ms": {"mean": round(float(ms.mean()), 4), "p95": round(float(np.percentile(ms, 95)), 4)},
             "failed": sorted(set(self.robots) - set(st.live)) if st else [],
             "malformed_dropped": sum(self.dropped_by().values()),
@@ -308,7 +333,8 @@ class Monitor:
             "fleet_emu": __version__,
         } | (self.realtime() if self.clock is not None else {}) | (self.base_result() if self.base else {}) | (
             {"relay": {"policy": scenario.get("relay", "none"), "ttl": scenario.get("relay_ttl", 0),
-                       "kinds": self.relay_stats.result()}} if self.relay_stats is not None else {})
+                       "kinds": self.relay_stats.result()}} if self.relay_stats is not None else {}) | \
+            fault_result(scenario, st)
 
     def realtime(self) -> dict[str, Any]:
         """A real-time run's keys (none in lockstep, which publishes no clock): ``realtime_hz``, and under

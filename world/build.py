@@ -11,6 +11,7 @@ one another).
 from __future__ import annotations
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.faults import crashes
 from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import robot_ids
 from fleet_emu.core.rng import generator
@@ -29,6 +30,7 @@ def build_world(scenario: Scenario, map_data: MapData, placement: tuple[Cell, ..
         coverage_stall_ticks=scenario.coverage_stall_ticks,
         start=scenario.start,
         placement=placement,
+        crashes=crashes(scenario.faults),
     )
     return World(map_data, robot_ids(scenario.robots), config, generator(scenario.seed, "world"))
 

@@ -26,10 +26,10 @@ def tick_messages(world: World, readings: dict[str, Reading], cell_size: float, 
     for r in () if w.done else w.live:
         rd = readings[r]
         obs[r] = Observation(src="world", tick=t, seq=seq(), robot=r, cell=rd.cell, shape=w.shape,
-                             cell_size=cell_size, cells=rd.cells, values=rd.values)
+                             cell_size=cell_size, cells=rd.cells, values=rd.values, bodies=rd.bodies)
     state = WorldState(src="world", tick=t, seq=seq(), poses=dict(w.poses), live=tuple(w.live),
                        coverage=float(w.coverage), path_length=dict(w.path_length), done=w.done, reason=w.reason,
-                       dropped=dropped)
+                       dropped=dropped, blocked=dict(w.blocked))
     return obs, state
 
 

@@ -45,7 +45,9 @@ class WorldConfig:
     once there are :attr:`World.stall_window` of them in a row: this or :data:`STALL_DIAMETERS` times the map's
     diameter in cells, whichever is larger;
     ``start``: a cell, ``"random"`` (a cell drawn from the world's generator where the robots fit, in the map's
-    main free component), or None for the map's own start."""
+    main free component), or None for the map's own start;
+    ``crashes``: (robot, tick) of the scenario's crash faults (``core/faults.py``): the robot leaves the run at
+    that tick, before its readings, as a robot whose process died does; its body stays where it stood."""
 
     sensor_range: float = 8.0
     target_coverage: float = 0.99
@@ -55,15 +57,19 @@ class WorldConfig:
     start: Cell | str | None = None
     start_radius: int = 4
     placement: tuple[Cell, ...] | None = None
+    crashes: tuple[tuple[str, int], ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
 class Reading:
-    """What one robot's sensor returned: its true cell, and the flat indices and true values it saw."""
+    """What one robot's sensor returned: its true cell, the flat indices and true map values it saw, and the
+    cells among them that hold another robot's body (a teammate's or a failed robot's): a body is reported to
+    the sensor, never written into the map, so that one that moves on frees its cell."""
 
     cell: Cell
     cells: np.ndarray
     values: np.ndarray
+    bodies: np.ndarray
 
 
 class World:
@@ -85,6 +91,7 @@ class World:
         self.done = False
         self.reason: str | None = None
         self.coverage = 0.0
+        self.blocked: dict[str, int] = {}
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -128,15 +135,18 @@ class World:
         cells = self.place()
         self.tick = 0
         self.poses = dict(zip(self.robots, cells, strict=True))
-        self.live = [r for r in self.robots if r not in failed]
+        crashed = {r for r, t in self.config.crashes if t <= 0}
+        self.live = [r for r in self.robots if r not in failed and r not in crashed]
         self.path_length = {r: 0 for r in self.robots}
         self.done, self.reason = False, None
+        self.blocked = {}
         dist = wavefront(~self.occupied, np.array([flat(self.shape, self.start)], np.int64), -1)
         self._reachable = (dist >= 0) & (self.grid == FREE)
         self._total = int(self._reachable.sum())
         self.diameter = self._diameter(dist)
         self.stall_window = max(self.config.coverage_stall_ticks, STALL_DIAMETERS * self.diameter)
         self._sensed = np.zeros(self.shape, dtype=bool)
+        self._body = np.zeros(self.grid.size, dtype=bool)
         self._idle = 0
         self._known: dict[str, int] = {}  # each robot's most known cells so far (its commands' ``known``)
         self._quiet = 0  # ticks since some robot's belief last gained a cell
@@ -224,6 +234,9 @@ class World:
                 del pending[r]
                 changed = moved = True
         self.tick += 1
+        for r, t in self.config.crashes:  # a crash: the robot misses this tick and every one after
+            if t == self.tick:
+                self.fail(r)
         before = int(self._sensed.sum())
         readings = self._sense()
         sensed = int(self._sensed.sum()) > before
@@ -244,11 +257,17 @@ class World:
         out: dict[str, Reading] = {}
         flat_grid = self.grid.ravel()
         sensed = self._sensed.ravel()
+        body = self._body  # every robot's cell, live or failed, for this call (kept all False between calls)
+        held = [c[0] * self.shape[1] + c[1] for c in self.poses.values()]
+        body[held] = True
         for r in self.live:
             cell = self.poses[r]
             cells = visible_cells(self.occupied, cell[0], cell[1], self.config.sensor_range)
             sensed[cells] = True
-            out[r] = Reading(cell=cell, cells=cells.astype(np.int32), values=flat_grid[cells].copy())
+            near = cells[body[cells]]
+            bodies = near[near != cell[0] * self.shape[1] + cell[1]].astype(np.int32)
+            out[r] = Reading(cell=cell, cells=cells.astype(np.int32), values=flat_grid[cells].copy(), bodies=bodies)
+        body[held] = False
         self.coverage = float((self._sensed & self._reachable).sum() / self._total) if self._total else 1.0
         return out
 
@@ -264,3 +283,33 @@ class World:
             self.done, self.reason = True, "max_ticks"
         elif self._idle >= self.config.stall_ticks or self._quiet >= self.stall_window:
             self.done, self.reason = True, "stall"
+        if self.done and self.reason in ("max_ticks", "stall"):
+            self.blocked = self.blocking()
+
+    def blocking(self) -> dict[str, int]:
+        """The failed robots whose bodies cut the live robots off from cells still to sense (free cells
+        reachable from the start that no sensor returned yet), each with how many cells it alone holds off: with
+        the failed bodies as walls, the cells the live robots reach when that body is gone. When no single body
+        frees a cell but all of them together do (two in one corridor), each body the live robots then reach is
+        named with the cells they free together. Empty when nothing is cut off."""
+        failed = [r for r in self.robots if r not in self.live]
+        missing = self._reachable & ~self._sensed
+        if not failed or not self.live or not missing.any():
+            return {}
+        walls = self.occupied.copy()
+        for r in failed:
+            walls[self.poses[r]] = True
+        sources = np.array([flat(self.shape, self.poses[r]) for r in self.live], np.int64)
+        reached = wavefront(~walls, sources, -1) >= 0
+        out: dict[str, int] = {}
+        for r in failed:
+            walls[self.poses[r]] = self.occupied[self.poses[r]]
+            freed = int(((wavefront(~walls, sources, -1) >= 0) & missing & ~reached).sum())
+            walls[self.poses[r]] = True
+            if freed:
+                out[r] = freed
+        if not out:
+            every = wavefront(~self.occupied, sources, -1) >= 0
+            freed = int((every & missing & ~reached).sum())
+            out = {r: freed for r in failed if freed and every[self.poses[r]]}
+        return out

@@ -78,9 +78,11 @@ class Problem:
     """One robot's view at one tick. ``poses`` holds the robot's own cell and its teammates' last known
     cells (sorted by robot id). ``previous_target`` is the target of the robot's previous decision (its last
     command's), None at the first or after one that assigned nothing: the Brain passes it, so that an allocator
-    that keeps its target (``replan="observed"``) stays a pure function of the problem. Wavefronts and the cost
-    matrix are computed lazily, so that an allocator that needs less (MinPos with stopping) pays less, and the
-    decision time measures what it used."""
+    that keeps its target (``replan="observed"``) stays a pure function of the problem. ``obstacles``: flat
+    indices of cells that are free in the belief but hold a robot's body the robot takes for a wreck
+    (``agents/bodies.py``): no wavefront crosses them. Wavefronts and the cost matrix are computed lazily, so
+    that an allocator that needs less (MinPos with stopping) pays less, and the decision time measures what it
+    used."""
 
     me: str
     poses: dict[str, Cell]
@@ -89,6 +91,7 @@ class Problem:
     tick: int = 0
     heard: dict[str, int] = dataclasses.field(default_factory=dict)
     previous_target: Cell | None = None
+    obstacles: frozenset[int] = frozenset()
 
     def __post_init__(self) -> None:
         self.poses = dict(sorted(self.poses.items(), key=lambda kv: robot_order(kv[0])))
@@ -105,8 +108,11 @@ class Problem:
 
     @functools.cached_property
     def passable(self) -> np.ndarray:
-        """Known-free cells: the only ones a wavefront crosses."""
-        return self.belief == FREE
+        """Known-free cells, less the :attr:`obstacles`: the only ones a wavefront crosses."""
+        passable = self.belief == FREE
+        if self.obstacles:
+            passable.reshape(-1)[np.fromiter(self.obstacles, dtype=np.int64, count=len(self.obstacles))] = False
+        return passable
 
     @functools.cached_property
     def wavefronts(self) -> list[np.ndarray]:

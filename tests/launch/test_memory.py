@@ -168,3 +168,21 @@ def test_a_base_station_in_memory_and_the_summary_row() -> None:
     plain = Fleet(s.override(base=False)).run().data
     assert "base" not in plain and "base_connected_fraction" not in plain and "base" not in plain["pids"]
     assert (plain["path_length"], plain["coverage"]) == (res["path_length"], res["coverage"])
+
+
+def test_the_summary_never_shows_none_and_names_the_hosts() -> None:
+    """A run that stopped short of 90 % has no t90: the summary shows ``-``, as the report does; a run with robots
+    on hosts says which ran where."""
+    from rich.console import Console
+
+    from fleet_emu.launch.progress import summary_table
+
+    res = Fleet(fe.Scenario().override(map="office", robots=2, seed=1, max_ticks=10)).run().data
+    assert res["t90"] is None and res["t99"] is None
+    for data in (res, {**res, "pids": {**res["pids"], "hosts": {"host0": ["r1"]}}}):
+        console = Console(width=200, record=True, file=io.StringIO())
+        console.print(summary_table(data, "x"))
+        text = console.export_text()
+        row = next(line for line in text.splitlines() if "t90 / t99" in line)
+        assert "None" not in text and row.strip("│ ").endswith("- / -"), text
+    assert any("on hosts" in line and "host0: r1" in line for line in text.splitlines()), text
