@@ -30,6 +30,7 @@ from fleet_emu.core.access import Credential, read_users, role_of
 from fleet_emu.core.bus import client_config, publisher
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.files import write_atomic
 from fleet_emu.core.keys import HOST_ID, HostKeys, Keys
 from fleet_emu.core.messages import HostAssign, HostStatus
 from fleet_emu.core.node import Declared, undeclare
@@ -129,6 +130,7 @@ class Host:
                 self.report(req.run, "ended", error=str(exc.strerror or exc))
             if once:
                 return
+            self.say("waiting for a run")
 
     def run(self, req: HostAssign) -> None:
         """Start ``req``'s robots, report them, tear them down when the run ends for any reason."""
@@ -144,20 +146,28 @@ class Host:
                 Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="fleet-host-")))
             work.mkdir(parents=True, exist_ok=True)
             scenario = work / "scenario.json"
-            scenario.write_text(req.scenario)
+            write_atomic(scenario, lambda tmp: tmp.write_text(req.scenario))  # never through a link there
             watch = self.session.liveliness().declare_subscriber(Keys(req.run).alive("launcher", "launcher"),
                                                                   on_launcher, history=True)
             sup = Supervisor(log_dir=work)
+            self.say(f"joined run {req.run}: robots {', '.join(req.robots) or 'none'} (logs in {work})")
             try:
                 self._start(req, sup, scenario)
                 self._watch(req, sup, launcher)
             finally:
                 sup.kill_all()
-                for name, code in sup.dead().items():
+                dead = sup.dead()
+                for name, code in dead.items():
                     if name not in self.reported:
                         self.report(req.run, "exited", robot=name, code=code)
                 self.report(req.run, "ended")
                 undeclare([watch])
+                codes = ", ".join(f"{r} {dead[r]}" for r in req.robots if r in dead) or "none started"
+                self.say(f"left run {req.run} (exit codes: {codes})")
+
+    def say(self, line: str) -> None:
+        """One line on this host's console (standard error), prefixed with its name."""
+        print(f"fleet host {self.name}: {line}", file=sys.stderr, flush=True)
 
     def _start(self, req: HostAssign, sup: Supervisor, scenario: Path) -> None:
         flag = self.fork_server if self.fork_server is not None else req.fork_server

@@ -37,6 +37,7 @@ import functools
 import json
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -242,8 +243,11 @@ class RemoteRobot:
 class Hosts:
     """The launcher's view of the hosts, over its own session: who is there, and their robots' handles."""
 
-    def __init__(self, session: zenoh.Session, plan: HostPlan, timeout: float = HOST_TIMEOUT) -> None:
+    def __init__(self, session: zenoh.Session, plan: HostPlan, timeout: float = HOST_TIMEOUT,
+                 endpoint: str = "", say: Callable[[str], None] | None = None) -> None:
         self.session = session
+        self.endpoint = endpoint  # the router the hosts connect to, as a timeout's message names it
+        self.say = say  # the launcher's console: what it waits for, and who came
         self.count = plan.count
         self.names = plan.names  # the hosts to wait for (none: any ``count``)
         self.timeout = timeout
@@ -318,19 +322,32 @@ class Hosts:
         """The :attr:`names` hosts, or the first :attr:`count` by number, once they are there; [] if
         ``requested`` (a signal) is set first; :class:`HostsError` after :attr:`timeout` seconds."""
         deadline = time.monotonic() + self.timeout
+        wanted = ", ".join(self.names) if self.names else f"{self.count} host(s)"
+        if self.say is not None:
+            self.say(f"waiting up to {self.timeout:g} s at {self.endpoint} for {wanted} (`fleet host --connect "
+                     f"{self.endpoint} --credentials hostK.txt` on each)")
+        came = self._gathered(requested, deadline)
+        if came and self.say is not None:
+            self.say(f"{', '.join(came)} came; starting the run")
+        return came
+
+    def _gathered(self, requested: threading.Event, deadline: float) -> list[str]:
+        """:meth:`gather`'s wait, until ``deadline`` (a ``time.monotonic()`` value) and not a moment past it."""
         with self.changed:
             while not (set(self.names) <= self.alive if self.names else len(self.alive) >= self.count):
                 if requested.is_set():
                     return []
-                if time.monotonic() > deadline:
+                left = deadline - time.monotonic()
+                if left <= 0:
                     came = ", ".join(sorted(self.alive, key=_number)) or "none"
+                    how = f"`fleet host --connect {self.endpoint or 'ENDPOINT'} --credentials hostK.txt`"
                     if self.names:
                         missing = ", ".join(h for h in self.names if h not in self.alive)
-                        raise HostsError(f"[hosts] names: waited {self.timeout:g} s for {missing} (`fleet host "
-                                         f"--connect ...`); came: {came}")
-                    raise HostsError(f"--hosts {self.count}: waited {self.timeout:g} s for {self.count} host(s) "
-                                     f"(`fleet host --connect ...`), {len(self.alive)} came ({came})")
-                self.changed.wait(0.2)
+                        raise HostsError(f"[hosts] names: waited {self.timeout:g} s at {self.endpoint} for "
+                                         f"{missing} ({how}); came: {came}")
+                    raise HostsError(f"--hosts {self.count}: waited {self.timeout:g} s at {self.endpoint} for "
+                                     f"{self.count} host(s) ({how}), {len(self.alive)} came ({came})")
+                self.changed.wait(min(0.2, left))
             return list(self.names) or sorted(self.alive, key=_number)[:self.count]
 
     def start(self, run: str, plan: dict[str, list[str]], scenario: str, secrets: dict[str, str],

@@ -65,7 +65,7 @@ def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
         ("failed robots", ", ".join(result["failed"]) or "none"),
         ("coverage", f"{result['coverage']:.1%}"),
         ("ticks", str(result["ticks"])),
-        ("t90 / t99", f"{result['t90']} / {result['t99']}"),
+        ("t90 / t99", f"{_shown(result['t90'])} / {_shown(result['t99'])}"),
         ("path length", f"{sum(result['path_length'])} cells ({', '.join(map(str, result['path_length']))})"),
         ("idle robot-ticks", _idle(result)),
         ("connected", "-" if result["connected_fraction"] is None else f"{result['connected_fraction']:.1%}"),
@@ -86,9 +86,18 @@ def summary_table(result: Mapping[str, Any], out_dir: str) -> Table:
     air = airtime_line(radio, result.get("scenario", {}).get("radio", {}))
     if air is not None:
         rows.insert(rows.index(next(r for r in rows if r[0] == "radio msgs")) + 1, ("airtime", air))
+    hosts = (result.get("pids") or {}).get("hosts")
+    if hosts:  # robots on other machines (`fleet host`): which ran where
+        rows.insert(rows.index(next(r for r in rows if r[0] == "failed robots")) + 1,
+                    ("on hosts", "; ".join(f"{h}: {', '.join(rs)}" for h, rs in hosts.items())))
     for k, v in rows:
         t.add_row(k, v)
     return t
+
+
+def _shown(value: Any) -> str:
+    """A value of the summary: ``-`` for one the run has none of (t90 of a run that never reached 90 %)."""
+    return "-" if value is None else str(value)
 
 
 def _realtime(result: Mapping[str, Any]) -> str:
@@ -116,4 +125,4 @@ def _idle(result: Mapping[str, Any]) -> str:
     ``ASSIGNED`` but blocked)."""
     by = result.get("idle_by_status") or {}
     split = ", ".join(f"{k.lower()} {v}" for k, v in sorted(by.items()))
-    return f"{result.get('idle_robot_ticks', '-')}" + (f" ({split})" if split else "")
+    return _shown(result.get("idle_robot_ticks")) + (f" ({split})" if split else "")

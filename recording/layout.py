@@ -3,8 +3,9 @@ recording (``run.mcap``) and a live run (``fleet run --live``), which carry the 
 
 A 3D panel (top-down, frame ``map``) with the scene (``/viz/scene``: robots, targets, radio links, the base),
 the true map, the coverage and (hidden until ticked) each robot's belief; a plot of coverage, connected fraction
-and base-connected fraction; a plot of each robot's decision time; a plot of the radio counters of the tick; the
-log (``/viz/log``). ``fleet report --layout FILE`` writes it (``--robots N``: the robots it plots, default 8).
+and, with a base station, base-connected fraction; a plot of each robot's decision time; a plot of the radio
+counters of the tick; the log (``/viz/log``). ``fleet report --layout FILE`` writes it (``--robots N``: the robots
+it plots, default 8; ``--base``: a live run with a base station).
 """
 
 from __future__ import annotations
@@ -42,12 +43,13 @@ def _plot(title: str, series: list[tuple[str, str]]) -> fl.PlotPanel:
         paths=[fl.PlotSeries(value=path, label=label, enabled=True) for path, label in series], show_legend=True))
 
 
-def layout(robots: int = DEFAULT_ROBOTS) -> fl.Layout:
-    """The layout for runs of up to ``robots`` robots (each one's decision time plotted, belief listed)."""
+def layout(robots: int = DEFAULT_ROBOTS, base: bool = False) -> fl.Layout:
+    """The layout for runs of up to ``robots`` robots (each one's decision time plotted, belief listed); the
+    base-connected fraction is plotted only for a run with a base station (``base``): without one it is null."""
     ids = robot_ids(robots)
     team = _plot("coverage and connectivity", [
         (f"{TOPIC_STATS}.coverage", "coverage"), (f"{TOPIC_STATS}.connected_fraction", "connected fraction"),
-        (f"{TOPIC_STATS}.base_connected_fraction", "base-connected (tick)")])
+        *([(f"{TOPIC_STATS}.base_connected_fraction", "base-connected (tick)")] if base else [])])
     decisions = _plot("decision time (ms)", [(f"{TOPIC_STATS}.robots.{r}.decision_ms", r) for r in ids])
     radio = _plot("radio (this tick)", [(f"{TOPIC_STATS}.radio.tick.{k}", k) for k in
                                         ("sent", "delivered", "dropped_loss", "dropped_signal")])
@@ -60,17 +62,17 @@ def layout(robots: int = DEFAULT_ROBOTS) -> fl.Layout:
         fl.SplitItem(proportion=3, content=left), fl.SplitItem(proportion=2, content=plots)]))
 
 
-def layout_json(robots: int = DEFAULT_ROBOTS) -> str:
-    return layout(robots).to_json()
+def layout_json(robots: int = DEFAULT_ROBOTS, base: bool = False) -> str:
+    return layout(robots, base).to_json()
 
 
-def write_layout(path: Path, robots: int | None = None) -> None:
+def write_layout(path: Path, robots: int | None = None, base: bool = False) -> None:
     """``fleet report --layout FILE``: the layout as JSON (a ConfigError for a bad robot count or an unwritable
-    file)."""
+    file); ``base``: the runs have a base station."""
     n = DEFAULT_ROBOTS if robots is None else robots
     if not 1 <= n <= 1024:
         raise ConfigError(f"--robots must be from 1 to 1024 (got {n})")
     try:
-        path.write_text(layout_json(n) + "\n")
+        path.write_text(layout_json(n, base) + "\n")
     except OSError as exc:
         raise ConfigError(f"cannot write the layout to {path}: {exc.strerror or exc}") from None

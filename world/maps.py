@@ -27,6 +27,7 @@ from PIL import Image
 from fleet_emu.core import jit
 from fleet_emu.core.errors import MapError
 from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell, MapData, nearest_cells
+from fleet_emu.core.spelling import near
 from fleet_emu.world.mapsize import builtin_shape, check_cells, image_size, pooled_shape, read_ros_yaml, snapped
 from fleet_emu.world.registry import local_map, registry
 
@@ -448,5 +449,6 @@ def missing_map(name_or_path: str) -> MapError:
         return MapError(f"map path is not a file: {name_or_path}")
     if "/" in name_or_path or "\\" in name_or_path or path.suffix:
         return MapError(f"map file not found: {name_or_path}")
-    return MapError(f"unknown map {name_or_path!r} (built-in: {', '.join(BUILTIN_MAPS)}; registry: "
+    hint = near(name_or_path, [*BUILTIN_MAPS, *registry()])
+    return MapError(f"unknown map {name_or_path!r}{hint} (built-in: {', '.join(BUILTIN_MAPS)}; registry: "
                     f"{', '.join(registry())} (`fleet maps`); or a PNG/PGM/YAML path)")

@@ -20,6 +20,7 @@ from typing import Any
 
 from fleet_emu.agents.allocators.base import Allocator
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.spelling import near
 
 GROUP = "fleet_emu.allocators"
 
@@ -50,7 +51,8 @@ def allocator_class(name: object) -> type[Allocator]:
             return cls
         if name in plugins():
             return _load(name)
-    raise ConfigError(f"unknown allocator {name!r} (known: {', '.join(allocator_names())})")
+    known = allocator_names()
+    raise ConfigError(f"unknown allocator {name!r}{near(name, known)} (known: {', '.join(known)})")
 
 
 def _load(name: str) -> type[Allocator]:

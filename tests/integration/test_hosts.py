@@ -119,11 +119,12 @@ def test_a_host_with_wrong_credentials_is_refused_and_spawn_requests_reach_only_
 def test_too_few_hosts_is_one_line_and_a_result(users: tuple[Path, Path], small_map: Path, tmp_path: Path) -> None:
     all_users, _ = users
     out = tmp_path / "out"
-    code, _, err = run_cli([*RUN, "--map", str(small_map), "--listen", f"tcp/127.0.0.1:{free_port()}",
+    listen = f"tcp/127.0.0.1:{free_port()}"
+    code, _, err = run_cli([*RUN, "--map", str(small_map), "--listen", listen,
                             "--credentials", str(all_users), "--host-timeout", "2", "--out", str(out)])
-    assert code == 1
-    assert err.strip().splitlines()[-1] == "fleet: error: --hosts 1: waited 2 s for 1 host(s) " \
-                                           "(`fleet host --connect ...`), 0 came (none)"
+    assert code == 1  # the endpoint the hosts were to reach is named, with the command that reaches it
+    assert err.strip().splitlines()[-1] == f"fleet: error: --hosts 1: waited 2 s at {listen} for 1 host(s) " \
+                                           f"(`fleet host --connect {listen} --credentials hostK.txt`), 0 came (none)"
     failed = result(out)
     assert failed["reason"] == "error" and failed["error"].startswith("--hosts 1")
     assert failed["scenario"]["hosts"] == {"count": 1}
@@ -283,6 +284,35 @@ def test_a_host_on_another_machine_runs_its_robots_and_the_result_is_the_one_mac
     assert split["failed"] == [] and split["authenticated"] is True
     logs = tmp_path / "h" / split["run_id"] / "host0"
     assert sorted(p.name for p in logs.glob("r*.log")) == ["r1.log", "r3.log"]
+    said = [ln.removeprefix("fleet host host0: ") for ln in host_err.splitlines() if ln.startswith("fleet host")]
+    assert said[0].startswith(f"connected to {endpoint}") and said[-2].startswith(  # the host's console: each run
+        f"joined run {split['run_id']}: robots r1, r3 (logs in ") and said[-1].startswith(
+        f"left run {split['run_id']} (exit codes: r1 "), host_err
     assert deterministic(split) == deterministic(_one_machine(small_map, tmp_path / "one"))
     for pid in split["pids"]["agents"]:
         assert not pid_alive(pid)
+
+
+def test_the_launcher_says_what_it_waits_for_and_who_came() -> None:
+    """Over a real (peer) Zenoh session: the launcher's console line before the wait, and after it either the
+    hosts that came or the timeout's line naming the endpoint; a host's liveliness token is what counts."""
+    import threading
+
+    from fleet_emu.launch.hosts import Hosts, HostsError
+
+    conf = zenoh.Config()
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    said: list[str] = []
+    with zenoh.open(conf) as session:
+        with Hosts(session, HostPlan(1), timeout=0.3, endpoint="tcp/192.0.2.10:7447", say=said.append) as hosts, \
+                pytest.raises(HostsError, match=r"waited 0.3 s at tcp/192.0.2.10:7447 for 1 host\(s\)"):
+            hosts.gather(threading.Event())
+        assert said == ["waiting up to 0.3 s at tcp/192.0.2.10:7447 for 1 host(s) (`fleet host --connect "
+                        "tcp/192.0.2.10:7447 --credentials hostK.txt` on each)"]
+        token = session.liveliness().declare_token(HostKeys("host0").alive)
+        try:
+            with Hosts(session, HostPlan(1), timeout=30, endpoint="tcp/192.0.2.10:7447", say=said.append) as hosts:
+                assert hosts.gather(threading.Event()) == ["host0"]
+        finally:
+            token.undeclare()
+    assert said[-1] == "host0 came; starting the run"

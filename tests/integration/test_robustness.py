@@ -66,10 +66,10 @@ def _one_line(code: int, err: str, match: str) -> None:
     (["--run-id", "../up"], "--run-id must be"),
     (["--connect", "notanendpoint"], "--connect 'notanendpoint' is not a Zenoh endpoint"),
     (["--connect", f"tcp/127.0.0.1:{free_port()}"], "no Zenoh router answered (gave up after 5 s)"),
-    (["--scenario", Toml('[fleet]\nrobots = "four"')], "--robots must be a whole number"),
-    (["--scenario", Toml('[radio]\nloss = "high"')], "--loss must be a finite number"),
-    (["--scenario", Toml('[fleet]\nsensor_range = "4"')], "--sensor-range must be a finite number"),
-    (["--scenario", Toml("seed = 1.5")], "--seed must be a whole number"),
+    (["--scenario", Toml('[fleet]\nrobots = "four"')], "bad.toml: [fleet] robots must be a whole number"),
+    (["--scenario", Toml('[radio]\nloss = "high"')], "bad.toml: [radio] loss must be a finite number"),
+    (["--scenario", Toml('[fleet]\nsensor_range = "4"')], "bad.toml: [fleet] sensor_range must be a finite number"),
+    (["--scenario", Toml("seed = 1.5")], "bad.toml: seed must be a whole number"),
     (["--scenario", Toml('map = "office"')], "'map' must be a [map] section, not a value"),
 ])
 def test_bad_input_is_one_line_and_nonzero(args: list[str], match: str, tmp_path: Path) -> None:
@@ -148,7 +148,7 @@ def test_bad_allocator_parameter_in_a_scenario(section: str, match: str, tmp_pat
                             str(tmp_path / "x"), "--quiet"])
     assert code == 2, err
     lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"fleet: error: {match}"), err
+    assert len(lines) == 1 and lines[0].startswith(f"fleet: error: scenario {scenario}: {match}"), err
     assert not (tmp_path / "x").exists()  # refused before any process started
 
 

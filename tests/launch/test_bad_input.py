@@ -105,7 +105,7 @@ def test_a_huge_scenario_or_name_is_refused_before_it_is_copied(tmp_path: Path) 
     long = tmp_path / "long.toml"
     long.write_text('name = "' + "x" * 5000 + '"\n')
     assert _refused(["run", "--scenario", str(long)], tmp_path) == \
-        "fleet: error: name is 5000 characters long, more than the 200 allowed"
+        f"fleet: error: scenario {long}: name is 5000 characters long, more than the 200 allowed"
     path = tmp_path / "alloc.toml"
     path.write_text('[allocator]\ntype = "nearest"\nnote = "' + "y" * 5000 + '"\n')
     assert "holds a string of 5000 characters, more than the 4096 allowed" in \

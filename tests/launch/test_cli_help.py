@@ -43,3 +43,15 @@ def test_tick_s_flag_sets_the_scenario() -> None:
     args = build_parser().parse_args(["run", "--tick-s", "0.25"])
     assert scenario_from_args(args).tick_s == 0.25
     assert scenario_from_args(build_parser().parse_args(["run"])).tick_s == 1.0
+
+
+def test_the_help_s_defaults_are_the_default_scenario_s() -> None:
+    """The flags' help reads the default scenario's TOML without building it (no allocator loaded for a help
+    text); the values it shows are the built scenario's."""
+    from fleet_emu.core.scenario import Scenario
+    from fleet_emu.launch.cli import DEFAULT_SCENARIO, default_values
+
+    built, read = Scenario.load(DEFAULT_SCENARIO), default_values()
+    for field in ("map", "robots", "sensor_range", "seed", "max_ticks", "target_coverage"):
+        assert read[field] == getattr(built, field), field
+    assert read["allocator"] == built.allocator["type"]

@@ -93,7 +93,8 @@ def test_a_bad_value_is_one_line_everywhere(s: Setting, tmp_path: Path) -> None:
     study = tmp_path / "bad.toml"
     study.write_text(f"[grid]\nradio = [{{{s.name} = {value!r}}}]\n".replace("'", '"'))
     code, _, err = run_cli(["sweep", str(study), "--out", str(tmp_path / "out")])
-    assert code == 2 and err.count("\n") == 1 and s.flag in err and not (tmp_path / "out").exists(), err
+    key = f"study {study}: [grid] radio.{s.name} "  # a file's value: the file and its key, not the flag
+    assert code == 2 and err.count("\n") == 1 and key in err and not (tmp_path / "out").exists(), err
 
 
 def test_in_a_study_the_grid_wins_over_fleet_and_a_flat_name_over_its_table() -> None:

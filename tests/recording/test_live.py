@@ -212,9 +212,28 @@ def test_fleet_report_writes_the_layout(tmp_path: Path) -> None:
     assert topics["/viz/map/coverage"]["colorMode"] == "rgba-fields"  # the grids' RGBA fields
     paths = {s["value"] for p in panels.values() if p["panelType"] == "Plot" for s in p["config"]["paths"]}
     assert {"/viz/stats.coverage", "/viz/stats.connected_fraction", "/viz/stats.robots.r2.decision_ms"} <= paths
+    assert "/viz/stats.base_connected_fraction" not in paths  # null without a base station: not plotted
     assert panels["log"]["config"]["topicToRender"] == "/viz/log"
     code, _, err = run_cli(["report", "--layout", str(tmp_path / "x.json"), "--robots", "0"])
     assert code == 2 and "--robots must be from 1 to 1024" in err
+
+
+def test_the_layout_plots_the_base_connected_fraction_only_for_a_run_with_a_base(tmp_path: Path) -> None:
+    import fleet_emu as fe
+
+    def plotted(argv: list[str]) -> set[str]:
+        code, _, err = run_cli(["report", "--layout", str(tmp_path / "l.json"), *argv])
+        assert code == 0, err
+        layout = json.loads((tmp_path / "l.json").read_text())
+        plots = [p for p in _panels(layout["content"]) if p["panelType"] == "Plot"]
+        return {s["value"] for p in plots for s in p["config"]["paths"]}
+
+    small = fe.Scenario().override(map="office", robots=2, seed=1, max_ticks=5)
+    fe.run(small, engine="memory", out=tmp_path / "plain")
+    fe.run(small.override(base=True), engine="memory", out=tmp_path / "based")
+    key = "/viz/stats.base_connected_fraction"
+    assert key not in plotted([str(tmp_path / "plain")]) and key in plotted([str(tmp_path / "based")])
+    assert key in plotted(["--base"])  # a live run with a base: said by hand
 
 
 def test_every_fold_message_becomes_the_sdks_typed_message() -> None:
