@@ -1,7 +1,7 @@
 """MHM's final reach on an open map, against the paper's Table II (Mukhija et al., section IV).
 
     python -m benchmarks.mhm_reach [--cells 1200] [--robots 10 11 12] [--r-comm 40] [--sensor 15] [--x-min 1]
-                                   [--max-ticks 400000] [--seed 0] [--json reach.json]
+                                   [--max-ticks 400000] [--seed 0] [--method mhm] [--json reach.json]
 
 Table II gives the *total final visibility* (grid cells seen) of 10, 11 and 12 robots "determined in an
 unbounded map", with r_comm 40 and a sensor range of 15 (pixels = cells): MHM 423,421 / 489,689 / 590,780. A
@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks._common import fail, machine, parser
+from fleet_emu.agents.allocators.mhm.planner import METHODS
 
 PROG = "mhm_reach"
 #: Table II, MHM's column: robots -> grid cells seen, in an unbounded map (r_comm 40, sensor 15).
@@ -64,7 +65,7 @@ def run(grid: np.ndarray, base: tuple[int, int], robots: int, a: Any) -> dict[st
     from fleet_emu.agents.allocators.mhm.planner import MhmConfig
     from fleet_emu.agents.allocators.mhm.sim import simulate, worst
 
-    config = MhmConfig(r_comm=a.r_comm, sensor_range=a.sensor, x_min=a.x_min)
+    config = MhmConfig(r_comm=a.r_comm, sensor_range=a.sensor, x_min=a.x_min, method=a.method)
     t0 = time.process_time()
     def progress(tick: int, seen: int) -> None:
         print(f"  {robots} robots: tick {tick}, {seen} cells seen, {time.process_time() - t0:.0f} CPU s",
@@ -116,6 +117,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--x-min", type=int, default=1, help="eq. 1's X_min")
     p.add_argument("--max-ticks", type=int, default=400_000, help="a cap only: a run ends at step 18")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--method", choices=METHODS, default="mhm", help="mhm, or shm: the single hinged method")
     p.add_argument("--json", type=Path, default=None)
     a = p.parse_args(argv)
     if min(a.robots) < 2:
@@ -135,7 +137,8 @@ def main(argv: list[str] | None = None) -> None:
     grid, base = open_map(a.cells)
     print(f"# benchmarks/mhm_reach.py: {machine()}")
     print(f"# open map {a.cells} x {a.cells} cells, base at {base}, r_comm {a.r_comm:g}, sensor {a.sensor:g}, "
-          f"X_min {a.x_min}, seed {a.seed}, {a.max_ticks} ticks at most; MHM: pure planner, kinematic sim")
+          f"X_min {a.x_min}, seed {a.seed}, {a.max_ticks} ticks at most; {a.method.upper()}: pure planner, "
+          "kinematic sim")
     print(HEAD, flush=True)
     rows = []
     for n in a.robots:

@@ -92,7 +92,8 @@ def venv(tmp_path_factory: pytest.TempPathFactory) -> Venv:
     assert where.returncode == 0, where.stderr
     module = Path(where.stdout.strip())  # the venv's own copy, not an editable install elsewhere
     assert module == venv.site_packages / "fleet_emu" / "__init__.py", module
-    for data in ("py.typed", "world/registry.toml", "launch/scenarios/default.toml", "sweep/studies/bautin-fig5.toml"):
+    for data in ("py.typed", "world/registry.toml", "launch/scenarios/default.toml", "sweep/studies/bautin-fig5.toml",
+                 "sweep/studies/open-512.png"):
         assert (module.parent / data).is_file(), data  # the package data a user's install needs
     (venv.site_packages / "agents").mkdir()
     (venv.site_packages / "agents" / "__init__.py").write_text(SHADOW.format(name="agents"))

@@ -19,10 +19,11 @@ phase 2's in ``chain``, the explorers' in ``explore``):
 - *The pruning embellishment of III-C* is applied (the paper states it): a subtree whose leaf cells have no
   EW is marked processed without moving a robot. The other two embellishments (dynamic relaxation of X_min,
   a SHM fallback) are "not discussed due to space constraints": the paper gives neither rule, and they are
-  not implemented. Neither can move the method's end: both act in a Wavefront Expansion, and step 10 ends
-  the method when the closest frontier needs as many nodes as there are robots, whatever those expansions
-  did (on an open map, ``benchmarks/mhm_reach.py``: the final reach is set by step 10 and the chain's
-  geometry, ``chain`` and ``geodesic``).
+  not implemented (SHM itself is, as a method of its own: ``method = "shm"``, ``shm.py``). Neither can move
+  the method's end: both act in a Wavefront Expansion, and step 10 ends the method when the closest frontier
+  needs as many nodes as there are robots, whatever those expansions did (on an open map,
+  ``benchmarks/mhm_reach.py``: the final reach is set by step 10 and the chain's geometry, ``chain`` and
+  ``geodesic``).
 - *Phase 2's RTG from C_f* takes C_f "as the base": eq. 2's J is limited to T_f's hinged nodes, so that the
   new cells join the subtree the RTG traverses (a chain node, with fewer hops, would otherwise adopt them and
   RTG from C_f would never expand them). The chain's nodes are tree nodes (kind ``chain``, processed), so
@@ -77,8 +78,10 @@ from fleet_emu.agents.allocators.mhm.explore import (
     path_gaps,
     safe_area,
 )
+from fleet_emu.agents.allocators.mhm.shm import direction_points
 from fleet_emu.agents.allocators.mhm.tree import BASE_NODE, ExplorationTree, break_stack, choose_parent
 from fleet_emu.agents.allocators.mhm.wavefront import (
+    bearing,
     exploration_wavefront,
     frontier_distance,
     hinge_positions,
@@ -88,6 +91,8 @@ from fleet_emu.agents.frontiers import frontier_mask
 from fleet_emu.core.grid import UNKNOWN, Cell
 
 _T = TypeVar("_T")
+#: How a node grows the tree: MHM's Wavefront Expansion, or the Single Hinged Method (``shm.py``).
+METHODS = ("mhm", "shm")
 #: A stage of the planner's program: it yields once per tick it waits for the robots, then returns its result.
 Wait = Generator[None, None, _T]
 
@@ -95,14 +100,16 @@ Wait = Generator[None, None, _T]
 @dataclasses.dataclass(frozen=True)
 class MhmConfig:
     """``r_comm`` and ``sensor_range`` in cells (the paper: 40 and 15 pixels), ``x_min`` eq. 1's X_min,
-    ``hinges`` the cap on H per expansion (0: none; 1: the single-hinge variant), ``cluster_max`` frontier
-    cells per cluster, ``patience`` ticks without progress before a wait ends, ``latency`` the radio's ticks
-    per hop (0: orders arrive at once, as in ``sim``)."""
+    ``hinges`` the cap on H per Wavefront Expansion iteration (0: none), ``method`` how a node grows the tree
+    (``mhm``: section III-A's Wavefront Expansion; ``shm``: the Single Hinged Method, ``shm.py``),
+    ``cluster_max`` frontier cells per cluster, ``patience`` ticks without progress before a wait ends,
+    ``latency`` the radio's ticks per hop (0: orders arrive at once, as in ``sim``)."""
 
     r_comm: float = 40.0
     sensor_range: float = 15.0
     x_min: int = 1
     hinges: int = 0
+    method: str = "mhm"
     cluster_max: int = 30
     patience: int = 60
     latency: int = 0
@@ -134,6 +141,8 @@ class MhmPlanner:
     def __init__(self, base: Cell, robots: Sequence[str], config: MhmConfig, rng: np.random.Generator) -> None:
         if config.x_min < 1:
             raise ValueError("x_min must be >= 1")
+        if config.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}")
         self.base, self.config, self.rng = base, config, rng
         self.robots = sorted(robots, key=robot_order)
         self.tree = ExplorationTree(base)
@@ -272,7 +281,7 @@ class MhmPlanner:
         yield from self._break(self.tree.backbone_siblings(i))
         yield from self._rehinge(self.tree.backbone(i) + self.tree.subtree(i))
         if i in self.hinged():
-            yield from self._expand(i, scope)
+            yield from (self._expand_single(i, scope) if self.config.method == "shm" else self._expand(i, scope))
 
     def _expand(self, i: int, scope: int | None) -> Wait[None]:
         """Section III-A's Wavefront Expansion of C_i: iterations of EW, hinging and exploring while eq. 1 holds."""
@@ -289,18 +298,55 @@ class MhmPlanner:
             placed = yield from self._hinge(positions)
             if not placed:
                 return
-            self.pending = {r: p for p, r in placed}
-            yield from self._explore([p for p, _ in placed])
-            self._bury([p for p, _ in placed])
-            allowed = self.hinged() if scope is None else self.hinged() & set(self.tree.subtree(scope))
-            for p, r in placed:  # III-E.1, one new cell after the other
-                parent = choose_parent(self.tree, p, cfg.r_comm, allowed, self.rng)
-                if parent is None:  # no allowed node in range (phase 2 at C_f's edge): its leaf in range
-                    parent = min(sorted(allowed), key=lambda j: math.dist(self.tree[j].pos, p))
-                n = self.tree.add(p, parent)
-                self.node_of[n] = r
-                allowed.add(n)
-            self.pending = {}
+            yield from self._grow(placed, scope)
+
+    def _grow(self, placed: list[tuple[Cell, str]], scope: int | None) -> Wait[list[int]]:
+        """The robots just hinged at ``placed`` explore their cells, which join the tree (III-E.1, one new cell
+        after the other); the new nodes."""
+        self.pending = {r: p for p, r in placed}
+        yield from self._explore([p for p, _ in placed])
+        self._bury([p for p, _ in placed])
+        allowed = self.hinged() if scope is None else self.hinged() & set(self.tree.subtree(scope))
+        new = []
+        for p, r in placed:
+            parent = choose_parent(self.tree, p, self.config.r_comm, allowed, self.rng)
+            if parent is None:  # no allowed node in range (phase 2 at C_f's edge): its leaf in range
+                parent = min(sorted(allowed), key=lambda j: math.dist(self.tree[j].pos, p))
+            n = self.tree.add(p, parent)
+            self.node_of[n] = r
+            allowed.add(n)
+            new.append(n)
+        self.pending = {}
+        return new
+
+    def _expand_single(self, i: int, scope: int | None) -> Wait[None]:
+        """SHM (``shm.py``): C_i hinges one robot at a time along one of its directions, each useful direction
+        once, and the tree grows from the new cell depth first before the next; the subtrees grown are broken
+        first (the rollback), and C_i's backbone hinged again should a recall have taken it."""
+        cfg = self.config
+        tried: set[int] = set()
+        grown: list[int] = []
+        while True:
+            yield from self._break(grown)
+            if i not in self.hinged():
+                yield from self._rehinge(self.tree.backbone(i))
+                if i not in self.hinged():
+                    return
+            taken = {n.pos for n in self.tree.nodes}
+            points = direction_points(self.grid, self.tree[i].pos, cfg.r_comm, cfg.sensor_range, self._fdist())
+            todo = sorted((bearing(p, self.base), k, p) for k, p in points.items() if k not in tried and p not in taken)
+            if not todo or not hinging_allowed(1, len(self.explorers()), cfg.x_min):
+                return
+            _, k, p = todo[0]
+            tried.add(k)
+            self._note(f"SHM of {i}: direction {k}, hinge at {[p]}")
+            placed = yield from self._hinge([p])
+            if not placed:
+                continue
+            new = yield from self._grow(placed, scope)
+            grown += new
+            for n in new:
+                yield from self._rtg(n, scope)
 
     def _extend_chain(self, lh: list[Cell]) -> Wait[int | None]:
         """Step 12: hinge L_h one node after the other from the base; C_f's id, or None if a hinge failed."""

@@ -32,11 +32,11 @@ are older and ignored) and decides from it alone:
   nobody who forwards (its acks and beacons lost, its orders not forwarded to it) while still in range.
 
 Parameters: ``r_comm`` and ``sensor_range`` in cells (in a run: the scenario's radio, ``Scenario.link_cells``,
-and sensor), ``x_min`` eq. 1's X_min, ``hinges`` the cap on hinge points per expansion (0: none; 1: the
-single-hinge variant, an approximation of the SHM baseline, which the paper describes only by reference),
-``cluster_max`` frontier cells per cluster and ``patience`` ticks without progress before a planner's wait
-ends. The base builds its planner from the same parameters (:func:`mhm_config`), so robots and base agree on
-r_comm. The allocator draws no random numbers.
+and sensor), ``x_min`` eq. 1's X_min, ``hinges`` the cap on hinge points per Wavefront Expansion iteration
+(0: none), ``method`` how the base grows the tree (``mhm``, or ``shm``: the Single Hinged Method the paper
+compares MHM with, ``shm.py``), ``cluster_max`` frontier cells per cluster and ``patience`` ticks without
+progress before a planner's wait ends. The base builds its planner from the same parameters (:func:`mhm_config`),
+so robots and base agree on r_comm. The allocator draws no random numbers.
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ import numpy as np
 from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.mhm.explore import descend, reach_area, safe_area
 from fleet_emu.agents.allocators.mhm.orders import MhmAck, MhmOrders
-from fleet_emu.agents.allocators.mhm.planner import MhmConfig
+from fleet_emu.agents.allocators.mhm.planner import METHODS, MhmConfig
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.grid import FREE, Cell
 from fleet_emu.core.kernels import wavefront
@@ -62,7 +62,7 @@ from fleet_emu.core.messages import RadioMsg
 def mhm_config(params: dict[str, Any]) -> MhmConfig:
     """The planner's configuration from the allocator's parameters (``Mhm.params()``)."""
     return MhmConfig(r_comm=float(params["r_comm"]), sensor_range=float(params["sensor_range"]),
-                     x_min=int(params["x_min"]), hinges=int(params["hinges"]),
+                     x_min=int(params["x_min"]), hinges=int(params["hinges"]), method=str(params["method"]),
                      cluster_max=int(params["cluster_max"]), patience=int(params["patience"]))
 
 
@@ -81,6 +81,7 @@ class Mhm(Allocator, plugin_name="mhm"):
         "sensor_range": Param(8.0, gt=0),
         "x_min": Param(1, ge=1),
         "hinges": Param(0, ge=0),
+        "method": Param("mhm", choices=METHODS),
         "cluster_max": Param(30, ge=1),
         "patience": Param(60, ge=1),
     }
@@ -89,6 +90,7 @@ class Mhm(Allocator, plugin_name="mhm"):
     sensor_range: float
     x_min: int
     hinges: int
+    method: str
     cluster_max: int
     patience: int
 

@@ -24,7 +24,7 @@ Distances are Euclidean, in cells (the paper's pixels). Choices where the paper 
   (row, col), so the order is total and a seed reproduces it.
 - Points where a node is already hinged are not candidates (two robots cannot share a grid cell).
 - ``hinges`` caps H: ``0`` means no cap (MHM); ``1`` keeps only the first position of B, a single hinge per
-  expansion (an approximation of the SHM baseline of [1], which the paper describes only by reference).
+  iteration, still on the wavefront (a cap, not the paper's SHM baseline: that is ``shm.py``).
 """
 
 from __future__ import annotations
