@@ -18,14 +18,17 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from fleet_emu.core.errors import ConfigError
+from fleet_emu.core.errors import ConfigError, MapError
+from fleet_emu.core.faults import Fault, check_faults, parse_faults
 from fleet_emu.core.fields import check_all, merge
+from fleet_emu.core.files import read_regular
 from fleet_emu.core.keys import HOST_ID
-from fleet_emu.core.limits import MAX_NAME, check_size, check_text, check_values
+from fleet_emu.core.limits import MAX_FILE_BYTES, MAX_NAME, check_size, check_text, check_values
 from fleet_emu.core.messages import MAX_TTL
 from fleet_emu.core.radio import RadioConfig, radio_settings
+from fleet_emu.core.radio_profile import radio_of_profile
 from fleet_emu.core.scenario_checks import check_names
-from fleet_emu.core.spelling import option
+from fleet_emu.core.spelling import file_spelling, option
 
 MAX_ROBOTS = 256
 MAX_HOSTS = 64
@@ -36,8 +39,10 @@ BASE_PLANNERS = frozenset({"mhm"})
 DEFAULT_STALL = 30
 #: Seconds of simulated time per tick: one 0.5 m cell a second is 0.5 m/s, a typical indoor ground robot.
 DEFAULT_TICK_S = 1.0
-#: The radio's airtime fields (``RadioConfig``), left out of ``scenario.json`` at their defaults (unlimited).
-_RADIO_QUIET: dict[str, float] = {"bandwidth": 0.0, "queue_bytes": 1_000_000, "jitter": 0}
+#: The radio's airtime and shadowing fields (``RadioConfig``), left out of ``scenario.json`` at their defaults
+#: (unlimited, no shadowing).
+_RADIO_QUIET: dict[str, float] = {"bandwidth": 0.0, "queue_bytes": 1_000_000, "jitter": 0, "shadowing_db": 0.0,
+                                   "shadowing_m": 1.0}
 BASE_PLANNER_STALL = 200  # a base planner's runs: robots hold while the base waits (Scenario.__post_init__)
 #: Where the shipped scenarios are (``Scenario.load("default")``): ``launch/scenarios`` of the package, found by
 #: path, not imported (core imports nothing above it).
@@ -138,6 +143,7 @@ class Scenario:
     relay_ttl: int = 0  # hops left after the first on the messages a robot makes (0: one hop)
     map_sync: bool = True  # repair lost map deltas on a lossy radio (agents/mapsync.py); False: a lost one is lost
     hosts: HostPlan | None = None  # robots on other machines (``fleet host``); None: all here
+    faults: tuple[Fault, ...] = ()  # robot failures at given ticks (``[[faults]]``, core/faults.py)
 
     def __post_init__(self) -> None:
         """A base-station planner's orders must cross several hops: with ``relay = "none"`` (the default) it
@@ -187,15 +193,22 @@ class Scenario:
                 _move(m, flat, ("cell_size",), "map")
             elif k == "fleet":
                 _move(dict(v), flat, ("robots", "sensor_range", "start", "base"), "fleet")
-            elif k in ("radio", "allocator", "hosts"):
+            elif k == "radio":  # a measured profile (core/radio_profile.py): its path relative to the file
+                flat[k] = radio_of_profile(dict(v), p.parent)
+            elif k in ("allocator", "hosts"):
                 flat[k] = dict(v)
             elif k in _TOP:
                 flat[k] = v
             else:
                 raise ConfigError(f"scenario {p}: unknown key or section {k!r}")
-        scenario = cls.from_dict(flat, where=f"scenario {p}")
-        # a file someone wrote: its allocator and map are checked now, as override's (a run's JSON is not)
-        check_names(scenario, [k for k in ("allocator", "map") if k in flat])
+        where = f"scenario {p}"
+        try:
+            with file_spelling(_TOML_KEYS):  # an error names the key: ``scenario s.toml: [fleet] robots must ...``
+                scenario = cls.from_dict(flat, where=where)
+                # a file someone wrote: its allocator and map are checked now, as override's (a run's JSON is not)
+                check_names(scenario, [k for k in ("allocator", "map") if k in flat])
+        except (ConfigError, MapError) as exc:
+            raise _named(exc, where) from None
         return scenario
 
     @classmethod
@@ -210,7 +223,11 @@ class Scenario:
             raise ConfigError(f"scenario {p} is not valid JSON: {exc}") from None
         if not isinstance(d, dict):
             raise ConfigError(f"scenario {p} is not a JSON object")
-        return cls.from_dict(d, where=f"scenario {p}")
+        try:
+            with file_spelling({s.name: f"radio.{s.name}" for s in radio_settings()}):
+                return cls.from_dict(d, where=f"scenario {p}")
+        except ConfigError as exc:
+            raise _named(exc, f"scenario {p}") from None
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], where: str = "scenario") -> Scenario:
@@ -226,6 +243,8 @@ class Scenario:
         alloc = d.get("allocator", {})
         if not isinstance(alloc, dict) or not isinstance(alloc.get("type", ""), str):
             raise ConfigError(f"{where}: allocator must be a table with a 'type' name (got {alloc!r})")
+        if "faults" in d:
+            d["faults"] = parse_faults(d["faults"])
         if isinstance(d.get("hosts"), dict):
             d["hosts"] = HostPlan.from_dict(d["hosts"], where)
         elif d.get("hosts") is not None and not isinstance(d["hosts"], HostPlan):
@@ -258,6 +277,10 @@ class Scenario:
             del d["hosts"]
         else:
             d["hosts"] = self.hosts.to_dict()
+        if self.faults:  # absent without faults: runs without them keep their scenario.json
+            d["faults"] = [f.to_dict() for f in self.faults]
+        else:
+            del d["faults"]
         return d
 
     def override(self, **flags: Any) -> Scenario:
@@ -271,6 +294,8 @@ class Scenario:
         names = {f.name for f in dataclasses.fields(self)}
         radio_names = {s.name for s in radio_settings()}
         table = flags.pop("radio", None)
+        if isinstance(table, dict):  # ``profile`` in it: a measured profile's settings under the table's own
+            table = radio_of_profile(table)
         radio = self.radio if table is None else merge(self.radio, table, "radio")
         for k, v in flags.items():
             if v is None:
@@ -279,6 +304,8 @@ class Scenario:
                 radio = dataclasses.replace(radio, **{k: v})
             elif k == "allocator":
                 top["allocator"] = _allocator(v, self.allocator)
+            elif k == "faults":
+                top["faults"] = parse_faults(v)
             elif k == "hosts" and not isinstance(v, HostPlan):
                 if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= MAX_HOSTS:
                     raise ConfigError(f"{option('hosts')} must be in 0..{MAX_HOSTS} (got {v!r})")
@@ -363,10 +390,13 @@ class Scenario:
             raise ConfigError(f"{option('map_sync', flag='--map-sync / --no-map-sync')} must be true or false "
                               f"(got {self.map_sync!r})")
         if self.plans_at_base and not self.has_base:
-            cli = option("base").startswith("--")
-            how = "--base (or --base-cell ROW,COL" if cli else "base=True (or base=(ROW, COL)"
+            spelt = option("base")
+            how = ("--base (or --base-cell ROW,COL; in a scenario [fleet] base = true)" if spelt.startswith("--")
+                   else "[fleet] base = true (or base = [ROW, COL])" if spelt.startswith("[")
+                   else "base=True (or base=(ROW, COL); in a scenario [fleet] base = true)")
             raise ConfigError(f"{option('allocator')} {self.allocator['type']} plans at the base station: it needs "
-                              f"{how}; in a scenario base = true)")
+                              f"{how}")
+        check_faults(self.faults, self.robots, self.max_ticks)
         if self.hosts is not None:
             if not isinstance(self.hosts, HostPlan):
                 raise ConfigError(f"hosts must be a [hosts] table (count, names, robots; got {self.hosts!r})")
@@ -374,8 +404,19 @@ class Scenario:
         return self
 
 
+def _named(exc: ConfigError | MapError, where: str) -> ConfigError | MapError:
+    """``exc`` with ``where`` (the file) in front, once; a MapError stays one."""
+    text = str(exc)
+    return exc if text.startswith(where) else type(exc)(f"{where}: {text}")
+
+
+#: A scenario TOML's key of each setting, as :func:`fleet_emu.core.spelling.option` names it in an error.
+_TOML_KEYS = {"map": "[map] name", "cell_size": "[map] cell_size", "allocator": "[allocator] type",
+              **{k: f"[fleet] {k}" for k in ("robots", "sensor_range", "start", "base")},
+              **{s.name: f"[radio] {s.name}" for s in radio_settings()}}
+
 _TOP = {"name", "base", "seed", "max_ticks", "tick_s", "target_coverage", "stall_ticks", "coverage_stall_ticks",
-        "barrier_timeout", "belief_every", "relay", "relay_ttl", "map_sync"}
+        "barrier_timeout", "belief_every", "relay", "relay_ttl", "map_sync", "faults"}
 _SECTIONS = ("map", "fleet", "radio", "allocator", "hosts")
 
 
@@ -395,18 +436,19 @@ def shipped() -> list[str]:
 
 
 def _read(p: Path) -> str:
-    """The file's text, once its size and nesting are within ``core/limits.py``'s bounds."""
+    """The file's text, once its size and nesting are within ``core/limits.py``'s bounds; only a regular file is
+    opened (a FIFO or a device is refused at once, never waited on: :func:`read_regular`)."""
     try:
         if p.is_file():
             check_size(p.stat().st_size, f"scenario {p}")
-        text = p.read_text()
+        text = read_regular(p, MAX_FILE_BYTES).decode()
         check_text(text, f"scenario {p}")
         return text
     except FileNotFoundError:
         raise ConfigError(f"scenario file not found: {p} (a TOML file, a run's scenario.json, or a shipped "
                           f"scenario: {', '.join(shipped())})") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read scenario {p}: {exc}") from None
+        raise ConfigError(f"cannot read scenario {p}: {getattr(exc, 'strerror', None) or exc}") from None
 
 
 def _move(section: dict[str, Any], flat: dict[str, Any], keys: tuple[str, ...], name: str) -> None:

@@ -4,9 +4,10 @@
 so this package does not import it); ``python -m fleet_emu.launch`` serves the commands here.
 
 Bad input gets one line on stderr (``fleet: error: ...``) and exit code 2; a run in which a process of the
-fleet failed exits 1 (a robot too, when the others finished); SIGINT (Ctrl-C) exits 130 and SIGTERM 143,
-after writing ``result.json`` and closing the recording (``launch/signals.py``). This module imports nothing
-heavy at the top, so that a signal during start-up meets the handler, not a half-imported module.
+fleet failed exits 1 (a robot too, when the others finished, unless the scenario crashed it); SIGINT (Ctrl-C)
+exits 130 and SIGTERM 143, after writing ``result.json`` and closing the recording (``launch/signals.py``).
+This module imports nothing heavy at the top, so that a signal during start-up meets the handler, not a
+half-imported module.
 """
 
 from __future__ import annotations
@@ -36,7 +37,34 @@ START_HINT = ("`fleet run` starts the default fleet (4 robots exploring the buil
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # one line, exit 2 (argparse's default prints usage too)
-        _fail(message)
+        _fail(message + _did_you_mean(self, message))
+
+
+def _did_you_mean(parser: argparse.ArgumentParser, message: str) -> str:
+    """``; did you mean '--robots'?`` for argparse's "unrecognized arguments" (a flag close to one of any
+    command's) or "invalid choice" (a command, an engine...) when a known name is close, else ""."""
+    import re
+
+    from fleet_emu.core.spelling import near
+
+    choice = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+    if choice:
+        return near(choice.group(1), re.findall(r"'([^']*)'", choice.group(2)))
+    if message.startswith("unrecognized arguments:"):
+        flags = [f for f in message.split(":", 1)[1].split() if f.startswith("--")]
+        return next((hint for hint in (near(f.split("=")[0], _flags(parser)) for f in flags) if hint), "")
+    return ""
+
+
+def _flags(parser: argparse.ArgumentParser) -> list[str]:
+    """Every long flag of ``parser`` and of its commands."""
+    out: list[str] = []
+    for action in parser._actions:
+        out += [s for s in action.option_strings if s.startswith("--")]
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                out += _flags(sub)
+    return sorted(set(out))
 
 
 def _fail(message: str, code: int = 2) -> NoReturn:
@@ -138,6 +166,9 @@ def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
     r.add_argument("--tick-s", type=float, metavar="S",
                    help="seconds of simulated time per tick, within (0, 3600]: a robot moves one cell per tick, and "
                         "the radio's --bandwidth is per second of it (default 1)")
+    r.add_argument("--crash", action="append", metavar="ROBOT@TICK",
+                   help="robot ROBOT (r1, or 1) crashes at tick TICK: it leaves the run and its body stays where it "
+                        "stood (repeatable; replaces the scenario's [[faults]]; docs/guides/faults.md)")
     r.add_argument("--map-sync", action=argparse.BooleanOptionalAction, default=None,
                    help="repair map deltas lost on a lossy radio (the default); --no-map-sync: a lost delta is lost "
                         "(docs/guides/radio.md#map-sync)")
@@ -147,19 +178,20 @@ def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
 
 
 @functools.cache
-def _default_scenario() -> Scenario:
-    """The shipped default scenario, read once (every flag's help names a value of it)."""
-    from fleet_emu.core.scenario import Scenario
+def default_values() -> dict[str, Any]:
+    """The shipped default scenario's values that the flags' help names (``map``, ``robots``, ``allocator``...),
+    read once from its TOML, not built: building it checks its allocator and map, which loads them (0.7 s), and
+    every ``fleet`` command builds the parser (tests/launch/test_cli_help.py checks them against the built one)."""
+    import tomllib
 
-    return Scenario.load(DEFAULT_SCENARIO)
+    raw = tomllib.loads(DEFAULT_SCENARIO.read_text())
+    return {**{k: v for k, v in raw.items() if not isinstance(v, dict)}, **raw.get("fleet", {}),
+            "map": raw["map"]["name"], "allocator": raw["allocator"]["type"]}
 
 
 def _default(field: str) -> str:
     """`` (default: the scenario's; X in the default one)``, X the default scenario's value of ``field``."""
-    value = getattr(_default_scenario(), field)
-    if isinstance(value, dict):
-        value = value.get("type")
-    return f" (default: the scenario's; {value} in the default one)"
+    return f" (default: the scenario's; {default_values()[field]} in the default one)"
 
 
 def _add_engine_flags(r: argparse.ArgumentParser) -> None:
@@ -235,6 +267,9 @@ def _add_host(sub: Any) -> None:
 def _add_listings(sub: Any) -> None:
     add_maps(sub)
     sub.add_parser("allocators", help="list the allocators (built-in and installed plugins) and their parameters")
+    from fleet_emu.launch.radio_cli import add_parser as add_radio
+
+    add_radio(sub)
 
 
 def _add_report(sub: Any) -> None:
@@ -243,14 +278,23 @@ def _add_report(sub: Any) -> None:
     rep.add_argument("--compare", action="store_true", help="one table and overlaid coverage curves of the runs")
     rep.add_argument("--out", type=Path, help="where --compare writes its PNG (default ./compare.png)")
     rep.add_argument("--no-plots", action="store_true", help="metrics.json and the table only")
+    rep.add_argument("--partial", action="store_true",
+                     help="report what a cut or inconsistent recording holds (without it: refused, saying how much "
+                          "reads; a run whose launcher died, with no result.json, is recovered first either way)")
     rep.add_argument("--layout", type=Path, metavar="FILE",
                      help="write the Foxglove layout for a recording or a live run (--live) to FILE (JSON)")
     rep.add_argument("--robots", type=int, metavar="N",
                      help="with --layout: the robots it plots, from 1 to 1024 (default: the run's robots; 8 without "
                           "a run, for a live one)")
+    rep.add_argument("--base", action="store_true",
+                     help="with --layout: plot the base-connected fraction (default: when a run has a base station; "
+                          "for a live run with one, give it)")
     from fleet_emu.launch.recover import add_parser as add_recover
 
     add_recover(sub)
+    info = sub.add_parser("info", help="a recording's summary: its run and scenario, messages, duration and "
+                                       "channels (as `mcap info`)")
+    info.add_argument("path", type=Path, metavar="RUN", help="a run directory or its run.mcap")
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
@@ -269,7 +313,22 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
         target_coverage=args.target_coverage, tick_s=getattr(args, "tick_s", None), **radio_overrides(args),
         base=args.base_cell if args.base_cell is not None else args.base,
         relay=getattr(args, "relay", None), relay_ttl=getattr(args, "relay_ttl", None),
-        map_sync=getattr(args, "map_sync", None), hosts=getattr(args, "hosts", None))
+        map_sync=getattr(args, "map_sync", None), hosts=getattr(args, "hosts", None),
+        faults=_crash_args(getattr(args, "crash", None)))
+
+
+def _crash_args(given: list[str] | None) -> list[dict[str, Any]] | None:
+    """``--crash ROBOT@TICK`` (repeatable) as ``[[faults]]`` entries; None when not given. ConfigError on one not
+    of that form (the entries' values are checked with the scenario's)."""
+    if not given:
+        return None
+    out = []
+    for item in given:
+        robot, at, tick = item.partition("@")
+        if not at or not robot or not tick.strip().isdigit():
+            raise ConfigError(f"--crash must be ROBOT@TICK, e.g. r1@30 (got {item!r})")
+        out.append({"robot": int(robot) if robot.isdigit() else robot, "tick": int(tick), "kind": "crash"})
+    return out
 
 
 def _allocator_arg(base: Scenario, name: str | None, params: list[str] | None) -> str | dict[str, Any] | None:
@@ -339,6 +398,7 @@ def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
                               connect=args.connect, run_id=run_id, grid_every=args.grid_every,
                               on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
                               interrupts=interrupts, on_warning=_warn, fork_server=args.fork_server,
+                              on_note=None if args.quiet else _note,
                               listen=args.listen, realtime_hz=args.realtime, tls_cert=args.tls_cert,
                               tls_key=args.tls_key, overwrite=args.overwrite, live=live,
                               **(companions.options if companions is not None else {}),
@@ -360,6 +420,11 @@ def _warn(message: str) -> None:
     print(f"fleet: warning: {message}", file=sys.stderr)
 
 
+def _note(message: str) -> None:
+    """What the run waits for (its hosts), on the console; nothing with ``--quiet``."""
+    print(f"fleet: {message}", file=sys.stderr, flush=True)
+
+
 def cmd_router_config(args: argparse.Namespace) -> int:
     from fleet_emu.launch.router_config import router_config_text
 
@@ -370,13 +435,19 @@ def cmd_router_config(args: argparse.Namespace) -> int:
 
 def exit_code(result: Mapping[str, Any], out: Path) -> int:
     """1 when a robot of the fleet failed (its process died or went silent), even if the rest of the fleet
-    reached the target: a result that lost a robot is not the scenario that was asked for; 0 when the target
-    coverage was reached; 3 when the run ended without it (tick limit, stall)."""
-    if result["failed"]:
-        failed = ", ".join(result["failed"])
-        print(f"fleet: error: robot(s) {failed} of {result['robots']} failed and left the run (reason "
+    reached the target: a result that lost a robot is not the scenario that was asked for (a robot the scenario
+    crashed, ``[[faults]]``, is what was asked for); 0 when the target coverage was reached; 3 when the run
+    ended without it (tick limit, stall), with a line naming a failed robot whose body held the others off."""
+    from fleet_emu.launch.result import unexpected_failures
+
+    failed = unexpected_failures(result)
+    if failed:
+        print(f"fleet: error: robot(s) {', '.join(failed)} of {result['robots']} failed and left the run (reason "
               f"{result['reason']}); see their logs in {out}", file=sys.stderr)
         return 1
+    for robot, block in result.get("blocked_by", {}).items():
+        print(f"fleet: {robot}'s body at cell {tuple(block['cell'])} cut the other robots off from "
+              f"{block['cut_off']} cell(s) still to sense (reason {result['reason']})", file=sys.stderr)
     return 0 if result["completed"] else 3
 
 
@@ -405,19 +476,29 @@ def cmd_report(args: argparse.Namespace) -> int:
         from fleet_emu.recording.read import recorded_scenario
 
         robots = args.robots  # given: it wins; else the runs' own (the largest fleet of them), else the default
-        if robots is None and args.paths:
-            robots = max(int(recorded_scenario(p)["robots"]) for p in args.paths)
-        write_layout(args.layout, robots)
+        scenarios = [recorded_scenario(p) for p in args.paths]
+        if robots is None and scenarios:
+            robots = max(int(s["robots"]) for s in scenarios)
+        base = args.base or any(s.get("base") not in (None, False) for s in scenarios)  # else its plot is null
+        write_layout(args.layout, robots, base)
         print(args.layout)
-    elif args.robots is not None:
-        raise ConfigError("--robots goes with --layout")
+    elif args.robots is not None or args.base:
+        raise ConfigError(f"{'--robots' if args.robots is not None else '--base'} goes with --layout")
     if not args.paths and args.layout is None:
         raise ConfigError("give a run (RUN_DIR or RUN.mcap) to report on, or --layout FILE")
     if args.paths:
-        with reporting(args.paths) as recovered:  # run folders locked; a cut recording recovered first
+        with reporting(args.paths, args.partial) as recovered:  # run folders locked; a crashed run recovered first
             for line in recovered:
                 print(line)
-            report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots)
+            report(args.paths, compare=args.compare, out=args.out, plots=not args.no_plots, partial=args.partial)
+    return 0
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    from fleet_emu.recording.info import info_lines, recording_info
+
+    for line in info_lines(recording_info(args.path)):
+        print(line)
     return 0
 
 
@@ -427,9 +508,16 @@ def cmd_recover(args: argparse.Namespace) -> int:
     return recover(args)
 
 
+def cmd_radio(args: argparse.Namespace) -> int:
+    from fleet_emu.launch.radio_cli import cmd_radio as radio
+
+    return radio(args)
+
+
 #: The handlers of this package's commands other than ``run`` and ``host`` (which handle signals themselves).
 HANDLERS: dict[str, Handler] = {"maps": cmd_maps, "allocators": cmd_allocators, "report": cmd_report,
-                                "router-config": cmd_router_config, "recover": cmd_recover}
+                                "radio": cmd_radio,
+                                "router-config": cmd_router_config, "recover": cmd_recover, "info": cmd_info}
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -380,8 +380,8 @@ def test_regions_picture_draws_a_png_per_map(small_map: Path, tmp_path: Path,
     assert (tmp_path / f"regions-{small_map.stem}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-@pytest.mark.parametrize("script", ["fault_trials", "attacks", "connectivity_table", "decision_time", "mhm_fleet",
-                                    "mhm_planner", "minpos_vs_utility", "ros2_cost"])
+@pytest.mark.parametrize("script", ["fault_trials", "attacks", "bad_inputs", "connectivity_table", "decision_time",
+                                    "mhm_fleet", "mhm_planner", "minpos_vs_utility", "ros2_cost"])
 def test_the_other_scripts_import_and_describe_themselves(script: str, capsys: pytest.CaptureFixture[str]) -> None:
     """The scripts the suite does not run (minutes each): they import, and ``--help`` describes them."""
     code, out, _ = bench(script, "--help", capsys=capsys)
@@ -423,3 +423,22 @@ def test_mhm_reach_runs_to_the_method_end_and_compares_with_the_disc(tmp_path: P
 def test_mhm_reach_bad_argument_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = bench("mhm_reach", "--robots", "1", capsys=capsys)
     assert code == 2 and err.count("\n") == 1 and err.startswith("mhm_reach: error: --robots"), err
+
+
+def test_crash_maze_prints_a_row_per_run_with_its_blind_twin(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("crash_maze", "--seeds", "2", "--max-ticks", "40", capsys=capsys)
+    assert code == 0, err[-2000:]
+    rows = markdown(out)
+    assert [(r["seed"], r["crashed"]) for r in rows] == [("0", "r0"), ("1", "r1")]
+    for r in rows:
+        assert int(r["ticks"]) <= 40 and r["reached"] in ("yes", "no") and 0.0 <= float(r["coverage"]) <= 1.0
+    assert err.count(" ticks (") == 2  # a progress line per run
+    code, _, err = bench("crash_maze", "--crash-tick", "5000", capsys=capsys)
+    assert code == 2 and err.startswith("crash_maze: error: ") and err.count("\n") == 1
+
+
+def test_live_viewers_bad_argument_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = bench("live_viewers", "--viewers", "0", capsys=capsys)
+    assert code == 2
+    assert err.strip().splitlines() == ["live_viewers: error: --viewers, --waves, --ticks and --seeds must be at "
+                                        "least 1, --delay from 0 to 600"]
