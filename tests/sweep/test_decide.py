@@ -6,14 +6,14 @@ reproduced once the interval has narrowed. Then the sequential sweep itself, res
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
-from fleet_emu.agents.allocators.base import Allocation, Problem
+from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.nearest import Nearest
 from fleet_emu.core.messages import RadioMsg
 from fleet_emu.sweep.claims import judge, parse
@@ -24,7 +24,7 @@ from fleet_emu.sweep.study import Study
 from tests.conftest import fleet
 
 
-class Waster(Nearest, plugin_name="test-waster"):
+class Waster(Nearest):
     """Nearest frontier after standing still for W ticks, W uniform on 0..20 from the run's seed (read off the
     generator's state, so that no draw changes what the robot does afterwards)."""
 
@@ -50,13 +50,20 @@ def _study(study_dir: Path, seeds: int) -> Study:
 
 
 @pytest.fixture(scope="module")
-def waste_rows(tmp_path_factory: pytest.TempPathFactory) -> list[dict[str, Any]]:
+def waste_rows(tmp_path_factory: pytest.TempPathFactory) -> Iterator[list[dict[str, Any]]]:
+    """The study's 80 runs, the allocator registered only while they run (the registry is the process's: a test
+    that runs every registered allocator must not find it)."""
     from tests.conftest import draw_map
     from tests.sweep.conftest import ROOMS
 
     folder = tmp_path_factory.mktemp("waste")
     draw_map(ROOMS, folder / "rooms.png")
-    return [run_point(p) for p in _study(folder, 40).points()]
+    Waster.register("test-waster")
+    try:
+        rows = [run_point(p) for p in _study(folder, 40).points()]
+    finally:
+        Allocator.registry.pop("test-waster", None)
+    yield rows
 
 
 def test_verdicts_are_right_at_every_number_of_replicates(waste_rows: list[dict[str, Any]]) -> None:
