@@ -164,4 +164,4 @@ def test_an_allocator_plugin_installed_from_outside(venv: Venv, small_map: Path,
                     "--out", str(tmp_path / "bad"))
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
-        "fleet: error: allocator 'largest': cost_weight must be a number >= 0 (got -1)"], proc.stderr
+        f"fleet: error: scenario {bad}: allocator 'largest': cost_weight must be a number >= 0 (got -1)"], proc.stderr

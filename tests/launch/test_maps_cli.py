@@ -178,7 +178,7 @@ def test_bautin_fig5_sweeps_after_fetching_its_map(tmp_path: Path, mirror: Path)
                               timeout=600, cwd=tmp_path, env=env)
 
     assert fleet_("maps", "fetch", "hospital_section", "--mirror", str(mirror)).returncode == 0
-    proc = fleet_("sweep", "bautin-fig5", "--out", "fig5", "--limit", "1", "--jobs", "1", "--quiet")
+    proc = fleet_("sweep", "bautin-fig5", "--out", "fig5", "--limit", "1", "--jobs", "1")
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "bautin-fig5: 2400 runs, 0 done, 1 to run" in proc.stderr
     with (tmp_path / "fig5" / "results.csv").open() as f:
