@@ -22,7 +22,7 @@ from mcap.stream_reader import StreamReader
 
 from fleet_emu.core.errors import ReportError
 from fleet_emu.core.radio import radio_label
-from fleet_emu.recording.read import MAGIC, resolve, scenario_of
+from fleet_emu.recording.read import open_mcap, resolve, scenario_of
 from fleet_emu.recording.recorder import SCENARIO_METADATA
 
 
@@ -62,10 +62,7 @@ def recording_info(path: str | Path) -> RecordingInfo:
     not an MCAP file, or not a fleet recording."""
     mcap = resolve(Path(path))
     try:
-        with open(mcap, "rb") as f:
-            if f.read(len(MAGIC)) != MAGIC:
-                raise ReportError(f"{mcap} is not an MCAP file")
-            f.seek(0)
+        with open_mcap(mcap) as f:
             found = _from_summary(f) or _from_records(f, mcap.stat().st_size)
             size = mcap.stat().st_size
     except OSError as exc:

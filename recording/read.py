@@ -113,14 +113,7 @@ def load_recording(path: str | Path, partial: bool = False) -> Run:
     ``partial`` such a recording is read up to its last complete record (``Run.truncated``).
     """
     mcap = resolve(Path(path))
-    try:
-        f = open(mcap, "rb")  # noqa: SIM115 (closed below)
-    except OSError as exc:
-        raise ReportError(f"cannot read {mcap}: {exc.strerror or exc}") from None
-    with f:
-        if f.read(len(MAGIC)) != MAGIC:
-            raise ReportError(f"{mcap} is not an MCAP file")
-        f.seek(0)
+    with open_mcap(mcap) as f:
         run = _read(f, mcap)
     if not partial:
         complete(run)
@@ -171,15 +164,29 @@ def scenario_of(metadata: dict[str, str], mcap: Path) -> dict[str, Any]:
         raise ReportError(f"{mcap}: unreadable scenario metadata ({str(exc) or type(exc).__name__})") from None
 
 
+def open_mcap(mcap: Path) -> BinaryIO:
+    """``mcap`` open for reading at its start, once its first bytes are MCAP's magic; ReportError (one line) when
+    it cannot be opened or is not an MCAP file. Every reader of a recording opens it so."""
+    try:
+        f = open(mcap, "rb")  # noqa: SIM115 (the caller closes it: ``with open_mcap(path) as f``)
+    except OSError as exc:
+        raise ReportError(f"cannot read {mcap}: {exc.strerror or exc}") from None
+    try:
+        if f.read(len(MAGIC)) != MAGIC:
+            raise ReportError(f"{mcap} is not an MCAP file")
+        f.seek(0)
+    except BaseException:
+        f.close()
+        raise
+    return f
+
+
 def recorded_scenario(path: str | Path) -> dict[str, Any]:
     """The scenario a recording (RUN_DIR or RUN.mcap) was made of, from its ``scenario`` metadata, without folding
     its messages (the layout of a run needs its robots, not its metrics). ReportError as :func:`load_recording`."""
     mcap = resolve(Path(path))
     try:
-        with open(mcap, "rb") as f:
-            if f.read(len(MAGIC)) != MAGIC:
-                raise ReportError(f"{mcap} is not an MCAP file")
-            f.seek(0)
+        with open_mcap(mcap) as f:
             for rec in StreamReader(f, record_size_limit=max(mcap.stat().st_size, 1)).records:
                 if isinstance(rec, Metadata) and rec.name == SCENARIO_METADATA:
                     _versions(rec.metadata, mcap)
