@@ -552,6 +552,7 @@ def serve(argv: list[str] | None, parser: Callable[[], argparse.ArgumentParser],
                 code = cmd_host(args, interrupts)
             else:
                 interrupts.restore()  # a listing or a report: Ctrl-C simply stops it
+                _ctrl_c_stops()
                 if interrupts.requested.is_set():
                     raise KeyboardInterrupt
                 code = handlers[command](args)
@@ -570,6 +571,15 @@ def serve(argv: list[str] | None, parser: Callable[[], argparse.ArgumentParser],
     if command == "run":
         _ignore_signals_while_exiting()
     raise SystemExit(code)
+
+
+def _ctrl_c_stops() -> None:
+    """SIGINT raises KeyboardInterrupt even where the shell started this command with SIGINT ignored (a
+    background job, a CI runner): ``kill -INT`` stops an export or a fetch as it stops ``fleet run``."""
+    import signal
+
+    if signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, signal.SIG_DFL):
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def _quiet_stdout() -> None:

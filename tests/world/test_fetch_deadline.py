@@ -12,7 +12,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -100,13 +100,22 @@ def _catch(out: list[BaseException], entry: RegistryMap, mirror: str) -> None:
         out.append(exc)
 
 
-@pytest.mark.parametrize(("sig", "code"), [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
-def test_a_signal_during_a_fetch_leaves_nothing_in_the_cache(tmp_path: Path, sig: int, code: int) -> None:
+def _background() -> None:
+    """What a shell does to a background job: SIGINT ignored from the start."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@pytest.mark.parametrize(("sig", "code", "started"), [(signal.SIGTERM, 143, None), (signal.SIGINT, 130, None),
+                                                      (signal.SIGINT, 130, _background)],
+                         ids=["SIGTERM", "SIGINT", "SIGINT-in-a-background-job"])
+def test_a_signal_during_a_fetch_leaves_nothing_in_the_cache(tmp_path: Path, sig: int, code: int,
+                                                            started: Callable[[], None] | None) -> None:
     cache = tmp_path / "xdg" / "fleet-emu" / "maps"
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "xdg")}
     with trickle() as (url, asked):
         proc = subprocess.Popen([sys.executable, "-m", "fleet_emu", "maps", "fetch", "cave", "--mirror", url],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path,
+                                preexec_fn=started)
         assert asked.wait(60), "the fetch never asked"
         time.sleep(0.3)
         assert any(p.name.endswith(".part") for p in cache.iterdir())  # under way
