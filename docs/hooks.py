@@ -242,12 +242,13 @@ def claims_table(name: str) -> str:
 
 
 def means_table(name: str) -> str:
-    """A paper study's kept results as a table of means: robot counts by allocators (time to the target, mean ±
-    std, and the % difference to the baseline's mean) when the study varies the robot count, else a line per
-    allocator (time, moves, connected time, runs that reached the target); n is every cell's number of runs."""
+    """A paper study's kept results as a table of means: a line per setting the study varies (robot count, map,
+    ...) by allocators (time to the target, mean ± std; with the robot count alone varied, also the % difference
+    to the baseline's mean), else a line per allocator (time, moves, connected time, runs that reached the
+    target); n is every cell's number of runs."""
     if str(ROOT) not in sys.path:
         sys.path.insert(0, str(ROOT))
-    from fleet_emu.sweep.report import by, load, summary
+    from fleet_emu.sweep.report import GROUP, axes, by, load, summary
 
     rows, study, _ = load(KEPT / name)
     head = study.get("study", {})
@@ -255,15 +256,23 @@ def means_table(name: str) -> str:
     lines = summary(rows, base, head.get("replicates", []))
     allocs = list(dict.fromkeys(str(ln["allocator"]) for ln in lines))
     counts = {ln["runs"] for ln in lines}
+    split = [k for k in GROUP + axes(rows, head.get("replicates", [])) if len({str(ln[k]) for ln in lines}) > 1]
+
     def cell(ms: tuple[float, float, int]) -> str:
         return "-" if not ms[2] else f"{ms[0]:.1f} ± {ms[1]:.1f}"
-    if len({ln["robots"] for ln in lines}) > 1:
-        out = ["| robots | " + " | ".join(allocs) + " |", "| --- |" + " --- |" * len(allocs)]
-        for (robots,), group in by(lines, "robots").items():
+
+    def pct(line: dict[str, Any]) -> str:
+        shown = split == ["robots"] and str(line["allocator"]) != base
+        return f" ({line['vs_baseline_pct']:+.1f} %)" if shown and line["vs_baseline_pct"] == line["vs_baseline_pct"] \
+            else ""
+
+    if split:
+        out = ["| " + " | ".join(k.removeprefix("param.") for k in split) + " | " + " | ".join(allocs) + " |",
+               "|" + " --- |" * (len(split) + len(allocs))]
+        for key, group in by(lines, *split).items():
             of = {str(ln["allocator"]): ln for ln in group}
-            cells = [cell(of[a]["ticks"]) + ("" if a == base or of[a]["vs_baseline_pct"] != of[a]["vs_baseline_pct"]
-                                             else f" ({of[a]['vs_baseline_pct']:+.1f} %)") for a in allocs]
-            out.append(f"| {robots} | " + " | ".join(cells) + " |")
+            cells = [cell(of[a]["ticks"]) + pct(of[a]) if a in of else "-" for a in allocs]
+            out.append("| " + " | ".join(map(str, key)) + " | " + " | ".join(cells) + " |")
     else:
         out = ["| allocator | ticks to the target | moves | connected % | reached |", "| --- | --- | --- | --- | --- |"]
         out += [f"| {ln['allocator']} | {cell(ln['ticks'])} | {cell(ln['moves'])} | {cell(ln['connected_pct'])} | "

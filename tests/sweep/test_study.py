@@ -87,8 +87,10 @@ def test_the_mukhija_studies_run_the_papers_setting() -> None:
     from fleet_emu.world.maps import load_map
 
     fig5 = Study.load("mukhija-fig5")
-    assert fig5.grid == {"robots": [10, 12, 14], "allocator": ["mhm", {"type": "mhm", "method": "shm"}]}
-    assert fig5.baseline == "mhm(method=shm)" and len(fig5.seeds) >= 5 and len(fig5.points()) == 3 * 2 * 5
+    assert fig5.grid["robots"] == [10, 12, 14] and fig5.grid["allocator"] == ["mhm", {"type": "mhm", "method": "shm"}]
+    starts = fig5.grid["start"] + fig5.more["start"]  # the replicate: the base's cell, 5 first, then more
+    assert len(starts) == len({tuple(s) for s in starts}) == 25 and all(64 <= c < 448 for s in starts for c in s)
+    assert fig5.baseline == "mhm(method=shm)" and len(fig5.points()) == 3 * 2 * 5 * len(fig5.seeds)
     scenario = fig5.points()[0].scenario
     grid = load_map(scenario["map"], scenario["cell_size"], 0).grid  # the open map shipped beside the study
     assert grid.shape == (512, 512) and (grid[1:-1, 1:-1] == 0).all() and (grid[0] == 100).all()
