@@ -34,13 +34,13 @@ from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import RxBundle, Stop
-from fleet_emu.core.node import Declared, NodeBase, add_base_cell, node_main, undeclare
+from fleet_emu.core.node import Declared, NodeShell, add_base_cell, node_main, undeclare
 from fleet_emu.core.scenario import Scenario
 
 FINAL_GRACE = 2.0  # seconds to wait, after the world's stop, for the last rx bundles
 
 
-class BaseNode(NodeBase):
+class BaseStationNode(NodeShell):
     role = BASE
 
     def __init__(self, scenario: Scenario, run: str, map_data: MapData, cell: Cell) -> None:
@@ -116,7 +116,7 @@ class BaseNode(NodeBase):
 def main(argv: list[str] | None = None) -> None:
     """``python -m fleet_emu.agents.base_node --run RUN --connect ENDPOINT --scenario FILE.json
     --map-file MAP.npz --base-cell ROW,COL``."""
-    node_main("base", lambda a: BaseNode(a.scenario, a.run, a.map_file, a.base_cell), argv,
+    node_main("base", lambda a: BaseStationNode(a.scenario, a.run, a.map_file, a.base_cell), argv,
               lambda p: add_base_cell(p, required=True), map_file=True)
 
 

@@ -8,7 +8,7 @@ and follows one that moves on (``agents/brain.py``); one unheard for a few ticks
 body within as many steps of its announced cells. Any other body is a *wreck*: a robot that no longer
 speaks (a failed one, whose body stays where it stopped) or one this robot has not heard from. A wreck is
 remembered at its cell, off the passable cells of every plan and decision (:attr:`Problem.obstacles
-<fleet_emu.agents.allocators.base.Problem.obstacles>`), until the robot senses that cell again with no body on
+<fleet_emu.agents.allocators.interface.Problem.obstacles>`), until the robot senses that cell again with no body on
 it. The team is told (:class:`WreckNotice`, broadcast when a robot's wrecks change and again every
 :data:`RESEND` ticks while it knows some): a teammate that never came within sensing range of a wreck plans
 around it too, and one that senses the cell empty tells the others to forget it. Pure: no I/O.

@@ -1,4 +1,4 @@
-"""The fleet's fork server: imports the agent code (numpy, numba) and loads the compiled kernels once,
+"""The fleet's fork server: imports the robot code (numpy, numba) and loads the compiled kernels once,
 then forks one process per node on the launcher's request, so that the nodes share those pages and none pays
 the interpreter's start-up (the imports and the kernels' loading: about a CPU second each).
 

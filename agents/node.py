@@ -1,9 +1,10 @@
-"""The agent process shell: one robot. Waits for its observation and rx bundle of each tick, runs the brain,
-publishes its tx bundle and command. Only this module touches Zenoh and the clock.
+"""The robot process's shell (the ``agents/`` package holds the robot process): one robot. Waits for its
+observation and rx bundle of each tick, runs the brain, publishes its tx bundle and command. Only this module
+touches Zenoh and the clock.
 
 In real-time mode (``realtime_hz``) it waits for nothing: decisions run in a worker thread and, while one runs,
 the shell steps along the last plan every tick (:mod:`agents.realtime`); at the end it publishes its
-:class:`AgentTiming` (robot/<robot>/timing) before its report."""
+:class:`RobotTiming` (robot/<robot>/timing) before its report."""
 
 from __future__ import annotations
 
@@ -21,21 +22,23 @@ import zenoh
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import Brain, allocator_config, brain_config, radio_team
 from fleet_emu.agents.hearing_kernels import warm_up
-from fleet_emu.agents.outputs import agent_report, first_cpu_ms, robot_outputs
+from fleet_emu.agents.outputs import first_cpu_ms, robot_outputs, robot_report
 from fleet_emu.agents.realtime import Timing, percentiles
 from fleet_emu.core.bus import Inbox
 from fleet_emu.core.codec import Context
 from fleet_emu.core.envelope import AnyEnvelope, RxWire, read_rx
 from fleet_emu.core.faults import crashes
 from fleet_emu.core.keys import Keys
-from fleet_emu.core.messages import AgentTiming, Command, Envelope, Observation, RxBundle, Stop
-from fleet_emu.core.node import Declared, NodeBase, node_main, undeclare
+from fleet_emu.core.messages import Command, Envelope, Observation, RobotTiming, RxBundle, Stop
+from fleet_emu.core.node import Declared, NodeShell, node_main, undeclare
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
 
 
-class AgentNode(NodeBase):
-    role = "agent"
+class RobotNode(NodeShell):
+    """One robot's node: its brain between the barrier messages and its radio bundles."""
+
+    role = "agent"  # the liveliness role on the bus (``fleet/<run>/alive/agent/<robot>``), part of the protocol
 
     def __init__(self, scenario: Scenario, run: str, robot: str, realtime_hz: float | None = None) -> None:
         super().__init__(Keys(run), robot)
@@ -48,9 +51,9 @@ class AgentNode(NodeBase):
         self.ctx_world = Context(senders=frozenset({"world"}))
         self.realtime = bool(realtime_hz)
         self.timing = Timing()
-        self.cpu0: float | None = None  # the process's CPU time when its first step began (AgentReport)
+        self.cpu0: float | None = None  # the process's CPU time when its first step began (RobotReport)
         self.loop_cpu0 = 0.0  # the event loop thread's CPU time then
-        self.first_cpu_ms: dict[str, float] = {}  # the first step's CPU (AgentReport.first_cpu_ms)
+        self.first_cpu_ms: dict[str, float] = {}  # the first step's CPU (RobotReport.first_cpu_ms)
         self.crash_at = dict(crashes(scenario.faults)).get(robot)  # the tick the scenario crashes it at, if any
 
     def next_seq(self) -> int:
@@ -78,12 +81,12 @@ class AgentNode(NodeBase):
                 return  # then (the launcher's, unless it runs in the launcher's process), it says nothing more
             if pub_timing is not None:
                 tm = self.timing
-                pub_timing.put(AgentTiming(
+                pub_timing.put(RobotTiming(
                     src=self.robot, tick=tick, seq=self.next_seq(), decisions=tm.decisions,
                     plan_steps=tm.plan_steps, waits=tm.waits, decision_ms=percentiles(tm.decision_ms),
                     allocator_ms=percentiles(self.brain.decision_ms[:tm.decisions])).encode())
             process_ms, loop_ms = self._clocks_ms()
-            report = agent_report(
+            report = robot_report(
                 self.brain, tick, self.dropped, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
                 process_cpu_ms=process_ms, loop_cpu_ms=loop_ms, first=self.first_cpu_ms)
             pub_report.put(dataclasses.replace(report, foreign=self.foreign).encode())
@@ -266,5 +269,5 @@ def _in_thread(work: Callable[[], Any], name: str) -> asyncio.Future:
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m fleet_emu.agents --robot r0 --run RUN --connect ENDPOINT --scenario FILE.json``."""
-    node_main("agents", lambda a: AgentNode(a.scenario, a.run, a.robot, realtime_hz=a.realtime), argv,
+    node_main("agents", lambda a: RobotNode(a.scenario, a.run, a.robot, realtime_hz=a.realtime), argv,
               lambda p: p.add_argument("--robot", required=True))

@@ -16,7 +16,7 @@ import numpy as np
 from fleet_emu.agents.base import BaseStation
 from fleet_emu.agents.brain import Brain
 from fleet_emu.core.keys import BASE
-from fleet_emu.core.messages import AgentReport, BaseReport, BeliefSnapshot, Envelope, TxBundle
+from fleet_emu.core.messages import BaseReport, BeliefSnapshot, Envelope, RobotReport, TxBundle
 
 # --- a robot ---------------------------------------------------------------------------------------------
 
@@ -33,19 +33,19 @@ def robot_outputs(brain: Brain, tick: int, out: Sequence[Envelope], belief_every
 
 
 def first_cpu_ms(brain: Brain, process_ms: float, loop_ms: float) -> dict[str, float]:
-    """The first step's CPU, taken right after it (:attr:`AgentReport.first_cpu_ms`): the process's and the
+    """The first step's CPU, taken right after it (:attr:`RobotReport.first_cpu_ms`): the process's and the
     event loop's (``process_ms``, ``loop_ms``: measured by the caller, 0 where not measured) and the brain's
     own sums so far."""
     return {"process": process_ms, "loop": loop_ms, "step": brain.step_cpu_ms, **brain.cpu_ms}
 
 
-def agent_report(brain: Brain, tick: int, dropped: int, peak_rss_kb: int, *, process_cpu_ms: float = 0.0,
-                 loop_cpu_ms: float = 0.0, first: dict[str, float] | None = None) -> AgentReport:
+def robot_report(brain: Brain, tick: int, dropped: int, peak_rss_kb: int, *, process_cpu_ms: float = 0.0,
+                 loop_cpu_ms: float = 0.0, first: dict[str, float] | None = None) -> RobotReport:
     """A robot's report when it stops at ``tick``: its decisions and their wall times, the messages it dropped,
     and its CPU (the brain's sums by stage; the process's and the event loop's since its first step, 0 where
     the caller does not measure them, as the memory engine, one process for every robot, does not)."""
     ms = np.array(brain.decision_ms or [0.0])
-    return AgentReport(
+    return RobotReport(
         src=brain.me, tick=tick, seq=brain.next_seq(), decisions=len(brain.decision_ms),
         decision_ms_mean=float(ms.mean()), decision_ms_p95=float(np.percentile(ms, 95)), dropped=dropped,
         peak_rss_kb=peak_rss_kb, decision_cpu_ms=brain.decision_cpu_ms, step_cpu_ms=brain.step_cpu_ms,

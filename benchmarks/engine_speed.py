@@ -35,7 +35,7 @@ SCENARIOS = [  # (label, overrides)
 def main(argv: list[str] | None = None) -> None:
     """The table; exit 1 when a run's deterministic keys differ between engines."""
     import fleet_emu as fe
-    from fleet_emu.launch.result import deterministic
+    from fleet_emu.recording.result import deterministic
 
     p = parser("benchmarks.engine_speed", __doc__, full=False)
     p.add_argument("--seeds", type=int, default=2)

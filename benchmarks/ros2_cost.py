@@ -26,8 +26,8 @@ from benchmarks._common import parser
 from fleet_emu.core.access import Credential
 from fleet_emu.core.bus import client_config
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.runner import BusAccess, RunOptions, run_fleet
+from fleet_emu.recording.result import deterministic
 from fleet_emu.ros2.bridge import VIEWER, Ros2Options, grants
 
 DOMAIN = 0

@@ -6,7 +6,7 @@
    nothing. Users authenticate with Zenoh's user/password scheme (:func:`make_credentials`, one password per
    process and run).
 2. Every receiver (the second line): :func:`allowed_src` says which senders a key may carry, and
-   ``NodeBase.decode`` / the launcher's monitor drop and count a message whose ``src`` disagrees with its key.
+   ``NodeShell.decode`` / the launcher's monitor drop and count a message whose ``src`` disagrees with its key.
 
 The keys each node writes (docs/reference/protocol.md, docs/design/security.md):
 
@@ -20,7 +20,7 @@ recorder   nothing (it subscribes to ``fleet/<run>/**``)
 host K     nothing in the run (it reads the run's keys, e.g. the launcher's liveliness token)
 =========  ===================================================================================
 
-The hosts' lobby (``fleet-host/<host>/...``, ``launch/hosts.py``, outside every run's keys) has rules of its
+The hosts' lobby (``fleet-host/<host>/...``, ``launch/host_client.py``, outside every run's keys) has rules of its
 own (:func:`lobby_rules`): host K may declare its token ``fleet-host/K/alive``, put on ``fleet-host/K/status``
 and subscribe to ``fleet-host/K/spawn``; the launcher may put on ``fleet-host/*/spawn`` and subscribe to the
 hosts' tokens and statuses. A spawn request carries the host's robots' credentials: no other user may

@@ -34,7 +34,8 @@ def shm_enabled() -> bool:
     return os.environ.get("FLEET_ZENOH_SHM") == "1"
 
 
-def _base(mode: str) -> zenoh.Config:
+def _common_config(mode: str) -> zenoh.Config:
+    """The settings a router's and a client's configurations share (``mode``: ``router`` or ``client``)."""
     conf = zenoh.Config()
     conf.insert_json5("mode", json.dumps(mode))
     conf.insert_json5("scouting/multicast/enabled", "false")
@@ -51,7 +52,7 @@ def router_config(listen: str | list[str] = "tcp/127.0.0.1:0", dictionary_file: 
     refuses sessions without valid credentials, with ``acl`` (``fleet_emu.core.access.acl_config``) it filters
     what each user may put, and ``tls`` (its certificate and private key, PEM files) serves ``tls/`` and
     ``quic/`` endpoints."""
-    conf = _base("router")
+    conf = _common_config("router")
     conf.insert_json5("listen/endpoints", json.dumps([listen] if isinstance(listen, str) else listen))
     if tls is not None:
         conf.insert_json5("transport/link/tls/listen_certificate", json.dumps(tls[0]))
@@ -68,7 +69,7 @@ def router_config(listen: str | list[str] = "tcp/127.0.0.1:0", dictionary_file: 
 def client_config(endpoint: str, credential: Credential | None = None) -> zenoh.Config:
     """A client session to the router at ``endpoint`` (e.g. ``tcp/127.0.0.1:7447``), logged in as
     ``credential`` (and trusting its TLS CA) when given."""
-    conf = _base("client")
+    conf = _common_config("client")
     conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
     if credential is not None:
         conf.insert_json5("transport/auth/usrpwd/user", json.dumps(credential.user))

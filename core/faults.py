@@ -21,7 +21,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from fleet_emu.core.errors import ConfigError
-from fleet_emu.core.spelling import option
+from fleet_emu.core.setting_names import option
 
 #: The kinds of fault a scenario may declare.
 KINDS = ("crash",)

@@ -1,11 +1,11 @@
 """Every message of the lockstep protocol, defined once (docs/reference/protocol.md): the one module to import
 them from.
 
-The barrier messages (world -> agents, netem -> agents, agents -> world/netem), netem's links, the belief snapshots
-and the real-time messages are defined here; the radio envelope and its bundles in ``core/envelope.py``, the control
-messages and the hosts' lobby in ``core/lobby.py``, and re-exported here. Radio payloads are not defined here: each
-protocol owns its own (``agents/protocol.py`` for poses and map deltas, each allocator's module for its messages),
-and netem routes envelopes without decoding them. Encode with ``msg.encode()``; decode with
+The barrier messages (world -> robots, netem -> robots, robots -> world/netem), netem's links, the belief snapshots
+and the real-time messages are defined here; the radio envelope and its bundles in ``core/envelope.py``, the
+control messages and the hosts' lobby in ``core/control_messages.py``, and re-exported here. Radio payloads are
+not defined here: each protocol owns its own (``agents/protocol.py`` for poses and map deltas, each allocator's
+module for its messages), and netem routes envelopes without decoding them. Encode with ``msg.encode()``; decode with
 :func:`fleet_emu.core.codec.decode`.
 """
 
@@ -28,6 +28,19 @@ from fleet_emu.core.codec import (
     peek_tick,
     typed_decoder,
 )
+from fleet_emu.core.control_messages import (
+    HOST_EVENTS,
+    MAX_REALTIME_HZ,
+    BaseReport,
+    Failed,
+    Hello,
+    HostAssign,
+    HostStatus,
+    Ready,
+    RobotReport,
+    Stop,
+    ready,
+)
 from fleet_emu.core.envelope import (
     BULK_KINDS,
     MAX_PAYLOAD_BYTES,
@@ -42,19 +55,6 @@ from fleet_emu.core.envelope import (
     seal,
 )
 from fleet_emu.core.grid import MOVES, STAY, Cell
-from fleet_emu.core.lobby import (
-    HOST_EVENTS,
-    MAX_REALTIME_HZ,
-    AgentReport,
-    BaseReport,
-    Failed,
-    Hello,
-    HostAssign,
-    HostStatus,
-    Ready,
-    Stop,
-    ready,
-)
 from fleet_emu.core.version import SCHEMA_VERSION
 
 __all__ = [
@@ -62,8 +62,8 @@ __all__ = [
     "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope", "compact", "expand",
     "BULK_KINDS", "MAX_TTL", "MAX_PAYLOAD_BYTES", "check_cell", "check_cells", "check_robot_cells", "TxBundle",
     "RxBundle", "Links",
-    "Hello", "Ready", "ready", "Failed", "Stop", "AgentReport", "BaseReport", "BeliefSnapshot", "HostAssign",
-    "HostStatus", "HOST_EVENTS", "MAX_REALTIME_HZ", "WorldClock", "AgentTiming", "STALE",
+    "Hello", "Ready", "ready", "Failed", "Stop", "RobotReport", "BaseReport", "BeliefSnapshot", "HostAssign",
+    "HostStatus", "HOST_EVENTS", "MAX_REALTIME_HZ", "WorldClock", "RobotTiming", "STALE",
 ]
 
 VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
@@ -325,7 +325,7 @@ class WorldClock(Message):
 
 
 @dataclasses.dataclass(frozen=True)
-class AgentTiming(Message):
+class RobotTiming(Message):
     """A robot's real-time summary when it stops (robot/<robot>/timing), sent just before its report and never
     in lockstep: ``decisions`` made, ``plan_steps`` (ticks it stepped along its last plan while a decision
     ran), ``waits`` (ticks a decision ran and it had no plan yet: it stood still), and percentiles of the wall

@@ -22,8 +22,8 @@ from fleet_emu.core.bus import Inbox, Publisher, client_config, publisher
 from fleet_emu.core.codec import Context, DecodeError, Message, decode
 from fleet_emu.core.errors import FleetError
 from fleet_emu.core.grid import MapData
-from fleet_emu.core.heap import keep_heap
 from fleet_emu.core.keys import Keys
+from fleet_emu.core.malloc_tuning import keep_heap
 from fleet_emu.core.messages import Hello, ready
 from fleet_emu.core.scenario import Scenario
 
@@ -32,8 +32,9 @@ M = TypeVar("M", bound=Message)
 log = logging.getLogger("fleet")
 
 
-class NodeBase:
-    """A node of one run: its id, its keys, a drop counter and the answer to the world's hello."""
+class NodeShell:
+    """The shell every node class extends (world, netem, robot, base station): a node of one run, its id, its
+    keys, a drop counter and the answer to the world's hello; the I/O around a node's functional core."""
 
     role: str = "node"
 
@@ -45,7 +46,7 @@ class NodeBase:
         self.nonce: bytes | None = None  # the run's nonce (:meth:`bind`): on every put, checked on every message
         self._inboxes: list[Inbox] = []
 
-    def bind(self, nonce: bytes | None) -> NodeBase:
+    def bind(self, nonce: bytes | None) -> NodeShell:
         """Bind the node to its run's nonce (the launcher's ``--nonce``): its messages carry it, and a message
         without it is dropped and counted (:attr:`foreign`). Without a nonce nothing is checked."""
         self.nonce = nonce
@@ -220,7 +221,7 @@ def node_main(prog: str, build: Callable[[argparse.Namespace], Any], argv: list[
         extra(parser)
     args = parse_child(parser, argv, map_file)
     setup_logging()
-    keep_heap()  # the same map-sized arrays every tick: no page faults for them (core/heap.py)
+    keep_heap()  # the same map-sized arrays every tick: no page faults for them (core/malloc_tuning.py)
     try:
         node = build(args).bind(args.nonce)
     except FleetError as exc:  # arguments that do not fit together (the launcher's, or a hand-made run's)

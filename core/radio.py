@@ -56,16 +56,16 @@ class RadioConfig:
                                help="signal a wall-model link needs (P >= threshold)")
     latency: int = setting(1, unit="ticks", low=1, high=10**6, metavar="TICKS",
                            help="ticks from the last byte on the air to delivery")
-    bandwidth: float = setting(0.0, unit="kbit/s", low=0.0, high=1e9, metavar="KBITPS",
+    bandwidth: float = setting(0.0, unit="kbit/s", low=0.0, high=1e9, metavar="KBITPS", quiet=True,
                                help="capacity of one shared medium (robots that hear each other); 0: unlimited")
-    queue_bytes: int = setting(1_000_000, unit="bytes", low=1, high=10**12, metavar="BYTES",
+    queue_bytes: int = setting(1_000_000, unit="bytes", low=1, high=10**12, metavar="BYTES", quiet=True,
                                help="each sender's queue on a limited radio (drop-tail)")
-    jitter: int = setting(0, unit="ticks", low=0, high=10**6, metavar="TICKS",
+    jitter: int = setting(0, unit="ticks", low=0, high=10**6, metavar="TICKS", quiet=True,
                           help="most ticks (seeded, uniform) added to the latency of each message")
-    shadowing_db: float = setting(0.0, unit="dB", low=0.0, high=100.0, metavar="DB",
+    shadowing_db: float = setting(0.0, unit="dB", low=0.0, high=100.0, metavar="DB", quiet=True,
                                   help="standard deviation of the correlated shadowing added to every link's "
                                        "signal (core/shadowing.py); 0: off")
-    shadowing_m: float = setting(1.0, unit="m", low=0.0, high=1e6, low_open=True, metavar="M",
+    shadowing_m: float = setting(1.0, unit="m", low=0.0, high=1e6, low_open=True, metavar="M", quiet=True,
                                  help="the shadowing's decorrelation distance (its correlation is 1/e there)")
 
     @property

@@ -6,7 +6,7 @@ Every value is checked for type, finiteness and range before any process starts;
 
 ``[hosts]`` (:class:`HostPlan`, docs/guides/hosts.md) says where the robots run, not what they do:
 a lockstep run gives the same result wherever its robots are, so a run without it keeps its ``scenario.json``
-as before, and ``launch.result.deterministic`` leaves it out.
+as before, and ``recording.result.deterministic`` leaves it out.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from typing import Any
 
 from fleet_emu.core.errors import ConfigError, MapError
 from fleet_emu.core.faults import Fault, check_faults, parse_faults
-from fleet_emu.core.fields import check_all, merge
+from fleet_emu.core.fields import Setting, check_all, merge, setting, settings
 from fleet_emu.core.files import read_regular
 from fleet_emu.core.keys import HOST_ID
 from fleet_emu.core.limits import MAX_FILE_BYTES, MAX_NAME, check_size, check_text, check_values
@@ -28,7 +28,7 @@ from fleet_emu.core.messages import MAX_TTL
 from fleet_emu.core.radio import RadioConfig, radio_settings
 from fleet_emu.core.radio_profile import radio_of_profile
 from fleet_emu.core.scenario_checks import check_names
-from fleet_emu.core.spelling import file_spelling, option
+from fleet_emu.core.setting_names import file_spelling, option
 
 MAX_ROBOTS = 256
 MAX_HOSTS = 64
@@ -39,14 +39,39 @@ BASE_PLANNERS = frozenset({"mhm"})
 DEFAULT_STALL = 30
 #: Seconds of simulated time per tick: one 0.5 m cell a second is 0.5 m/s, a typical indoor ground robot.
 DEFAULT_TICK_S = 1.0
-#: The radio's airtime and shadowing fields (``RadioConfig``), left out of ``scenario.json`` at their defaults
-#: (unlimited, no shadowing).
-_RADIO_QUIET: dict[str, float] = {"bandwidth": 0.0, "queue_bytes": 1_000_000, "jitter": 0, "shadowing_db": 0.0,
-                                   "shadowing_m": 1.0}
 BASE_PLANNER_STALL = 200  # a base planner's runs: robots hold while the base waits (Scenario.__post_init__)
 #: Where the shipped scenarios are (``Scenario.load("default")``): ``launch/scenarios`` of the package, found by
 #: path, not imported (core imports nothing above it).
 SHIPPED_SCENARIOS = Path(__file__).resolve().parents[1] / "launch" / "scenarios"
+
+
+def _cell(value: Any, low: float = -math.inf) -> bool:
+    """Whether ``value`` is a cell: two whole numbers (row, column), each at least ``low``."""
+    return isinstance(value, tuple) and len(value) == 2 and all(
+        isinstance(v, int) and not isinstance(v, bool) and v >= low for v in value)
+
+
+def _start_ok(value: Any) -> bool:
+    """A start: a cell, or ``"random"`` (None, the map's own, is the field's ``optional``)."""
+    return value == "random" or _cell(value)
+
+
+def _base_ok(value: Any) -> bool:
+    """A base station: true, false, or a cell on the map's side of the origin."""
+    return isinstance(value, bool) or _cell(value, 0)
+
+
+def start_arg(text: str) -> tuple[int, int] | str:
+    """``--start``'s reader: ``ROW,COL`` as a cell, or ``random``."""
+    if text == "random":
+        return text
+    try:
+        row, col = (int(v) for v in text.split(","))
+    except ValueError:
+        import argparse
+
+        raise argparse.ArgumentTypeError(f"expected ROW,COL or 'random', got {text!r}") from None
+    return (row, col)
 
 
 class _DefaultCellSize(float):
@@ -66,7 +91,7 @@ class HostPlan:
     count`` does. ``names``: which hosts (``hostK`` logins; default the first ``count`` that come, by number);
     ``robots``: how many robots each of them runs, in that order, the rest running here (default: robots dealt
     round-robin over this machine and the hosts). Placement is dealt one robot at a time round the machines that
-    still have room (``launch.hosts.placement``)."""
+    still have room (``launch.host_client.placement``)."""
 
     count: int
     names: tuple[str, ...] = ()
@@ -120,30 +145,63 @@ class HostPlan:
 @dataclasses.dataclass(frozen=True)
 class Scenario:
     """A run's full definition; :meth:`to_dict` is what ``scenario.json``, the recording's metadata and
-    ``result.json`` carry, and :meth:`from_dict` reads it back."""
+    ``result.json`` carry, and :meth:`from_dict` reads it back.
 
-    name: str = "default"
-    map: str = "office"
-    cell_size: float = DEFAULT_CELL_SIZE
-    robots: int = 4
-    sensor_range: float = 4.0
-    start: tuple[int, int] | str | None = None  # a cell, "random" (drawn from the seed), or the map's own
-    allocator: dict[str, Any] = dataclasses.field(default_factory=lambda: {"type": "minpos"})
-    radio: RadioConfig = dataclasses.field(default_factory=RadioConfig)
-    seed: int = 0
-    max_ticks: int = 2000
-    tick_s: float = DEFAULT_TICK_S  # seconds of simulated time per tick: a robot moves one cell per tick
-    target_coverage: float = 0.99
-    stall_ticks: int = DEFAULT_STALL  # ticks without a move nor a new cell sensed that end the run
-    coverage_stall_ticks: int = 500  # ticks without coverage growth that end the run as a stall
-    barrier_timeout: float = 10.0
-    belief_every: int = 10
-    base: bool | tuple[int, int] = False  # a base station: False (none), True (at the start cell) or a cell
-    relay: str = "none"  # multi-hop relaying in the robots (agents/relay.py): none, flood or tree
-    relay_ttl: int = 0  # hops left after the first on the messages a robot makes (0: one hop)
-    map_sync: bool = True  # repair lost map deltas on a lossy radio (agents/mapsync.py); False: a lost one is lost
-    hosts: HostPlan | None = None  # robots on other machines (``fleet host``); None: all here
-    faults: tuple[Fault, ...] = ()  # robot failures at given ticks (``[[faults]]``, core/faults.py)
+    Every field is declared once with :func:`~fleet_emu.core.fields.setting` (type, unit, range, flag, help,
+    its key in a scenario file): that declaration makes it a ``fleet run`` flag, a key of a scenario file and of
+    a study's ``[grid]`` and ``[fleet]``, an :meth:`override` keyword, and checks it (:meth:`validate`) the same
+    way in all of them (docs/guides/scenarios.md, "Every key")."""
+
+    name: str = setting("default", low=1, high=MAX_NAME, metavar="NAME",
+                        help="the run's name, in result.json and the tables")
+    map: str = setting("office", low=1, section="map", key="name", metavar="MAP",
+                       help="a built-in or registry map's name (see `fleet maps`), or a ROS map YAML or a PNG/PGM "
+                            "path (a bare bitmap needs --cell-size: one pixel per cell)")
+    cell_size: float = setting(DEFAULT_CELL_SIZE, unit="m", low=1e-3, high=1e3, section="map", metavar="M",
+                               help="metres per cell (one cell = one robot)")
+    robots: int = setting(4, low=1, high=MAX_ROBOTS, section="fleet", metavar="N", help="robots in the fleet")
+    sensor_range: float = setting(4.0, unit="m", low=0.0, low_open=True, section="fleet", metavar="M",
+                                  help="sensor range (360 degrees), at least one cell")
+    start: tuple[int, int] | str | None = setting(
+        None, optional=True, unset="the map's own start", shape=_start_ok, accepts="ROW,COL or 'random'",
+        parse=start_arg, section="fleet", metavar="ROW,COL",
+        help="the fleet's start cell ('random': drawn from the seed)")
+    allocator: dict[str, Any] = setting(factory=lambda: {"type": "minpos"}, table=True, section="allocator",
+                                        key="type", help="the allocator and its parameters (`fleet allocators`)")
+    radio: RadioConfig = setting(factory=RadioConfig, table=True, section="radio",
+                                 help="the radio (core/radio.py: a setting each)")
+    seed: int = setting(0, low=0, high=2**63 - 1, help="the run's seed: a seed reproduces a run exactly")
+    max_ticks: int = setting(2000, low=1, high=10**9, metavar="N", help="ticks after which the run ends unfinished")
+    tick_s: float = setting(DEFAULT_TICK_S, unit="s", low=0.0, high=3600.0, low_open=True, metavar="S", quiet=True,
+                            help="simulated time per tick: a robot moves one cell per tick, and the radio's "
+                                 "--bandwidth is per second of it")
+    target_coverage: float = setting(0.99, low=0.0, high=1.0, low_open=True, metavar="F",
+                                     help="fraction of the free cells at which the run is done")
+    stall_ticks: int = setting(DEFAULT_STALL, low=1, high=10**9, metavar="N",
+                               help="ticks without a move nor a new cell sensed that end the run as a stall "
+                                    f"({BASE_PLANNER_STALL} for a base-station planner left at the default)")
+    coverage_stall_ticks: int = setting(500, low=1, high=10**9, metavar="N",
+                                        help="the least belief stall window: ticks in which no robot's own belief "
+                                             "gained a known cell that end the run as a stall")
+    barrier_timeout: float = setting(10.0, unit="s", low=0.0, high=86400.0, low_open=True, metavar="S",
+                                     help="seconds a robot may stay silent (after the tick's last answer) before "
+                                          "it is failed")
+    belief_every: int = setting(10, low=0, high=10**9, metavar="K",
+                                help="ticks between the robots' belief snapshots in the recording (0: none)")
+    base: bool | tuple[int, int] = setting(False, shape=_base_ok, accepts="true, false or a cell [ROW, COL]",
+                                           section="fleet", cli=False, quiet=True,
+                                           help="a base station: false (none), true (at the start cell) or a cell")
+    relay: str = setting("none", choices=RELAY_POLICIES, quiet=True,
+                         help="multi-hop relaying in the robots (agents/relay.py; flood: every robot forwards)")
+    relay_ttl: int = setting(0, low=0, high=MAX_TTL, metavar="K", quiet=True,
+                             help="hops left after the first on the messages a robot makes (0: one hop)")
+    map_sync: bool = setting(True, quiet=True,
+                             help="repair map deltas lost on a lossy radio (agents/mapsync.py); off: a lost delta is "
+                                  "lost (docs/guides/radio.md#map-sync)")
+    hosts: HostPlan | None = setting(None, optional=True, table=True, section="hosts", cli=False, quiet=True,
+                                     help="robots on other machines (`fleet host`); none: all here")
+    faults: tuple[Fault, ...] = setting((), table=True, cli=False, quiet=True,
+                                        help="robot failures at given ticks ([[faults]], core/faults.py)")
 
     def __post_init__(self) -> None:
         """A base-station planner's orders must cross several hops: with ``relay = "none"`` (the default) it
@@ -190,9 +248,9 @@ class Scenario:
                     rel = p.parent / str(name)
                     is_path = isinstance(name, str) and ("/" in name or "." in name) and rel.exists()
                     flat["map"] = str(rel) if is_path else name
-                _move(m, flat, ("cell_size",), "map")
+                _move(m, flat, _IN["map"], "map")
             elif k == "fleet":
-                _move(dict(v), flat, ("robots", "sensor_range", "start", "base"), "fleet")
+                _move(dict(v), flat, _IN["fleet"], "fleet")
             elif k == "radio":  # a measured profile (core/radio_profile.py): its path relative to the file
                 flat[k] = radio_of_profile(dict(v), p.parent)
             elif k in ("allocator", "hosts"):
@@ -257,30 +315,21 @@ class Scenario:
             raise ConfigError(f"{where}: a value of the wrong type ({exc})") from None
 
     def to_dict(self) -> dict[str, Any]:
+        """The scenario as ``scenario.json`` holds it: the fields declared ``quiet`` (a base station, relaying,
+        hosts, faults, simulated time, map sync, the radio's airtime and shadowing) left out at their defaults,
+        so that runs without them keep the scenario.json they always had."""
         d = dataclasses.asdict(self)
+        for config, out, specs in ((self, d, scenario_settings()), (self.radio, d["radio"], radio_settings())):
+            for s in specs:
+                if s.quiet and getattr(config, s.name) == s.default:
+                    del out[s.name]
         d["start"] = list(self.start) if isinstance(self.start, tuple) else self.start
-        if self.base is False:  # absent when there is no base: runs without one keep their scenario.json
-            del d["base"]
-        else:
+        if "base" in d:
             d["base"] = list(self.base) if isinstance(self.base, tuple) else self.base
-        for k, default in (("relay", "none"), ("relay_ttl", 0)):  # absent at their defaults, as before relaying
-            if d[k] == default:
-                del d[k]
-        if self.tick_s == DEFAULT_TICK_S:  # absent at its default, as are the radio's airtime fields
-            del d["tick_s"]
-        if self.map_sync is True:  # absent at its default (on): runs keep their scenario.json
-            del d["map_sync"]
-        for name, quiet in _RADIO_QUIET.items():
-            if d["radio"][name] == quiet:
-                del d["radio"][name]
-        if self.hosts is None:  # absent without hosts: runs on one machine keep their scenario.json
-            del d["hosts"]
-        else:
+        if self.hosts is not None:
             d["hosts"] = self.hosts.to_dict()
-        if self.faults:  # absent without faults: runs without them keep their scenario.json
+        if "faults" in d:
             d["faults"] = [f.to_dict() for f in self.faults]
-        else:
-            del d["faults"]
         return d
 
     def override(self, **flags: Any) -> Scenario:
@@ -350,45 +399,16 @@ class Scenario:
     # --- checks -------------------------------------------------------------------------------------------
 
     def validate(self) -> Scenario:
-        """Raise ConfigError on the first bad value; return self."""
-        _text("name", self.name)
-        if len(self.name) > MAX_NAME:
-            raise ConfigError(f"name is {len(self.name)} characters long, more than the {MAX_NAME} allowed")
-        _text(option("map"), self.map)
+        """Raise ConfigError on the first bad value; return self. Each field is checked against its declaration
+        (:func:`scenario_settings`); what is left here is what relates fields or checks a table."""
+        check_all(self)
         check_values([self.map, self.allocator, self.start], "the scenario")
-        _integer(option("robots"), self.robots, 1, MAX_ROBOTS)
-        _integer(option("seed"), self.seed, 0, 2**63 - 1)
-        _integer(option("max_ticks"), self.max_ticks, 1, 10**9)
-        _integer("stall_ticks", self.stall_ticks, 1, 10**9)
-        _integer("coverage_stall_ticks", self.coverage_stall_ticks, 1, 10**9)
-        _integer("belief_every", self.belief_every, 0, 10**9)
-        _number(option("cell_size"), self.cell_size, 1e-3, 1e3)
-        _number(option("sensor_range"), self.sensor_range, 0.0, math.inf, low_open=True)  # the world clamps it
-        _number(option("target_coverage"), self.target_coverage, 0.0, 1.0, low_open=True)
-        _number("barrier_timeout", self.barrier_timeout, 0.0, 86400.0, low_open=True)
-        _number("tick_s", self.tick_s, 0.0, 3600.0, low_open=True)
         check_all(self.radio)
         if self.sensor_range / self.cell_size < 1:
             raise ConfigError(f"{option('sensor_range')} {self.sensor_range} m is less than one cell "
                               f"({self.cell_size} m)")
-        start_ok = self.start is None or self.start == "random" or (
-            isinstance(self.start, tuple) and len(self.start) == 2
-            and all(isinstance(v, int) and not isinstance(v, bool) for v in self.start))
-        if not start_ok:
-            raise ConfigError(f"{option('start')} must be ROW,COL or 'random' (got {self.start!r})")
-        base_ok = isinstance(self.base, bool) or (
-            isinstance(self.base, tuple) and len(self.base) == 2
-            and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in self.base))
-        if not base_ok:
-            raise ConfigError(f"base must be true, false or a cell [ROW, COL] (--base-cell ROW,COL; got {self.base!r})")
         if not isinstance(self.allocator, dict) or not isinstance(self.allocator.get("type"), str):
             raise ConfigError("allocator needs a 'type' name")
-        if self.relay not in RELAY_POLICIES:
-            raise ConfigError(f"{option('relay')} must be one of {', '.join(RELAY_POLICIES)} (got {self.relay!r})")
-        _integer(option("relay_ttl"), self.relay_ttl, 0, MAX_TTL)
-        if not isinstance(self.map_sync, bool):
-            raise ConfigError(f"{option('map_sync', flag='--map-sync / --no-map-sync')} must be true or false "
-                              f"(got {self.map_sync!r})")
         if self.plans_at_base and not self.has_base:
             spelt = option("base")
             how = ("--base (or --base-cell ROW,COL; in a scenario [fleet] base = true)" if spelt.startswith("--")
@@ -404,20 +424,27 @@ class Scenario:
         return self
 
 
+def scenario_settings() -> tuple[Setting, ...]:
+    """The declaration of every :class:`Scenario` field, in order: its flag, its key in a scenario file, its
+    check (:mod:`fleet_emu.core.fields`)."""
+    return settings(Scenario)
+
+
 def _named(exc: ConfigError | MapError, where: str) -> ConfigError | MapError:
     """``exc`` with ``where`` (the file) in front, once; a MapError stays one."""
     text = str(exc)
     return exc if text.startswith(where) else type(exc)(f"{where}: {text}")
 
 
-#: A scenario TOML's key of each setting, as :func:`fleet_emu.core.spelling.option` names it in an error.
-_TOML_KEYS = {"map": "[map] name", "cell_size": "[map] cell_size", "allocator": "[allocator] type",
-              **{k: f"[fleet] {k}" for k in ("robots", "sensor_range", "start", "base")},
+#: A scenario TOML's key of each setting, as :func:`fleet_emu.core.setting_names.option` names it in an error.
+_TOML_KEYS = {**{s.name: s.file_key for s in scenario_settings() if s.section and (s.key or not s.table)},
               **{s.name: f"[radio] {s.name}" for s in radio_settings()}}
 
-_TOP = {"name", "base", "seed", "max_ticks", "tick_s", "target_coverage", "stall_ticks", "coverage_stall_ticks",
-        "barrier_timeout", "belief_every", "relay", "relay_ttl", "map_sync", "faults"}
-_SECTIONS = ("map", "fleet", "radio", "allocator", "hosts")
+#: The keys a scenario file writes at its top level (``base`` there too, as in ``[fleet]``) and in each section.
+_TOP = {s.name for s in scenario_settings() if not s.section} | {"base"}
+_SECTIONS = tuple(dict.fromkeys(s.section for s in scenario_settings() if s.section))
+_IN = {section: tuple(s.name for s in scenario_settings() if s.section == section and not s.key)
+       for section in ("map", "fleet")}
 
 
 def _allocator(value: Any, current: dict[str, Any]) -> dict[str, Any]:
@@ -459,22 +486,8 @@ def _move(section: dict[str, Any], flat: dict[str, Any], keys: tuple[str, ...], 
         raise ConfigError(f"unknown key(s) in [{name}]: {', '.join(sorted(section))}")
 
 
-def _text(field: str, value: Any) -> None:
-    if not isinstance(value, str) or not value:
-        raise ConfigError(f"{field} must be a non-empty string (got {value!r})")
-
-
 def _integer(field: str, value: Any, low: int, high: int) -> None:
     if not isinstance(value, int) or isinstance(value, bool):
         raise ConfigError(f"{field} must be a whole number from {low} to {high} (got {value!r})")
     if not low <= value <= high:
         raise ConfigError(f"{field} must be from {low} to {high} (got {value})")
-
-
-def _number(field: str, value: Any, low: float, high: float, low_open: bool = False) -> None:
-    lo = "(" if low_open else "["
-    span = f"{'>' if low_open else '>='} {low:g}" if math.isinf(high) else f"within {lo}{low:g}, {high:g}]"
-    if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
-        raise ConfigError(f"{field} must be a finite number {span} (got {value!r})")
-    if not (low < value if low_open else low <= value) or value > high:
-        raise ConfigError(f"{field} must be {span} (got {value})")

@@ -37,7 +37,7 @@ __all__ = [
 _LAZY = {
     "Scenario": "fleet_emu.core.scenario",
     "RadioConfig": "fleet_emu.core.radio",
-    "Result": "fleet_emu.launch.result",
+    "Result": "fleet_emu.recording.result",
     "Fleet": "fleet_emu.launch.memory",
     "load_recording": "fleet_emu.recording",
     "Allocator": "fleet_emu.agents.allocators",
@@ -62,8 +62,8 @@ if TYPE_CHECKING:
     from fleet_emu.core.scenario import Scenario
     from fleet_emu.core.version import SCHEMA_VERSION, __version__
     from fleet_emu.launch.memory import Fleet
-    from fleet_emu.launch.result import Result
     from fleet_emu.recording import load_recording
+    from fleet_emu.recording.result import Result
 
 
 def __getattr__(name: str) -> Any:
@@ -104,36 +104,20 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
     ``fleet run --ros2`` (the ``ros2`` extra; docs/guides/ros2.md), and prints its one ``ros2: ...`` line on
     stderr, which a viewer needs.
     """
-    from fleet_emu.launch.checks import check_memory_engine, check_options
-    from fleet_emu.launch.runner import RunOptions, run_fleet
+    import dataclasses
+
+    from fleet_emu.launch.engines import start_run
+    from fleet_emu.launch.runner import RunOptions
 
     out_dir = Path(out) if out is not None else None
     if record and out_dir is None:
         from fleet_emu.core.errors import ConfigError
 
         raise ConfigError("record=True needs an output directory (out=...)")
-    if engine not in ("processes", "memory") or (engine == "memory" and (in_process or connect)):
-        from fleet_emu.core.errors import ConfigError
-
-        raise ConfigError(f"engine must be 'processes' or 'memory' (the latter without in_process or connect), "
-                          f"got {engine!r}")
-    if engine == "memory":
-        from fleet_emu.launch.memory import run_memory
-
-        bus = [("credentials", credentials), ("tls_ca", tls_ca), ("listen", listen), ("tls_cert", tls_cert),
-               ("tls_key", tls_key), ("host_timeout", host_timeout), ("hosts (the scenario's [hosts])", scenario.hosts),
-               ("ros2", ros2)]
-        check_memory_engine("the memory engine", [(name, value is not None) for name, value in bus],
-                            ("realtime_hz", realtime_hz is not None))
-        check_options(RunOptions(run_id=run_id))  # as `fleet run --engine memory`: a bad run id is one line
-        return run_memory(scenario, out_dir, record=out_dir is not None and record is not False, run_id=run_id,
-                          grid_every=grid_every, overwrite=overwrite)
     opts = RunOptions(out_dir=out_dir, in_process=in_process, record=out_dir is not None and record is not False,
                       connect=connect, run_id=run_id, grid_every=grid_every, realtime_hz=realtime_hz,
                       credentials=_path(credentials), tls_ca=_path(tls_ca), listen=listen,
                       tls_cert=_path(tls_cert), tls_key=_path(tls_key), overwrite=overwrite)
-    import dataclasses
-
     if host_timeout is not None:  # else RunOptions' own default
         opts = dataclasses.replace(opts, host_timeout=host_timeout)
     if ros2 is not None:
@@ -142,7 +126,7 @@ def run(scenario: Scenario, out: str | Path | None = None, *, record: bool | Non
 
         typestore()  # the ros2 extra is installed, or one line saying so
         opts = dataclasses.replace(opts, **Ros2Options.new(ros2, authenticated=connect is None).run_options())
-    return run_fleet(scenario, opts)
+    return start_run(scenario, engine, opts)
 
 
 def _path(value: str | Path | None) -> Path | None:

@@ -33,7 +33,7 @@ class MemoryModel:
     """PSS in MB of each process of a run; ``*_per_mcell`` grow with the map's cells (millions)."""
 
     # forked robot: 13 MB mean, 18 max at 80 robots, 512 x 512 maze (scale.py); 23-27 MB mean at 16-100 robots
-    # once it keeps its heap (core/heap.py, 2026-11-24), with agent_per_mcell's 6 MB of that map in it
+    # once it keeps its heap (core/malloc_tuning.py, 2026-11-24), with agent_per_mcell's 6 MB of that map in it
     agent_forked: float = 22.0
     agent_fresh: float = 90.0  # started afresh: 81 MB mean, 83 max at 32 robots (scale.py, FLEET_FORK_SERVER=0)
     agent_per_mcell: float = 24.0  # belief (int8), wavefront distances and frontier masks over the map
@@ -63,9 +63,9 @@ def estimate(robots: int, cells: int, engine: str = "processes", fork_server: bo
     mcells = cells / 1e6
     brain_map = model.agent_per_mcell * mcells
     if engine == "processes":
-        per_agent = (model.agent_forked if fork_server else model.agent_fresh) + brain_map
+        per_robot = (model.agent_forked if fork_server else model.agent_fresh) + brain_map
         parts = {
-            "agents": robots * per_agent,
+            "robots": robots * per_robot,
             "world": model.world + model.world_per_mcell * mcells,
             "netem": model.netem + model.netem_per_robot * robots,
             "launcher": model.launcher + model.launcher_per_robot * robots,
@@ -79,10 +79,10 @@ def estimate(robots: int, cells: int, engine: str = "processes", fork_server: bo
             parts["shared memory"] = model.shm_per_robot * robots
     else:
         parts = {"process": model.engine + model.world_per_mcell * mcells,
-                 "agents": robots * (model.brain_per_robot + model.brain_per_mcell * mcells)}
+                 "robots": robots * (model.brain_per_robot + model.brain_per_mcell * mcells)}
         if engine == "in-process":
             parts["process"] += model.launcher + model.netem
-            parts["agents"] += robots * (model.launcher_per_robot + model.netem_per_robot)
+            parts["robots"] += robots * (model.launcher_per_robot + model.netem_per_robot)
     return {**parts, "total": sum(parts.values())}
 
 

@@ -9,7 +9,7 @@ import contextlib
 import secrets
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import zenoh
 
@@ -23,9 +23,9 @@ from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import RUN_ID, robot_ids
 from fleet_emu.core.messages import MAX_REALTIME_HZ
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.core.spelling import option
+from fleet_emu.core.setting_names import option
 from fleet_emu.launch import budget
-from fleet_emu.launch.hosts import check_hosts, check_reliable, host_credentials, listen_endpoints
+from fleet_emu.launch.host_client import check_hosts, check_reliable, host_credentials, listen_endpoints
 from fleet_emu.launch.liveness import check_run_id_free
 from fleet_emu.world.build import base_cell, build_world
 from fleet_emu.world.maps import load_map, map_shape
@@ -164,14 +164,3 @@ def check_logins(connect: str | None, credentials: Path | None, tls_ca: Path | N
     """A users file and a CA certificate are an external router's (or the users file the hosts' logins)."""
     if connect is None and (tls_ca or (credentials and not hosts)):
         raise ConfigError("--credentials and --tls-ca go with --connect (the embedded router makes its own)")
-
-
-def check_memory_engine(engine: str, options: list[tuple[str, Any]], realtime: tuple[str, bool]) -> None:
-    """The memory engine (``engine`` names it as the caller's user knows it: ``--engine memory``, ``the memory
-    engine``) is lockstep only (``realtime``: the real-time option's name and whether it is set) and takes none
-    of ``options`` (name, value: a bus or process option, set when truthy)."""
-    if realtime[1]:
-        raise ConfigError(f"{realtime[0]} needs the processes engine: {engine} is lockstep only")
-    name = next((name for name, value in options if value), None)
-    if name is not None:
-        raise ConfigError(f"{engine} runs without Zenoh nor processes: it takes no {name}")

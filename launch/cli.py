@@ -13,14 +13,13 @@ half-imported module.
 from __future__ import annotations
 
 import argparse
-import functools
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from fleet_emu.core.errors import ConfigError, FleetError
-from fleet_emu.core.spelling import cli_spelling
+from fleet_emu.core.setting_names import cli_spelling
 from fleet_emu.core.version import __version__
 from fleet_emu.launch.maps_cli import add_parser as add_maps
 from fleet_emu.launch.maps_cli import cmd_maps
@@ -45,7 +44,7 @@ def _did_you_mean(parser: argparse.ArgumentParser, message: str) -> str:
     command's) or "invalid choice" (a command, an engine...) when a known name is close, else ""."""
     import re
 
-    from fleet_emu.core.spelling import near
+    from fleet_emu.core.setting_names import near
 
     choice = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
     if choice:
@@ -70,16 +69,6 @@ def _flags(parser: argparse.ArgumentParser) -> list[str]:
 def _fail(message: str, code: int = 2) -> NoReturn:
     print(f"fleet: error: {message}", file=sys.stderr)
     raise SystemExit(code)
-
-
-def _start(text: str) -> tuple[int, int] | str:
-    if text == "random":
-        return text
-    try:
-        row, col = (int(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected ROW,COL or 'random', got {text!r}") from None
-    return (row, col)
 
 
 def _hz(text: str) -> float:
@@ -123,86 +112,54 @@ def _add_run(sub: Any) -> None:
                    help="serve the run to Foxglove over WebSocket (host 127.0.0.1 unless given; port 0: one the OS "
                         "picks); prints `live: ws://HOST:PORT` on stderr once up")
     r.add_argument("--live-hz", type=_hz, metavar="HZ",
-                   help="with --live: at most HZ lockstep ticks per second, to watch a fast run (same result)")
+                   help="with --live: at most HZ lockstep ticks per second, to watch a fast run (same result; default: "
+                        "as fast as it goes)")
 
 
 def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
-    """``fleet run``'s scenario and its overrides."""
-    from fleet_emu.core.messages import MAX_TTL  # here, not at the top: the dispatcher's signal handler is in place
+    """``fleet run``'s scenario and its overrides: a flag per declared scenario and radio setting
+    (``launch/setting_flags.py``), and by hand those of the fields that hold a table or a choice of forms: the
+    allocator and its parameters, the base station, the faults (``--hosts`` is with the bus's flags)."""
+    # here, not at the top: the dispatcher's signal handler is in place
     from fleet_emu.core.node import cell_arg
-    from fleet_emu.core.scenario import MAX_ROBOTS
+    from fleet_emu.core.scenario import scenario_settings
+    from fleet_emu.launch.radio_flags import add_radio_flags
+    from fleet_emu.launch.setting_flags import add_setting_flags
+
     r.add_argument("scenario_file", nargs="?", type=Path, metavar="SCENARIO",
                    help="a scenario TOML or a run's scenario.json, as --scenario")
     r.add_argument("--scenario", type=Path, help="a scenario TOML, a run's scenario.json, or a shipped scenario's name "
-                                                 "(default, connectivity)")
-    r.add_argument("--map", help="a built-in or registry map's name (see `fleet maps`), or a ROS map YAML or a "
-                                 "PNG/PGM path (a bare bitmap needs --cell-size: one pixel per cell)"
-                                 + _default("map"))
-    r.add_argument("--robots", type=int, metavar="N", help=f"robots in the fleet, from 1 to {MAX_ROBOTS}"
-                                                           + _default("robots"))
-    r.add_argument("--allocator", help="allocator name (see `fleet allocators`)" + _default("allocator"))
-    r.add_argument("--param", action="append", metavar="NAME=VALUE",
-                   help="an allocator parameter (repeatable; see `fleet allocators`), e.g. --param path=policy.npz")
-    r.add_argument("--sensor-range", type=float, metavar="M",
-                   help="sensor range in metres, > 0 and at least one cell" + _default("sensor_range"))
-    r.add_argument("--cell-size", type=float, metavar="M", help="metres per cell, within [0.001, 1000] (default 0.5)")
-    r.add_argument("--seed", type=int, help="the run's seed, from 0 to 2^63-1: a seed reproduces a run exactly"
-                                            + _default("seed"))
-    r.add_argument("--start", type=_start, help="start cell ROW,COL, or 'random' (drawn from the seed) "
-                                                "(default: the map's own start)")
-    r.add_argument("--base", action="store_const", const=True, default=None,
-                   help="a base station (its own process) at the start cell; see --base-cell")
-    r.add_argument("--base-cell", type=cell_arg, metavar="ROW,COL", help="a base station at this cell")
-    r.add_argument("--relay", choices=("none", "flood", "tree"),
-                   help="multi-hop relaying in the robots: none (default), flood (every robot forwards) or tree")
-    r.add_argument("--relay-ttl", type=int, metavar="K",
-                   help=f"hops left after the first on the messages a robot makes, from 0 to {MAX_TTL} "
-                        "(default 0: one hop)")
-    r.add_argument("--max-ticks", type=int, metavar="N",
-                   help="ticks after which the run ends unfinished, from 1 to 10^9" + _default("max_ticks"))
-    r.add_argument("--target-coverage", type=float, metavar="F",
-                   help="fraction of the free cells at which the run is done, within (0, 1]"
-                        + _default("target_coverage"))
-    r.add_argument("--tick-s", type=float, metavar="S",
-                   help="seconds of simulated time per tick, within (0, 3600]: a robot moves one cell per tick, and "
-                        "the radio's --bandwidth is per second of it (default 1)")
-    r.add_argument("--crash", action="append", metavar="ROBOT@TICK",
-                   help="robot ROBOT (r1, or 1) crashes at tick TICK: it leaves the run and its body stays where it "
-                        "stood (repeatable; replaces the scenario's [[faults]]; docs/guides/faults.md)")
-    r.add_argument("--map-sync", action=argparse.BooleanOptionalAction, default=None,
-                   help="repair map deltas lost on a lossy radio (the default); --no-map-sync: a lost delta is lost "
-                        "(docs/guides/radio.md#map-sync)")
-    from fleet_emu.launch.radio_flags import add_radio_flags
-
+                                                 "(default, connectivity; default: default)")
+    group = r.add_argument_group("scenario", "the scenario's settings, one flag per field (docs/reference/scenario.md)")
+    add_setting_flags(group, scenario_settings())
+    group.add_argument("--allocator", help="allocator name (see `fleet allocators`) (default minpos, or the "
+                                           "scenario's)")
+    group.add_argument("--param", action="append", metavar="NAME=VALUE",
+                       help="an allocator parameter (repeatable; see `fleet allocators` for each one's range and "
+                            "default), e.g. --param path=policy.npz")
+    group.add_argument("--base", action="store_const", const=True, default=None,
+                       help="a base station (its own process) at the start cell; see --base-cell (default: none, or "
+                            "the scenario's)")
+    group.add_argument("--base-cell", type=cell_arg, metavar="ROW,COL",
+                       help="a base station at this cell (default: none, or the scenario's)")
+    group.add_argument("--crash", action="append", metavar="ROBOT@TICK",
+                       help="robot ROBOT (r1, or 1) crashes at tick TICK: it leaves the run and its body stays where "
+                            "it stood (repeatable; replaces the scenario's [[faults]]; docs/guides/faults.md; "
+                            "default: none, or the scenario's)")
     add_radio_flags(r)
-
-
-@functools.cache
-def default_values() -> dict[str, Any]:
-    """The shipped default scenario's values that the flags' help names (``map``, ``robots``, ``allocator``...),
-    read once from its TOML, not built: building it checks its allocator and map, which loads them (0.7 s), and
-    every ``fleet`` command builds the parser (tests/launch/test_cli_help.py checks them against the built one)."""
-    import tomllib
-
-    raw = tomllib.loads(DEFAULT_SCENARIO.read_text())
-    return {**{k: v for k, v in raw.items() if not isinstance(v, dict)}, **raw.get("fleet", {}),
-            "map": raw["map"]["name"], "allocator": raw["allocator"]["type"]}
-
-
-def _default(field: str) -> str:
-    """`` (default: the scenario's; X in the default one)``, X the default scenario's value of ``field``."""
-    return f" (default: the scenario's; {default_values()[field]} in the default one)"
 
 
 def _add_engine_flags(r: argparse.ArgumentParser) -> None:
     """``fleet run``'s output, engine and process options."""
+    from fleet_emu.launch.engines import ENGINES
+
     r.add_argument("--out", type=Path, help="output directory (default runs/<run id>); one that holds a run is "
                                             "refused unless --overwrite, one another run is writing always")
     r.add_argument("--overwrite", action="store_true",
                    help="--out holds a run: remove its files (result, recording, logs, plots) before starting")
-    r.add_argument("--engine", choices=("processes", "memory"), default="processes",
+    r.add_argument("--engine", choices=ENGINES, default="processes",
                    help="processes: one OS process per node over Zenoh; memory: the same objects stepped in this "
-                        "process, no Zenoh (same result for a seed)")
+                        "process, no Zenoh (same result for a seed; default: processes)")
     r.add_argument("--in-process", action="store_true", help="all nodes in this process (one session each)")
     r.add_argument("--realtime", type=_hz, metavar="HZ",
                    help="real time: the world ticks HZ times a second on the wall clock, whether or not every robot "
@@ -298,23 +255,20 @@ def _add_report(sub: Any) -> None:
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
-    from fleet_emu.core.scenario import Scenario
-
-    given = getattr(args, "scenario_file", None)
-    if given is not None and args.scenario is not None:
-        raise ConfigError(f"two scenarios given ({given} and --scenario {args.scenario}): give one")
-    base = Scenario.load(given or args.scenario or DEFAULT_SCENARIO)
+    """The scenario ``fleet run`` was given (a file, else the default one) with its flags on top."""
+    from fleet_emu.core.scenario import Scenario, scenario_settings
     from fleet_emu.launch.radio_flags import radio_overrides
+    from fleet_emu.launch.setting_flags import given
 
+    path = getattr(args, "scenario_file", None)
+    if path is not None and args.scenario is not None:
+        raise ConfigError(f"two scenarios given ({path} and --scenario {args.scenario}): give one")
+    base = Scenario.load(path or args.scenario or DEFAULT_SCENARIO)
     return base.override(
-        map=args.map, robots=args.robots, allocator=_allocator_arg(base, args.allocator, getattr(args, "param", None)),
-        sensor_range=args.sensor_range,
-        cell_size=args.cell_size, seed=args.seed, start=args.start, max_ticks=args.max_ticks,
-        target_coverage=args.target_coverage, tick_s=getattr(args, "tick_s", None), **radio_overrides(args),
-        base=args.base_cell if args.base_cell is not None else args.base,
-        relay=getattr(args, "relay", None), relay_ttl=getattr(args, "relay_ttl", None),
-        map_sync=getattr(args, "map_sync", None), hosts=getattr(args, "hosts", None),
-        faults=_crash_args(getattr(args, "crash", None)))
+        **given(args, scenario_settings()), **radio_overrides(args),
+        allocator=_allocator_arg(base, getattr(args, "allocator", None), getattr(args, "param", None)),
+        base=args.base_cell if getattr(args, "base_cell", None) is not None else getattr(args, "base", None),
+        hosts=getattr(args, "hosts", None), faults=_crash_args(getattr(args, "crash", None)))
 
 
 def _crash_args(given: list[str] | None) -> list[dict[str, Any]] | None:
@@ -359,57 +313,41 @@ def param_value(text: str) -> bool | int | float | str:
 
 
 def cmd_run(args: argparse.Namespace, interrupts: Interrupts) -> int:
+    import dataclasses
+
     from rich.console import Console
 
-    from fleet_emu.launch.checks import check_logins, check_memory_engine, check_options, new_run_id
-    from fleet_emu.launch.progress import Progress, summary_table
-    from fleet_emu.launch.runner import RunOptions, run_fleet
+    from fleet_emu.launch.checks import new_run_id
+    from fleet_emu.launch.engines import check_engine, start_run
+    from fleet_emu.launch.live import live_options
+    from fleet_emu.launch.progress import Progress
+    from fleet_emu.launch.runner import RunOptions
 
     console = Console(stderr=True)
     scenario = scenario_from_args(args)
     run_id = args.run_id or new_run_id()
     out = args.out or Path("runs") / run_id
-    if args.grid_every is not None and args.grid_every < 1:
-        raise ConfigError(f"--grid-every must be at least 1 (got {args.grid_every})")
-    hosts = "--hosts" if args.hosts else "[hosts] (the scenario's; --hosts 0 runs every robot here)"
-    if args.engine == "memory":
-        check_memory_engine("--engine memory", [
-            ("--in-process", args.in_process), ("--connect", args.connect), (hosts, scenario.hosts),
-            ("--listen", args.listen), ("--tls-cert", args.tls_cert), ("--tls-key", args.tls_key),
-            ("--[no-]fork-server", args.fork_server is not None)], ("--realtime", args.realtime is not None))
-    check_logins(args.connect, args.credentials, args.tls_ca, scenario.hosts is not None)
-    from fleet_emu.launch.live import live_options
-
     live = live_options(args.live, args.live_hz, args.realtime is not None)
     # a layer above this package (the ROS 2 bridge) may add clients of the bus: fleet_emu/cli.py sets this
     companions = args.companions(args) if getattr(args, "companions", None) is not None else None
-    if companions is not None and args.engine == "memory":
-        raise ConfigError(f"{companions.flag} needs a bus: the processes engine (drop --engine memory)")
+    opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record, connect=args.connect,
+                      run_id=run_id, grid_every=args.grid_every, credentials=args.credentials, tls_ca=args.tls_ca,
+                      interrupts=interrupts, on_warning=_warn, fork_server=args.fork_server,
+                      on_note=None if args.quiet else _note, listen=args.listen, realtime_hz=args.realtime,
+                      tls_cert=args.tls_cert, tls_key=args.tls_key, overwrite=args.overwrite, live=live,
+                      **(companions.options if companions is not None else {}),
+                      **({"host_timeout": args.host_timeout} if args.host_timeout is not None else {}))
+    check_engine(scenario, args.engine, opts)  # before the progress bar shows
     with Progress(scenario, run_id, console, quiet=args.quiet) as progress:
-        if args.engine == "memory":
-            from fleet_emu.launch.memory import run_memory
-
-            check_options(RunOptions(run_id=run_id))
-            result = run_memory(scenario, out, record=not args.no_record, run_id=run_id, overwrite=args.overwrite,
-                                grid_every=args.grid_every, on_progress=progress.update, interrupts=interrupts,
-                                live=live)
-        else:
-            opts = RunOptions(out_dir=out, in_process=args.in_process, record=not args.no_record,
-                              connect=args.connect, run_id=run_id, grid_every=args.grid_every,
-                              on_progress=progress.update, credentials=args.credentials, tls_ca=args.tls_ca,
-                              interrupts=interrupts, on_warning=_warn, fork_server=args.fork_server,
-                              on_note=None if args.quiet else _note,
-                              listen=args.listen, realtime_hz=args.realtime, tls_cert=args.tls_cert,
-                              tls_key=args.tls_key, overwrite=args.overwrite, live=live,
-                              **(companions.options if companions is not None else {}),
-                              **({"host_timeout": args.host_timeout} if args.host_timeout is not None else {}))
-            result = run_fleet(scenario, opts)
+        result = start_run(scenario, args.engine, dataclasses.replace(opts, on_progress=progress.update))
     if interrupts.signum is not None:
         when = "" if result["reason"] == "interrupted" else f" after the run ended ({result['reason']})"
         print(f"fleet: interrupted by {interrupts.name}{when}; result.json and the recording are in {out}",
               file=sys.stderr)
         return interrupts.exit_code
     if not args.quiet:
+        from fleet_emu.recording.tables import summary_table
+
         console.print(summary_table(result, str(out)))
     else:
         print(out / "result.json")
@@ -438,7 +376,7 @@ def exit_code(result: Mapping[str, Any], out: Path) -> int:
     reached the target: a result that lost a robot is not the scenario that was asked for (a robot the scenario
     crashed, ``[[faults]]``, is what was asked for); 0 when the target coverage was reached; 3 when the run
     ended without it (tick limit, stall), with a line naming a failed robot whose body held the others off."""
-    from fleet_emu.launch.result import unexpected_failures
+    from fleet_emu.recording.result import unexpected_failures
 
     failed = unexpected_failures(result)
     if failed:
@@ -460,8 +398,8 @@ def cmd_allocators(_: argparse.Namespace) -> int:
         except ConfigError as exc:  # a broken plugin is listed with its error; the others still work
             print(f"{name:14s} {exc}")
             continue
-        params = [f"{p}=<scenario {cls.scenario_fields[p]}>" if p in cls.scenario_fields else f"{p}={spec.default!r}"
-                  for p, spec in cls.parameters.items()]
+        params = [(f"{p}=<scenario {cls.scenario_fields[p]}>" if p in cls.scenario_fields else f"{p}={spec.default!r}")
+                  + f" ({spec.span()})" for p, spec in cls.parameters.items()]
         source = "built-in" if cls.__module__.startswith("fleet_emu.") else f"plugin {cls.__module__}"
         print(f"{name:14s} {cls.summary() or '(no description)'} [{source}: {', '.join(params) or 'no parameters'}]")
     return 0
@@ -547,7 +485,7 @@ def serve(argv: list[str] | None, parser: Callable[[], argparse.ArgumentParser],
             elif command == "run":
                 code = _run_with_signals(args, interrupts)
             elif command == "host":
-                from fleet_emu.launch.host import cmd_host
+                from fleet_emu.launch.host_server import cmd_host
 
                 code = cmd_host(args, interrupts)
             else:

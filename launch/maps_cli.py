@@ -9,15 +9,11 @@ nothing in the cache (``world/fetch.py``); so do Ctrl-C (exit 130) and SIGTERM (
 from __future__ import annotations
 
 import argparse
-import contextlib
-import signal
 import sys
-import threading
-from collections.abc import Iterator
-from types import FrameType
 from typing import Any, TextIO
 
 from fleet_emu.core.errors import ConfigError
+from fleet_emu.launch.signals import sigterm_unwinds
 
 MIRROR_HELP = ("read the files from a mirror laid out as MIRROR/<map name>/<upstream file name>: a folder, or a base "
                "URL (http:// or https://); a machine's cache folder (`fleet maps` prints it) is such a mirror")
@@ -86,22 +82,3 @@ def fetch_maps(names: list[str], *, every: bool = False, mirror: str | None = No
         print(f"{entry.name}: {entry.source} {files}{via} {where} (sha256 checked); licence {entry.licence}",
               file=out)
     return 0
-
-
-@contextlib.contextmanager
-def sigterm_unwinds() -> Iterator[None]:
-    """SIGTERM ends a fetch as Ctrl-C does, by an exception (exit 143), so that the fetch removes what it
-    wrote; by default it would end the process on the spot. (On the main thread only: signals go there.)"""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def stop(_signum: int, _frame: FrameType | None) -> None:
-        print("fleet: terminated", file=sys.stderr)
-        raise SystemExit(143)
-
-    previous = signal.signal(signal.SIGTERM, stop)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)

@@ -27,7 +27,7 @@ from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.allocators.mhm.station import station_planner
 from fleet_emu.agents.base import BaseStation
 from fleet_emu.agents.brain import Brain, Percept, allocator_config, brain_config, radio_team
-from fleet_emu.agents.outputs import agent_report, base_report, base_tx, first_cpu_ms, robot_outputs
+from fleet_emu.agents.outputs import base_report, base_tx, first_cpu_ms, robot_outputs, robot_report
 from fleet_emu.core.errors import RunError
 from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
@@ -36,11 +36,11 @@ from fleet_emu.core.pace import Pacer
 from fleet_emu.core.rng import generator
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.live import LiveOptions, open_live
-from fleet_emu.launch.result import Result
-from fleet_emu.launch.signals import Interrupts
+from fleet_emu.launch.signals import Interrupts, signal_name
 from fleet_emu.netem.channel import make_channel, radio_tick
 from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.monitor import Monitor
+from fleet_emu.recording.result import Ending, Launcher, Result, build_result
 from fleet_emu.world.build import base_cell, build_world
 from fleet_emu.world.maps import BUILTIN_MAPS, load_map
 from fleet_emu.world.messages import hello, stop, tick_messages
@@ -120,7 +120,7 @@ class Fleet:
                        for r in self.possible_agents}
         self.monitor = Monitor(tuple(self.possible_agents), base=s.has_base, relay=s.relay != "none")
         self._world_seq = self._netem_seq = 0
-        self._first_cpu: dict[str, dict[str, float]] = {}  # each robot's first step's CPU (AgentReport)
+        self._first_cpu: dict[str, dict[str, float]] = {}  # each robot's first step's CPU (RobotReport)
         self._percepts: dict[str, Percept] = {}  # perceive()'s, for the next step to act on
         self._started = time.perf_counter()
         self.done = False
@@ -197,28 +197,29 @@ class Fleet:
 
     def run(self, seed: int | None = None, on_tick: Callable[[Monitor], None] | None = None) -> Result:
         """Reset and step to the end; the run's :class:`Result` (``result.json`` and the coverage curve)."""
+        self._play(seed, on_tick)
+        return self.result()
+
+    def _play(self, seed: int | None = None, on_tick: Callable[[Monitor], None] | None = None) -> None:
+        """Reset and step to the end, ``on_tick`` told after every tick."""
         self.reset(seed)
         while not self.done:
             self.step()
             if on_tick is not None:
                 on_tick(self.monitor)
-        return self.result()
 
-    def result(self) -> Result:
-        """``result.json`` of the run so far (the launcher's fold, as over Zenoh; ``pids`` are this process)."""
+    def result(self, ending: Ending | None = None, recording: Path | None = None, messages: int = 0,
+               signal: str | None = None) -> Result:
+        """``result.json`` of the run so far (the launcher's fold, as over Zenoh; ``pids`` are this process; no
+        bus, so nothing authenticated), ended as ``ending`` says (by itself when None), with its ``recording``
+        and the ``signal`` that ended it (:func:`~fleet_emu.recording.result.build_result`)."""
         s = self.scenario
-        data = self.monitor.result(s.to_dict(), self.run_id, s.target_coverage)
         elapsed = time.perf_counter() - (self._started or time.perf_counter())
         pid = os.getpid()
-        data |= {
-            "engine": "memory",
-            "pids": {"world": pid, "netem": pid, "agents": [pid] * s.robots} | ({BASE: pid} if s.has_base else {}),
-            "recording": {"path": None, "messages": 0},
-            "wall_seconds": round(elapsed, 3),
-            "signal": None,
-            "authenticated": None,  # no bus to authenticate
-            "scenario": s.to_dict(),
-        }
+        pids = {"world": pid, "netem": pid, "agents": [pid] * s.robots} | ({BASE: pid} if s.has_base else {})
+        data = build_result(self.monitor, s.to_dict(), self.run_id, ending or Ending(), engine="memory", pids=pids,
+                            recording=str(recording) if recording else None, messages=messages,
+                            launcher=Launcher(elapsed, signal, None))
         return Result(data, tuple(self.monitor.coverage_curve))
 
     # --- the node shells' work, without the bus -----------------------------------------------------------
@@ -258,7 +259,7 @@ class Fleet:
 
     def _publish(self, readings: dict[str, Reading]) -> None:
         """World then netem for the current tick (``WorldNode._publish``, ``NetemNode._publish_tick``), and
-        the base station's step on its rx bundle (``BaseNode``)."""
+        the base station's step on its rx bundle (``BaseStationNode``)."""
         w, s = self.world, self.scenario
         self.obs, state = tick_messages(w, readings, s.cell_size, self._wseq, 0)  # no bus: nothing malformed
         for r, o in self.obs.items():
@@ -286,8 +287,8 @@ class Fleet:
         self._base_dropped += 1
 
     def _finish(self) -> None:
-        """The world's stop, every live robot's report (``AgentNode.run`` after its lockstep) and the base's
-        (``BaseNode.run``)."""
+        """The world's stop, every live robot's report (``RobotNode.run`` after its lockstep) and the base's
+        (``BaseStationNode.run``)."""
         w = self.world
         end = stop(w, self._wseq())
         self.done, self.reason = True, end.reason
@@ -296,7 +297,7 @@ class Fleet:
         if self.base is not None:
             self._emit(self.keys.report(BASE), base_report(self.base, w.tick, self._base_dropped, rss))
         for r in w.live:
-            self._emit(self.keys.report(r), agent_report(self.brains[r], w.tick, self.dropped[r], rss,
+            self._emit(self.keys.report(r), robot_report(self.brains[r], w.tick, self.dropped[r], rss,
                                                          first=self._first_cpu.get(r)))
         self.agents = []
 
@@ -378,8 +379,7 @@ def _run_and_write(scenario: Scenario, map_data: MapData, out_dir: Path | None, 
                    interrupts: Interrupts | None, live: LiveOptions | None) -> tuple[Result, bool]:
     """The run and its files (in ``out_dir``, already claimed); the result and whether a signal ended it. A
     recording that fails ends the run: its ``result.json`` is written if it can be, and DiskFault raised."""
-    from fleet_emu.launch.outdir import DiskFault, disk_fault, write_atomic
-    from fleet_emu.launch.result import write_json_atomic
+    from fleet_emu.launch.outdir import DiskFault, disk_fault, write_atomic, write_json
 
     with contextlib.ExitStack() as stack:
         recording = out_dir / "run.mcap" if record and out_dir is not None else None
@@ -389,7 +389,7 @@ def _run_and_write(scenario: Scenario, map_data: MapData, out_dir: Path | None, 
         tap, finish = _recording_tap(stack, scenario, map_data, run_id, recording, grid_every, clock, server)
         fleet = Fleet(scenario, run_id=run_id, tap=tap)
         if out_dir is not None:
-            write_json_atomic(out_dir / "scenario.json", scenario.to_dict())
+            write_json(out_dir / "scenario.json", scenario.to_dict())
             write_atomic(out_dir / "map.npz", map_data.save)
         interrupted, fault = False, None
 
@@ -404,22 +404,18 @@ def _run_and_write(scenario: Scenario, map_data: MapData, out_dir: Path | None, 
             if interrupts is not None and interrupts.requested.is_set():
                 raise KeyboardInterrupt  # a signal before the first tick
             pacer.wait()  # a live run: the viewers' moment to subscribe before tick 0 (launch/live.py)
-            result = fleet.run(on_tick=tick)
+            fleet._play(on_tick=tick)
         except KeyboardInterrupt:  # result.json of what ran, as the processes engine writes it
             interrupted = True
-            result = fleet.result()
-            result.data["reason"] = "interrupted"
         except OSError as exc:  # the recording failed (a full disk): the run ends here
             fault = str(disk_fault(out_dir or Path("."), exc, "run.mcap"))
-            result = fleet.result()
-            result.data["reason"], result.data["error"] = "error", fault
         finally:
             messages = finish()
-        result.data["signal"] = interrupts.name if interrupts is not None else ("SIGINT" if interrupted else None)
-        result.data["recording"] = {"path": str(recording) if recording else None, "messages": messages}
+        result = fleet.result(Ending(interrupted=interrupted, error=fault), recording, messages,
+                              signal_name(interrupts, interrupted))
         if out_dir is not None:
             try:
-                write_json_atomic(out_dir / "result.json", result.data)
+                write_json(out_dir / "result.json", result.data)
             except OSError:
                 if fault is None:
                     raise
@@ -449,7 +445,7 @@ def _recording_tap(stack: contextlib.ExitStack, scenario: Scenario, map_data: Ma
         data = msg.encode() if recorder is not None else b""
         if recorder is not None:
             recorder.record(key, data, wall_ns)
-        viz.feed(key, data, msg)
+        viz.feed(key, data, wall_ns, msg)
         if recorder is not None and recorder.failed is not None:  # a full disk: the run ends (run_memory says why)
             raise recorder.failed
 

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from fleet_emu.core.errors import ConfigError, RunError
 from fleet_emu.core.files import write_atomic, write_json
-from fleet_emu.core.spelling import option
+from fleet_emu.core.setting_names import option
 
 __all__ = ["DiskFault", "FolderLock", "claim", "claimed", "disk_fault", "lock_folder", "make_folder", "refuse_held",
            "refuse_links", "run_files",

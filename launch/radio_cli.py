@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from fleet_emu.core.errors import ConfigError
-from fleet_emu.launch.maps_cli import sigterm_unwinds
+from fleet_emu.launch.signals import sigterm_unwinds
 
 if TYPE_CHECKING:
     from fleet_emu.core.radio_profile import RadioProfile

@@ -8,6 +8,7 @@ import argparse
 from typing import Any
 
 from fleet_emu.core.radio import radio_settings
+from fleet_emu.launch.setting_flags import add_setting_flags, given
 
 
 def add_radio_flags(parser: argparse.ArgumentParser) -> None:
@@ -15,10 +16,7 @@ def add_radio_flags(parser: argparse.ArgumentParser) -> None:
     scenario's value)."""
     group = parser.add_argument_group("radio", "the scenario's [radio], one flag per setting "
                                                "(docs/guides/radio.md)")
-    for s in radio_settings():
-        extra: dict[str, Any] = {"choices": s.choices} if s.choices else {"type": s.kind, "metavar": s.metavar}
-        span = "" if s.choices else f"; {s.span()}"
-        group.add_argument(s.flag, dest=s.name, default=None, **extra, help=f"{s.help}{span} (default {s.default})")
+    add_setting_flags(group, radio_settings())
     group.add_argument("--radio-profile", metavar="PROFILE.toml", default=None,
                        help="a measured radio profile (`fleet radio fit SITE --out PROFILE.toml`): its path loss, "
                             "dB per wall and range as the wall model's settings, under the radio flags given "
@@ -28,6 +26,6 @@ def add_radio_flags(parser: argparse.ArgumentParser) -> None:
 def radio_overrides(args: argparse.Namespace) -> dict[str, Any]:
     """The radio flags given, by field name, for :meth:`Scenario.override`; ``--radio-profile`` as a ``radio``
     table naming the profile (the flags given win over it)."""
-    flags = {s.name: getattr(args, s.name) for s in radio_settings() if getattr(args, s.name, None) is not None}
+    flags = given(args, radio_settings())
     profile = getattr(args, "radio_profile", None)
     return flags if profile is None else {"radio": {"profile": profile}, **flags}

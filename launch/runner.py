@@ -38,7 +38,7 @@ from fleet_emu.launch.checks import (
     pinned,
 )
 from fleet_emu.launch.forked import fork_server_enabled
-from fleet_emu.launch.hosts import (
+from fleet_emu.launch.host_client import (
     HOST_TIMEOUT,
     Hosts,
     HostsError,
@@ -46,10 +46,9 @@ from fleet_emu.launch.hosts import (
     spawn_nodes,
 )
 from fleet_emu.launch.live import LiveOptions, open_live
-from fleet_emu.launch.outdir import DiskFault, claimed, disk_fault, write_atomic
-from fleet_emu.launch.result import Result, write_json_atomic
+from fleet_emu.launch.outdir import DiskFault, claimed, disk_fault, write_atomic, write_json
 from fleet_emu.launch.router_process import RouterProcess, router_process, router_spec
-from fleet_emu.launch.signals import Interrupts
+from fleet_emu.launch.signals import Interrupts, signal_name
 from fleet_emu.launch.supervisor import Supervisor
 from fleet_emu.launch.watch import STOP_GRACE, Consumer, Drain, wait_for_end
 from fleet_emu.recording.clock import RunClock
@@ -57,6 +56,7 @@ from fleet_emu.recording.foxglove import FoxgloveFold
 from fleet_emu.recording.foxglove_writer import FoxgloveWriter
 from fleet_emu.recording.monitor import Monitor
 from fleet_emu.recording.recorder import Recorder
+from fleet_emu.recording.result import Ending, Launcher, Result, build_result
 from fleet_emu.world.build import base_cell
 
 
@@ -139,13 +139,11 @@ def run_fleet(scenario: Scenario, opts: RunOptions) -> Result:
         work = opts.out_dir or Path(files.enter_context(tempfile.TemporaryDirectory(prefix="fleet-run-")))
         recording = work / "run.mcap" if opts.record and opts.out_dir is not None else None
         try:
-            write_json_atomic(work / "scenario.json", scenario.to_dict())
+            write_json(work / "scenario.json", scenario.to_dict())
             write_atomic(work / "map.npz", map_data.save)
             result, failure = _Run(scenario, map_data, run_id, work, recording, opts, creds).execute()
             if opts.out_dir is not None:
                 _write_result(work, result, failure)
-            elif failure == "error":
-                result.data["error"] += f" ({_last_log_line(work, result.data['error'])})"
         except OSError as exc:  # a full disk, a directory removed under the run
             raise disk_fault(work, exc) from None
     if failure == "disk":
@@ -345,37 +343,29 @@ class _Run:
             self.viz.finish()
 
     def bus(self) -> dict[str, Any]:
-        """``result.json``'s ``bus`` (:func:`_bus_result`), the launcher's own drops from its subscribers."""
-        return _bus_result(self.nonce, self.monitor.foreign_by(sum(d.foreign for d in self.drains)))
+        """``result.json``'s ``bus``: the run's nonce and the messages each process dropped for not carrying it
+        (the launcher's own from its subscribers)."""
+        foreign_by = self.monitor.foreign_by(sum(d.foreign for d in self.drains))
+        return {"nonce": self.nonce.hex(), "foreign_dropped": sum(foreign_by.values()),
+                "foreign_dropped_by": foreign_by}
 
     def result(self) -> tuple[Result, str | None]:
-        """The recording closed, and the result (``result.json``'s data) with how the run ended."""
+        """The recording closed, and the result (``result.json``, :func:`~fleet_emu.recording.result.build_result`)
+        with how the run ended."""
         if self.viz is not None:
             self.viz.finish()
         messages = self.recorder.close() if self.recorder else 0
         scenario, opts, recording, interrupted = self.scenario, self.opts, self.recording, self.interrupted
-        data = self.monitor.result(scenario.to_dict(), self.run_id, scenario.target_coverage)
-        if opts.realtime_hz:
-            data.setdefault("realtime_hz", opts.realtime_hz)  # also when stopped before tick 0
         if not interrupted and self.error is None:  # robots failed by a flood: the flood is the cause
-            self.error = flood(data["failed"], sum(d.foreign for d in self.drains))
-        if interrupted:
-            data["reason"] = "interrupted"
-            data.pop("error", None)
-        elif self.error:
-            data["reason"] = "error"
-            data["error"] = self.error
-        signals = opts.interrupts
-        data |= {
-            "engine": self.engine,
-            "pids": self.pids,
-            "recording": {"path": str(recording) if recording else None, "messages": messages},
-            "wall_seconds": round(time.monotonic() - self.t_start, 3),
-            "scenario": scenario.to_dict(),
-            "signal": signals.name if signals else ("SIGINT" if interrupted else None),
-            "authenticated": self.creds is not None,
-            "bus": self.bus(),
-        }
+            self.error = flood(self.monitor.failed(), sum(d.foreign for d in self.drains))
+        if self.error and not interrupted and opts.out_dir is None:  # its logs go with the temporary folder
+            self.error += f" ({_last_log_line(self.work, self.error)})"
+        launcher = Launcher(time.monotonic() - self.t_start, signal_name(opts.interrupts, interrupted),
+                            self.creds is not None, self.bus())
+        data = build_result(self.monitor, scenario.to_dict(), self.run_id,
+                            Ending(interrupted=interrupted, error=None if interrupted else self.error),
+                            engine=self.engine, pids=self.pids, recording=str(recording) if recording else None,
+                            messages=messages, launcher=launcher, realtime_hz=opts.realtime_hz)
         failure = "interrupted" if interrupted else ("error" if self.error else None)
         if failure == "error" and self.consumer.fault is not None and self.error == self.consumer.fault:
             failure = "disk"
@@ -406,15 +396,10 @@ class _Crashes:
 def _write_result(work: Path, result: Result, failure: str | None) -> None:
     """``result.json``, atomically; after a disk fault, a failed write changes nothing of what is told."""
     try:
-        write_json_atomic(work / "result.json", result.data)
+        write_json(work / "result.json", result.data)
     except OSError:
         if failure != "disk":
             raise
-
-
-def _bus_result(nonce: bytes, foreign_by: dict[str, int]) -> dict[str, Any]:
-    """``result.json``'s ``bus``: the run's nonce and the messages each process dropped for not carrying it."""
-    return {"nonce": nonce.hex(), "foreign_dropped": sum(foreign_by.values()), "foreign_dropped_by": foreign_by}
 
 
 def _last_log_line(work: Path, error: str) -> str:
@@ -454,17 +439,17 @@ def _start_in_process(scenario: Scenario, map_data: MapData, run_id: str, endpoi
     """Every node in this process, each with its own Zenoh session (and its own login) to the same router;
     ``base``: the base station's cell (``world.build.base_cell``), in a run with one; ``pace_hz``: the
     lockstep world's cap on ticks per second (``--live-hz``)."""
-    from fleet_emu.agents.node import AgentNode
+    from fleet_emu.agents.node import RobotNode
     from fleet_emu.netem.node import NetemNode
     from fleet_emu.world.node import WorldNode
 
     nodes = [WorldNode(scenario, run_id, map_data, realtime_hz=realtime_hz, pace_hz=pace_hz),
              NetemNode(scenario, run_id, map_data, base, realtime_hz=realtime_hz)]
-    nodes += [AgentNode(scenario, run_id, r, realtime_hz=realtime_hz) for r in robot_ids(scenario.robots)]
+    nodes += [RobotNode(scenario, run_id, r, realtime_hz=realtime_hz) for r in robot_ids(scenario.robots)]
     if base is not None:
-        from fleet_emu.agents.base_node import BaseNode
+        from fleet_emu.agents.base_node import BaseStationNode
 
-        nodes.append(BaseNode(scenario, run_id, map_data, base))
+        nodes.append(BaseStationNode(scenario, run_id, map_data, base))
 
     for n in nodes:
         n.bind(nonce)

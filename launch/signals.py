@@ -9,8 +9,11 @@ code is 128 + the first signal's number (130 for SIGINT, 143 for SIGTERM).
 
 from __future__ import annotations
 
+import contextlib
 import signal
+import sys
 import threading
+from collections.abc import Iterator
 from types import FrameType
 from typing import Any
 
@@ -53,3 +56,29 @@ class Interrupts:
     @property
     def exit_code(self) -> int:
         return 128 + (self.signum or signal.SIGINT)
+
+
+@contextlib.contextmanager
+def sigterm_unwinds() -> Iterator[None]:
+    """SIGTERM ends a command that writes files (a map or radio fetch, an export) as Ctrl-C does, by an exception
+    (exit 143), so that its cleanup removes what it wrote; by default it would end the process on the spot.
+    (On the main thread only: signals go there.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(_signum: int, _frame: FrameType | None) -> None:
+        print("fleet: terminated", file=sys.stderr)
+        raise SystemExit(143)
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def signal_name(interrupts: Interrupts | None, interrupted: bool) -> str | None:
+    """``result.json``'s ``signal``: the first signal the CLI's handlers got, or, without them (a Python caller's
+    Ctrl-C, KeyboardInterrupt), ``SIGINT`` when that interrupted the run."""
+    return interrupts.name if interrupts is not None else ("SIGINT" if interrupted else None)

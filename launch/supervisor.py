@@ -29,7 +29,7 @@ FORKED = {"fleet_emu.world": "fleet_emu.world.node", "fleet_emu.netem": "fleet_e
 
 class Child(Protocol):
     """What the supervisor needs of a child: a process started here (``subprocess.Popen``), a robot the fork
-    server forked (``launch.forked.ForkedProcess``) or a robot on a host (``launch.hosts.RemoteRobot``)."""
+    server forked (``launch.forked.ForkedProcess``) or a robot on a host (``launch.host_client.RemoteRobot``)."""
 
     @property
     def pid(self) -> int: ...
@@ -49,7 +49,7 @@ class Supervisor:
         self._logs: list[IO[bytes]] = []
 
     def start_fork_server(self, scenario: Path | None = None) -> None:
-        """Start the fork server now (it loads the agent code, and ``scenario``'s allocator, while the router
+        """Start the fork server now (it loads the robot code, and ``scenario``'s allocator, while the router
         opens): from then on, :meth:`spawn` forks every robot (module :data:`AGENTS`) and every node of
         :data:`FORKED` from it."""
         log = self.log_dir / "forkserver.log" if self.log_dir is not None else None
@@ -80,7 +80,7 @@ class Supervisor:
         return proc
 
     def adopt(self, name: str, child: Child) -> None:
-        """A child started elsewhere (a robot on a host, ``launch/hosts.py``), supervised like the others:
+        """A child started elsewhere (a robot on a host, ``launch/host_client.py``), supervised like the others:
         signalling its group asks its host to tear it down."""
         self.children[name] = child
 

@@ -126,7 +126,7 @@ class Consumer(threading.Thread):
                 continue
             msg = self.monitor.feed(key, data, wall_ns)
             if self.viz is not None:
-                self.viz.feed(key, data, msg)
+                self.viz.feed(key, data, wall_ns, msg)
             if msg is not None:
                 self.changed.set()
 

@@ -28,14 +28,14 @@ from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import Stop, TxBundle, WorldState
-from fleet_emu.core.node import Declared, NodeBase, add_base_cell, node_main, undeclare
+from fleet_emu.core.node import Declared, NodeShell, add_base_cell, node_main, undeclare
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.netem.channel import make_channel, radio_tick
 
 STATE_GRACE = 2.0  # seconds to wait, after a stop, for the states it announced
 
 
-class NetemNode(NodeBase):
+class NetemNode(NodeShell):
     role = "netem"
 
     def __init__(self, scenario: Scenario, run: str, map_data: MapData, base: Cell | None = None,

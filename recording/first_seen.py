@@ -4,14 +4,15 @@ Foxglove coverage grid, the report's final map) and for each robot (first-discov
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
+
+from fleet_emu.core.messages import Message, Observation
 
 
 class FirstSeen:
     """Per cell of a ``shape`` grid (flat, row-major): ``tick``, the first tick it was sensed (-1 never), and
-    ``value``, the value last sensed there (-1 never). Observations may come in any order of ticks."""
+    ``value``, the value last sensed there (-1 never). Observations may come in any order of ticks. A fold
+    (``core/fold.py``): :meth:`fold` takes the world's observations."""
 
     def __init__(self, shape: tuple[int, int]) -> None:
         self.shape = (int(shape[0]), int(shape[1]))
@@ -26,17 +27,22 @@ class FirstSeen:
         self.tick[cells[(first < 0) | (first > tick)]] = tick
         self.value[cells] = values
 
+    def fold(self, msg: Message) -> None:
+        """One decoded message: an observation of this grid's shape is observed; anything else is not this
+        fold's."""
+        if isinstance(msg, Observation) and tuple(msg.shape) == self.shape:
+            self.observe(msg.tick, msg.cells, msg.values)
+
     def grid(self, upto: int) -> np.ndarray:
         """A ``shape`` grid of the values of the cells first sensed at or before ``upto``, -1 elsewhere."""
         seen = (self.tick >= 0) & (self.tick <= upto)
         return np.where(seen, self.value, -1).astype(np.int8).reshape(self.shape)
 
 
-def fold_team(coverage: FirstSeen | None, shape: tuple[int, int] | None, obs: Any) -> FirstSeen:
+def fold_team(coverage: FirstSeen | None, shape: tuple[int, int] | None, obs: Observation) -> FirstSeen:
     """The team's first-seen grid with the world's ``Observation`` ``obs`` folded in: made at ``shape`` (the
     true map's, when known) or else at the first observation's; an observation of another shape is left out."""
     if coverage is None:
         coverage = FirstSeen(shape or (int(obs.shape[0]), int(obs.shape[1])))
-    if tuple(obs.shape) == coverage.shape:
-        coverage.observe(obs.tick, obs.cells, obs.values)
+    coverage.fold(obs)
     return coverage

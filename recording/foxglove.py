@@ -40,7 +40,7 @@ from fleet_emu.core.keys import robot_ids
 from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Message, Observation, Stop, WorldState
 from fleet_emu.recording.clock import EPOCH, RunClock
 from fleet_emu.recording.first_seen import FirstSeen, fold_team
-from fleet_emu.recording.stats import SCHEMA_STATS, TOPIC_STATS, StatsFold, stats_schema_text
+from fleet_emu.recording.stats import SCHEMA_STATS, TOPIC_STATS, TickStats, stats_schema_text
 
 SCHEMAS = ("foxglove.Grid", "foxglove.SceneUpdate", "foxglove.Log", SCHEMA_STATS)
 FRAME = "map"
@@ -186,7 +186,8 @@ def _components(link: np.ndarray) -> int:
 
 
 class FoxgloveFold:
-    """Bus messages in, Foxglove messages out (see the module doc). Pure: no I/O, no clock."""
+    """Bus messages in, Foxglove messages out (see the module doc). Pure: no I/O, no clock: a fold fed
+    messages (:meth:`fold`; ``core/fold.py``)."""
 
     def __init__(self, scenario: dict[str, Any], truth: np.ndarray | None = None, grid_every: int | None = None,
                  run_id: str = "", base_cell: tuple[int, int] | None = None, clock: RunClock = EPOCH) -> None:
@@ -214,11 +215,13 @@ class FoxgloveFold:
         self.started = False
         self.ended = False
         self.truth_sent = False
-        self.stats = StatsFold(self.robots, base=base_cell is not None)
+        self.stats = TickStats(self.robots, base=base_cell is not None)
 
     # --- input ------------------------------------------------------------------------------------------
 
-    def feed(self, msg: Message) -> list[Derived]:
+    def fold(self, msg: Message) -> list[Derived]:
+        """One decoded, checked message in; the Foxglove messages it completes (a ``MessageFold``,
+        ``core/fold.py``)."""
         out: list[Derived] = []
         if isinstance(msg, Observation):
             self._observe(msg)
@@ -361,7 +364,7 @@ class FoxgloveFold:
         entities = self._robots(t, st)
         entities.append(self._links(t, st, lk))
         if self.base_cell is not None:
-            entities.append(self._base(t, st, lk))
+            entities.append(self._base_station(t, st, lk))
         shown = {e["id"] for e in entities}
         gone = sorted(self.emitted - shown)
         self.emitted = shown
@@ -433,7 +436,7 @@ class FoxgloveFold:
         return _line([_vec(a[0], a[1], z), _vec(b[0], b[1], z)], (1.0 - s, s, 0.2), 0.9, 3.0, LINE_LIST), \
             f"{p:.1f} dB"
 
-    def _base(self, t: int, st: WorldState, lk: Links | None) -> dict[str, Any]:
+    def _base_station(self, t: int, st: WorldState, lk: Links | None) -> dict[str, Any]:
         """The base station: a white cylinder at its cell, and a line to each robot linked to it (coloured by
         signal strength as the robots' links)."""
         assert self.base_cell is not None

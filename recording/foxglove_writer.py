@@ -33,8 +33,9 @@ class FoxgloveWriter:
         self.finished = False
         self.written = 0
 
-    def feed(self, key: str, data: bytes, msg: Message | None = None) -> None:
-        """One bus sample; ``msg`` is its decoded message when the caller has it already."""
+    def feed(self, key: str, data: bytes, time_ns: int | None = None, msg: Message | None = None) -> None:
+        """One bus sample (a ``SampleFold``, ``core/fold.py``; ``time_ns`` is not used: the derived messages
+        carry the run's clock); ``msg`` is its decoded message when the caller has it already."""
         parsed = self.keys.parse(key)
         if self.failed or parsed is None or parsed.channel not in _FOLDED:
             return
@@ -47,7 +48,7 @@ class FoxgloveWriter:
                 allowed = allowed_src(parsed)
                 if allowed is not None and msg.src not in allowed:  # a spoofed sender (the monitor's rule)
                     return
-            self._write(self.fold.feed(msg))
+            self._write(self.fold.fold(msg))
         except Exception:  # a viewer channel must never stop the run
             log.exception("foxglove channels disabled after an error")
             self.failed = True

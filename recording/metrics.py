@@ -4,8 +4,8 @@
 ``result.json`` live, so the recomputed result has the same keys and values — and folds the rest of the stream
 (observations, tx/rx bundles, commands, ready messages) into:
 
-- ``exploration_time``: the first ticks at 90, 99 and 100 % coverage (the world's coverage: the fraction of the
-  free cells reachable from the start that some robot has sensed);
+- ``t100``: the first tick at 100 % coverage, beside ``result.json``'s ``t90`` and ``t99`` (the world's coverage: the
+  fraction of the free cells reachable from the start that some robot has sensed);
 - ``path``: cells travelled per robot and in total;
 - ``efficiency``: distinct free cells sensed by the team per cell travelled by the team;
 - ``overlap``: cells sensed by more than one robot (from the observations), and their fraction of the cells the
@@ -16,9 +16,15 @@
   1/n = one robot did it all); the Gini coefficient of the same credits is given too (0 = even);
 - ``connectivity``: the fraction of ticks the team's link graph was connected, and for each pair of robots the
   fraction of ticks they had a link (Benavides et al.'s "connection time %");
-- ``radio``: sent/delivered/dropped by cause (netem's counters), and per robot the messages and bytes it sent
-  (the encoded tx bundles' sizes), bytes per tick, and the messages it received;
-- ``decision_time``: the allocator's time per call (every command is one call), overall and per robot.
+- ``radio``: ``result.json``'s (netem's counters) and :data:`RADIO_MORE`: the share delivered, the counts by payload
+  kind, per robot the messages and bytes it sent (the encoded tx bundles' sizes), bytes per tick, and the messages
+  it received;
+- ``decision_ms``: ``result.json``'s mean and p95 of the decisions' time (every command is one call), and their
+  p50, max, count and each robot's mean.
+
+A quantity has one name in ``result.json``, ``metrics.json`` and the summary tables; the groups of the first layout
+(``exploration_time``, ``radio_detail``, ``decision_time``) are written beside for one release
+(:data:`DEPRECATED_GROUPS`).
 
 The per-tick series (coverage, connectivity, messages per tick) and the trajectories are kept for the plots.
 """
@@ -30,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from fleet_emu.core.base_connectivity import base_connected
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import parse_key, robot_ids
 from fleet_emu.core.messages import (
@@ -45,13 +52,26 @@ from fleet_emu.core.messages import (
     WorldState,
 )
 from fleet_emu.core.radio import bytes_per_robot_tick
-from fleet_emu.core.reach import base_connected
 from fleet_emu.recording.first_seen import FirstSeen
 from fleet_emu.recording.monitor import Monitor, base_graph
+from fleet_emu.recording.result import NOT_RECORDED as NOT_RECORDED  # where it was: the keys a recording lacks
+from fleet_emu.recording.result import Ending, build_result
 
-#: result.json keys that a recording cannot give back (they describe the launcher process, not the run; ``bus``:
-#: the run's nonce travels beside the messages, not in them, and the launcher's own foreign drops are not recorded)
-NOT_RECORDED = ("wall_seconds", "signal", "authenticated", "bus")
+#: What ``metrics.json``'s ``radio`` adds to ``result.json``'s: the share delivered, the counts by payload kind,
+#: each robot's messages and bytes, and the bytes per robot-tick.
+RADIO_MORE = ("delivered_fraction", "by_kind", "per_robot", "bytes_per_robot_per_tick")
+
+#: ``metrics.json``'s groups of its first layout, written beside their quantities' names (``t90``, ``t99``,
+#: ``t100``; ``radio``; ``decision_ms``) for one release, then removed: each old key and the key it is now.
+DEPRECATED_GROUPS = {
+    "exploration_time": {"t90": "t90", "t99": "t99", "t100": "t100"},
+    "radio_detail": {"sent": "radio.sent", "delivered": "radio.delivered", "dropped.loss": "radio.dropped_loss",
+                     "dropped.signal": "radio.dropped_signal", "bytes_sent": "radio.bytes_sent",
+                     **{k: f"radio.{k}" for k in RADIO_MORE}},
+    "decision_time": {"calls": "decision_ms.calls", "mean_ms": "decision_ms.mean", "p50_ms": "decision_ms.p50",
+                      "p95_ms": "decision_ms.p95", "max_ms": "decision_ms.max",
+                      "per_robot_mean_ms": "decision_ms.per_robot_mean"},
+}
 
 
 def jain(x: list[float] | np.ndarray) -> float | None:
@@ -100,7 +120,8 @@ class TickSeries:
 
 
 class RunMetrics:
-    """Fold of one run's recorded samples; ``metrics()`` is what ``fleet report`` writes to metrics.json."""
+    """Fold of one run's recorded samples (fed by :meth:`feed`, ``core/fold.py``); ``metrics()`` is what ``fleet
+    report`` writes to metrics.json."""
 
     def __init__(self, scenario: dict[str, Any], run_id: str, engine: str | None = None) -> None:
         self.scenario = scenario
@@ -128,10 +149,10 @@ class RunMetrics:
 
     # --- the fold ---------------------------------------------------------------------------------------
 
-    def feed(self, key: str, data: bytes, publish_ns: int | None = None) -> None:
+    def feed(self, key: str, data: bytes, time_ns: int | None = None) -> None:
         """One recorded msgpack sample (topic, bytes, its publish time)."""
         self.messages += 1
-        msg = self.monitor.feed(key, data, publish_ns)
+        msg = self.monitor.feed(key, data, time_ns)
         if msg is None:
             got = parse_key(key)
             if got is None or got[1].channel not in ("obs", "tx", "rx", "ready"):
@@ -215,20 +236,29 @@ class RunMetrics:
 
     # --- results --------------------------------------------------------------------------------------------
 
-    def result(self, recording_path: str | None = None) -> dict[str, Any]:
-        """result.json, recomputed: the monitor's result plus what the launcher adds (but :data:`NOT_RECORDED`)."""
-        res = self.monitor.result(self.scenario, self.run_id, self.scenario["target_coverage"])
+    def ending(self) -> Ending:
+        """How the run ended, as far as its recording shows: the launcher's stop says it was interrupted, or
+        that a process died (a launcher's ``aborted``), as does a world that stopped at start-up; the failure's
+        line is not on the bus."""
         if self.launcher_stop is not None and self.launcher_stop.reason == "interrupted":
-            res["reason"] = "interrupted"
-        elif self.launcher_stop is not None or getattr(self.monitor.stop, "reason", None) == "startup":
-            res["reason"] = "error"  # as the runner says when a process died or the start timed out
-        res["pids"] = {"world": self.pids.get("world"), "netem": self.pids.get("netem"),
-                       "agents": [self.pids.get(r) for r in self.robots]}
-        res["recording"] = {"path": recording_path, "messages": self.messages}
-        res["scenario"] = self.scenario
-        if self.engine is not None:  # the recording's metadata says which engine ran it (none before it did)
-            res["engine"] = self.engine
-        return res
+            return Ending(interrupted=True)
+        if self.launcher_stop is not None or getattr(self.monitor.stop, "reason", None) == "startup":
+            return Ending(error="")
+        return Ending()
+
+    def recorded_pids(self) -> dict[str, Any]:
+        """The process ids the nodes' ready messages gave (None for a node whose ready was not recorded: the
+        world sends none)."""
+        return {"world": self.pids.get("world"), "netem": self.pids.get("netem"),
+                "agents": [self.pids.get(r) for r in self.robots]}
+
+    def result(self, recording_path: str | None = None, messages: int | None = None) -> dict[str, Any]:
+        """result.json, recomputed (:func:`~fleet_emu.recording.result.build_result`; but :data:`NOT_RECORDED`);
+        ``messages``: the recording's (default: the samples folded). The recording's metadata says which engine
+        ran it (none before it did)."""
+        return build_result(self.monitor, self.scenario, self.run_id, self.ending(), engine=self.engine,
+                            pids=self.recorded_pids(), recording=recording_path,
+                            messages=self.messages if messages is None else messages, launcher=None)
 
     def coverage_stats(self) -> dict[str, Any]:
         """Team, per-robot and overlapping sensed cells, first-discovery credit and its evenness."""
@@ -278,9 +308,13 @@ class RunMetrics:
         cov = self.coverage_stats()
         path = res["path_length"]
         total_path = int(sum(path))
+        detail, decisions = self._radio_detail(), self._decision_time()
         return {
-            "exploration_time": {"t90": self.first_tick_at(0.90), "t99": self.first_tick_at(0.99),
-                                 "t100": self.first_tick_at(1.0)},
+            "t100": self.first_tick_at(1.0),
+            "radio": res["radio"] | {k: detail[k] for k in RADIO_MORE},
+            "decision_ms": res["decision_ms"] | {"p50": decisions["p50_ms"], "max": decisions["max_ms"],
+                                                "calls": decisions["calls"],
+                                                "per_robot_mean": decisions["per_robot_mean_ms"]},
             "path": {"per_robot": dict(zip(self.robots, path, strict=True)), "total": total_path},
             "efficiency": {
                 "definition": "distinct free cells sensed by the team per cell travelled by the team",
@@ -296,9 +330,11 @@ class RunMetrics:
                 "credit": cov["credit"], "share": cov["share"], "jain": cov["jain"], "gini": cov["gini"],
             },
             "connectivity": self._connectivity(res),
-            "radio_detail": self._radio_detail(),
-            "decision_time": self._decision_time(),
             "undecodable": self.undecodable,
+            # the same quantities under their former names, for one release (DEPRECATED_GROUPS)
+            "exploration_time": {"t90": res["t90"], "t99": res["t99"], "t100": self.first_tick_at(1.0)},
+            "radio_detail": detail,
+            "decision_time": decisions,
         } | ({"base_connectivity": {
             "definition": "per tick, the share of live robots with a path of links to the base station",
             "fraction_by_tick": [[t, _r(f)] for t, f in self.monitor.base_curve]}} if self.monitor.base else {})

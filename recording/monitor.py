@@ -1,4 +1,5 @@
-"""What the launcher learns from the bus during a run, and the ``result.json`` it makes of it.
+"""What the launcher learns from the bus during a run: the figures ``result.json`` is made of
+(:mod:`fleet_emu.recording.result` writes its keys).
 
 A pure fold over decoded messages (state, links, commands, reports, stop), so the same code can recompute a
 result from a recording.
@@ -7,33 +8,29 @@ result from a recording.
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Any
 
 import numpy as np
 
 from fleet_emu.core.access import allowed_src
+from fleet_emu.core.base_connectivity import BaseConnectivity
 from fleet_emu.core.codec import DecodeError, decode
-from fleet_emu.core.faults import applied
 from fleet_emu.core.grid import Cell
 from fleet_emu.core.keys import BASE, parse_key
 from fleet_emu.core.messages import (
     STALE,
-    AgentReport,
-    AgentTiming,
     BaseReport,
     Command,
     Links,
     Message,
+    RobotReport,
+    RobotTiming,
     RxBundle,
     Stop,
     TxBundle,
     WorldClock,
     WorldState,
 )
-from fleet_emu.core.radio import RadioConfig
-from fleet_emu.core.reach import BaseConnectivity
-from fleet_emu.core.version import SCHEMA_VERSION, __version__
 from fleet_emu.recording.relaystats import RelayStats
 
 #: The channels the monitor folds (``ParsedKey.channel``); the rest is not even decoded.
@@ -54,63 +51,10 @@ def base_graph(lk: Links) -> tuple[tuple[str, ...], np.ndarray]:
     return (*lk.robots, BASE), full
 
 
-def airtime_result(lk: Links | None) -> dict[str, Any]:
-    """``result.json``'s radio airtime keys from the last links: bytes on the air, queue drops, the largest
-    queue, and the delay (ticks from hand-off to delivery) of the messages emitted, ``mean``, ``p95`` (nearest
-    rank) and ``max`` (null values when none was)."""
-    hist = np.array(lk.delays if lk else (), dtype=np.int64)
-    n = int(hist.sum())
-    delay: dict[str, Any] = {"mean": None, "p95": None, "max": None}
-    if n:
-        ticks = np.arange(len(hist))
-        rank = int(np.searchsorted(np.cumsum(hist), math.ceil(0.95 * n)))
-        delay = {"mean": round(float((ticks * hist).sum()) / n, 4), "p95": int(ticks[rank]),
-                 "max": int(ticks[hist > 0].max())}
-    return {"airtime_bytes": lk.airtime_bytes if lk else 0, "dropped_queue": lk.dropped_queue if lk else 0,
-            "queued_max_bytes": lk.queued_max_bytes if lk else 0, "delay_ticks": delay}
-
-
-def prediction_result(lk: Links | None, radio: dict[str, Any]) -> dict[str, Any]:
-    """``result.json``'s ``radio.prediction`` in a run with shadowing (``shadowing_db`` > 0; nothing otherwise):
-    the robot pairs over the ticks, and those whose link eq. 4 without the field called wrongly
-    (``netem.channel.count_predictions``)."""
-    if not radio.get("shadowing_db"):
-        return {}
-    return {"prediction": {"pair_ticks": lk.pair_ticks if lk else 0, "false_links": lk.false_links if lk else 0,
-                           "missed_links": lk.missed_links if lk else 0}}
-
-
-def fault_result(scenario: dict[str, Any], st: WorldState | None) -> dict[str, Any]:
-    """``result.json``'s ``faults``, in a run whose scenario has some (docs/guides/faults.md): the entries of a
-    tick the run reached, applied; and ``blocked_by``, in a run that missed its target where a failed robot's
-    body cuts the live robots off from cells still to sense: each such robot, its cell and how many cells it
-    holds off (``world.sim.World.blocking``)."""
-    out: dict[str, Any] = {}
-    if "faults" in scenario:
-        out["faults"] = applied(scenario["faults"], st.tick if st else 0)
-    if st is not None and st.blocked:
-        out["blocked_by"] = {r: {"cell": list(st.poses[r]), "cut_off": n} for r, n in sorted(st.blocked.items())
-                             if r in st.poses}
-    return out
-
-
-def allocator_params(scenario: dict[str, Any]) -> dict[str, Any]:
-    """``result.json``'s ``allocator_params``: every parameter the allocator ran with, defaults filled in
-    (:func:`fleet_emu.agents.brain.effective_allocator`); the scenario's table as given when its allocator cannot
-    be loaded here (a report, on another machine, of a run whose plugin is not installed)."""
-    from fleet_emu.agents.brain import effective_allocator  # at the end of a run only: the brain is heavy
-    from fleet_emu.core.errors import FleetError
-    from fleet_emu.core.scenario import Scenario
-
-    try:
-        return effective_allocator(Scenario.from_dict(scenario))
-    except FleetError:
-        return dict(scenario["allocator"])
-
-
 @dataclasses.dataclass
 class Monitor:
-    """Folds the run's messages; ``result()`` gives the ``result.json`` keys (docs/reference/result.md)."""
+    """Folds the run's messages; ``result()`` gives the ``result.json`` keys (docs/reference/result.md). A fold
+    (``core/fold.py``) with both entry points: :meth:`feed` a bus sample, :meth:`fold` a checked message."""
 
     robots: tuple[str, ...]
     state: WorldState | None = None
@@ -120,7 +64,7 @@ class Monitor:
     connected_ticks: int = 0
     link_ticks: int = 0
     decision_ms: list[float] = dataclasses.field(default_factory=list)
-    reports: dict[str, AgentReport] = dataclasses.field(default_factory=dict)
+    reports: dict[str, RobotReport] = dataclasses.field(default_factory=dict)
     stop: Stop | None = None
     # the first stop sent as anyone but the world (the launcher's own included), or in the world's name when the
     # world cannot have sent it (:meth:`world_sent`)
@@ -139,7 +83,7 @@ class Monitor:
     status: dict[tuple[int, str], str] = dataclasses.field(default_factory=dict)  # (tick, robot) -> cmd status
     clock: WorldClock | None = None  # real-time runs only: the world's last clock
     elapsed: dict[int, float] = dataclasses.field(default_factory=dict)  # and its wall seconds by tick
-    timing: dict[str, AgentTiming] = dataclasses.field(default_factory=dict)  # and each robot's summary
+    timing: dict[str, RobotTiming] = dataclasses.field(default_factory=dict)  # and each robot's summary
     base: bool = False  # the run has a base station: fold base connectivity and the base's report
     base_reach: BaseConnectivity = dataclasses.field(default_factory=BaseConnectivity)
     base_curve: list[tuple[int, float]] = dataclasses.field(default_factory=list)  # (tick, fraction connected)
@@ -152,8 +96,9 @@ class Monitor:
             self.relay_stats = RelayStats(len(self.robots) + int(self.base))
         self._nodes = frozenset(self.robots) | ({BASE} if self.base else frozenset())
 
-    def feed(self, key: str, data: bytes, wall_ns: int | None = None) -> Message | None:
-        """Decode and fold one sample; returns the message (None if it is not one the monitor uses)."""
+    def feed(self, key: str, data: bytes, time_ns: int | None = None) -> Message | None:
+        """Decode and fold one sample (received at ``time_ns``, wall clock, when known); returns the message (None
+        if it is not one the monitor uses)."""
         got = parse_key(key)
         if got is None or not (got[1].channel in _FOLDED or (self.relay and got[1].channel in _RADIO)):
             return None
@@ -170,11 +115,11 @@ class Monitor:
             self.malformed += 1
             return None
         self.fold(msg)
-        if isinstance(msg, WorldState) and wall_ns is not None:
-            self.first_state_ns = self.first_state_ns or wall_ns
-            self.last_state_ns = wall_ns
-        if isinstance(msg, WorldState | Command) and wall_ns is not None and self.state is not None:
-            self._heard(wall_ns)
+        if isinstance(msg, WorldState) and time_ns is not None:
+            self.first_state_ns = self.first_state_ns or time_ns
+            self.last_state_ns = time_ns
+        if isinstance(msg, WorldState | Command) and time_ns is not None and self.state is not None:
+            self._heard(time_ns)
         return msg
 
     def _heard(self, wall_ns: int) -> None:
@@ -187,6 +132,7 @@ class Monitor:
         self.activity_tick = self.tick
 
     def fold(self, msg: Message) -> None:
+        """One decoded message whose sender was checked against its key (the memory engine's, or :meth:`feed`'s)."""
         if isinstance(msg, WorldState) and msg.src == "world":
             if self.state is None or msg.tick >= self.state.tick:
                 self.state = msg
@@ -210,7 +156,7 @@ class Monitor:
             if msg.status != STALE:  # a step along the last plan decided nothing
                 self.decision_ms.append(msg.decision_ms)
             self.status[(msg.tick, msg.src)] = msg.status
-        elif isinstance(msg, AgentReport):
+        elif isinstance(msg, RobotReport):
             self.reports[msg.src] = msg
         elif isinstance(msg, BaseReport) and msg.src == BASE:
             self.base_report = msg
@@ -220,12 +166,10 @@ class Monitor:
             if self.clock is None or msg.tick >= self.clock.tick:
                 self.clock = msg
             self.elapsed[msg.tick] = msg.elapsed
-        elif isinstance(msg, AgentTiming):
+        elif isinstance(msg, RobotTiming):
             self.timing[msg.src] = msg
-        elif isinstance(msg, TxBundle) and self.relay_stats is not None:
-            self.relay_stats.fold_tx(msg)
-        elif isinstance(msg, RxBundle) and self.relay_stats is not None and msg.src == "netem":
-            self.relay_stats.fold_rx(msg)
+        elif isinstance(msg, TxBundle | RxBundle) and self.relay_stats is not None:
+            self.relay_stats.fold(msg)
 
     def _fold_stop(self, msg: Stop) -> None:
         """The world's first stop is the run's (never replaced by a later one); a stop in the world's name that
@@ -253,22 +197,8 @@ class Monitor:
         return st is not None and st.done and st.tick == msg.tick and msg.reason in (st.reason, "done")
 
     def _fold_base(self, lk: Links) -> None:
-        """One tick of base connectivity (``core/reach.py``): the robots' links and theirs to the base."""
+        """One tick of base connectivity (``core/base_connectivity.py``): the robots' links and theirs to the base."""
         self.base_curve.append((lk.tick, self.base_reach.add(*base_graph(lk))))
-
-    def base_result(self) -> dict[str, Any]:
-        """A base-station run's keys: ``base_connected_fraction {overall, all_ticks, per_robot}`` (over the
-        ticks netem published links for) and ``base {cell, known_cells, known_fraction, merged, ticks}``
-        (the base's report; null values when it sent none: interrupted, or its process died)."""
-        frac = self.base_reach.summary()
-        rounded = {k: (round(v, 6) if isinstance(v, float) else v) for k, v in frac.items() if k != "per_robot"}
-        rounded["per_robot"] = {r: round(v, 6) for r, v in frac["per_robot"].items()}
-        rep = self.base_report
-        base: dict[str, Any] = {
-            "cell": list(rep.cell) if rep else None, "known_cells": rep.known_cells if rep else None,
-            "known_fraction": round(rep.known_cells / rep.cells, 6) if rep else None,
-            "merged": rep.merged if rep else None, "ticks": rep.ticks if rep else None}
-        return {"base_connected_fraction": rounded, "base": base}
 
     def idle(self) -> dict[str, int]:
         """Idle robot-ticks by the status of the robot's command: a robot that had something to do (its
@@ -289,80 +219,16 @@ class Monitor:
     def coverage(self) -> float:
         return self.state.coverage if self.state else 0.0
 
+    def failed(self) -> list[str]:
+        """The robots that left the run (not live at the last state), sorted."""
+        return sorted(set(self.robots) - set(self.state.live)) if self.state else []
+
     def result(self, scenario: dict[str, Any], run_id: str, target: float) -> dict[str, Any]:
-        """The ``result.json`` keys (docs/reference/result.md)."""
-        st = self.state
-        lk = self.links
-        ms = np.array(self.decision_ms) if self.decision_ms else np.zeros(1)
-        completed = bool(st is not None and st.coverage >= target)
-        idle = self.idle()
-        return {
-            "run_id": run_id,
-            "seed": scenario["seed"],
-            "map": scenario["map"],
-            "allocator": scenario["allocator"]["type"],
-            "allocator_params": allocator_params(scenario),
-            "robots": scenario["robots"],
-            "loss": scenario["radio"]["loss"],
-            "comm": scenario["radio"]["comm"],
-            "loss_applied": RadioConfig(comm=scenario["radio"]["comm"], loss=scenario["radio"]["loss"]).applied_loss,
-            "ticks": st.tick if st else 0,
-            "completed": completed,
-            "reason": (self.stop.reason if self.stop else None) or (st.reason if st else None),
-            "coverage": round(st.coverage, 6) if st else 0.0,
-            "t90": self.t90,
-            "t99": self.t99,
-            "path_length": [st.path_length.get(r, 0) if st else 0 for r in self.robots],
-            "idle_robot_ticks": sum(idle.values()),
-            "idle_by_status": idle,
-            "connected_fraction": round(self.connected_ticks / self.link_ticks, 6) if self.link_ticks else None,
-            "radio": {
-                "sent": lk.sent if lk else 0,
-                "delivered": lk.delivered if lk else 0,
-                "dropped_loss": lk.dropped_loss if lk else 0,
-                "dropped_signal": lk.dropped_signal if lk else 0,
-                "bytes_sent": lk.bytes_sent if lk else 0,
-            } | airtime_result(lk) | prediction_result(lk, scenario["radio"]),
-            "decision_ms": {"mean": round(float(ms.mean()), 4), "p95": round(float(np.percentile(ms, 95)), 4)},
-            "failed": sorted(set(self.robots) - set(st.live)) if st else [],
-            "malformed_dropped": sum(self.dropped_by().values()),
-            "malformed_dropped_by": self.dropped_by(),
-            "agent_peak_rss_kb": {r: rep.peak_rss_kb for r, rep in sorted(self.reports.items())},
-            "ticks_per_second": self.ticks_per_second(),
-            "schema_version": SCHEMA_VERSION,
-            "fleet_emu": __version__,
-        } | (self.realtime() if self.clock is not None else {}) | (self.base_result() if self.base else {}) | (
-            {"relay": {"policy": scenario.get("relay", "none"), "ttl": scenario.get("relay_ttl", 0),
-                       "kinds": self.relay_stats.result()}} if self.relay_stats is not None else {}) | \
-            fault_result(scenario, st)
+        """The ``result.json`` keys this fold gives (:func:`fleet_emu.recording.result.fold_keys`, where every
+        key of ``result.json`` is written)."""
+        from fleet_emu.recording.result import fold_keys
 
-    def realtime(self) -> dict[str, Any]:
-        """A real-time run's keys (none in lockstep, which publishes no clock): ``realtime_hz``, and under
-        ``realtime`` the world's ``overruns``, its achieved rate, the wall seconds at which coverage reached
-        0.9 and 0.99 (``t90_s``, ``t99_s``: from tick 0's scheduled time), and per robot its ``late_commands``
-        (decisions applied a tick late), ``late_steps`` (steps along the last plan that came late),
-        ``missed_ticks`` (no command at all: it stood), ``decisions``, ``plan_steps``, ``waits`` and its
-        decision-time percentiles (``decision_ms``: the whole step in its worker thread; ``allocator_ms``)."""
-        ck = self.clock
-        assert ck is not None
-        robots = {}
-        for r in self.robots:
-            tm = self.timing.get(r)
-            robots[r] = {"late_commands": ck.late.get(r, 0), "late_steps": ck.late_steps.get(r, 0),
-                         "missed_ticks": ck.missed.get(r, 0)} | (
-                {"decisions": tm.decisions, "plan_steps": tm.plan_steps, "waits": tm.waits,
-                 "decision_ms": tm.decision_ms, "allocator_ms": tm.allocator_ms} if tm is not None else
-                {"decisions": None, "plan_steps": None, "waits": None, "decision_ms": None, "allocator_ms": None})
-        return {"realtime_hz": ck.hz, "realtime": {
-            "world_overruns": ck.overruns, "elapsed_s": round(ck.elapsed, 3),
-            "t90_s": self._wall(self.t90), "t99_s": self._wall(self.t99),
-            "ticks_per_second": round(ck.tick / ck.elapsed, 3) if ck.elapsed > 0 else None,
-            "late_commands": sum(ck.late.values()), "robots": robots}}
-
-    def _wall(self, tick: int | None) -> float | None:
-        """The world's wall seconds at ``tick`` since tick 0 was scheduled (None if its clock never came)."""
-        at = self.elapsed.get(tick) if tick is not None else None
-        return round(at, 3) if at is not None else None
+        return fold_keys(self, scenario, run_id, target)
 
     def dropped_by(self) -> dict[str, int]:
         """Messages each process dropped as malformed or spoofed: the launcher's own count, the world's and

@@ -32,11 +32,11 @@ def coverage_plot(run: Run, path: Path) -> None:
     target = run.fold.scenario.get("target_coverage", 0.99)
     for level, style in ((0.9, ":"), (0.99, "--")):
         ax.axhline(100 * level, color="grey", ls=style, lw=1)
-    et = run.metrics["exploration_time"]
+    m = run.metrics
     for key, label in (("t90", "90 %"), ("t99", "99 %"), ("t100", "100 %")):
-        if et[key] is not None:
-            ax.axvline(et[key], color="tab:red", ls=":", lw=1)
-            ax.annotate(f"{label} @ {et[key]}", (et[key], 5), rotation=90, fontsize=8, color="tab:red",
+        if m[key] is not None:
+            ax.axvline(m[key], color="tab:red", ls=":", lw=1)
+            ax.annotate(f"{label} @ {m[key]}", (m[key], 5), rotation=90, fontsize=8, color="tab:red",
                         xytext=(3, 0), textcoords="offset points")
     ax.set(xlabel="tick", ylabel="coverage (%)", ylim=(0, 102),
            title=f"coverage: {run.label}, target {target:.0%}")

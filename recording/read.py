@@ -31,7 +31,7 @@ from fleet_emu.core.errors import ConfigError, ReportError
 from fleet_emu.core.limits import check_text
 from fleet_emu.core.radio import radio_settings
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.core.spelling import file_spelling
+from fleet_emu.core.setting_names import file_spelling
 from fleet_emu.core.version import SCHEMA_VERSION
 from fleet_emu.recording.metrics import RunMetrics
 from fleet_emu.recording.recorder import SCENARIO_METADATA
@@ -43,7 +43,7 @@ MAX_RESULT_BYTES = 64 << 20  # a result.json beside a recording larger than this
 class Run:
     """One recording, read and folded.
 
-    ``result`` holds the ``result.json`` keys as recomputed from the recording (but ``metrics.NOT_RECORDED``:
+    ``result`` holds the ``result.json`` keys as recomputed from the recording (but ``result.NOT_RECORDED``:
     the launcher's clock, the signal it got, whether its bus was authenticated);
     ``metrics`` what ``fleet report`` writes to ``metrics.json`` (``result`` plus the analysis groups and
     ``truncated``); ``fold`` the :class:`.metrics.RunMetrics` behind them (per-tick series, trajectories).
@@ -61,8 +61,7 @@ class Run:
         self.read_bytes = read_bytes  # bytes up to the end of its last complete record
         self.schema_version = schema_version
         self.fleet_emu_version = fleet_emu_version  # None for a first-round recording
-        self.result = fold.result(str(path))
-        self.result["recording"]["messages"] = messages
+        self.result = fold.result(str(path), messages)
         self.metrics = self.result | fold.analysis(self.result) | {"truncated": self.truncated}
 
     @property

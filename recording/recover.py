@@ -23,6 +23,7 @@ from fleet_emu.core.errors import ReportError
 from fleet_emu.core.files import write_atomic
 from fleet_emu.recording.read import MAGIC, Run
 from fleet_emu.recording.recorder import CHUNK_SIZE
+from fleet_emu.recording.result import Ending, Launcher, build_result
 
 
 @dataclasses.dataclass(frozen=True)
@@ -112,16 +113,15 @@ def readable(path: Path) -> tuple[int, int, int]:
 
 
 def crashed_result(run: Run, wall_seconds: float) -> dict[str, Any]:
-    """``result.json`` of a run whose launcher died: what the recording ``run`` holds, ``reason`` ``crashed``,
-    not completed, no signal known; ``wall_seconds`` as the recording's wall clock spans."""
-    data = dict(run.result)
-    data.pop("error", None)
-    pids = data.get("pids") or {}
-    known = [pids.get("world"), pids.get("netem"), *pids.get("agents", [None])]
-    data["pids"] = {k: v for k, v in pids.items() if v is not None} if None not in known else {}
-    data |= {"reason": "crashed", "completed": False, "signal": None, "authenticated": None,
-             "wall_seconds": round(max(wall_seconds, 0.0), 3)}
-    return data
+    """``result.json`` of a run whose launcher died (:func:`~fleet_emu.recording.result.build_result`): what the
+    recording ``run`` holds, ``reason`` ``crashed``, not completed, no signal known, its ``pids`` only when every
+    node's was recorded, ``wall_seconds`` as the recording's wall clock spans."""
+    fold = run.fold
+    pids = fold.recorded_pids()
+    whole = None not in (pids["world"], pids["netem"], *pids["agents"])
+    return build_result(fold.monitor, fold.scenario, fold.run_id, Ending(crashed=True), engine=fold.engine,
+                        pids=pids if whole else {}, recording=str(run.path), messages=run.messages,
+                        launcher=Launcher(wall_seconds, signal=None, authenticated=None))
 
 
 def wall_span(path: Path) -> float:

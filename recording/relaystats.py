@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from fleet_emu.core.messages import RxBundle, TxBundle
+from fleet_emu.core.messages import Message, RxBundle, TxBundle
 
 
 @dataclasses.dataclass
@@ -60,6 +60,14 @@ class RelayStats:
     kinds: dict[str, _Kind] = dataclasses.field(default_factory=dict)
     newest: int = -1
     settled_to: int = -1
+
+    def fold(self, msg: Message) -> None:
+        """One decoded message (a ``MessageFold``, ``core/fold.py``): a robot's tx bundle, or netem's rx bundle
+        to a receiver; any other message is not this fold's."""
+        if isinstance(msg, TxBundle):
+            self.fold_tx(msg)
+        elif isinstance(msg, RxBundle) and msg.src == "netem":
+            self.fold_rx(msg)
 
     def fold_tx(self, b: TxBundle) -> None:
         for env in b.msgs:

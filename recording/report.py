@@ -19,9 +19,9 @@ from rich.console import Console
 
 from fleet_emu.core.errors import ReportError
 from fleet_emu.core.files import write_atomic, write_json
-from fleet_emu.recording.metrics import NOT_RECORDED
 from fleet_emu.recording.plots import PLOTS, base_plot, compare_plot
 from fleet_emu.recording.read import Run, load_recording
+from fleet_emu.recording.result import NOT_RECORDED
 from fleet_emu.recording.tables import compare_table, summary_table
 
 
@@ -73,7 +73,7 @@ def report(paths: list[Path], compare: bool = False, out: Path | None = None, pl
         return runs
     for run in runs:
         written = write_report(run, plots=plots)
-        console.print(summary_table(run))
+        console.print(summary_table(run.metrics, title=f"report {run.metrics['run_id']}  [dim]{run.path}[/dim]"))
         console.print("wrote " + ", ".join(str(p) for p in written.values()))
         if run.truncated:
             console.print(f"[yellow]{run.path} was cut (no summary): read up to its last complete chunk[/yellow]")

@@ -2,7 +2,7 @@
 schema (``fleet_emu.Stats``) so Foxglove's Plot panel reads them (``/viz/stats.coverage``,
 ``/viz/stats.robots.r0.decision_ms``, ``/viz/stats.radio.tick.delivered``...).
 
-:class:`StatsFold` is pure: it is handed one flushed tick at a time (the world's state, netem's links and the
+:class:`TickStats` is pure: it is handed one flushed tick at a time (the world's state, netem's links and the
 robots' commands of that tick, and the next tick's state when known) by
 :class:`~fleet_emu.recording.foxglove.FoxgloveFold`, and keeps the running totals.
 """
@@ -13,8 +13,8 @@ import dataclasses
 import json
 from typing import Any
 
+from fleet_emu.core.base_connectivity import BaseConnectivity
 from fleet_emu.core.messages import Command, Links, WorldState
-from fleet_emu.core.reach import BaseConnectivity
 from fleet_emu.recording.monitor import base_graph
 
 TOPIC_STATS = "/viz/stats"
@@ -62,8 +62,9 @@ def stats_schema_text() -> bytes:
 
 
 @dataclasses.dataclass
-class StatsFold:
-    """Running totals behind ``/viz/stats``; :meth:`tick` gives one tick's message."""
+class TickStats:
+    """Running totals behind ``/viz/stats``; :meth:`tick` gives one tick's message. Not a fold of messages
+    (``core/fold.py``): :class:`~fleet_emu.recording.foxglove.FoxgloveFold` hands it whole ticks."""
 
     robots: tuple[str, ...]
     base: bool = False

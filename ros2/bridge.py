@@ -162,7 +162,7 @@ class Bridge:
             except DecodeError:
                 continue
             with self.lock:
-                self._publish(self.fold.feed(msg))
+                self._publish(self.fold.fold(msg))
 
     def _publish(self, items: list[Out]) -> None:
         """Put each message on its topic; an error turns the bridge off, never the run."""

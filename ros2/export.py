@@ -17,7 +17,6 @@ import errno
 import os
 import secrets
 import shutil
-import signal
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, BinaryIO, Literal
@@ -31,6 +30,7 @@ from fleet_emu.core.codec import decode
 from fleet_emu.core.errors import ConfigError, DecodeError, ReportError, RunError
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.messages import Message
+from fleet_emu.launch.signals import sigterm_unwinds
 from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.read import recorded_count, resolve, scenario_of
 from fleet_emu.recording.recorder import SCENARIO_METADATA
@@ -179,7 +179,7 @@ def _write(bag: Path, fold: Ros2Fold, messages: Iterator[Message]) -> dict[str, 
                 counts[o.topic] = counts.get(o.topic, 0) + 1
 
         for msg in messages:
-            write(fold.feed(msg))
+            write(fold.fold(msg))
         write(fold.finish())
     return counts
 
@@ -187,7 +187,7 @@ def _write(bag: Path, fold: Ros2Fold, messages: Iterator[Message]) -> dict[str, 
 @contextlib.contextmanager
 def _staged(out: Path) -> Iterator[Path]:
     """A path to write the bag at, in a new hidden folder beside ``out``; renamed to ``out`` when the block ends
-    well, the hidden folder removed however it ends. SIGTERM during the block is an interrupt (so it is cleaned
+    well, the hidden folder removed however it ends. SIGTERM during the block exits 143 (so it is cleaned
     up too); a failed write (read-only folder, full disk) is one line."""
     stage = out.with_name(f".{out.name}.tmp{secrets.token_hex(4)}")
     try:
@@ -195,33 +195,24 @@ def _staged(out: Path) -> Iterator[Path]:
         stage.mkdir(mode=0o700)  # new: never an existing folder or a symlink's target
     except OSError as exc:
         raise _write_error(out, exc) from None
-    previous = _sigterm_interrupts()
-    try:
-        bag = stage / out.name
+    with sigterm_unwinds():  # SIGTERM exits 143 through the finally below
         try:
-            yield bag
-            if out.exists() or out.is_symlink():
-                raise ConfigError(f"--out {out} appeared while the bag was written: give a new directory for it")
-            os.rename(bag, out)
-        except OSError as exc:
-            raise _write_error(out, exc) from None
-        except Exception as exc:  # the writer's own errors wrap the OSError that caused them
-            cause = exc.__cause__ or exc.__context__
-            if isinstance(cause, OSError) and not isinstance(exc, ReportError | ConfigError):
-                raise _write_error(out, cause) from None
-            raise
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+            bag = stage / out.name
+            try:
+                yield bag
+                if out.exists() or out.is_symlink():
+                    raise ConfigError(f"--out {out} appeared while the bag was written: give a new directory for it")
+                os.rename(bag, out)
+            except OSError as exc:
+                raise _write_error(out, exc) from None
+            except Exception as exc:  # the writer's own errors wrap the OSError that caused them
+                cause = exc.__cause__ or exc.__context__
+                if isinstance(cause, OSError) and not isinstance(exc, ReportError | ConfigError):
+                    raise _write_error(out, cause) from None
+                raise
+        finally:
+            shutil.rmtree(stage, ignore_errors=True)
 
-
-def _sigterm_interrupts() -> Any:
-    """SIGTERM raises KeyboardInterrupt (in the main thread; elsewhere nothing changes): the previous handler."""
-    try:
-        return signal.signal(signal.SIGTERM, signal.default_int_handler)
-    except ValueError:  # not the main thread
-        return None
 
 
 def _write_error(out: Path, exc: OSError) -> RunError:

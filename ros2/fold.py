@@ -62,7 +62,8 @@ def topics(robots: int) -> dict[str, tuple[str, bool]]:
 
 
 class Ros2Fold:
-    """Bus messages in, :class:`Out` messages out (see the module doc)."""
+    """Bus messages in, :class:`Out` messages out (see the module doc): a fold fed messages (:meth:`fold`;
+    ``core/fold.py``)."""
 
     def __init__(self, scenario: dict[str, Any], truth: np.ndarray | None = None, grid_every: int | None = None,
                  clock: RunClock = EPOCH) -> None:
@@ -81,7 +82,8 @@ class Ros2Fold:
         self.last_tick = -1
         self.threshold = float(scenario.get("radio", {}).get("threshold", 0.0))
 
-    def feed(self, msg: Message) -> list[Out]:
+    def fold(self, msg: Message) -> list[Out]:
+        """One decoded, checked message in; the ROS 2 messages it gives (a ``MessageFold``, ``core/fold.py``)."""
         if isinstance(msg, WorldState) and msg.src == "world":
             return self._state(msg)
         if isinstance(msg, Observation):

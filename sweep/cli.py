@@ -26,7 +26,7 @@ from types import FrameType
 from typing import Any
 
 from fleet_emu.core.errors import ConfigError
-from fleet_emu.core.spelling import plural
+from fleet_emu.core.setting_names import plural
 
 FAILED_BASE = 200
 DISK_FULL = 1  # the sweep's own files (rows, tables) could not be written: a full disk
@@ -40,18 +40,12 @@ def add_parser(sub: Any) -> None:
                    help="a study TOML or a shipped study's name; or: report RESULTS; or: rerun RESULTS ID")
     s.add_argument("--out", type=Path, help="the results directory (a second call resumes there); rerun: the run "
                                             "folder (default runs/sweep-ID)")
-    s.add_argument("--jobs", type=int, help="parallel runs (default: the number of cores)")
     s.add_argument("--dask", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://192.0.2.10:8786")
     s.add_argument("--maps", type=Path, help="where the study's map files are, when it names them by path "
                         "(default: $FLEET_MAPS); a registry map is found by name (`fleet maps`)")
     s.add_argument("--list", action="store_true", help="list the studies shipped with fleet-emu")
-    s.add_argument("--limit", type=int, metavar="N",
-                   help="run only N more runs, spread over the grid: every allocator at settings far apart, each "
-                        "point's first seed before any second (a quick look; a later call continues)")
     s.add_argument("--quick", action="store_true",
                    help="a quick look: one run of every grid point (its first seed), as --limit <points>")
-    s.add_argument("--seeds", type=int, metavar="N",
-                   help="run only the study's first N seeds of every point (a quick look; a later call completes it)")
     s.add_argument("--baseline", help="report: the allocator to compare with (default: the study's)")
     s.add_argument("--no-plots", action="store_true", help="report: the tables only")
     s.add_argument("--format", choices=("table", "csv", "markdown"), default=None,
@@ -60,11 +54,10 @@ def add_parser(sub: Any) -> None:
     s.add_argument("--until-decided", action="store_true",
                    help="run the study's replicates, then more in doubling batches until every claim is decided "
                         "(reproduced or not) or --max-seeds is reached; looks corrected for (Bonferroni)")
-    s.add_argument("--max-seeds", type=int, metavar="N",
-                   help="with --until-decided: the most replicates (seeds, or the values of a study's [study] more "
-                        "key); default 4 x the study's seeds, or every value listed")
-    s.add_argument("--level", type=float, metavar="L",
-                   help="the claims' confidence level, 0.5 to 0.999 (default 0.95)")
+    from fleet_emu.launch.setting_flags import add_setting_flags
+    from fleet_emu.sweep.options import sweep_settings
+
+    add_setting_flags(s, sweep_settings(), fallback="")  # --jobs, --limit, --seeds, --max-seeds, --level
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.add_argument("--overwrite", action="store_true", help="rerun: replace the run that --out DIR holds")
 
@@ -121,20 +114,22 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise ConfigError("fleet sweep needs --out DIR (where the results go)")
     if args.max_seeds is not None and not args.until_decided:
         raise ConfigError("--max-seeds goes with --until-decided")
+    from fleet_emu.sweep.options import check_sweep_options
+
+    check_sweep_options(max_seeds=args.max_seeds)
     return sweep(args.args[0], args.out, jobs=args.jobs, dask=args.dask, maps=args.maps, limit=args.limit,
                  seeds=args.seeds, quiet=args.quiet, quick=args.quick,
                  until=Until(args.max_seeds, bootstrap(args.level)) if args.until_decided else None)
 
 
 def bootstrap(level: float | None) -> Any:
-    """The claims' interval settings from ``--level`` (one line when out of range)."""
+    """The claims' interval settings from ``--level`` (one line when out of range; None: its declared default,
+    :class:`~fleet_emu.sweep.options.SweepOptions`)."""
     from fleet_emu.sweep.intervals import Bootstrap
+    from fleet_emu.sweep.options import SweepOptions, check_sweep_options
 
-    if level is None:
-        return Bootstrap()
-    if not (isinstance(level, float) and 0.5 <= level <= 0.999):
-        raise ConfigError(f"--level must be a confidence level from 0.5 to 0.999 (got {level})")
-    return Bootstrap(level=level)
+    check_sweep_options(level=level)
+    return Bootstrap(level=SweepOptions().level if level is None else level)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -151,16 +146,12 @@ def sweep(study_name: str, out: Path, *, jobs: int | None = None, dask: str | No
     """Run a study into ``out``, resuming what is there; the exit code (see the module docstring). ``until``:
     add replicates until every claim is decided (:mod:`fleet_emu.sweep.decide`)."""
     from fleet_emu.sweep.execute import connect_dask
+    from fleet_emu.sweep.options import check_sweep_options
     from fleet_emu.sweep.spread import spread
     from fleet_emu.sweep.study import Study, param_label
 
     study = Study.load(study_name)
-    if jobs is not None and jobs < 1:
-        raise ConfigError(f"--jobs must be at least 1 (got {jobs})")
-    if limit is not None and limit < 1:
-        raise ConfigError(f"--limit must be at least 1 (got {limit})")
-    if seeds is not None and seeds < 1:
-        raise ConfigError(f"--seeds must be at least 1 (got {seeds})")
+    check_sweep_options(jobs=jobs, limit=limit, seeds=seeds)
     if quick and limit is not None:
         raise ConfigError("--quick is --limit <the grid's points>: give one of them")
     if until is not None and (quick or limit is not None or seeds is not None):

@@ -25,7 +25,7 @@ from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
-from fleet_emu.launch.result import unexpected_failures
+from fleet_emu.recording.result import unexpected_failures
 from fleet_emu.sweep import record
 from fleet_emu.sweep.record import Keep
 from fleet_emu.sweep.study import Point

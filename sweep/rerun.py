@@ -68,7 +68,7 @@ def find_point(out: Path, row: dict[str, Any], maps: Path | None) -> Point:
 
 def differences(row: dict[str, Any], result: Any) -> list[str]:
     """The deterministic values of the run that are not the row's: ``key (row X, rerun Y)``."""
-    from fleet_emu.launch.result import deterministic
+    from fleet_emu.recording.result import deterministic
 
     mine = dict(flatten(deterministic(result.to_dict()))) | {"curve": curve(result)}
     out = []

@@ -47,7 +47,7 @@ from fleet_emu.core.files import read_regular
 from fleet_emu.core.limits import MAX_FILE_BYTES, check_text
 from fleet_emu.core.radio import radio_settings
 from fleet_emu.core.scenario import Scenario
-from fleet_emu.core.spelling import file_spelling, near
+from fleet_emu.core.setting_names import file_spelling, near
 from fleet_emu.sweep import claims
 
 STUDIES = Path(__file__).resolve().parent / "studies"

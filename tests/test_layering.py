@@ -141,14 +141,14 @@ def test_the_facade_check_sees_function_local_and_relative_imports(tmp_path: Pat
 #: only processes have (the world's start-up timeout, the launcher's Ctrl-C).
 BUILT_IN: dict[str, frozenset[str]] = {
     "Hello": frozenset({"world/messages.py"}),
-    "Ready": frozenset({"core/lobby.py"}),
+    "Ready": frozenset({"core/control_messages.py"}),
     "Observation": frozenset({"world/messages.py"}),
     "WorldState": frozenset({"world/messages.py"}),
     "Links": frozenset({"netem/channel.py"}),
     "RxBundle": frozenset({"netem/channel.py"}),
     "TxBundle": frozenset({"agents/outputs.py"}),
     "BeliefSnapshot": frozenset({"agents/outputs.py"}),
-    "AgentReport": frozenset({"agents/outputs.py"}),
+    "RobotReport": frozenset({"agents/outputs.py"}),
     "BaseReport": frozenset({"agents/outputs.py"}),
     "Command": frozenset({"agents/brain.py", "agents/realtime.py"}),
     "Stop": frozenset({"world/messages.py", "world/node.py", "launch/runner.py"}),
@@ -172,3 +172,46 @@ def test_each_lockstep_message_is_built_in_one_place() -> None:
     built = constructions()
     wrong = {name: sorted(files) for name, files in built.items() if files != BUILT_IN[name]}
     assert not wrong, f"messages built elsewhere than their one builder (expected {BUILT_IN}): {wrong}"
+
+
+def _is_test_module(name: str) -> bool:
+    """``tests.conftest``, ``tests.sweep.conftest``, ``tests.core.test_keys``: a module pytest loads itself."""
+    last = name.rpartition(".")[2]
+    return last == "conftest" or last.startswith("test_")
+
+
+def imports_of_test_modules(root: Path = ROOT) -> list[str]:
+    """Every import, in ``tests/`` and ``benchmarks/``, of a conftest or of a test module (``test_*``), relative
+    and function-local ones included: shared helpers live in ``tests/harness/`` or in fixtures."""
+    found = []
+    for path in sorted([*(root / "tests").rglob("*.py"), *(root / "benchmarks").rglob("*.py")]):
+        rel = path.relative_to(root)
+        package = ".".join(rel.parent.parts)
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    parts = package.split(".")
+                    base = ".".join([*parts[: len(parts) - node.level + 1], *([base] if base else [])])
+                targets = [base, *(f"{base}.{a.name}" for a in node.names)]
+            else:
+                continue
+            found += [f"{rel}:{node.lineno}: imports {t}" for t in targets if _is_test_module(t)]
+    return sorted(set(found))
+
+
+def test_no_module_imports_a_conftest_or_a_test_module() -> None:
+    bad = imports_of_test_modules()
+    assert not bad, "import shared helpers from tests/harness/ (or use a fixture):\n" + "\n".join(bad)
+
+
+def test_the_test_import_check_sees_function_local_and_relative_imports(tmp_path: Path) -> None:
+    (tmp_path / "tests" / "sweep").mkdir(parents=True)
+    (tmp_path / "tests" / "sweep" / "test_probe.py").write_text(
+        "from tests.harness.cli import run_cli\nimport tests.conftest\n"
+        "def f():\n    from .test_report import row\n    from tests.sweep import conftest\n")
+    assert imports_of_test_modules(tmp_path) == ["tests/sweep/test_probe.py:2: imports tests.conftest",
+                                             "tests/sweep/test_probe.py:4: imports tests.sweep.test_report",
+                                             "tests/sweep/test_probe.py:5: imports tests.sweep.conftest"]

@@ -94,7 +94,7 @@ def test_run_takes_the_cli_s_bus_options_and_refuses_them_where_they_mean_nothin
     s = fe.Scenario().override(robots=2, max_ticks=5, allocator="nearest")
     hosted = fe.Scenario.from_dict(s.to_dict() | {"hosts": {"count": 1}})
     assert hosted.hosts is not None and hosted.hosts.count == 1
-    with pytest.raises(fe.ConfigError, match=r"memory engine .* no hosts"):
+    with pytest.raises(fe.ConfigError, match=r"memory engine .* no \[hosts\] \(the scenario's; hosts=0"):
         fe.run(hosted, engine="memory")
     with pytest.raises(fe.ConfigError, match=r"memory engine .* no listen"):
         fe.run(s, engine="memory", listen="tcp/127.0.0.1:0")

@@ -7,9 +7,11 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_docs import ROOT, blocks
+from tests.harness.cli import ROOT
+from tests.harness.docs import blocks
 
 
+@pytest.mark.slow  # the README's snippet again (test_docs runs it once)
 def test_the_readme_snippet_runs_a_second_time(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     snippet = next(b for b in blocks(ROOT / "README.md") if b.lang == "python")
     monkeypatch.chdir(tmp_path)

@@ -27,7 +27,7 @@ from PIL import Image
 from fleet_emu.core import jit
 from fleet_emu.core.errors import MapError
 from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell, MapData, nearest_cells
-from fleet_emu.core.spelling import near
+from fleet_emu.core.setting_names import near
 from fleet_emu.world.mapsize import builtin_shape, check_cells, image_size, pooled_shape, read_ros_yaml, snapped
 from fleet_emu.world.registry import local_map, registry
 

@@ -28,7 +28,7 @@ from fleet_emu.core.grid import MapData
 from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import BASE, Keys, robot_ids
 from fleet_emu.core.messages import STALE, Command, Failed, Ready, Stop, WorldClock
-from fleet_emu.core.node import Declared, NodeBase, node_main, undeclare
+from fleet_emu.core.node import Declared, NodeShell, node_main, undeclare
 from fleet_emu.core.pace import Pacer
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.world.build import build_world
@@ -44,7 +44,7 @@ STARTUP_TIMEOUT = 120.0
 STARTUP_PER_ROBOT = 1.0
 
 
-class WorldNode(NodeBase):
+class WorldNode(NodeShell):
     role = "world"
 
     def __init__(self, scenario: Scenario, run: str, map_data: MapData, startup_timeout: float | None = None,

@@ -20,7 +20,7 @@ from pathlib import Path, PurePosixPath
 from typing import Any, ClassVar, Protocol
 
 from fleet_emu.core.errors import MapError
-from fleet_emu.core.spelling import near
+from fleet_emu.core.setting_names import near
 
 REGISTRY_FILE = Path(__file__).resolve().parent / "registry.toml"
 RAW_URL = "https://raw.githubusercontent.com/{repo}/{commit}/{path}"

@@ -12,7 +12,7 @@ from fleet_emu.agents.allocators import (  # noqa: F401  (registration)
     trade,
     utility,
 )
-from fleet_emu.agents.allocators.base import (
+from fleet_emu.agents.allocators.interface import (
     Allocation,
     Allocator,
     AllocStatus,

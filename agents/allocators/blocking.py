@@ -28,7 +28,7 @@ import dataclasses
 
 import numpy as np
 
-from fleet_emu.agents.allocators.base import Problem
+from fleet_emu.agents.allocators.interface import Problem
 from fleet_emu.agents.allocators.minpos import open_clusters, restricted
 
 #: Closed ticks without progress after which a target is given up (module docstring).

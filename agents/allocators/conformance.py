@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from fleet_emu.agents.allocators.base import Allocation, Allocator, AllocStatus, Problem
+from fleet_emu.agents.allocators.interface import Allocation, Allocator, AllocStatus, Problem
 from fleet_emu.agents.allocators.registry import make_allocator
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.core.codec import Payload

@@ -75,7 +75,7 @@ from typing import Any
 
 import numpy as np
 
-from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.agents.allocators.interface import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.minpos import REPLANS, minpos_choice, observed_choice, positions
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.grid import FREE, OCCUPIED, Cell

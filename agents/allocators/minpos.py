@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.agents.allocators.interface import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.grid import MOVES, Cell, flat
 from fleet_emu.core.kernels import wavefront

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.agents.allocators.interface import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.files import read_regular, write_atomic

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.agents.allocators.interface import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.minpos import observed_choice
 from fleet_emu.core.messages import RadioMsg
 

@@ -18,9 +18,9 @@ from collections.abc import Mapping
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any
 
-from fleet_emu.agents.allocators.base import Allocator
+from fleet_emu.agents.allocators.interface import Allocator
 from fleet_emu.core.errors import ConfigError
-from fleet_emu.core.spelling import near
+from fleet_emu.core.setting_names import near
 
 GROUP = "fleet_emu.allocators"
 

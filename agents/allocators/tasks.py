@@ -11,7 +11,7 @@ allocator's cost machinery is unchanged.
 
 from __future__ import annotations
 
-from fleet_emu.agents.allocators.base import Problem
+from fleet_emu.agents.allocators.interface import Problem
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.agents.regions import RegionTasks
 

@@ -68,8 +68,8 @@ from typing import Any
 
 import numpy as np
 
-from fleet_emu.agents.allocators.base import Allocation, Allocator, AllocStatus, Problem, robot_order
 from fleet_emu.agents.allocators.blocking import BLOCKED_AFTER, Blockage, open_costs
+from fleet_emu.agents.allocators.interface import Allocation, Allocator, AllocStatus, Problem, robot_order
 from fleet_emu.agents.allocators.params import Param
 from fleet_emu.agents.allocators.tasks import TASKS, use_tasks
 from fleet_emu.agents.regions import RegionTasks, holding

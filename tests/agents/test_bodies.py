@@ -8,7 +8,7 @@ import dataclasses
 
 import numpy as np
 
-from fleet_emu.agents.allocators.base import Problem
+from fleet_emu.agents.allocators.interface import Problem
 from fleet_emu.agents.bodies import RESEND, SILENT_AFTER, WreckNotice, Wrecks, clear_of
 from fleet_emu.agents.frontiers import Cluster
 from fleet_emu.core.grid import Cell

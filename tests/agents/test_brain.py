@@ -4,13 +4,11 @@ of the decision)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import msgpack
 import numpy as np
 import pytest
 
-from fleet_emu.agents.allocators import Allocation, Allocator, Problem, make_allocator
+from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import Brain, BrainConfig
 from fleet_emu.agents.protocol import PoseBeacon
 from fleet_emu.core.codec import Context
@@ -18,21 +16,7 @@ from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import UNKNOWN, Cell, from_ascii
 from fleet_emu.core.messages import Envelope, Observation, RadioMsg, open_envelope, seal
 from fleet_emu.core.messages import decode_payload as decode_body
-
-
-class Spy(Allocator):
-    """Nearest frontier, remembering the poses it was given (not registered: no plugin name)."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.seen: list[dict[str, Cell]] = []
-        self.previous: list[Cell | None] = []
-        self.nearest = make_allocator({"type": "nearest"})
-
-    def allocate(self, problem: Problem, inbox: Sequence[RadioMsg] = ()) -> Allocation:
-        self.seen.append(dict(problem.poses))
-        self.previous.append(problem.previous_target)
-        return self.nearest.allocate(problem, inbox)
+from tests.harness.spy import Spy
 
 
 def _brain(me: str = "r0") -> tuple[Brain, Spy]:

@@ -35,7 +35,7 @@ def test_conformance() -> None:
     for position in ("literal", "cost"):
         api_test({"type": "connectivity", "position": position, "predict": "target"})
         seed_test({"type": "connectivity", "position": position, "predict": "target"})
-    with pytest.raises(ConfigError, match=r"lam must be a number in \[0, 1\]"):
+    with pytest.raises(ConfigError, match=r"lam must be within \[0, 1\] \(got 1.5\)"):
         make_allocator({"type": "connectivity", "lam": 1.5})
 
 

@@ -18,8 +18,8 @@ from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
 from fleet_emu.core.codec import Context, DecodeError, decode_payload
 from fleet_emu.core.envelope import Envelope, RadioMsg, RxBundle, WireEnvelope, read_rx, seal
 from fleet_emu.core.messages import Observation
-from tests.agents.test_brain import Spy
-from tests.core.test_fast_decode import CTX, SAMPLES, _equal, _mutations
+from tests.harness.spy import Spy
+from tests.harness.wire import CTX, SAMPLES, equal, mutations
 
 FIELDS = {"pose": ("cell", "next", "maps"), "map": ("cells", "values", "n", "covers")}
 
@@ -32,7 +32,7 @@ def _env(kind: str, payload: bytes, src: str = "r1", **head: Any) -> Envelope:
 @pytest.mark.parametrize("kind", ["pose", "map"])
 def test_hear_accepts_only_what_the_payload_decoders_accept_with_their_values(kind: str) -> None:
     accepted = refused = 0
-    for obj in (o for sample in SAMPLES[kind] for o in [sample, *_mutations(sample)]):
+    for obj in (o for sample in SAMPLES[kind] for o in [sample, *mutations(sample)]):
         data = msgpack.packb(obj, use_bin_type=True)
         try:
             record: Any = decode_payload(kind, data, CTX)
@@ -48,7 +48,7 @@ def test_hear_accepts_only_what_the_payload_decoders_accept_with_their_values(ki
             continue
         origin, tick, body = got.messages[1]
         assert (origin, tick) == ("r2", 3) and isinstance(body, Beacon if kind == "pose" else Delta)
-        assert all(_equal(getattr(body, f), getattr(record, f)) for f in FIELDS[kind]), obj
+        assert all(equal(getattr(body, f), getattr(record, f)) for f in FIELDS[kind]), obj
         if kind == "pose":  # a beacon's requests, as each teammate reads those addressed to it
             for r in CTX.senders:
                 heard = hear(inbox, CTX, r)

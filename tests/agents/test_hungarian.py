@@ -12,7 +12,7 @@ from fleet_emu.agents.allocators.hungarian import Assignment, Hungarian
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.core.grid import Cell, from_ascii
 from fleet_emu.core.messages import open_envelope, seal
-from tests.agents.lockstep import run_fleet
+from tests.harness.lockstep import run_fleet
 
 LINE = """
 ##############

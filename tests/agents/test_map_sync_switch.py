@@ -78,10 +78,10 @@ def test_off_in_the_memory_engine_a_lost_delta_is_not_asked_for_again() -> None:
 def test_off_reaches_a_robots_own_process(tmp_path: Path) -> None:
     """A robot's process reads the run's ``scenario.json`` (``core.node.parse_child``) and builds its node from
     it: the brain it builds has no map sync."""
-    from fleet_emu.agents.node import AgentNode
+    from fleet_emu.agents.node import RobotNode
 
     path = tmp_path / "scenario.json"
     for sync in (True, False):
         path.write_text(json.dumps(Scenario().override(loss=0.3, map_sync=sync).to_dict()))
-        node = AgentNode(Scenario.from_json(path), "run", "r0")
+        node = RobotNode(Scenario.from_json(path), "run", "r0")
         assert (node.brain.sync is not None) is sync

@@ -1,11 +1,11 @@
 """MinPos's Fig. 6 (Bautin et al. 2012, section 4.3 and its discussion) run live: small fleets stepped through the
-real World, Channel and Brain objects (:mod:`tests.agents.lockstep`), with the radio's 1-tick latency, instead of
+real World, Channel and Brain objects (:mod:`tests.harness.lockstep`), with the radio's 1-tick latency, instead of
 the static snapshots of test_minpos.py."""
 
 from __future__ import annotations
 
 from fleet_emu.core.grid import Cell
-from tests.agents.lockstep import Trace, run_fleet
+from tests.harness.lockstep import Trace, run_fleet
 
 # Fig. 6(a): two robots follow each other up a stem to a T. The left branch is the shorter, so both head
 # for its frontier first; "as soon as the first one moves away from" the right frontier, the second is first

@@ -1,4 +1,4 @@
-"""Nearest frontier run live (:mod:`tests.agents.lockstep`): a robot behind a teammate on the way to the same
+"""Nearest frontier run live (:mod:`tests.harness.lockstep`): a robot behind a teammate on the way to the same
 frontier follows it, with no wait for the cell the teammate has just left.
 
 Before the beacons carried the next cell, a robot saw its teammate on the cell the teammate
@@ -10,7 +10,7 @@ than it was."""
 
 from __future__ import annotations
 
-from tests.agents.lockstep import run_fleet
+from tests.harness.lockstep import run_fleet
 
 # r1 starts two cells behind r0; the only frontier is ahead of both.
 CORRIDOR = """

@@ -16,7 +16,7 @@ from fleet_emu.agents.allocators.conformance import api_test, seed_test
 from fleet_emu.agents.brain import allocator_config
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.scenario import RadioConfig, Scenario
-from tests.conftest import run_cli
+from tests.harness.cli import run_cli
 
 Install = Callable[[dict[str, str], dict[str, str]], None]
 
@@ -75,7 +75,7 @@ def test_a_plugin_is_found_loaded_on_demand_and_conforms(install: Install) -> No
     assert alloc.to_dict() == {"type": "largest", "weight": 0.5, "reach": 10.0}
     api_test({"type": "largest"})
     seed_test({"type": "largest", "weight": 1.0})
-    with pytest.raises(ConfigError, match="'largest': weight must be a number >= 0"):
+    with pytest.raises(ConfigError, match="'largest': weight must be >= 0"):
         make_allocator({"type": "largest", "weight": -1})
 
 
@@ -121,7 +121,7 @@ def test_fleet_allocators_lists_plugins_and_broken_ones(install: Install) -> Non
     assert code == 0
     lines = {line.split()[0]: line for line in out.splitlines()}
     assert set(lines) == set(allocator_names())
-    assert "(no description) [plugin plug_cli: weight=0.0, reach=<scenario sensor_cells>]" in lines["big"]
+    assert "(no description) [plugin plug_cli: weight=0.0 (>= 0), reach=<scenario sensor_cells> (> 0)]" in lines["big"]
     assert "failed to load: ModuleNotFoundError" in lines["gone"]
     assert "built-in: wavefront='full'" in lines["minpos"]
 
@@ -134,7 +134,7 @@ def test_fleet_allocators_lists_plugins_and_broken_ones(install: Install) -> Non
     (LARGEST.replace('"reach": "sensor_cells"', '"range": "sensor_cells"').format(registration=""), "Largest",
      "'range', which is not a parameter"),
     (LARGEST.replace("Param(0.0, ge=0)", "Param(-1.0, ge=0)").format(registration=""), "Largest",
-     "default of weight is not a number >= 0"),
+     "default of weight must be >= 0"),
 ])
 def test_a_plugin_that_does_not_fit_is_a_config_error(source: str, target: str, match: str,
                                                       install: Install) -> None:

@@ -11,7 +11,7 @@ from fleet_emu.agents.allocators.trade import Trade, TradeDone
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.agents.regions import RegionTasks, holding, region_tasks, segment
 from fleet_emu.core.grid import FREE, from_ascii
-from tests.agents.lockstep import run_fleet
+from tests.harness.lockstep import run_fleet
 
 TWO_ROOMS = """
 #############

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.agents.lockstep import run_fleet
+from tests.harness.lockstep import run_fleet
 
 # Three rooms off a corridor; the fleet starts in the left room.
 TRUTH = """

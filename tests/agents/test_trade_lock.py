@@ -8,7 +8,7 @@ from fleet_emu.agents.allocators import Problem
 from fleet_emu.agents.allocators.blocking import BLOCKED_AFTER, Blockage, open_costs
 from fleet_emu.agents.frontiers import find_clusters
 from fleet_emu.core.grid import Cell, from_ascii
-from tests.agents.lockstep import run_fleet
+from tests.harness.lockstep import run_fleet
 
 # A corridor two cells high toward one frontier (the unknown cell on the left); robots placed per test.
 CORRIDOR = """

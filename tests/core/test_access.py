@@ -19,7 +19,7 @@ from fleet_emu.core.access import (
 )
 from fleet_emu.core.keys import Keys, robot_ids
 from fleet_emu.core.messages import Command, Stop, WorldState
-from fleet_emu.core.node import NodeBase
+from fleet_emu.core.node import NodeShell
 from fleet_emu.recording.monitor import Monitor
 
 K = Keys("run1")
@@ -90,7 +90,7 @@ def test_credentials_round_trip_and_bad_files() -> None:
         Credential.from_json('{"user": 3}')
 
 
-class _Node(NodeBase):
+class _Node(NodeShell):
     role = "world"
 
 

@@ -12,7 +12,6 @@ import pytest
 from fleet_emu.agents.protocol import MapDelta, PoseBeacon
 from fleet_emu.core.messages import (
     MAX_PAYLOAD_BYTES,
-    AgentReport,
     Command,
     Context,
     DecodeError,
@@ -22,6 +21,7 @@ from fleet_emu.core.messages import (
     Observation,
     RadioMsg,
     Ready,
+    RobotReport,
     RxBundle,
     Stop,
     TxBundle,
@@ -58,7 +58,7 @@ def _samples() -> list:
               dropped_signal=1, bytes_sent=99),
         Hello(src="r0", tick=0, seq=9), Ready(src="r1", tick=0, seq=1, role="agent", pid=42),
         Stop(src="r0", tick=9, seq=2, reason="coverage"),
-        AgentReport(src="r1", tick=9, seq=3, decisions=9, decision_ms_mean=1.0, decision_ms_p95=2.0,
+        RobotReport(src="r1", tick=9, seq=3, decisions=9, decision_ms_mean=1.0, decision_ms_p95=2.0,
                     dropped=0, peak_rss_kb=1000),
     ]
 

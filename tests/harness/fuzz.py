@@ -25,7 +25,6 @@ from fleet_emu.agents.protocol import MapDelta, PoseBeacon
 from fleet_emu.core.codec import Record
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import (
-    AgentReport,
     BeliefSnapshot,
     Command,
     Envelope,
@@ -35,6 +34,7 @@ from fleet_emu.core.messages import (
     Observation,
     RadioMsg,
     Ready,
+    RobotReport,
     RxBundle,
     Stop,
     TxBundle,
@@ -88,7 +88,7 @@ def _template(channel: str, node: str, src: str, rng: np.random.Generator) -> Re
         case "failed":
             return Failed(src=src, tick=t, seq=s, robot=node or "r0", reason="fuzz")
         case "report":
-            return AgentReport(src=src, tick=t, seq=s, decisions=1, decision_ms_mean=1.0, decision_ms_p95=1.0,
+            return RobotReport(src=src, tick=t, seq=s, decisions=1, decision_ms_mean=1.0, decision_ms_p95=1.0,
                                dropped=0, peak_rss_kb=1)
         case "ready":
             return Ready(src=src, tick=0, seq=0, role="agent", pid=1)

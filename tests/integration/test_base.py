@@ -22,8 +22,9 @@ from fleet_emu.core.bus import client_config, router_locators
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
-from tests.conftest import ENDLESS, ROOT, all_pids, fleet_processes, pid_alive, result, run_cli, wait_for
+from tests.harness.cli import ENDLESS, ROOT, result, run_cli
 from tests.harness.faults import RunSpec, kill_trial, sigint_trial
+from tests.harness.procs import all_pids, fleet_processes, pid_alive, wait_for
 
 RUN = "basesec"
 
@@ -79,6 +80,7 @@ def test_fleet_run_base_flags(small_map: Path, tmp_path: Path) -> None:
     assert code == 0 and "matches result.json" in out + err and "base connected" in out
 
 
+@pytest.mark.slow  # base over processes proven once by default (= memory)
 def test_a_killed_base_fails_the_run_and_leaves_nothing_behind(small_map: Path, tmp_path: Path) -> None:
     out = tmp_path / "k"
     args = ["run", "--map", str(small_map), "--robots", "2", "--seed", "2", "--max-ticks", "100000",
@@ -111,7 +113,8 @@ def test_a_killed_base_fails_the_run_and_leaves_nothing_behind(small_map: Path, 
     assert not [p for p in all_pids(res) if pid_alive(p)]
 
 
-@pytest.mark.parametrize("i", [0, pytest.param(1, marks=pytest.mark.slow)])  # a second draw: -m slow
+@pytest.mark.slow  # signals over processes: the sigint trial by default
+@pytest.mark.parametrize("i", [0, 1])
 def test_sigint_at_a_random_moment_with_a_base_leaves_no_process(tmp_path: Path, i: int) -> None:
     """The fault trials' invariants (``tests/harness/faults.py``: no orphan among every descendant of the
     launcher, the base's process included; no death; result.json and run.mcap whole) with a base."""
@@ -122,6 +125,7 @@ def test_sigint_at_a_random_moment_with_a_base_leaves_no_process(tmp_path: Path,
     assert "base" in t.result["pids"] or not t.result["pids"]  # nothing spawned when the signal came first
 
 
+@pytest.mark.slow  # base over processes proven once by default (= memory)
 def test_a_robot_killed_with_a_base_leaves_the_run_and_the_base_reports(small_map: Path, tmp_path: Path) -> None:
     spec = RunSpec(str(small_map), robots=3, max_ticks=50, target_coverage=1.0, seed=12,
                    extra=("--sensor-range", "1.0", "--base"))

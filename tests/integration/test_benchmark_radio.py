@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.integration.test_benchmarks import bench, fields
+from tests.harness.bench import bench, fields
 
 
 def test_radio_splits_each_allocators_bytes_by_kind(small_map: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -5,56 +5,16 @@ or the engines in this process)."""
 
 from __future__ import annotations
 
-import importlib
 import json
 import re
-from collections.abc import Sequence
 from pathlib import Path
 
 import pytest
 
-
-def bench(script: str, *argv: str, capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    """``benchmarks/SCRIPT.py``'s ``main(argv)``: (exit code, stdout, stderr)."""
-    main = importlib.import_module(f"benchmarks.{script}").main
-    capsys.readouterr()
-    try:
-        code = main(list(argv)) or 0
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    out, err = capsys.readouterr()
-    return code, out, err
+from tests.harness.bench import bench, fields, markdown
 
 
-def fields(header: str, row: str, labels: Sequence[str | tuple[str, str]]) -> dict[str, str]:
-    """A fixed-width table row as ``{label: text}``: each word of the row goes to the header label it lies under
-    (right- or left-aligned, it overlaps the label's characters). ``labels`` in header order, each a label or
-    ``(key, label)`` for a label the header repeats; words after the last label are the row's ``"rest"``."""
-    spans, at = [], 0
-    for item in labels:
-        key, label = item if isinstance(item, tuple) else (item, item)
-        start = header.index(label, at)
-        assert header[start - 1:start] in ("", " ") and header[start + len(label):][:1] in ("", " "), label
-        spans.append((key, start, start + len(label)))
-        at = start + len(label)
-    out: dict[str, list[str]] = {}
-    for word in re.finditer(r"\S+", row):
-        keys = [k for k, s, e in spans if word.start() < e and s < word.end()]
-        if not keys:
-            assert word.start() >= at, f"{word.group()!r} at {word.start()} is under no label of {header!r}"
-            keys = ["rest"]
-        assert len(keys) == 1, (word.group(), keys)
-        out.setdefault(keys[0], []).append(word.group())
-    return {k: " ".join(v) for k, v in out.items()}
-
-
-def markdown(text: str) -> list[dict[str, str]]:
-    """The rows of the Markdown table in ``text`` as ``{header: cell}``."""
-    lines = [ln for ln in text.splitlines() if ln.startswith("|") and not ln.startswith("| ---")]
-    head = [c.strip() for c in lines[0].strip("|").split("|")]
-    return [dict(zip(head, (c.strip() for c in ln.strip("|").split("|")), strict=True)) for ln in lines[1:]]
-
-
+@pytest.mark.slow  # a benchmark script's smoke run over real fleets
 def test_compare_allocators_reports_each_run_and_fails_when_one_fails(small_map: Path,
                                                                       capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = bench("compare_allocators", "--allocators", "nearest", "--robots", "2", "--seeds", "1",
@@ -73,6 +33,7 @@ def test_compare_allocators_reports_each_run_and_fails_when_one_fails(small_map:
         assert got["robots"] == "2" and re.match(cell, got["nearest"]), (name, got)
 
 
+@pytest.mark.slow  # a benchmark script's smoke run over real fleets
 def test_ticks_per_second_reports_each_run_and_fails_when_one_fails(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = bench("ticks_per_second", "--robots", "1", "0", "--ticks", "5", "--in-process", capsys=capsys)
     assert code == 1
@@ -87,6 +48,7 @@ def test_ticks_per_second_reports_each_run_and_fails_when_one_fails(capsys: pyte
     assert fields(header, failed, labels) == {"robots": "0", "ticks": "failed"}
 
 
+@pytest.mark.slow  # a benchmark script's smoke run over real fleets
 def test_trade_idle_reports_each_run_and_the_idle_ticks(small_map: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = bench("trade_idle", "--allocators", "hungarian", "trade:explore_in_round=false", "--seeds", "1",
                            "--maps", str(small_map), "--start", "map", "--comm", "full", "--engine", "memory",
@@ -110,6 +72,7 @@ def test_trade_idle_bad_allocator_spec_is_one_line(capsys: pytest.CaptureFixture
         "'trade:explore_in_round' is not NAME or NAME:PARAM=VALUE,...")
 
 
+@pytest.mark.slow  # a benchmark script's smoke run
 def test_engine_speed_compares_the_engines_on_equal_runs(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = bench("engine_speed", "--quick", "--seeds", "1", "--max-ticks", "15", capsys=capsys)
     assert code == 0, err[-2000:]
@@ -122,6 +85,7 @@ def test_engine_speed_compares_the_engines_on_equal_runs(capsys: pytest.CaptureF
     assert "differs" not in err
 
 
+@pytest.mark.slow  # a benchmark script's smoke run over real fleets
 def test_scale_reports_a_row_per_fleet(capsys: pytest.CaptureFixture[str]) -> None:
     """A row per robot count, positive figures; a ``start`` row for a fleet larger than the map's free
     area (161 cells here), a ``cap`` row above the robot cap. (A map file, fitted by the same functions:
@@ -172,6 +136,7 @@ def test_scale_bad_argument_is_one_line(capsys: pytest.CaptureFixture[str]) -> N
     assert err.strip().splitlines() == ["scale: error: --robots must be at least 1 (got 0)"]
 
 
+@pytest.mark.slow  # a benchmark script's smoke run over real fleets
 def test_agent_memory_reports_each_run(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = bench("agent_memory", "--robots", "2", "--ticks", "40", "--period", "0.2", capsys=capsys)
     assert code == 0, err[-2000:]
@@ -212,6 +177,7 @@ def test_brain_step_bad_input_is_one_line(capsys: pytest.CaptureFixture[str]) ->
     assert code == 2 and err.startswith("brain_step: error: ") and err.count("\n") == 1
 
 
+@pytest.mark.slow  # a benchmark script's smoke run over real fleets
 def test_realtime_study_reports_a_row_per_fleet_and_allocator(small_bitmap: Path,
                                                               capsys: pytest.CaptureFixture[str]) -> None:
     """A fleet in real time, its row with the real-time columns; a ``start`` row for a fleet
@@ -297,6 +263,7 @@ def test_relay_prints_a_row_per_policy_and_ttl(small_map: Path, capsys: pytest.C
     assert code == 2 and err.startswith("relay: error: ") and err.count("\n") == 1
 
 
+@pytest.mark.slow  # a benchmark script's smoke run
 def test_paper_setting_prints_fig7_rows_and_draws_them(small_bitmap: Path, tmp_path: Path,
                                                        capsys: pytest.CaptureFixture[str]) -> None:
     """A row per allocator and fleet size; MHM keeps every robot connected to the base (its
@@ -351,6 +318,7 @@ def test_trade_lock_counts_runs_that_drag_on(small_map: Path, capsys: pytest.Cap
     assert code == 2 and err == "trade_lock: error: map file not found: /no/such/map.png\n"
 
 
+@pytest.mark.slow  # a benchmark script's smoke run
 def test_yan_regions_counts_trade_rounds_and_segmentations(small_map: Path,
                                                            capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = bench("yan_regions", "--map", str(small_map), "--allocators", "trade:tasks=regions", "trade",
@@ -370,6 +338,7 @@ def test_yan_regions_and_regions_picture_bad_input_is_one_line(capsys: pytest.Ca
     assert code == 2 and err.count("\n") == 1 and err.startswith("regions_picture: error: "), err
 
 
+@pytest.mark.slow  # a benchmark script's smoke run
 def test_regions_picture_draws_a_png_per_map(small_map: Path, tmp_path: Path,
                                              capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = bench("regions_picture", "--maps", str(small_map), "--tick", "5", "--out", str(tmp_path),
@@ -401,6 +370,7 @@ def test_flips_prints_a_row_per_allocator_and_size(small_map: Path, capsys: pyte
     assert code == 2 and err.startswith("flips: error: ") and err.count("\n") == 1
 
 
+@pytest.mark.slow  # a benchmark script's smoke run
 def test_mhm_reach_runs_to_the_method_end_and_compares_with_the_disc(tmp_path: Path,
                                                                     capsys: pytest.CaptureFixture[str]) -> None:
     data = tmp_path / "reach.json"
@@ -442,3 +412,28 @@ def test_live_viewers_bad_argument_is_one_line(capsys: pytest.CaptureFixture[str
     assert code == 2
     assert err.strip().splitlines() == ["live_viewers: error: --viewers, --waves, --ticks and --seeds must be at "
                                         "least 1, --delay from 0 to 600"]
+
+
+def test_suite_cost_tables_the_tests_and_the_modules_by_cpu(capsys: pytest.CaptureFixture[str]) -> None:
+    from benchmarks.suite_cost import table
+
+    rows = [{"nodeid": f"tests/{m}.py::t{i}", "cpu": c, "wall": 2 * c, "outcome": o}
+            for m, i, c, o in (("a", 0, 1.0, "passed"), ("a", 1, 3.0, "failed"), ("b", 0, 2.5, "skipped"))]
+    lines = table(9.0, 20.0, rows, top=2).splitlines()
+    assert lines[0] == ("suite: 3 tests (1 failed, 1 passed, 1 skipped), 9 CPU s user+sys in all (6 in the tests, "
+                        "the rest collection and start-up), 20 s wall")
+    tests = [ln for ln in lines if ln.startswith("| `tests/") and "::" in ln]
+    assert tests == ["| `tests/a.py::t1` | 3.0 | 6.0 |", "| `tests/b.py::t0` | 2.5 | 5.0 |"]  # the top 2
+    assert [ln for ln in lines if ln.startswith("| `tests/") and "::" not in ln] == [
+        "| `tests/a.py` | 4.0 | 2 |", "| `tests/b.py` | 2.5 | 1 |"]
+    code, _, err = bench("suite_cost", "--top", "0", capsys=capsys)
+    assert code == 2 and err == "suite_cost: error: --top must be at least 1, not 0\n"
+
+
+@pytest.mark.slow  # a pytest in a child process (a few CPU s)
+def test_suite_cost_measures_a_pytest_run(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = bench("suite_cost", "--top", "3", "--", "tests/core/test_keys.py", "-q", "-p", "no:cacheprovider",
+                           capsys=capsys)
+    assert code == 0, err[-2000:]
+    assert re.search(r"^suite: \d+ tests \(\d+ passed\), \d+ CPU s user\+sys in all", out, re.M), out
+    assert "| `tests/core/test_keys.py` |" in out

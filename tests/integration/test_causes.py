@@ -18,7 +18,8 @@ from fleet_emu.core.bus import client_config, router_config, router_locators
 from fleet_emu.core.messages import Stop, WorldState
 from fleet_emu.launch.causes import flood, froze, outside_stop, silent_world, state_timeout
 from fleet_emu.recording.monitor import Monitor
-from tests.conftest import ROOT, fleet_processes, result, run_cli
+from tests.harness.cli import ROOT, result, run_cli
+from tests.harness.procs import fleet_processes
 
 
 def _state(tick: int, done: bool = False) -> WorldState:
@@ -29,12 +30,12 @@ def _state(tick: int, done: bool = False) -> WorldState:
 def test_the_causes_read_from_the_monitor() -> None:
     m = Monitor(("r0",))
     assert silent_world(m, 3.0, now_ns=10**12) is None  # before tick 0: the start-up has its own timeout
-    m.feed("fleet/x/world/state", _state(7).encode(), wall_ns=0)
+    m.feed("fleet/x/world/state", _state(7).encode(), time_ns=0)
     assert silent_world(m, 3.0, now_ns=2 * 10**9) is None
     assert silent_world(m, 3.0, now_ns=4 * 10**9) == "the world process stopped answering at tick 7 (no state " \
                                                       "for 3 s)"
     assert froze(m, 10.0) is None
-    m.feed("fleet/x/world/state", _state(8, done=True).encode(), wall_ns=20 * 10**9)
+    m.feed("fleet/x/world/state", _state(8, done=True).encode(), time_ns=20 * 10**9)
     assert silent_world(m, 3.0, now_ns=30 * 10**9) is None  # done: its stop is on the way
     assert froze(m, 10.0) == "the world process stopped answering at tick 7 (no state for 20 s)"
     assert froze(m, 30.0) is None and state_timeout(10.0) == 20.0
@@ -89,6 +90,7 @@ def test_a_world_stop_ahead_of_its_state_waits_for_it() -> None:
         "a stop in the world's name that the world did not send ended the run at tick 900")
 
 
+@pytest.mark.slow  # a fleet frozen over processes (12 s wall); causes by default
 def test_a_frozen_world_is_named_with_its_tick(tmp_path: Path) -> None:
     """``kill -STOP`` of the world mid-run: the launcher ends the run within the state timeout (two of the
     scenario's ``barrier_timeout``, here 1 s) with one line naming the world and the tick it froze at. (The

@@ -12,7 +12,7 @@ import pytest
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic
-from tests.conftest import run_cli
+from tests.harness.cli import run_cli
 
 SCENARIO = """\
 name = "crash"
@@ -29,6 +29,7 @@ kind = "crash"
 """
 
 
+@pytest.mark.slow  # a crash over processes; memory engine by default
 @pytest.mark.parametrize("engine", ["processes", "in-process"])
 def test_a_crash_over_zenoh_is_the_memory_engines(tmp_path: Path, engine: str) -> None:
     """Over processes the robot is killed; in the launcher's process (``--in-process``) it sits out the run and,

@@ -15,7 +15,8 @@ from pathlib import Path
 import pytest
 
 from fleet_emu.launch.outdir import LOCK, DiskFault
-from tests.conftest import ROOT, run_cli, tmpfs
+from tests.harness.cli import ROOT, run_cli
+from tests.harness.files import tmpfs
 
 
 @pytest.fixture
@@ -46,6 +47,7 @@ def test_a_full_disk_ends_a_memory_run_with_one_line(tiny_disk: Path) -> None:
     assert _strays(tiny_disk / "x") == []
 
 
+@pytest.mark.slow  # a full disk over processes; memory engine by default
 def test_a_full_disk_ends_a_run_over_processes(tiny_disk: Path) -> None:
     """The recorder thread of the launcher meets the full disk: the run ends, every process stopped."""
     out = tiny_disk / "run"

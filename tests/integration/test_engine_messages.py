@@ -22,7 +22,7 @@ from mcap.reader import make_reader
 import fleet_emu as fe
 from fleet_emu.core.codec import Message, decode
 from fleet_emu.core.keys import BASE, Keys
-from fleet_emu.core.messages import AgentReport, WorldState  # (and every other kind registered with the codec)
+from fleet_emu.core.messages import RobotReport, WorldState  # (and every other kind registered with the codec)
 
 RUN_ID = "engines"
 
@@ -72,7 +72,7 @@ def test_the_comparison_sees_a_dropped_or_changed_field() -> None:
     type, a missing message and an extra one are all reported."""
     report = dict(src="r0", tick=3, seq=9, decisions=3, decision_ms_mean=0.1, decision_ms_p95=0.2, dropped=0,
                   peak_rss_kb=1, stage_cpu_ms={"merge": 0.5}, first_cpu_ms={"step": 0.1})
-    a = AgentReport(**report)
+    a = RobotReport(**report)
     assert _compare_key("k", [a], [dataclasses.replace(a, decision_ms_mean=7.0, peak_rss_kb=2)]) == []
     assert _compare_key("k", [a], [dataclasses.replace(a, stage_cpu_ms={})]) == [
         "k tick 3 seq 9 report.stage_cpu_ms: {'merge': 0.5} vs {}"]

@@ -17,7 +17,7 @@ from fleet_emu.core.access import allowed_src
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.scenario import BASE_PLANNERS
-from tests.conftest import ENDLESS, result, run_cli
+from tests.harness.cli import ENDLESS, result, run_cli
 from tests.harness.faults import RunSpec, Trial, fuzz_trial, kill_trial, loss_trial, sigint_trial
 from tests.harness.fuzz import UNKNOWN, fuzz_messages
 
@@ -74,6 +74,7 @@ def test_sigint_at_a_random_moment(tmp_path: Path, i: int) -> None:
     assert t.exit_code == 130 and t.result["reason"] == "interrupted"
 
 
+@pytest.mark.slow  # fuzz over processes; an attack over them by default
 def test_fuzz_on_every_key_kills_nothing_and_changes_nothing(small_map: Path, tmp_path: Path) -> None:
     """Through an open router: the seeded result is the run's without fuzz (the memory engine's, every engine's
     for a seed)."""
@@ -91,6 +92,7 @@ def test_fuzz_on_every_key_kills_nothing_and_changes_nothing(small_map: Path, tm
     assert "fleet: warning: --connect without --credentials" in (tmp_path / "fuzz.stderr").read_text()
 
 
+@pytest.mark.slow  # fuzz over processes; an attack over them by default
 def test_fuzz_from_a_robot_with_credentials_kills_nothing(small_map: Path, tmp_path: Path) -> None:
     t = fuzz_trial(_spec(small_map, max_ticks=100), tmp_path, np.random.default_rng([SEED, 4]), "fuzzauth", 2000,
                    "r1")
@@ -98,6 +100,7 @@ def test_fuzz_from_a_robot_with_credentials_kills_nothing(small_map: Path, tmp_p
     assert t.result["authenticated"] is True
 
 
+@pytest.mark.slow  # loss 0.9: every allocator on the memory engine by default
 def test_loss_09_ends_by_the_tick_limit(small_map: Path, tmp_path: Path) -> None:
     """A protocol allocator (rounds of bids) over processes at loss 0.9: every invariant of a trial."""
     t = loss_trial(_spec(small_map, max_ticks=40), tmp_path, "trade", "loss-trade")

@@ -4,16 +4,19 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from mcap.reader import make_reader
 
 from fleet_emu.core.messages import decode
 from fleet_emu.launch.result import deterministic
-from tests.conftest import all_pids, pid_alive, result, run_cli
+from tests.harness.cli import result, run_cli
+from tests.harness.procs import all_pids, pid_alive
 
 KEYS = ("run_id", "seed", "map", "allocator", "robots", "loss", "ticks", "completed", "coverage", "t90", "t99",
         "path_length", "connected_fraction", "radio", "decision_ms", "pids", "recording")
 
 
+@pytest.mark.slow  # a plain fleet: the suite's small_run by default
 def test_three_robot_processes_explore_a_small_map(small_run: Path) -> None:
     res = result(small_run)
     assert set(KEYS) <= set(res)
@@ -58,6 +61,7 @@ def _tick_messages(path: Path) -> dict[str, list[bytes]]:
     return out
 
 
+@pytest.mark.slow  # 3 fleets; engines agree by default (test_engine_messages)
 def test_same_seed_same_run_and_in_process_agrees(small_run: Path, tmp_path: Path) -> None:
     """The suite's plain run over processes (``a``, seed 0 at 10 % loss), run again from the ``scenario.json``
     it wrote (``b``: the file alone reproduces it), in one process (``c``) and on the memory engine (``d``):

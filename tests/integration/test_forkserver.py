@@ -10,12 +10,12 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 from mcap.reader import make_reader
 
 from fleet_emu.launch.result import deterministic
-from tests.conftest import (
-    ENDLESS,
-    ROOT,
+from tests.harness.cli import ENDLESS, ROOT, result, run_cli
+from tests.harness.procs import (
     all_pids,
     children_of,
     fleet_processes,
@@ -23,8 +23,6 @@ from tests.conftest import (
     is_router,
     nothing_left,
     pid_alive,
-    result,
-    run_cli,
     wait_for,
 )
 
@@ -63,6 +61,7 @@ def _server_and_robots(launcher: int, robots: int) -> tuple[int, list[int]]:
     return found[0]
 
 
+@pytest.mark.slow  # fork server teardown: a killed robot by default
 def test_robots_are_forked_each_in_its_own_session_and_sigint_tears_the_fleet_down(tmp_path: Path) -> None:
     """Forked robots, world and netem: the server's children, each its own session and log (none a child of the
     launcher but the server and the router). SIGINT (Ctrl-C) then ends the run through its teardown: exit 130, an
@@ -102,6 +101,7 @@ def test_robots_are_forked_each_in_its_own_session_and_sigint_tears_the_fleet_do
     nothing_left([server, *robots, *all_pids(res)], timeout=10)
 
 
+@pytest.mark.slow  # fork server teardown: a killed robot by default
 def test_a_killed_fork_server_fails_the_run_and_leaves_nothing(tmp_path: Path) -> None:
     """The server forked every node: killed, it takes the robots, the world and netem with it. The run ends as an
     error naming the world (exit 1, one line), its files written."""
@@ -121,6 +121,7 @@ def test_a_killed_fork_server_fails_the_run_and_leaves_nothing(tmp_path: Path) -
     nothing_left(all_pids(res))
 
 
+@pytest.mark.slow  # kill -9 over processes: the kill trial by default
 def test_a_killed_robot_is_reported_and_a_killed_launcher_leaves_nothing(tmp_path: Path) -> None:
     """A robot killed: the run goes on without it. Then the launcher killed (no teardown of its own): every
     process it started goes too (the world, netem and the router see it die; the fork server sees its input
@@ -141,6 +142,7 @@ def test_a_killed_robot_is_reported_and_a_killed_launcher_leaves_nothing(tmp_pat
     nothing_left([*started, *robots])
 
 
+@pytest.mark.slow  # a second fleet; forked = fresh by seed on the memory engine
 def test_fresh_robots_give_the_same_result_as_forked_ones(small_run: Path, tmp_path: Path) -> None:
     """The suite's plain run's scenario with every node started afresh (one robot: each fresh node is an
     interpreter of its own, a CPU second or more): the memory engine's result, as the forked run is (the

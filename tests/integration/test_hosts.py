@@ -23,7 +23,9 @@ from fleet_emu.core.messages import HostAssign
 from fleet_emu.core.scenario import HostPlan, Scenario
 from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
-from tests.conftest import ROOT, children_of, free_port, make_certs, pid_alive, result, run_cli, wait_for
+from tests.harness.cli import ROOT, result, run_cli
+from tests.harness.files import make_certs
+from tests.harness.procs import children_of, free_port, pid_alive, wait_for
 
 FLEET = [sys.executable, "-m", "fleet_emu.launch"]
 WAIT = ["--connect-timeout", "120"]  # a host may start before the launcher's router
@@ -116,6 +118,7 @@ def test_a_host_with_wrong_credentials_is_refused_and_spawn_requests_reach_only_
                 s.close()
 
 
+@pytest.mark.slow  # hosts over processes proven once by default
 def test_too_few_hosts_is_one_line_and_a_result(users: tuple[Path, Path], small_map: Path, tmp_path: Path) -> None:
     all_users, _ = users
     out = tmp_path / "out"
@@ -137,6 +140,7 @@ def test_too_few_hosts_is_one_line_and_a_result(users: tuple[Path, Path], small_
     assert not (tmp_path / "x").exists()
 
 
+@pytest.mark.slow  # hosts over processes proven once by default (another machine)
 def test_a_scenario_s_hosts_over_quic_run_their_robots_in_real_time(
         users: tuple[Path, Path], small_map: Path, tmp_path: Path) -> None:
     """A scenario's ``[hosts]`` place its robots (three on host1), over QUIC with TLS, and the robots on the host
@@ -298,7 +302,7 @@ def test_the_launcher_says_what_it_waits_for_and_who_came() -> None:
     hosts that came or the timeout's line naming the endpoint; a host's liveliness token is what counts."""
     import threading
 
-    from fleet_emu.launch.hosts import Hosts, HostsError
+    from fleet_emu.launch.host_client import Hosts, HostsError
 
     conf = zenoh.Config()
     conf.insert_json5("scouting/multicast/enabled", "false")

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 import zenoh
 
 from fleet_emu.agents.protocol import MapDelta
@@ -22,7 +23,8 @@ from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
 from fleet_emu.netem.node import NetemNode
-from tests.conftest import result, run_cli, wait_for
+from tests.harness.cli import result, run_cli
+from tests.harness.procs import wait_for
 
 RUN = "insider"
 
@@ -50,6 +52,7 @@ def _second_bundles(endpoint: str, users: Path, until: threading.Event, sent: li
         sub.undeclare()
 
 
+@pytest.mark.slow  # an insider over processes; an attack by default
 def test_a_second_bundle_in_a_robots_name_is_dropped_and_counted(small_map: Path, tmp_path: Path) -> None:
     users = tmp_path / "users.txt"
     scenario = ["--map", str(small_map), "--robots", "2", "--seed", "3", "--loss", "0.2", "--quiet"]

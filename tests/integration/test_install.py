@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import ROOT
+from tests.harness.cli import ROOT
 
 # Regular packages named like the clashing ones; importing any of them fails loudly.
 SHADOW = 'raise ImportError("this {name!r} is another project\'s package, not fleet-emu\'s")\n'

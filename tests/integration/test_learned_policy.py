@@ -20,9 +20,10 @@ import fleet_emu as fe
 from fleet_emu.agents.allocators.policy import save_policy
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic
-from tests.conftest import result, run_cli
+from tests.harness.cli import result, run_cli
 
 
+@pytest.mark.slow  # a policy over processes; memory engine by default
 def test_a_learned_policy_runs_in_the_process_fleet_as_in_memory(small_map: Path, tmp_path: Path) -> None:
     policy = tmp_path / "policy.npz"
     save_policy(policy, np.array([-1.0, 0.2, -0.6, 0.1, 0.5]))
@@ -51,6 +52,7 @@ def test_a_bad_policy_parameter_or_file_is_one_line(small_map: Path, tmp_path: P
         assert not (tmp_path / "x").exists()
 
 
+@pytest.mark.slow  # 2nd policy run over processes
 def test_a_policy_swapped_after_the_launcher_read_it_is_refused_by_the_robots(
         small_map: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The adversary replaces the file between the launcher's check and the robots' load (here: right after the

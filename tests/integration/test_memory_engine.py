@@ -15,12 +15,14 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import fleet_emu as fe
 from fleet_emu.agents.allocators import allocator_names
 from fleet_emu.core.scenario import BASE_PLANNERS
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic
-from tests.conftest import ROOT, result, run_cli
+from tests.harness.cli import ROOT, result, run_cli
 
 
 def _scenario(small_map: Path, allocator: str, loss: float) -> fe.Scenario:
@@ -29,6 +31,7 @@ def _scenario(small_map: Path, allocator: str, loss: float) -> fe.Scenario:
                                   max_ticks=150, **base)
 
 
+@pytest.mark.slow  # engines agree once by default
 def test_memory_equals_processes_for_a_protocol_allocator_on_a_shared_relayed_radio(small_map: Path,
                                                                                     tmp_path: Path) -> None:
     s = fe.Scenario().override(map=str(small_map), robots=3, allocator="trade", loss=0.2, seed=4, max_ticks=120,
@@ -65,6 +68,7 @@ print(json.dumps(runs))
 """
 
 
+@pytest.mark.slow  # every allocator twice more; engines agree once by default
 def test_every_allocator_gives_the_same_result_in_another_interpreter(small_map: Path) -> None:
     """What a processes run would show if an allocator's result hung on its interpreter: an order of dicts or
     sets that changes with the hash seed (``PYTHONHASHSEED``), at loss 0 and 0.3."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tests.conftest import result, run_cli
+from tests.harness.cli import result, run_cli
 
 
 def test_mhm_keeps_every_robot_connected_to_the_base_and_completes(small_map: Path, tmp_path: Path) -> None:

@@ -7,6 +7,7 @@ import subprocess
 import threading
 from pathlib import Path
 
+import pytest
 import zenoh
 from mcap.records import Channel
 from mcap.records import Message as McapMessage
@@ -15,7 +16,7 @@ from mcap.stream_reader import StreamReader
 from fleet_emu.core.bus import client_config, router_config, router_locators
 from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
-from tests.conftest import fleet, result, run_cli
+from tests.harness.cli import fleet, result, run_cli
 
 RUN = "replayed"
 
@@ -75,6 +76,7 @@ def test_a_replayed_recording_changes_nothing_and_its_drops_are_counted(small_ru
     assert live["bus"]["foreign_dropped"] == sum(by.values()) and live["bus"]["nonce"] != recorded["bus"]["nonce"]
 
 
+@pytest.mark.slow  # two live fleets; attacks once by default
 def test_a_second_run_with_a_live_run_id_is_refused_and_the_first_goes_on(small_map: Path, tmp_path: Path) -> None:
     """Two runs with one --run-id on one authenticated router (``fleet router-config``'s users file): the second,
     started while the first is live, is refused in one line with exit 2 and leaves no folder; the first ends as

@@ -17,7 +17,8 @@ from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.runner import RunOptions, run_fleet
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.recording.monitor import Monitor
-from tests.conftest import all_pids, pid_alive, result, run_cli
+from tests.harness.cli import result, run_cli
+from tests.harness.procs import all_pids, pid_alive
 
 PERCENTILE_KEYS = {"p50", "p90", "p99", "max", "mean"}
 
@@ -74,6 +75,7 @@ def slow_allocator() -> Iterator[str]:
         Allocator.registry.pop("test_slow", None)
 
 
+@pytest.mark.slow  # real time over processes: its keys by default
 def test_a_slow_robot_keeps_its_last_plan_and_its_decisions_come_late(tmp_path: Path, slow_allocator: str) -> None:
     sleep_ms = 300.0  # six ticks at 20 Hz
     base = Scenario().override(map="office", robots=2, max_ticks=60, seed=1, stall_ticks=1000,
@@ -92,6 +94,7 @@ def test_a_slow_robot_keeps_its_last_plan_and_its_decisions_come_late(tmp_path: 
     assert fast["decisions"] > slow["decisions"]
 
 
+@pytest.mark.slow  # signals over processes: the sigint trial by default
 def test_ctrl_c_during_a_real_time_run_still_writes_the_result(small_map: Path, tmp_path: Path) -> None:
     irq = Interrupts()
 

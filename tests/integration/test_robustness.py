@@ -14,19 +14,8 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from tests.conftest import (
-    ENDLESS,
-    ROOT,
-    all_pids,
-    children_of,
-    fleet,
-    free_port,
-    is_router,
-    pid_alive,
-    result,
-    run_cli,
-    wait_for,
-)
+from tests.harness.cli import ENDLESS, ROOT, fleet, result, run_cli
+from tests.harness.procs import all_pids, children_of, free_port, is_router, pid_alive, wait_for
 
 
 class Toml(str):
@@ -95,7 +84,7 @@ def test_bad_input_exits_2_from_the_console_script(tmp_path: Path) -> None:
 @pytest.mark.parametrize("args, env, match", [
     (["--robots", "250"], {}, "250 robots do not fit the free area reachable from the start cell"),
     (["--robots", "100", "--no-fork-server"], {"FLEET_MEM_AVAILABLE_MB": "4000"},
-     r"100 robots \(each started afresh\) need about \d+\.\d GB of memory \(agents .*\) but 3\.9 GB is "
+     r"100 robots \(each started afresh\) need about \d+\.\d GB of memory \(robots .*\) but 3\.9 GB is "
      r"available \(MemAvailable, or FLEET_MEM_AVAILABLE_MB\); run fewer robots, or with the fork server$"),
     (["--robots", "100", "--engine", "memory"], {"FLEET_MEM_AVAILABLE_MB": "100"},
      r"100 robots \(on the memory engine\) need about \d+ MB of memory .* but 100 MB is available"),
@@ -137,8 +126,8 @@ def test_a_sensor_range_beyond_the_map_is_clamped(small_map: Path, tmp_path: Pat
 @pytest.mark.parametrize("section, match", [
     ('type = "minpos"\nwavefront = "fastest"', "allocator 'minpos': wavefront must be one of"),
     ('type = "minpos"\nwavefronts = "stop"', "allocator 'minpos' has no parameter 'wavefronts'"),
-    ('type = "connectivity"\nlam = "high"', "allocator 'connectivity': lam must be a number in [0, 1]"),
-    ('type = "hungarian"\ntimeout = true', "allocator 'hungarian': timeout must be an integer >= 1"),
+    ('type = "connectivity"\nlam = "high"', "allocator 'connectivity': lam must be a finite number within [0, 1]"),
+    ('type = "hungarian"\ntimeout = true', "allocator 'hungarian': timeout must be a whole number >= 1"),
 ])
 def test_bad_allocator_parameter_in_a_scenario(section: str, match: str, tmp_path: Path) -> None:
     scenario = tmp_path / "bad.toml"

@@ -21,7 +21,7 @@ from mcap.reader import make_reader
 
 from fleet_emu.launch.outdir import LOCK
 from fleet_emu.launch.result import validate_result
-from tests.conftest import ROOT, run_cli
+from tests.harness.cli import ROOT, run_cli
 
 #: A run that goes on until stopped: one short-sighted robot in the office, the stall rules and the tick limit
 #: out of reach.
@@ -76,6 +76,7 @@ def test_a_folder_holding_a_run_is_refused_unless_overwrite(small_map: Path, tmp
     assert _strays(out) == []
 
 
+@pytest.mark.slow  # two live fleets over processes
 def test_a_second_run_into_a_live_folder_is_refused_naming_its_pid(
         endless: tuple[subprocess.Popen[str], Path], small_map: Path) -> None:
     proc, out = endless

@@ -22,7 +22,9 @@ from fleet_emu.core.bus import client_config, router_locators
 from fleet_emu.core.messages import Command, Failed, Links, RadioMsg, RxBundle, Stop, TxBundle, WorldState, seal
 from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.router_config import router_config_text
-from tests.conftest import ENDLESS, ROOT, all_pids, make_certs, pid_alive, result, run_cli, wait_for
+from tests.harness.cli import ENDLESS, ROOT, result, run_cli
+from tests.harness.files import make_certs
+from tests.harness.procs import all_pids, pid_alive, wait_for
 
 RUN = "sec"
 
@@ -160,6 +162,7 @@ def test_every_attack_leaves_the_seeded_result_unchanged(router, small_map: Path
     assert _comparable(ra) == _comparable(rb), err[-2000:]
 
 
+@pytest.mark.slow  # 2nd router's outsiders; default: the external one
 def test_the_embedded_router_refuses_outsiders_and_sigterm_keeps_the_files(small_map: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = subprocess.Popen(

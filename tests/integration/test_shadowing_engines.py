@@ -5,11 +5,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 import fleet_emu as fe
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic, validate_result
 
 
+@pytest.mark.slow  # shadowing: memory engine by default
 def test_a_shadowed_run_over_processes_gives_the_memory_engines_result(small_map: Path, tmp_path: Path) -> None:
     s = fe.Scenario().override(map=str(small_map), robots=3, allocator="minpos", comm="wall", comm_range=2.0,
                                threshold=-6.0, loss=0.1, seed=5, max_ticks=60, shadowing_db=6.0, shadowing_m=1.0)

@@ -16,7 +16,8 @@ from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.runner import RunOptions, run_fleet
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.recording.monitor import Monitor
-from tests.conftest import ENDLESS, ROOT, all_pids, pid_alive, result
+from tests.harness.cli import ENDLESS, ROOT, result
+from tests.harness.procs import all_pids, pid_alive
 
 
 def _files_are_whole(out: Path, res: dict) -> None:
@@ -46,6 +47,7 @@ def test_a_signal_before_anything_started_still_writes_both_files(small_map: Pat
         assert make_reader(f).get_summary() is not None
 
 
+@pytest.mark.slow  # signals over processes: the sigint trial by default
 def test_two_signals_mid_run_skip_the_wait_but_keep_the_files(small_map: Path, tmp_path: Path) -> None:
     irq = Interrupts()
 
@@ -61,6 +63,7 @@ def test_two_signals_mid_run_skip_the_wait_but_keep_the_files(small_map: Path, t
     _files_are_whole(out, res)
 
 
+@pytest.mark.slow  # signals over processes: the sigint trial by default
 def test_a_signal_during_teardown_keeps_the_run_as_it_ended(small_map: Path, tmp_path: Path) -> None:
     irq = Interrupts()
 
@@ -75,10 +78,11 @@ def test_a_signal_during_teardown_keeps_the_run_as_it_ended(small_map: Path, tmp
     _files_are_whole(out, res)
 
 
+@pytest.mark.slow  # signals over processes: the sigint trial by default
 @pytest.mark.parametrize("sig, code, delay", [
     (signal.SIGINT, 130, 1.5),
-    # SIGTERM mid-run exits 143 in test_security.py; at 4 s: -m slow
-    pytest.param(signal.SIGTERM, 143, 4.0, marks=pytest.mark.slow)])
+    # SIGTERM mid-run exits 143 in test_security.py
+    (signal.SIGTERM, 143, 4.0)])
 def test_the_cli_exits_128_plus_the_signal_during_start_up(tmp_path: Path, sig: int, code: int,
                                                           delay: float) -> None:
     out = tmp_path / "run"

@@ -5,12 +5,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 import fleet_emu as fe
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import deterministic
-from tests.launch.test_stall import oscillating
+from tests.harness.stall import oscillating
 
 
+@pytest.mark.slow  # the stall rule over processes; memory engine by default
 def test_a_belief_stall_over_processes_is_the_memory_engines(small_map: Path) -> None:
     s = oscillating(small_map)
     over_zenoh = fe.run(s)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import ROOT, run_cli
+from tests.harness.cli import ROOT, run_cli
 
 #: The run files an adversary links to a victim file: the processes' logs, the lock, the result, the recording.
 PLANTED = ("r0.log", "r1.log", "world.log", "netem.log", "router.log", "forkserver.log", ".fleet.lock",

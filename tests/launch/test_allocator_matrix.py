@@ -18,7 +18,7 @@ from fleet_emu.core.scenario import BASE_PLANNERS
 from fleet_emu.launch.memory import Fleet
 
 
-@pytest.mark.parametrize("loss", [0.0, 0.3, 0.5])
+@pytest.mark.parametrize("loss", [0.0, pytest.param(0.3, marks=pytest.mark.slow), 0.5])  # 0.3: between the two
 @pytest.mark.parametrize("allocator", [a for a in allocator_names() if a not in BASE_PLANNERS])
 # mhm needs a base station and stops where its robots cannot reach (step 18): tests/integration/test_mhm.py
 def test_every_allocator_completes_under_loss(allocator: str, loss: float, small_map: Path) -> None:

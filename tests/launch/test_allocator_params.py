@@ -13,7 +13,7 @@ from fleet_emu.agents.allocators.nearest import Nearest
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
 from fleet_emu.launch.result import validate_result
-from fleet_emu.recording.monitor import allocator_params
+from fleet_emu.recording.result import allocator_params
 
 
 @pytest.fixture

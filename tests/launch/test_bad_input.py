@@ -14,7 +14,7 @@ from PIL import Image
 from fleet_emu.core.access import read_users
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.limits import MAX_NESTING, nesting
-from tests.conftest import run_cli
+from tests.harness.cli import run_cli
 
 BUDGET = {"FLEET_MEM_AVAILABLE_MB": "4000"}  # a 4 GB machine, whatever this one has
 PEAK_MB = 64  # far below any of the refused grids (1 to 2.4 G cells)

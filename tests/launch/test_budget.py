@@ -13,18 +13,18 @@ MAZE = 511 * 511  # benchmarks/scale.py's maze
 def test_the_estimate_adds_up_and_grows_with_the_fleet_and_the_map() -> None:
     forked = estimate(80, MAZE, "processes", fork_server=True)
     assert forked["total"] == pytest.approx(sum(v for k, v in forked.items() if k != "total"))
-    assert set(forked) == {"agents", "world", "netem", "launcher", "router", "fork server", "total"}
+    assert set(forked) == {"robots", "world", "netem", "launcher", "router", "fork server", "total"}
     # measured at 100 robots on this maze (scale.py, 2026-11-24, robots keeping their heap): agents 25 MB mean,
     # world 99, netem 157, the router 45, the launcher 104
     measured = 100 * 25 + 99 + 157 + 45 + 104
     assert measured <= estimate(100, MAZE)["total"] <= 2 * measured
     fresh = estimate(80, MAZE, "processes", fork_server=False)
-    assert fresh["agents"] - forked["agents"] == pytest.approx(80 * (MODEL.agent_fresh - MODEL.agent_forked))
+    assert fresh["robots"] - forked["robots"] == pytest.approx(80 * (MODEL.agent_fresh - MODEL.agent_forked))
     assert estimate(160, MAZE)["total"] > forked["total"]
     assert estimate(80, 4 * MAZE)["total"] > forked["total"]
     assert estimate(80, MAZE, shm=True)["shared memory"] == 80 * MODEL.shm_per_robot
     memory = estimate(80, MAZE, "memory")
-    assert set(memory) == {"process", "agents", "total"} and memory["total"] < forked["total"]
+    assert set(memory) == {"process", "robots", "total"} and memory["total"] < forked["total"]
     assert estimate(80, MAZE, "in-process")["total"] > memory["total"]
 
 
@@ -34,7 +34,7 @@ def test_a_run_that_does_not_fit_is_refused_with_its_numbers() -> None:
     with pytest.raises(BudgetError) as exc:
         check_memory(256, MAZE, "processes", False, False, available_mb=16 * 1024)
     text = str(exc.value)
-    assert text.startswith(f"256 robots (each started afresh) need about {need / 1024:.1f} GB of memory (agents ")
+    assert text.startswith(f"256 robots (each started afresh) need about {need / 1024:.1f} GB of memory (robots ")
     assert "but 16.0 GB is available (MemAvailable, or FLEET_MEM_AVAILABLE_MB)" in text
     assert text.endswith("run fewer robots, or with the fork server") and "\n" not in text
     assert isinstance(exc.value, ConfigError)  # bad input: exit 2

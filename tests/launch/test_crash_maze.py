@@ -16,7 +16,7 @@ from fleet_emu.core.grid import FREE, flat
 from fleet_emu.core.kernels import wavefront
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet, fleet_map
-from tests.conftest import run_cli
+from tests.harness.cli import run_cli
 
 SEEDS = range(10)
 CRASH_TICK = 30

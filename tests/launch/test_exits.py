@@ -14,8 +14,8 @@ from fleet_emu.core.messages import Stop
 from fleet_emu.core.radio import radio_label
 from fleet_emu.launch import watch
 from fleet_emu.launch.cli import exit_code
-from fleet_emu.launch.progress import summary_table
 from fleet_emu.recording.monitor import Monitor
+from fleet_emu.recording.tables import summary_table
 
 
 class _Sup:

@@ -27,6 +27,7 @@ def _gone(pid: int) -> bool:
     return state == "Z"
 
 
+@pytest.mark.slow  # a fork server for it; a failed robot by default
 def test_a_node_that_fails_at_once_is_reported_with_its_code_and_log(tmp_path: Path) -> None:
     """A robot, and another node named by its module (``python -m fleet_emu.world ARGV`` in the fork)."""
     server = ForkServer(tmp_path / "forkserver.log", modules=("fleet_emu.world.node",))
@@ -86,6 +87,7 @@ def test_a_killed_server_fails_what_it_had_not_forked(tmp_path: Path) -> None:
     assert _gone(server.pid)
 
 
+@pytest.mark.slow  # fork server teardown: a killed robot by default
 def test_closing_the_server_ends_the_robots_it_has_left(tmp_path: Path) -> None:
     scenario = tmp_path / "scenario.json"
     scenario.write_text(json.dumps(Scenario().to_dict()))
@@ -179,6 +181,7 @@ def specializations(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[
     return {name: found[str(path)] for name, path in paths.items()}
 
 
+@pytest.mark.slow  # a fleet per allocator's kernels; forking once by default
 @pytest.mark.parametrize("allocator", sorted(ALLOCATORS))
 def test_the_fork_server_loads_every_kernel_specialization_a_robot_uses(
         specializations: dict[str, dict[str, list[str]]], allocator: str) -> None:

@@ -13,8 +13,8 @@ from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.keys import HostKeys, host_ids, robot_ids
 from fleet_emu.core.messages import HostAssign, HostStatus
 from fleet_emu.core.scenario import HostPlan
-from fleet_emu.launch.host import host_login
-from fleet_emu.launch.hosts import agent_argv, check_hosts, check_reliable, host_credentials, placement
+from fleet_emu.launch.host_client import check_hosts, check_reliable, host_credentials, placement, robot_argv
+from fleet_emu.launch.host_server import host_login
 
 
 def test_robots_are_dealt_round_robin_over_this_machine_and_the_hosts() -> None:
@@ -25,10 +25,10 @@ def test_robots_are_dealt_round_robin_over_this_machine_and_the_hosts() -> None:
 
 
 def test_the_agent_command_line_is_the_one_the_launcher_uses_here() -> None:
-    assert agent_argv("r3", "run1", "tcp/10.0.0.1:7447", Path("/w/scenario.json"), True) == [
+    assert robot_argv("r3", "run1", "tcp/10.0.0.1:7447", Path("/w/scenario.json"), True) == [
         "--robot", "r3", "--run", "run1", "--connect", "tcp/10.0.0.1:7447", "--scenario", "/w/scenario.json",
         "--auth-stdin"]
-    assert "--auth-stdin" not in agent_argv("r0", "run1", "tcp/x:1", Path("s.json"), False)
+    assert "--auth-stdin" not in robot_argv("r0", "run1", "tcp/x:1", Path("s.json"), False)
 
 
 def test_lobby_keys_name_their_host_and_nothing_else() -> None:
@@ -139,8 +139,8 @@ def test_a_spawn_request_carries_the_real_time_rate_and_the_robots_get_it() -> N
     for hz in (-1.0, 1001.0, float("nan"), float("inf")):
         with pytest.raises(DecodeError, match="realtime_hz"):
             decode(HostAssign(src="launcher", tick=0, seq=0, host="host0", run="run1", realtime_hz=hz).encode())
-    argv = agent_argv("r0", "run1", "tcp/127.0.0.1:7447", Path("s.json"), True, 10.0)
-    assert argv[argv.index("--realtime") + 1] == "10.0" and "--realtime" not in agent_argv(
+    argv = robot_argv("r0", "run1", "tcp/127.0.0.1:7447", Path("s.json"), True, 10.0)
+    assert argv[argv.index("--realtime") + 1] == "10.0" and "--realtime" not in robot_argv(
         "r0", "run1", "tcp/127.0.0.1:7447", Path("s.json"), True)
 
 
@@ -154,7 +154,7 @@ def test_a_scenario_s_shares_place_the_robots_and_equal_shares_are_round_robin()
 
 
 def test_the_embedded_router_listens_on_tcp_tls_or_quic(tmp_path: Path) -> None:
-    from fleet_emu.launch.hosts import listen_endpoints
+    from fleet_emu.launch.host_client import listen_endpoints
 
     pem = tmp_path / "x.pem"
     pem.write_text("")

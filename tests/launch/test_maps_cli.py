@@ -21,7 +21,7 @@ from fleet_emu.launch.cli import main
 from fleet_emu.sweep.study import Study
 from fleet_emu.world.maps import BUILTIN_MAPS
 from fleet_emu.world.registry import registry
-from tests.world.mirror import build_mirror, files_in, serve
+from tests.harness.map_mirror import build_mirror, files_in, serve
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -152,7 +152,8 @@ def test_version_and_allocators(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = fleet(capsys, "allocators")
     lines = {ln.split()[0]: ln for ln in out.splitlines()}
     assert lines["minpos"].startswith(f"{'minpos':14s} MinPos (Bautin et al. 2012): the frontier with the fewest")
-    assert lines["minpos"].endswith("[built-in: wavefront='full', replan='tick']")
+    assert lines["minpos"].endswith("[built-in: wavefront='full' (one of full, stop, parallel), replan='tick' (one "
+                                    "of tick, observed)]")
     for name in ("nearest", "greedy", "utility", "connectivity", "hungarian", "trade", "mhm"):
         assert "(no description)" not in lines[name] and len(lines[name].split(" [")[0]) > 40, lines[name]
 

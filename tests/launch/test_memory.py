@@ -14,7 +14,7 @@ from fleet_emu.core.scenario import BASE_PLANNERS
 from fleet_emu.launch.memory import Fleet, seed_test
 from fleet_emu.launch.result import deterministic
 from fleet_emu.world.sim import StartAreaError
-from tests.conftest import draw_map
+from tests.harness.files import draw_map
 
 ROOMS = """
 ##################
@@ -153,7 +153,7 @@ def test_a_base_station_in_memory_and_the_summary_row() -> None:
     table's row; the same run without a base has neither and the robots do the same."""
     from rich.console import Console
 
-    from fleet_emu.launch.progress import summary_table
+    from fleet_emu.recording.tables import summary_table
 
     s = fe.Scenario().override(map="office", robots=2, comm="disk", comm_range=3.0, seed=2, max_ticks=40, base=True)
     res = Fleet(s).run().data
@@ -175,7 +175,7 @@ def test_the_summary_never_shows_none_and_names_the_hosts() -> None:
     on hosts says which ran where."""
     from rich.console import Console
 
-    from fleet_emu.launch.progress import summary_table
+    from fleet_emu.recording.tables import summary_table
 
     res = Fleet(fe.Scenario().override(map="office", robots=2, seed=1, max_ticks=10)).run().data
     assert res["t90"] is None and res["t99"] is None

@@ -18,7 +18,7 @@ from fleet_emu.core.radio import RadioConfig, radio_settings
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.cli import build_parser, scenario_from_args
 from fleet_emu.sweep.study import Study
-from tests.conftest import run_cli
+from tests.harness.cli import run_cli
 
 SETTINGS = radio_settings()
 IDS = [s.name for s in SETTINGS]

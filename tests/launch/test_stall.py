@@ -4,13 +4,13 @@ range re-exploring what a teammate saw), and a fleet pacing without learning any
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Iterator
 from pathlib import Path
 
 from fleet_emu.core.grid import STAY, Cell, MapData, from_ascii
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import Fleet
+from tests.harness.stall import oscillating
 
 ROWS, COLS = 30, 30  # a 30 x 30 room: its diameter is 29 + 29 = 58 cells
 ROOM = "\n".join(["#" * (COLS + 2), *("#" + "." * COLS + "#" for _ in range(ROWS)), "#" * (COLS + 2)])
@@ -73,16 +73,6 @@ def test_a_fleet_pacing_between_two_cells_ends_as_a_stall() -> None:
             last, best = fleet.world.tick, known
     assert fleet.reason == "stall"
     assert fleet.world.tick == last + fleet.world.stall_window
-
-
-def oscillating(small_map: Path, seed: int = 0) -> Scenario:
-    """Three robots whose allocator yields the target each nears (connectivity, ``position = "literal"``, a heavy
-    beta, replanning every tick): they swap targets back and forth and never finish the two rooms. The move
-    rule is off (``stall_ticks``), the window at twice the map's diameter."""
-    s = Scenario().override(map=str(small_map), robots=3, target_coverage=1.0, coverage_stall_ticks=1,
-                            stall_ticks=10**6, seed=seed, max_ticks=400)
-    return dataclasses.replace(s, allocator={"type": "connectivity", "alpha": 0.1, "beta": 0.9,
-                                             "position": "literal", "replan": "tick"}).validate()
 
 
 def test_a_fleet_oscillating_between_targets_ends_as_a_stall(small_map: Path) -> None:

@@ -15,9 +15,9 @@ from fleet_emu.launch.cli import build_parser, main
 from fleet_emu.launch.radio_cli import cmd_radio
 from fleet_emu.launch.radio_plots import HISTOGRAM, SCATTER, carried_digest, digest
 from fleet_emu.world.registry import cache_dir
+from tests.harness.map_mirror import serve
 from tests.radio.mirror import build_mirror, fetched
 from tests.radio.synthetic import write_site
-from tests.world.mirror import serve
 
 Fleet = Callable[..., "Done"]
 PROFILE = ('model = "wall"\np0_dbm = -48.0\npath_loss = 1.0\nwaf = 9.0\nmax_walls = 1\nsensitivity_dbm = -93.0\n'

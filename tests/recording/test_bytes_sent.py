@@ -29,7 +29,7 @@ def test_the_report_metrics_and_result_count_the_same_bytes(bandwidth: float, tm
     assert rate is not None and detail["bytes_per_robot_per_tick"] == pytest.approx(rate, abs=0.01)
     assert sent_kb({"ticks": ticks, "robots": robots, "radio.bytes_sent": sent}) == pytest.approx(rate / 1e3)
     console = Console(file=io.StringIO(), width=200)
-    console.print(summary_table(run))
+    console.print(summary_table(run.metrics))
     text = console.file.getvalue()  # type: ignore[attr-defined]
     assert f"{rate:.0f} per robot-tick" in text
     assert ("airtime" in text and "dropped at a full queue" in text) == (bandwidth > 0)

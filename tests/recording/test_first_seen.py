@@ -43,7 +43,7 @@ def test_foxglove_and_metrics_fold_the_same_observations_alike() -> None:
         c = np.array(cells, np.int32)
         o = Observation(src="world", tick=tick, seq=0, robot=robot, cell=(1, 1), shape=truth.shape, cell_size=0.5,
                         cells=c, values=truth.ravel()[c].astype(np.int8))
-        fox.feed(o)
+        fox.fold(o)
         met.feed(f"fleet/t/world/obs/{robot}", o.encode())
     assert isinstance(fox.coverage, FirstSeen) and isinstance(met.team, FirstSeen)
     assert (fox.coverage.tick == met.team.tick).all() and (fox.coverage.value == met.team.value).all()
@@ -51,7 +51,7 @@ def test_foxglove_and_metrics_fold_the_same_observations_alike() -> None:
     earliest = np.where(per_robot >= 0, per_robot, np.iinfo(np.int32).max).min(axis=0)
     assert (met.team.tick == np.where(earliest == np.iinfo(np.int32).max, -1, earliest)).all()
     assert met.first_seen["r0"].tick[9] == 1 and met.first_seen["r1"].tick[9] == 0 and met.team.tick[9] == 0
-    out = fox.feed(WorldState(src="world", tick=0, seq=0, poses={"r0": (1, 1), "r1": (3, 5)}, live=("r0", "r1"),
+    out = fox.fold(WorldState(src="world", tick=0, seq=0, poses={"r0": (1, 1), "r1": (3, 5)}, live=("r0", "r1"),
                               coverage=0.1, path_length={}))
     out += fox.finish()
     grids = [d for d in out if d.topic == TOPIC_COVERAGE]

@@ -14,7 +14,7 @@ import pytest
 from mcap.reader import make_reader
 
 from fleet_emu.core.grid import from_ascii
-from fleet_emu.core.messages import BeliefSnapshot, Command, Links, Observation, Stop, WorldState
+from fleet_emu.core.messages import BeliefSnapshot, Links, Stop
 from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.foxglove import (
     LAG,
@@ -30,16 +30,10 @@ from fleet_emu.recording.foxglove import (
     stamp,
 )
 from fleet_emu.recording.stats import TOPIC_STATS
+from tests.harness.foxglove import ART, cmd, links, obs, scenario, state
 
 VALIDATORS = {name: jsonschema.Draft202012Validator(json.loads(schema_text(name))) for name in SCHEMAS}
 
-ART = """
-#######
-#.....#
-#.#...#
-#.....#
-#######
-"""
 
 
 def validate(schema: str, obj: dict) -> None:
@@ -87,51 +81,23 @@ def test_grid_is_upright_and_round_trips() -> None:
     assert (decode_grid(msg) == grid).all()
 
 
-def scenario() -> dict:
-    return {"robots": 2, "cell_size": 0.5, "map": "art", "belief_every": 2, "target_coverage": 0.99,
-            "allocator": {"type": "minpos"}, "radio": {"threshold": 0.0}}
-
-
-def obs(robot: str, tick: int, cell: tuple[int, int], cells: list[int], truth: np.ndarray) -> Observation:
-    c = np.array(cells, np.int32)
-    return Observation(src="world", tick=tick, seq=0, robot=robot, cell=cell, shape=truth.shape, cell_size=0.5,
-                       cells=c, values=truth.ravel()[c].astype(np.int8))
-
-
-def state(tick: int, poses: dict, live: tuple[str, ...], coverage: float) -> WorldState:
-    return WorldState(src="world", tick=tick, seq=0, poses=poses, live=live, coverage=coverage,
-                      path_length={r: tick for r in poses})
-
-
-def links(tick: int, robots: tuple[str, ...], linked: bool) -> Links:
-    n = len(robots)
-    link = np.full((n, n), linked) & ~np.eye(n, dtype=bool)
-    strength = np.full((n, n), 12.0 if linked else -5.0, np.float32)
-    return Links(src="netem", tick=tick, seq=0, robots=robots, strength=strength, link=link, connected=linked,
-                 sent=0, delivered=0, dropped_loss=0, dropped_signal=0, bytes_sent=0)
-
-
-def cmd(robot: str, tick: int, target: tuple[int, int] | None) -> Command:
-    return Command(src=robot, tick=tick, seq=0, move=(0, 0), target=target, status="ASSIGNED", decision_ms=0.5)
-
-
 def test_fold_on_hand_made_messages() -> None:
     truth, _ = from_ascii(ART)
     fold = FoxgloveFold(scenario(), truth, grid_every=2, run_id="t")
     poses = {"r0": (1, 1), "r1": (3, 5)}
     out = []
-    out += fold.feed(obs("r0", 0, (1, 1), [8, 9, 15], truth))
-    out += fold.feed(obs("r1", 0, (3, 5), [26, 19, 9], truth))
-    out += fold.feed(state(0, poses, ("r0", "r1"), 0.3))
-    out += fold.feed(links(0, ("r0", "r1"), True))
-    out += fold.feed(cmd("r0", 0, (1, 5)))
-    out += fold.feed(cmd("r1", 0, None))
-    out += fold.feed(BeliefSnapshot(src="r0", tick=0, seq=0, grid=np.where(truth == 0, -1, truth).astype(np.int8)))
-    out += fold.feed(state(1, poses, ("r0",), 0.6))  # r1 failed
-    out += fold.feed(links(1, ("r0",), False))
-    out += fold.feed(cmd("r0", 1, None))
-    out += fold.feed(state(2, poses, ("r0",), 1.0))
-    out += fold.feed(Stop(src="world", tick=2, seq=0, reason="coverage"))
+    out += fold.fold(obs("r0", 0, (1, 1), [8, 9, 15], truth))
+    out += fold.fold(obs("r1", 0, (3, 5), [26, 19, 9], truth))
+    out += fold.fold(state(0, poses, ("r0", "r1"), 0.3))
+    out += fold.fold(links(0, ("r0", "r1"), True))
+    out += fold.fold(cmd("r0", 0, (1, 5)))
+    out += fold.fold(cmd("r1", 0, None))
+    out += fold.fold(BeliefSnapshot(src="r0", tick=0, seq=0, grid=np.where(truth == 0, -1, truth).astype(np.int8)))
+    out += fold.fold(state(1, poses, ("r0",), 0.6))  # r1 failed
+    out += fold.fold(links(1, ("r0",), False))
+    out += fold.fold(cmd("r0", 1, None))
+    out += fold.fold(state(2, poses, ("r0",), 1.0))
+    out += fold.fold(Stop(src="world", tick=2, seq=0, reason="coverage"))
     out += fold.finish()
     for d in out:
         validate(d.schema, d.obj())
@@ -174,9 +140,9 @@ def test_late_cmd_and_missing_truth_do_not_break_the_fold() -> None:
     fold = FoxgloveFold(scenario(), None)
     out = []
     for t in range(LAG + 2):
-        out += fold.feed(state(t, {"r0": (1, 1), "r1": (1, 2)}, ("r0", "r1"), 0.1))
+        out += fold.fold(state(t, {"r0": (1, 1), "r1": (1, 2)}, ("r0", "r1"), 0.1))
     assert {d.tick for d in out if d.topic == TOPIC_SCENE} == {0, 1}  # no command nor links came: drawn LAG late
-    out += fold.feed(cmd("r0", 0, (3, 3)))  # after its tick's scene went out: ignored
+    out += fold.fold(cmd("r0", 0, (3, 3)))  # after its tick's scene went out: ignored
     out += fold.finish()
     for d in out:
         validate(d.schema, d.obj())
@@ -195,7 +161,7 @@ def test_the_scenes_do_not_depend_on_the_order_commands_and_links_arrive_in() ->
 
     def fold(messages: list) -> list[tuple[str, int, Any]]:
         f = FoxgloveFold(scenario(), truth, grid_every=2, run_id="t")
-        out = [d for m in messages for d in f.feed(m)] + f.finish()
+        out = [d for m in messages for d in f.fold(m)] + f.finish()
         return sorted(((d.topic, d.tick, json.dumps(d.obj(), sort_keys=True)) for d in out), key=lambda x: x[:2])
 
     in_order = [m for tick in ticks for m in tick]
@@ -242,9 +208,9 @@ def test_every_foxglove_message_of_a_real_run_validates(small_run: Path) -> None
 def test_grid_every_is_honoured(every: int) -> None:
     truth, _ = from_ascii(ART)
     fold = FoxgloveFold(scenario(), truth, grid_every=every)
-    out = fold.feed(obs("r0", 0, (1, 1), [8, 9], truth))
+    out = fold.fold(obs("r0", 0, (1, 1), [8, 9], truth))
     for t in range(7):
-        out += fold.feed(state(t, {"r0": (1, 1), "r1": (1, 2)}, ("r0", "r1"), 0.1))
+        out += fold.fold(state(t, {"r0": (1, 1), "r1": (1, 2)}, ("r0", "r1"), 0.1))
     out += fold.finish()
     assert [d.tick for d in out if d.topic == TOPIC_COVERAGE] == ([0, 1, 2, 3, 4, 5, 6] if every == 1 else [0, 3, 6])
     assert [d.tick for d in out if d.topic == TOPIC_TRUTH] == [0]
@@ -257,8 +223,8 @@ def test_the_base_station_is_drawn_at_its_cell_with_its_links() -> None:
     lk = links(0, ("r0", "r1"), False)
     lk = Links(**{**lk.__dict__, "base_link": np.array([True, False]),
                   "base_strength": np.array([8.0, -3.0], np.float32)})
-    out = fold.feed(state(0, poses, ("r0", "r1"), 0.3)) + fold.feed(lk)
-    out += fold.feed(state(1, poses, ("r0", "r1"), 0.3)) + fold.finish()
+    out = fold.fold(state(0, poses, ("r0", "r1"), 0.3)) + fold.fold(lk)
+    out += fold.fold(state(1, poses, ("r0", "r1"), 0.3)) + fold.finish()
     for d in out:
         validate(d.schema, d.obj())
     scene = next(d for d in out if d.topic == TOPIC_SCENE and d.tick == 0).obj()
@@ -268,5 +234,5 @@ def test_the_base_station_is_drawn_at_its_cell_with_its_links() -> None:
     assert base["texts"][0]["text"] == "base" and len(base["lines"]) == 1  # linked to r0 only
     assert base["lines"][0]["points"][1]["y"] == 1.75
     plain = FoxgloveFold(scenario(), truth, grid_every=2)
-    out = plain.feed(state(0, poses, ("r0", "r1"), 0.3)) + plain.finish()
+    out = plain.fold(state(0, poses, ("r0", "r1"), 0.3)) + plain.finish()
     assert all(e["id"] != "base" for d in out if d.topic == TOPIC_SCENE for e in d.obj()["entities"])

@@ -9,7 +9,7 @@ from pathlib import Path
 from mcap.reader import make_reader
 
 import fleet_emu as fe
-from tests.conftest import run_cli
+from tests.harness.cli import run_cli
 
 
 def _run(out: Path) -> dict:

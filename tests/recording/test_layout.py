@@ -10,7 +10,7 @@ import pytest
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import run_memory
 from fleet_emu.recording.read import recorded_scenario
-from tests.conftest import run_cli
+from tests.harness.cli import run_cli
 
 
 def _beliefs(path: Path) -> set[str]:

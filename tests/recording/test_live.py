@@ -6,12 +6,9 @@ that lock file; without node, npm or the registry these tests are skipped with t
 
 from __future__ import annotations
 
-import hashlib
 import itertools
 import json
-import os
 import queue
-import shutil
 import subprocess
 import threading
 from pathlib import Path
@@ -27,35 +24,7 @@ from fleet_emu.launch.result import deterministic
 from fleet_emu.launch.runner import RunOptions, run_fleet
 from fleet_emu.recording.foxglove import schema_text
 from fleet_emu.recording.stats import SCHEMA_STATS
-from tests.conftest import result, run_cli
-
-JS = Path(__file__).resolve().parents[1] / "js"
-
-
-@pytest.fixture(scope="session")
-def js_clients() -> Path:
-    """A folder with the pinned clients installed and this repository's scripts beside them."""
-    node, npm = shutil.which("node"), shutil.which("npm")
-    if node is None or npm is None:
-        pytest.skip("node and npm are needed for the official Foxglove clients")
-    lock = (JS / "package-lock.json").read_bytes()
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    folder = base / "fleet-emu" / "js-clients" / hashlib.sha256(lock).hexdigest()[:16]
-    if not (folder / "node_modules" / ".package-lock.json").is_file():
-        folder.mkdir(parents=True, exist_ok=True)
-        for name in ("package.json", "package-lock.json"):
-            shutil.copy(JS / name, folder / name)
-        try:
-            proc = subprocess.run([npm, "ci", "--no-audit", "--no-fund"], cwd=folder, capture_output=True,
-                                  text=True, timeout=600)
-        except subprocess.TimeoutExpired:
-            pytest.skip("npm ci timed out (no npm registry?)")
-        if proc.returncode != 0:
-            lines = proc.stderr.strip().splitlines()
-            pytest.skip(f"npm ci failed (no npm registry?): {lines[-1] if lines else proc.returncode}")
-    for script in JS.glob("*.mjs"):
-        shutil.copy(script, folder / script.name)
-    return folder
+from tests.harness.cli import result, run_cli
 
 
 def _node(folder: Path, *args: str, timeout: float = 120) -> dict[str, Any]:
@@ -218,6 +187,7 @@ def test_fleet_report_writes_the_layout(tmp_path: Path) -> None:
     assert code == 2 and "--robots must be from 1 to 1024" in err
 
 
+@pytest.mark.slow  # a second live run; Foxglove once by default
 def test_the_layout_plots_the_base_connected_fraction_only_for_a_run_with_a_base(tmp_path: Path) -> None:
     import fleet_emu as fe
 
@@ -246,17 +216,17 @@ def test_every_fold_message_becomes_the_sdks_typed_message() -> None:
     from fleet_emu.recording.clock import RunClock
     from fleet_emu.recording.foxglove import FoxgloveFold
     from fleet_emu.recording.live import LiveServer, parse_live
-    from tests.recording.test_foxglove import ART, cmd, links, obs, scenario, state
+    from tests.harness.foxglove import ART, cmd, links, obs, scenario, state
 
     truth, _ = from_ascii(ART)
     fold = FoxgloveFold(scenario(), truth, grid_every=1, run_id="t", base_cell=(3, 1))
     poses = {"r0": (1, 1), "r1": (3, 5)}
     lk = links(0, ("r0", "r1"), True)
     lk = Links(**{**lk.__dict__, "base_link": np.array([True, False]), "base_strength": np.array([8.0, -3.0])})
-    out = fold.feed(obs("r0", 0, (1, 1), [8, 9], truth)) + fold.feed(state(0, poses, ("r0", "r1"), 0.3))
-    out += fold.feed(lk) + fold.feed(cmd("r0", 0, (1, 5)))
-    out += fold.feed(BeliefSnapshot(src="r0", tick=0, seq=0, grid=truth.copy()))
-    out += fold.feed(state(1, poses, ("r0",), 0.6)) + fold.feed(Stop(src="world", tick=1, seq=0, reason="coverage"))
+    out = fold.fold(obs("r0", 0, (1, 1), [8, 9], truth)) + fold.fold(state(0, poses, ("r0", "r1"), 0.3))
+    out += fold.fold(lk) + fold.fold(cmd("r0", 0, (1, 5)))
+    out += fold.fold(BeliefSnapshot(src="r0", tick=0, seq=0, grid=truth.copy()))
+    out += fold.fold(state(1, poses, ("r0",), 0.6)) + fold.fold(Stop(src="world", tick=1, seq=0, reason="coverage"))
     out += fold.finish()
     server = LiveServer("127.0.0.1", 0, RunClock.now())
     try:

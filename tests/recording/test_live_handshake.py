@@ -13,14 +13,13 @@ import pytest
 from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.foxglove import live_topics
 from fleet_emu.recording.live import LiveServer
-from tests.recording.test_live import js_clients  # noqa: F401  (the fixture)
 
 
 @pytest.mark.parametrize("subprotocol, expect", [
     ("foxglove.sdk.v1", {"protocol": "foxglove.sdk.v1", "server": "fleet-emu"}),
     ("foxglove.websocket.v1", {"status": 400}),
 ])
-def test_the_subprotocol_a_viewer_must_ask_for(js_clients: Path, subprotocol: str,  # noqa: F811
+def test_the_subprotocol_a_viewer_must_ask_for(js_clients: Path, subprotocol: str,
                                                expect: dict[str, object]) -> None:
     server = LiveServer("127.0.0.1", 0, RunClock.now(1.0), topics=live_topics(["r0"]))
     try:

@@ -18,12 +18,11 @@ from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.live import LiveOptions
 from fleet_emu.launch.memory import run_memory
 from fleet_emu.recording.foxglove import live_topics
-from tests.recording.test_live import js_clients  # noqa: F401  (the fixture)
 
 CLIENTS = 20
 
 
-def _watch_many(js_clients: Path, scenario: Scenario) -> tuple[Any, list[dict[str, Any]]]:  # noqa: F811
+def _watch_many(js_clients: Path, scenario: Scenario) -> tuple[Any, list[dict[str, Any]]]:
     urls: queue.Queue[str] = queue.Queue()
     connected = threading.Event()
 
@@ -56,7 +55,7 @@ def _watch_many(js_clients: Path, scenario: Scenario) -> tuple[Any, list[dict[st
 
 @pytest.mark.slow
 def test_twenty_clients_at_the_live_line_get_every_channel_from_tick_0(
-        js_clients: Path, small_map: Path) -> None:  # noqa: F811
+        js_clients: Path, small_map: Path) -> None:
     s = Scenario().override(map=str(small_map), robots=3, seed=1, max_ticks=30)
     result, seen = _watch_many(js_clients, s)
     topics = {t for t, _ in live_topics(["r0", "r1", "r2"])}

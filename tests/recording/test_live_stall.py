@@ -23,7 +23,7 @@ from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.foxglove import Derived
 from fleet_emu.recording.live import LiveServer
 from fleet_emu.recording.viewers import MIN_STALL_S, STALL_BYTES, STALL_S, Quiet, Viewer, stalled
-from tests.conftest import ROOT, result
+from tests.harness.cli import ROOT, result
 from tests.harness.stalled_viewer import stall
 
 # a run whose grids are large enough to fill a stalled viewer's socket within seconds (8 beliefs of 0.05 m cells)

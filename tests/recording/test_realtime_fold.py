@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 from fleet_emu.core.keys import Keys
-from fleet_emu.core.messages import AgentTiming, Command, WorldClock, WorldState
+from fleet_emu.core.messages import Command, RobotTiming, WorldClock, WorldState
 from fleet_emu.recording.monitor import Monitor
 
 ROBOTS = ("r0", "r1")
@@ -19,9 +19,9 @@ def _state(tick: int) -> WorldState:
                       coverage=0.5, path_length={"r0": 0, "r1": 0})
 
 
-def _timing(robot: str, decisions: int) -> AgentTiming:
+def _timing(robot: str, decisions: int) -> RobotTiming:
     ms = {"p50": 120.0, "p90": 150.0, "p99": 180.0, "max": 200.0, "mean": 125.0}
-    return AgentTiming(src=robot, tick=40, seq=9, decisions=decisions, plan_steps=30, waits=2, decision_ms=ms,
+    return RobotTiming(src=robot, tick=40, seq=9, decisions=decisions, plan_steps=30, waits=2, decision_ms=ms,
                        allocator_ms=ms)
 
 

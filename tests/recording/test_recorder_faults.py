@@ -41,7 +41,7 @@ class _Fold:
     def __init__(self) -> None:
         self.got: list[Message] = []
 
-    def feed(self, msg: Message) -> list:
+    def fold(self, msg: Message) -> list:
         self.got.append(msg)
         return []
 

@@ -12,6 +12,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -36,11 +37,12 @@ from fleet_emu.core.messages import (
     WorldState,
     seal,
 )
-from fleet_emu.recording.metrics import NOT_RECORDED, RunMetrics, gini, jain
+from fleet_emu.recording.metrics import DEPRECATED_GROUPS, NOT_RECORDED, RunMetrics, gini, jain
 from fleet_emu.recording.plots import PLOTS
 from fleet_emu.recording.read import load_recording
 from fleet_emu.recording.report import write_report
-from tests.conftest import ROOT, run_cli
+from fleet_emu.recording.result import validate_metrics
+from tests.harness.cli import ROOT, run_cli
 
 ART = """
 #######
@@ -110,7 +112,7 @@ def test_metrics_fold_on_hand_made_messages() -> None:
     r = m.metrics("x.mcap")
     assert r["ticks"] == 1 and r["coverage"] == 0.95 and r["t90"] == 1 and r["t99"] is None
     assert r["reason"] == "max_ticks" and r["connected_fraction"] == 0.5
-    assert r["exploration_time"] == {"t90": 1, "t99": None, "t100": None}
+    assert r["t100"] is None
     assert r["path"] == {"per_robot": {"r0": 1, "r1": 0}, "total": 1}
     assert r["efficiency"]["value"] == 6.0  # six free cells sensed, one cell travelled
     assert r["overlap"]["cells"] == 2 and r["overlap"]["team_cells_sensed"] == 6
@@ -120,14 +122,27 @@ def test_metrics_fold_on_hand_made_messages() -> None:
     assert r["share"]["jain"] == pytest.approx(36 / 37, abs=1e-6)
     assert r["share"]["gini"] == pytest.approx(1 / 12, abs=1e-6)
     assert r["connectivity"]["pair_link_fraction"] == {"r0-r1": 0.5}
-    rd = r["radio_detail"]
-    assert rd["sent"] == 8 and rd["dropped"] == {"loss": 1, "signal": 4} and rd["by_kind"] == {"pose": 1}
+    rd = r["radio"]
+    assert rd["sent"] == 8 and (rd["dropped_loss"], rd["dropped_signal"]) == (1, 4) and rd["by_kind"] == {"pose": 1}
     assert rd["per_robot"]["r0"]["msgs_sent"] == 1 and rd["per_robot"]["r0"]["bytes_sent"] == len(beacon.encode())
     assert rd["per_robot"]["r1"]["msgs_received"] == 1
-    dt = r["decision_time"]
-    assert dt["calls"] == 3 and dt["mean_ms"] == 2.0 and dt["per_robot_mean_ms"] == {"r0": 2.0, "r1": 2.0}
+    dt = r["decision_ms"]
+    assert dt["calls"] == 3 and dt["mean"] == 2.0 and dt["per_robot_mean"] == {"r0": 2.0, "r1": 2.0}
     assert r["pids"]["agents"] == [11, None] and r["undecodable"] == 1
     assert r["recording"] == {"path": "x.mcap", "messages": 17}
+    # the first layout's groups, written beside for one release: each old key reads its quantity's one name
+    assert r["exploration_time"] == {"t90": 1, "t99": None, "t100": None}
+    assert r["radio_detail"]["dropped"] == {"loss": 1, "signal": 4} and r["decision_time"]["mean_ms"] == 2.0
+    for group, keys in DEPRECATED_GROUPS.items():
+        for old, new in keys.items():
+            assert _at(r[group], old) == _at(r, new), (group, old, new)
+
+
+def _at(data: dict[str, Any], dotted: str) -> Any:
+    """``data``'s value at a dotted key (``radio.dropped_loss``)."""
+    for part in dotted.split("."):
+        data = data[part]
+    return data
 
 
 # --- a real run -------------------------------------------------------------------------------------------------
@@ -148,14 +163,15 @@ def test_report_metrics_equal_result_json(small_run: Path, reported) -> None:
             assert key not in metrics
         elif key == "pids":  # the world sends no Ready; netem and every agent do
             assert metrics[key]["agents"] == value["agents"] and metrics[key]["netem"] == value["netem"]
+        elif key in ("radio", "decision_ms"):  # one name for a quantity: the report's groups add to the run's
+            assert {k: metrics[key][k] for k in value} == value, key
         else:
             assert metrics[key] == value, key
-    for extra in ("exploration_time", "path", "efficiency", "overlap", "share", "connectivity", "radio_detail",
-                  "decision_time"):
+    for extra in ("t100", "path", "efficiency", "overlap", "share", "connectivity"):
         assert extra in metrics
-    assert metrics["exploration_time"]["t90"] == live["t90"]
     assert metrics["path"]["total"] == sum(live["path_length"])
-    assert metrics["decision_time"]["calls"] == live["robots"] * live["ticks"]
+    assert metrics["decision_ms"]["calls"] == live["robots"] * live["ticks"]
+    validate_metrics(metrics)  # metrics.schema.json over result.schema.json
     assert "matches result.json" in printed and "coverage" in printed
 
 
@@ -229,6 +245,7 @@ def killed_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+@pytest.mark.slow  # a fleet killed for it; a killed run recovered by default (test_run_folder)
 def test_killed_run_reports(killed_run: Path, tmp_path: Path) -> None:
     """The report recovers the cut recording first (``fleet recover``), then reads the whole one."""
     run_dir = tmp_path / "run"
@@ -240,14 +257,16 @@ def test_killed_run_reports(killed_run: Path, tmp_path: Path) -> None:
     metrics = json.loads((run_dir / "metrics.json").read_text())
     assert metrics["truncated"] is False
     assert metrics["recording"]["messages"] == flushed(data)[-1][1] > 0
-    assert metrics["ticks"] > 0 and metrics["coverage"] > 0 and metrics["decision_time"]["calls"] > 0
+    assert metrics["ticks"] > 0 and metrics["coverage"] > 0 and metrics["decision_ms"]["calls"] > 0
     assert json.loads((run_dir / "result.json").read_text())["reason"] == "crashed"
 
 
-@pytest.mark.parametrize("which", ["small", "killed"])
-def test_cut_copies_read_every_flushed_message(which: str, small_run: Path, killed_run: Path,
+# killed: a fleet killed for it (2.6 CPU s), slow; test_run_folder recovers a killed run by default
+@pytest.mark.parametrize("which", ["small", pytest.param("killed", marks=pytest.mark.slow)])
+def test_cut_copies_read_every_flushed_message(which: str, small_run: Path, request: pytest.FixtureRequest,
                                                tmp_path: Path) -> None:
-    data = ((small_run if which == "small" else killed_run) / "run.mcap").read_bytes()
+    run = small_run if which == "small" else request.getfixturevalue("killed_run")
+    data = (run / "run.mcap").read_bytes()
     ends = flushed(data)
     assert ends
     offsets = {8, 9, 100, len(data) // 3, len(data) // 2, len(data) - 1, len(data)}

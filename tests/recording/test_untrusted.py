@@ -14,26 +14,16 @@ import sys
 from pathlib import Path
 
 import pytest
-from mcap.writer import Writer
 
 from fleet_emu.core.errors import ReportError
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import run_memory
 from fleet_emu.recording import load_recording
 from fleet_emu.recording.recover import rewrite
-from tests.conftest import ROOT, run_cli
+from tests.harness.cli import ROOT, run_cli
+from tests.harness.files import crafted
 
 ADDRESS_SPACE = 3 << 30  # bytes: far more than fleet needs to refuse a file, far less than 100 million robots
-
-
-def crafted(path: Path, scenario: object) -> Path:
-    """An MCAP file holding only a ``scenario`` metadata record (what the recorder writes first) of ``scenario``."""
-    with open(path, "wb") as f:
-        w = Writer(f)
-        w.start(profile="", library="adversary")
-        w.add_metadata("scenario", {"run_id": "x", "scenario": json.dumps(scenario)})
-        w.finish()
-    return path
 
 
 @pytest.fixture(scope="module")

@@ -130,8 +130,9 @@ def test_raw_moves_and_the_reward_terms(small_map: Path) -> None:
     assert shared > 0  # robots near one another head for the same nearest frontier at times
 
 
+@pytest.mark.slow  # a benchmark script's smoke run
 def test_env_speed_smoke(capsys: pytest.CaptureFixture[str]) -> None:
-    from tests.integration.test_benchmarks import bench, markdown
+    from tests.harness.bench import bench, markdown
 
     code, out, _ = bench("env_speed", "--robots", "2", "--ticks", "3", "--big-ticks", "2", "--repeat", "1",
                          capsys=capsys)

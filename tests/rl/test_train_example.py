@@ -22,6 +22,7 @@ def _example() -> ModuleType:
     return module
 
 
+@pytest.mark.slow  # trains a tiny policy; the policy allocator by default
 def test_tiny_says_it_is_a_smoke_test_first_and_last(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     example = _example()
     assert example.main(["--tiny", "--eval", "", "--robots", "2", "--out", str(tmp_path / "p.npz")]) == 0

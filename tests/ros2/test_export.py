@@ -17,7 +17,7 @@ from fleet_emu.core.codec import decode
 from fleet_emu.core.messages import BeliefSnapshot, WorldState
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import run_memory
-from tests.conftest import fleet
+from tests.harness.cli import fleet
 
 
 @pytest.fixture(scope="module")
@@ -69,6 +69,7 @@ def test_the_bag_holds_the_recording(recorded: Path, tmp_path: Path) -> None:
     assert grid.header.stamp.sec * 10**9 + grid.header.stamp.nanosec == t
 
 
+@pytest.mark.slow  # a second export; the bag's content proven by default
 def test_a_bag_is_not_written_over(recorded: Path, tmp_path: Path) -> None:
     (tmp_path / "taken").mkdir()
     done = fleet("export", "ros2", str(recorded), "--out", str(tmp_path / "taken"), check=False)

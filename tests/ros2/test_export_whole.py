@@ -21,8 +21,8 @@ pytest.importorskip("rosbags")
 from fleet_emu.core.scenario import Scenario
 from fleet_emu.launch.memory import run_memory
 from fleet_emu.ros2.fold import Ros2Fold
-from tests.conftest import run_cli, tmpfs
-from tests.recording.test_untrusted import crafted
+from tests.harness.cli import run_cli
+from tests.harness.files import crafted, tmpfs
 
 
 @pytest.fixture(scope="module")
@@ -44,6 +44,7 @@ def _left(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir())
 
 
+@pytest.mark.slow  # a second export; the bag's content by default (test_export)
 def test_a_bag_is_renamed_whole_and_opens(recorded: Path, tmp_path: Path) -> None:
     code, out, err = run_cli(["export", "ros2", str(recorded), "--out", str(tmp_path / "bag")])
     assert code == 0, err
@@ -52,29 +53,32 @@ def test_a_bag_is_renamed_whole_and_opens(recorded: Path, tmp_path: Path) -> Non
     assert _opened(tmp_path / "bag") == int(out.split(": ")[1].split()[0]) > 0
 
 
+@pytest.mark.slow  # an export signalled; signals once by default
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_an_interrupted_export_leaves_nothing_and_a_rerun_works(sig: signal.Signals, recorded: Path, tmp_path: Path,
                                                              monkeypatch: pytest.MonkeyPatch) -> None:
-    feed = Ros2Fold.feed
+    fold = Ros2Fold.fold
     fed = [0]
 
     def interrupted(self: Ros2Fold, msg: object) -> list:
         fed[0] += 1
         if fed[0] == 500:  # mid-bag: the storage file is open, metadata.yaml not yet written
             os.kill(os.getpid(), sig)
-        return feed(self, msg)  # type: ignore[arg-type]
+        return fold(self, msg)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(Ros2Fold, "feed", interrupted)
+    monkeypatch.setattr(Ros2Fold, "fold", interrupted)
     bag = tmp_path / "bag"
     code, _, err = run_cli(["export", "ros2", str(recorded), "--out", str(bag)])
-    assert code == 130 and "interrupted" in err and "Traceback" not in err
+    assert code == 128 + sig and "Traceback" not in err
+    assert err.strip() == {signal.SIGINT: "fleet: interrupted", signal.SIGTERM: "fleet: terminated"}[sig], err
     assert fed[0] >= 500 and _left(tmp_path) == []  # neither the bag nor its hidden folder
-    monkeypatch.setattr(Ros2Fold, "feed", feed)
+    monkeypatch.setattr(Ros2Fold, "fold", fold)
     code, _, err = run_cli(["export", "ros2", str(recorded), "--out", str(bag)])
     assert code == 0, err
     assert _opened(bag) > 0
 
 
+@pytest.mark.slow  # an export into a full disk; the bag's content by default
 def test_a_full_disk_is_one_line_and_leaves_nothing(recorded: Path, tmp_path: Path) -> None:
     with tmpfs(tmp_path / "tiny", "64k") as disk:
         code, _, err = run_cli(["export", "ros2", str(recorded), "--out", str(disk / "bag")])
@@ -96,6 +100,7 @@ def test_a_read_only_folder_is_one_line(recorded: Path, tmp_path: Path) -> None:
         assert _left(disk) == []
 
 
+@pytest.mark.slow  # a second export; the bag's content by default (test_export)
 def test_a_cut_recording_is_refused_unless_partial(recorded: Path, tmp_path: Path) -> None:
     half = tmp_path / "half"
     shutil.copytree(recorded, half)

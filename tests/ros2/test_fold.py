@@ -28,7 +28,7 @@ def _fold() -> Ros2Fold:
 
 def test_frames_stamps_and_the_grid_rows() -> None:
     fold = _fold()
-    out = {o.topic: o for o in fold.feed(_state(0, {"r0": (0, 0), "r1": (1, 2)}))}
+    out = {o.topic: o for o in fold.fold(_state(0, {"r0": (0, 0), "r1": (1, 2)}))}
     assert set(out) >= {"/clock", "/tf", "/map", "/r0/pose", "/r1/pose", "/r0/path"}
     pose = out["/r0/pose"].msg.pose.position
     assert (pose.x, pose.y) == (0.25, 0.75)  # row 0 is the top: y up
@@ -41,7 +41,7 @@ def test_frames_stamps_and_the_grid_rows() -> None:
     assert [t.child_frame_id for t in tf] == ["r0/base_link", "r1/base_link"] and tf[0].header.frame_id == "map"
     stamp = out["/clock"].msg.clock
     assert (stamp.sec, stamp.nanosec) == (1, 0)
-    later = {o.topic: o for o in fold.feed(_state(3, {"r0": (0, 1), "r1": (1, 2)}))}
+    later = {o.topic: o for o in fold.fold(_state(3, {"r0": (0, 1), "r1": (1, 2)}))}
     assert "/map" not in later and "/r0/path" not in later  # the true map once; paths every 2 ticks
     assert (later["/clock"].msg.clock.sec, later["/clock"].msg.clock.nanosec) == (2, 500_000_000)
     (path,) = [o for o in fold.finish() if o.topic == "/r0/path"]
@@ -51,25 +51,25 @@ def test_frames_stamps_and_the_grid_rows() -> None:
 def test_goals_only_when_they_change_and_beliefs_as_they_come() -> None:
     fold = _fold()
     cmd = {"src": "r0", "seq": 0, "move": (0, 0)}
-    assert len(fold.feed(Command(tick=0, target=(1, 1), **cmd))) == 1
-    assert fold.feed(Command(tick=1, target=(1, 1), **cmd)) == []
-    (goal,) = fold.feed(Command(tick=2, target=(0, 2), **cmd))
+    assert len(fold.fold(Command(tick=0, target=(1, 1), **cmd))) == 1
+    assert fold.fold(Command(tick=1, target=(1, 1), **cmd)) == []
+    (goal,) = fold.fold(Command(tick=2, target=(0, 2), **cmd))
     assert goal.topic == "/r0/goal" and goal.msg.pose.position.x == 1.25
     belief = np.full((2, 3), -1, dtype=np.int8)
     belief[0, 0] = 0
-    (o,) = fold.feed(BeliefSnapshot(src="r1", tick=4, seq=0, grid=belief))
+    (o,) = fold.fold(BeliefSnapshot(src="r1", tick=4, seq=0, grid=belief))
     assert o.topic == "/r1/map" and o.latched and np.asarray(o.msg.data).reshape(2, 3)[1, 0] == 0
 
 
 def test_links_are_coloured_by_strength() -> None:
     fold = _fold()
-    fold.feed(_state(0, {"r0": (0, 0), "r1": (1, 2)}))
+    fold.fold(_state(0, {"r0": (0, 0), "r1": (1, 2)}))
     link = np.array([[False, True], [False, False]])
     lk = Links(src="netem", tick=0, seq=0, robots=("r0", "r1"), strength=np.array([[0.0, -80.0], [-200.0, 0.0]]),
                link=link, connected=True, sent=1, delivered=1, dropped_loss=0, dropped_signal=0, bytes_sent=10)
-    (o,) = fold.feed(lk)
+    (o,) = fold.fold(lk)
     (marker,) = o.msg.markers
     assert marker.type == 5 and len(marker.points) == 2 and marker.header.frame_id == "map"
     assert marker.colors[0].g == pytest.approx(0.5) and marker.colors[0].r == pytest.approx(0.5)  # 10 dB above
     lk2 = Links(**{**lk.__dict__, "link": np.zeros((2, 2), dtype=bool)})
-    assert fold.feed(lk2)[0].msg.markers[0].points == []
+    assert fold.fold(lk2)[0].msg.markers[0].points == []

@@ -13,7 +13,8 @@ from pathlib import Path
 import pytest
 
 from docs.ros2 import listen
-from tests.conftest import ROOT, free_port
+from tests.harness.cli import ROOT
+from tests.harness.procs import free_port
 
 LISTEN = [sys.executable, str(ROOT / "docs" / "ros2" / "listen.py")]
 

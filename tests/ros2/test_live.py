@@ -28,6 +28,7 @@ from fleet_emu.ros2 import rmw
 from fleet_emu.ros2.bridge import VIEWER, Ros2Options, grants
 from fleet_emu.ros2.fold import topics
 from fleet_emu.ros2.types import GRID, POSE, decode, type_hash
+from tests.harness.cli import run_cli
 
 DOMAIN = 5
 
@@ -123,6 +124,7 @@ def test_a_run_seen_over_rmw_zenoh(small_map: Path, tmp_path: Path, monkeypatch:
     assert grid.endswith(f"/nav_msgs::msg::dds_::OccupancyGrid_/{type_hash(GRID)}/{rmw.qos(True)}")
 
 
+@pytest.mark.slow  # ROS 2 in-process; over processes by default
 def test_in_process_the_same_run(small_map: Path, tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
     """``fe.run(..., ros2=N)`` in the in-process engine, bridged (nobody watching), ends as the plain run does;
     the memory engine, which has no bus, refuses it."""
@@ -136,8 +138,9 @@ def test_in_process_the_same_run(small_map: Path, tmp_path: Path, capfd: pytest.
         fe.run(_scenario(small_map), engine="memory", ros2=DOMAIN)
 
 
+@pytest.mark.slow  # ROS 2 over processes proven once by default (rmw_zenoh)
 def test_the_cli_says_where_under_quiet(small_map: Path, tmp_path: Path) -> None:
-    from tests.conftest import fleet
+    from tests.harness.cli import fleet
 
     out = tmp_path / "run"
     done = fleet("run", "--ros2", "3", "--quiet", "--map", str(small_map), "--robots", "2", "--max-ticks", "15",
@@ -148,14 +151,12 @@ def test_the_cli_says_where_under_quiet(small_map: Path, tmp_path: Path) -> None
 
 
 @pytest.mark.parametrize(("args", "says"), [
-    (["--engine", "memory", "--ros2"], "--ros2 needs a bus"),
+    (["--engine", "memory", "--ros2"], "--engine memory runs without Zenoh nor processes: it takes no --ros2"),
     (["--ros2-listen", "tcp/127.0.0.1:7447"], "--ros2-listen goes with --ros2"),
     (["--ros2", "999"], "ROS domain id"),
     (["--ros2", "--listen", "tcp/127.0.0.1:7000", "--ros2-listen", "tcp/127.0.0.1:7447"], "two endpoints"),
 ])
 def test_bad_ros2_flags_are_one_line(args: list[str], says: str, tmp_path: Path) -> None:
-    from tests.conftest import fleet
-
-    done = fleet("run", *args, "--out", str(tmp_path / "x"), check=False)
-    assert done.returncode == 2 and done.stderr.count("\n") == 1 and says in done.stderr, done.stderr
+    code, _, err = run_cli(["run", *args, "--out", str(tmp_path / "x")])  # refused before anything starts
+    assert code == 2 and err.count("\n") == 1 and says in err, err
     assert not (tmp_path / "x").exists()

@@ -6,18 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import draw_map
-
-ROOMS = """
-##############
-#.....#......#
-#............#
-#.....#......#
-###.#####.####
-#............#
-#.....#......#
-##############
-"""
+from tests.harness.files import ROOMS, draw_map
 
 
 @pytest.fixture

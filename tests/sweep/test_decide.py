@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.agents.allocators.interface import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.nearest import Nearest
 from fleet_emu.core.messages import RadioMsg
 from fleet_emu.sweep.claims import judge, parse
@@ -21,7 +21,7 @@ from fleet_emu.sweep.execute import run_point
 from fleet_emu.sweep.figures import Runs
 from fleet_emu.sweep.intervals import Verdict
 from fleet_emu.sweep.study import Study
-from tests.conftest import fleet
+from tests.harness.cli import fleet, run_cli
 
 
 class Waster(Nearest):
@@ -53,8 +53,7 @@ def _study(study_dir: Path, seeds: int) -> Study:
 def waste_rows(tmp_path_factory: pytest.TempPathFactory) -> Iterator[list[dict[str, Any]]]:
     """The study's 80 runs, the allocator registered only while they run (the registry is the process's: a test
     that runs every registered allocator must not find it)."""
-    from tests.conftest import draw_map
-    from tests.sweep.conftest import ROOMS
+    from tests.harness.files import ROOMS, draw_map
 
     folder = tmp_path_factory.mktemp("waste")
     draw_map(ROOMS, folder / "rooms.png")
@@ -66,6 +65,7 @@ def waste_rows(tmp_path_factory: pytest.TempPathFactory) -> Iterator[list[dict[s
     yield rows
 
 
+@pytest.mark.slow  # 80 runs for the decision's statistics
 def test_verdicts_are_right_at_every_number_of_replicates(waste_rows: list[dict[str, Any]]) -> None:
     nearest = {r["ticks"] for r in waste_rows if r["param.allocator"] == "nearest"}
     assert len(nearest) == 1 and all(r["status"] == "ok" and r["completed"] for r in waste_rows)
@@ -130,12 +130,12 @@ at_most = {allocator = "nearest", times = 2}
 def test_a_cap_below_the_study_or_with_quick_is_one_line(study_dir: Path) -> None:
     for extra, msg in ((["--max-seeds", "1"], "--max-seeds must be at least the study's 2 replicates"),
                        (["--quick"], "--until-decided chooses the replicates itself")):
-        got = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(study_dir / "o"), "--until-decided", *extra,
-                    check=False)
-        assert got.returncode == 2 and msg in got.stderr and "Traceback" not in got.stderr
+        code, _, err = run_cli(["sweep", str(study_dir / "tiny.toml"), "--out", str(study_dir / "o"),
+                                "--until-decided", *extra])  # refused before anything starts: in this process
+        assert code == 2 and msg in err and err.count("\n") == 1
         assert not (study_dir / "o").exists()
-    got = fleet("sweep", str(study_dir / "tiny.toml"), "--out", str(study_dir / "o"), "--max-seeds", "5", check=False)
-    assert got.returncode == 2 and "--max-seeds goes with --until-decided" in got.stderr
+    code, _, err = run_cli(["sweep", str(study_dir / "tiny.toml"), "--out", str(study_dir / "o"), "--max-seeds", "5"])
+    assert code == 2 and "--max-seeds goes with --until-decided" in err
 
 
 def test_a_plan_over_start_cells_reads_them_as_the_rows_hold_them() -> None:

@@ -8,13 +8,16 @@ import csv
 import io
 from pathlib import Path
 
+import pytest
+
 from fleet_emu.sweep.execute import read_rows
-from tests.conftest import run_cli
-from tests.test_docs import ROOT, blocks
+from tests.harness.cli import ROOT, run_cli
+from tests.harness.docs import blocks
 
 GUIDE = ROOT / "docs" / "guides" / "sweeps.md"
 
 
+@pytest.mark.slow  # the guide's study in full; study rows by default (test_sweep)
 def test_the_guides_first_study_fills_its_comparison_columns(tmp_path: Path) -> None:
     study = next(b for b in blocks(GUIDE) if b.mark("file") == "tiny.toml")
     (tmp_path / "tiny.toml").write_text(study.code)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from fleet_emu.sweep import plots
-from tests.sweep.test_report import row
+from tests.harness.sweep import row
 
 matplotlib.use("Agg")
 

@@ -12,13 +12,7 @@ import pytest
 from fleet_emu.sweep.figures import Runs
 from fleet_emu.sweep.plots import t_half
 from fleet_emu.sweep.report import paired, paper_value, summary
-
-
-def row(alloc: str, robots: int, ticks: int, loss: float = 0.0, completed: bool = True) -> dict:
-    return {"param.allocator": alloc, "robots": robots, "map": "office", "comm": "full", "loss_applied": loss,
-            "ticks": ticks, "completed": completed, "coverage": 0.99, "connected_fraction": 0.5,
-            "path_length": json.dumps([ticks, ticks]), "status": "ok"}
-
+from tests.harness.sweep import row
 
 ROWS = [row("nearest", 1, t) for t in (100, 120, 140)] + [row("minpos", 1, t) for t in (80, 90, 100)] + \
        [row("nearest", 2, t) for t in (60, 60)] + [row("minpos", 2, t) for t in (45, 48, 51)] + \

@@ -9,7 +9,7 @@ import pytest
 
 from fleet_emu.sweep.execute import write_tables
 from fleet_emu.sweep.report import report
-from tests.sweep.test_report import row
+from tests.harness.sweep import row
 
 
 def _rated(alloc: str, ticks: int, bandwidth: float | None, i: int) -> dict:

@@ -13,7 +13,7 @@ from fleet_emu.launch.result import deterministic
 from fleet_emu.sweep.cli import sweep
 from fleet_emu.sweep.execute import ROWS, read_rows
 from fleet_emu.sweep.study import Study
-from tests.conftest import result, run_cli
+from tests.harness.cli import result, run_cli
 
 
 def two_points(study_dir: Path, record: str | None = None) -> Path:

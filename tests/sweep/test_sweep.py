@@ -14,7 +14,7 @@ from fleet_emu.launch.memory import Fleet
 from fleet_emu.sweep.cli import sweep
 from fleet_emu.sweep.execute import read_rows
 from fleet_emu.sweep.study import Study
-from tests.conftest import ROOT, fleet, run_cli
+from tests.harness.cli import ROOT, fleet, run_cli
 
 
 @pytest.mark.slow
@@ -124,6 +124,7 @@ def test_list_names_the_shipped_studies() -> None:
     assert {"bautin-fig5", "benavides", "yan-loss", "shadowing", "mukhija-fig5"} <= set(names)
 
 
+@pytest.mark.slow  # a scheduler and workers; sweep over processes once by default
 def test_a_study_on_a_dask_cluster(study_dir: Path) -> None:
     """``--dask ADDRESS`` sends the points to the scheduler; its workers run whole fleets."""
     distributed = pytest.importorskip("distributed")
@@ -151,6 +152,7 @@ def test_a_processes_study_runs_real_fleets_with_the_memory_rows(study_dir: Path
     assert (kept / "run.mcap").exists() is bool(real["run_dir"]) is (not real["completed"])
 
 
+@pytest.mark.slow  # sweep over processes proven once by default
 def test_sigterm_stops_a_sweep_keeps_its_rows_and_leaves_no_worker(tmp_path: Path) -> None:
     import signal
     import subprocess

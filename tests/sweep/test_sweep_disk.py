@@ -16,7 +16,8 @@ import pytest
 from fleet_emu.recording.recover import is_whole
 from fleet_emu.sweep.execute import ROWS, read_rows
 from fleet_emu.sweep.study import Study
-from tests.conftest import run_cli, tmpfs
+from tests.harness.cli import run_cli
+from tests.harness.files import tmpfs
 
 
 @pytest.fixture

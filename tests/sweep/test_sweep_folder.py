@@ -7,7 +7,7 @@ import os
 from pathlib import Path
 
 from fleet_emu.launch.outdir import lock_folder
-from tests.conftest import run_cli
+from tests.harness.cli import run_cli
 
 
 def test_a_sweep_into_a_held_folder_is_refused_naming_the_holder(study_dir: Path, tmp_path: Path) -> None:

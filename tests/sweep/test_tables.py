@@ -13,7 +13,7 @@ from rich.console import Console
 from fleet_emu.sweep.execute import write_tables
 from fleet_emu.sweep.report import _summary_table, report, summary
 from fleet_emu.sweep.tables import show
-from tests.sweep.test_report import row
+from tests.harness.sweep import row
 
 VARIANTS = ["spread(crowd=15.0,stale=40)", "spread(crowd=5.0,stale=40)", "spread(crowd=15.0,stale=10)"]
 ROWS = [row(a, n, t) | {"param.seed": s, "id": f"{a}{n}{s}"} for a in ["greedy", *VARIANTS]

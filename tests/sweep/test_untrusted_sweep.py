@@ -18,7 +18,8 @@ import pytest
 
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.sweep.study import MAX_POINTS, Study
-from tests.conftest import ROOT, fleet, wait_for
+from tests.harness.cli import ROOT, fleet
+from tests.harness.procs import wait_for
 
 pytest.importorskip("distributed")
 
@@ -72,6 +73,7 @@ def _as_in_a_terminal() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+@pytest.mark.slow  # signals over processes: the sigint trial by default
 def test_ctrl_c_ends_the_wait_on_a_silent_scheduler(study_dir: Path) -> None:
     """SIGINT once the sweep waits on the silent peer's handshake (it holds a connection): the command ends at
     once as interrupted, well before the handshake's 10 s (a deadline on the test, not a timing)."""

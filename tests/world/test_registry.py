@@ -19,7 +19,7 @@ from fleet_emu.core.grid import FREE
 from fleet_emu.world.fetch import fetch
 from fleet_emu.world.maps import START_RADIUS, _ball, load_map, load_ros_yaml
 from fleet_emu.world.registry import MapFile, RegistryMap, is_fetched, local_map, lookup, registry
-from tests.world.mirror import build_mirror, files_in, serve
+from tests.harness.map_mirror import build_mirror, files_in, serve
 
 NAMES = {"hospital_section", "hospital", "cave", "autolab", "mbicp", "uoa_robotics_lab", "frieburg", "889_05",
          "cave_filled", "SFU", "turtlebot3_world", "depot", "warehouse"}

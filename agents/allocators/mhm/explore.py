@@ -33,7 +33,7 @@ from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from fleet_emu.agents.allocators.base import robot_order
+from fleet_emu.agents.allocators.interface import robot_order
 from fleet_emu.agents.allocators.mhm.wavefront import cell_window, disk_window
 from fleet_emu.agents.frontiers import Cluster, find_clusters
 from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, Cell

@@ -66,7 +66,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from fleet_emu.agents.allocators.base import robot_order
+from fleet_emu.agents.allocators.interface import robot_order
 from fleet_emu.agents.allocators.mhm.chain import base_distance, phase2_chain
 from fleet_emu.agents.allocators.mhm.explore import (
     area_clusters,

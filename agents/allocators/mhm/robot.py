@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from fleet_emu.agents.allocators.base import Allocation, Allocator, Problem
+from fleet_emu.agents.allocators.interface import Allocation, Allocator, Problem
 from fleet_emu.agents.allocators.mhm.explore import descend, reach_area, safe_area
 from fleet_emu.agents.allocators.mhm.orders import MhmAck, MhmOrders
 from fleet_emu.agents.allocators.mhm.planner import METHODS, MhmConfig

@@ -19,9 +19,9 @@ import numpy as np
 
 from fleet_emu.agents.allocators.mhm.explore import Box, bounds, boxed_wavefront
 from fleet_emu.agents.allocators.mhm.planner import MhmConfig, MhmPlanner, View
+from fleet_emu.core.base_connectivity import base_connected
 from fleet_emu.core.grid import FREE, MOVES, OCCUPIED, UNKNOWN, Cell
 from fleet_emu.core.kernels import visible_cells, wavefront
-from fleet_emu.core.reach import base_connected
 
 
 @dataclasses.dataclass

@@ -8,6 +8,7 @@ import math
 from itertools import pairwise
 
 import numpy as np
+import pytest
 
 from fleet_emu.agents.allocators.mhm.chain import (
     base_distance,
@@ -85,6 +86,7 @@ def test_boxed_helpers_equal_their_whole_grid_definitions() -> None:
         assert np.array_equal(sensed(occupied, cell, 9.0), visible_cells(occupied, cell[0], cell[1], 9.0))
 
 
+@pytest.mark.slow  # a whole fleet run of the planner (5 CPU s)
 def test_a_fleet_on_open_ground_reaches_the_disc_of_its_chain() -> None:
     grid = np.full((100, 100), FREE, dtype=np.int8)
     grid[[0, -1], :] = grid[:, [0, -1]] = OCCUPIED

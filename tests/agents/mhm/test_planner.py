@@ -17,42 +17,11 @@ from fleet_emu.agents.allocators.mhm.planner import MhmConfig, MhmPlanner, View
 from fleet_emu.agents.allocators.mhm.sim import SimResult, simulate, step_toward, worst
 from fleet_emu.agents.allocators.mhm.tree import BASE_NODE
 from fleet_emu.agents.relay import Relay
+from fleet_emu.core.base_connectivity import base_connected
 from fleet_emu.core.grid import OCCUPIED, from_ascii
 from fleet_emu.core.messages import Envelope
-from fleet_emu.core.reach import base_connected
 from fleet_emu.world.maps import load_map
-
-# Two rooms off a hall, a long room along the bottom; every passage at least two cells wide, so that a node
-# robot standing in one does not block it.
-OFFICE = """
-##############################################
-#..........................#.................#
-#..........................#.................#
-#..........................#.................#
-#.........########.........#.........#########
-#.........#......#...................#.......#
-#.........#......#...................#.......#
-#.........#..........................#.......#
-#.........#..........................#.......#
-#.........#......#...................#.......#
-#.........########.........#.........#.......#
-#..........................#.................#
-#..........................#.................#
-#######....#################.........#########
-#............................................#
-#............................................#
-#............................................#
-##############################################
-"""
-BASE = (2, 2)
-
-
-def run(art: str, robots: int, config: MhmConfig, seed: int = 0, max_ticks: int = 3000) -> SimResult:
-    truth, _ = from_ascii(art)
-    return simulate(truth, BASE, robots, config, seed, max_ticks)
-
-
-CONFIG = MhmConfig(r_comm=10.0, sensor_range=4.0, x_min=1, cluster_max=8, patience=40)
+from tests.harness.mhm import BASE, CONFIG, OFFICE, events, run
 
 
 @pytest.mark.parametrize("robots", [6, 10])
@@ -68,6 +37,7 @@ def test_mhm_keeps_every_robot_connected_and_explores(robots: int) -> None:
         assert math.dist(tree[i].pos, tree[tree.parent(i)].pos) < CONFIG.r_comm  # type: ignore[index]
 
 
+@pytest.mark.slow  # the planner run twice (2.5 CPU s); golden runs pin seeds by default
 def test_a_seed_reproduces_the_run() -> None:
     a = run(OFFICE, 6, CONFIG, seed=3)
     b = run(OFFICE, 6, CONFIG, seed=3)
@@ -92,10 +62,7 @@ def test_routes_lead_every_robot_to_the_base_over_links(ticks: int) -> None:
     assert planner.hinged() >= {BASE_NODE}
 
 
-def events(out: SimResult, prefix: str) -> list[tuple[int, str]]:
-    return [(t, e) for t, e in out.planner.events if e.startswith(prefix)]
-
-
+@pytest.mark.slow  # 4 planner runs; connectivity held by default
 def test_eq1_no_hinge_leaves_fewer_than_x_min_explorers() -> None:
     out = run(OFFICE, 4, dataclasses.replace(CONFIG, x_min=4))
     phase2 = events(out, "phase 2")[0][0]
@@ -109,6 +76,7 @@ def test_eq1_no_hinge_leaves_fewer_than_x_min_explorers() -> None:
         assert worst(out.connected) == 1.0
 
 
+@pytest.mark.slow  # a variant run to its end; the planner's constraint by default
 def test_single_hinge_variant() -> None:
     out = run(OFFICE, 6, dataclasses.replace(CONFIG, hinges=1))
     hinges = [ast.literal_eval(e.split("hinge at ")[1]) for _, e in events(out, "WE of")]
@@ -221,6 +189,7 @@ def test_orders_reach_every_robot_over_the_routes_tree() -> None:
     assert longest >= 3  # some orders crossed two relays or more
 
 
+@pytest.mark.slow  # a generated office planned to its end (7 CPU s a draw)
 @pytest.mark.parametrize("hinges", [0, 1])
 def test_no_cell_is_created_twice_on_a_generated_office(hinges: int) -> None:
     """A regression: RTG broke a sibling cell and the next expansion created it again at the same place,

@@ -17,7 +17,7 @@ from fleet_emu.agents.allocators.mhm.sim import worst
 from fleet_emu.agents.allocators.mhm.wavefront import frontier_distance
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import FREE, OCCUPIED, UNKNOWN
-from tests.agents.mhm.test_planner import CONFIG, OFFICE, events, run
+from tests.harness.mhm import CONFIG, OFFICE, events, run
 
 SHM = dataclasses.replace(CONFIG, method="shm")
 
@@ -74,6 +74,7 @@ def test_each_direction_of_a_node_is_hinged_once() -> None:
         seen.add((node, direction))
 
 
+@pytest.mark.slow  # the planner's seed proven by default (test_planner)
 def test_a_seed_reproduces_an_shm_run() -> None:
     a, b = run(OFFICE, 5, SHM, seed=2), run(OFFICE, 5, SHM, seed=2)
     assert a.ticks == b.ticks and a.seen == b.seen and a.planner.events == b.planner.events

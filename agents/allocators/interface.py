@@ -178,10 +178,9 @@ class Allocator:
         if name in Allocator.registry:
             raise TypeError(f"allocator {name!r} registered twice")
         for param, spec in cls.parameters.items():
-            try:
-                spec.check(spec.default)
-            except ValueError as exc:
-                raise TypeError(f"allocator {name!r}: default of {param} is not {exc}") from None
+            refused = spec.refusal(spec.default)
+            if refused is not None:
+                raise TypeError(f"allocator {name!r}: default of {param} {refused}")
         for param, field in cls.scenario_fields.items():
             if param not in cls.parameters:
                 raise TypeError(f"allocator {name!r}: scenario field for {param!r}, which is not a parameter")

@@ -1,5 +1,5 @@
 """The control messages (the start handshake, stop, failures, the nodes' reports) and the hosts' lobby
-(``fleet-host/<host>/...``, ``launch/hosts.py``); split out of ``core/messages.py``, which re-exports every
+(``fleet-host/<host>/...``, ``launch/host_client.py``); split out of ``core/messages.py``, which re-exports every
 name here.
 """
 
@@ -56,8 +56,8 @@ class Stop(Message):
 
 
 @dataclasses.dataclass(frozen=True)
-class AgentReport(Message):
-    """An agent's summary when it stops (ctl/report/<robot>): counters the launcher puts in result.json."""
+class RobotReport(Message):
+    """A robot's summary when it stops (ctl/report/<robot>): counters the launcher puts in result.json."""
 
     KIND = "report"
     decisions: int
@@ -96,7 +96,7 @@ class BaseReport(Message):
     foreign: int = 0  # messages dropped for not carrying the run's nonce
 
 
-# --- the hosts' lobby (fleet-host/<host>/..., launch/hosts.py) --------------------------------------------
+# --- the hosts' lobby (fleet-host/<host>/..., launch/host_client.py) --------------------------------------------
 
 MAX_REALTIME_HZ = 1000.0  # the fastest real-time rate a run accepts (``fleet run --realtime``)
 NONCE_HEX = re.compile(r"(?:[0-9a-f]{2}){0,32}")  # a run nonce in hex (empty: none)

@@ -1,9 +1,12 @@
-"""``fleet host``: start, on this machine, the robots a ``fleet run --hosts N`` elsewhere assigns to it.
+"""The host protocol's server side, ``fleet host``: start, on this machine, the robots a ``fleet run --hosts N``
+elsewhere assigns to it.
 
-The protocol is in ``launch/hosts.py`` (the launcher's side). Here: log in as this host's user (``--credentials``,
+The protocol has two sides: this module is the *server*, the process on the remote machine that waits for spawn
+requests and serves them; ``launch/host_client.py`` is the *client*, the launcher's side, which sends them (the
+protocol's steps are in its docstring). Here: log in as this host's user (``--credentials``,
 a ``hostK:password`` line), subscribe to ``fleet-host/hostK/spawn``, declare the token ``fleet-host/hostK/alive``,
 and serve runs one at a time (``--once``: one, then exit). For a run: answer ``accepted`` (``busy`` to another
-run's request meanwhile), write its scenario, start each robot as the launcher would (``agent_argv``, this host's
+run's request meanwhile), write its scenario, start each robot as the launcher would (``robot_argv``, this host's
 own ``--connect``, the run's ``--realtime`` rate, the robot's credential on its standard input with this host's
 ``--tls-ca``, its own process group, from a fork server unless turned off), report ``spawned``/``exited`` per
 robot, and ``ended`` once every robot is gone. The robots are torn down (SIGTERM to their groups, then SIGKILL)
@@ -35,7 +38,7 @@ from fleet_emu.core.keys import HOST_ID, HostKeys, Keys
 from fleet_emu.core.messages import HostAssign, HostStatus
 from fleet_emu.core.node import Declared, undeclare
 from fleet_emu.launch.forked import fork_server_enabled
-from fleet_emu.launch.hosts import agent_argv, check_reliable
+from fleet_emu.launch.host_client import check_reliable, robot_argv
 from fleet_emu.launch.signals import Interrupts
 from fleet_emu.launch.supervisor import AGENTS, Supervisor
 
@@ -178,7 +181,7 @@ class Host:
             if robot in req.secrets:  # the launcher's login for it, with this host's CA
                 obj = json.loads(req.secrets[robot])
                 secret = Credential(str(obj["user"]), str(obj["password"]), self.tls_ca).to_json()
-            argv = agent_argv(robot, req.run, self.endpoint, scenario, secret is not None, req.realtime_hz or None,
+            argv = robot_argv(robot, req.run, self.endpoint, scenario, secret is not None, req.realtime_hz or None,
                               req.nonce)
             child = sup.spawn(robot, AGENTS, argv, secret)
             self.report(req.run, "spawned", robot=robot, pid=child.pid)

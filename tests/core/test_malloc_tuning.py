@@ -1,4 +1,4 @@
-"""core/heap.py: a node that allocates and frees the same map-sized arrays every tick stops faulting pages in
+"""core/malloc_tuning.py: a node that allocates and frees the same map-sized arrays every tick stops faulting pages in
 once its heap is kept (the pattern that cost a robot's allocator 1.6 ms per tick on a 512 x 512 map)."""
 
 from __future__ import annotations
@@ -8,14 +8,14 @@ import sys
 
 import pytest
 
-from fleet_emu.core.heap import keep_heap
+from fleet_emu.core.malloc_tuning import keep_heap
 
 # Three 1 MB arrays (a 512 x 512 int32 grid each) made and dropped per "tick"; minor page faults counted over
 # ten ticks after five of warm-up.
 SCRIPT = """
 import resource, sys
 import numpy as np
-from fleet_emu.core.heap import keep_heap
+from fleet_emu.core.malloc_tuning import keep_heap
 if sys.argv[1] == "keep" and not keep_heap():
     raise SystemExit("mallopt refused")
 def tick():

@@ -1,4 +1,5 @@
-"""Robots on other machines: the launcher's side of ``fleet host`` (``launch/host.py`` is the host's).
+"""Robots on other machines: the host protocol's client side, the launcher's (``launch/host_server.py``, the
+process ``fleet host`` runs on each remote machine, is the server side, which serves the requests sent here).
 
 ``fleet run --hosts N`` (or a scenario's ``[hosts]``, :class:`~fleet_emu.core.scenario.HostPlan`) deals the
 robots round-robin over this machine and N hosts (:func:`placement`: ``r0`` here, ``r1`` on the first host,
@@ -14,7 +15,7 @@ lockstep), and starts each host's robots there. The protocol, over the run's own
    scenario, the real-time rate (``--realtime``; 0 in lockstep), the host's robots and each robot's credential
    (``secrets``), repeated every second until the host
    answers ``accepted`` (or ``busy``: it serves another run) on ``fleet-host/hostK/status``.
-4. The host writes the scenario, starts each robot exactly as the launcher would here (:func:`agent_argv`: the
+4. The host writes the scenario, starts each robot exactly as the launcher would here (:func:`robot_argv`: the
    same argv, its own ``--connect``, the credential on standard input, its own process group, from a fork
    server unless turned off) and reports ``spawned`` (the pid) and ``exited`` (the exit code) per robot.
 5. The launcher's supervisor holds a :class:`RemoteRobot` per robot, a handle like a local child's: a robot
@@ -156,7 +157,7 @@ def listen_endpoints(listen: str | None, tls_cert: Path | None, tls_key: Path | 
     return [listen or LOOPBACK, LOOPBACK] if secure else [listen or LOOPBACK]
 
 
-def agent_argv(robot: str, run_id: str, endpoint: str, scenario_file: Path, auth: bool,
+def robot_argv(robot: str, run_id: str, endpoint: str, scenario_file: Path, auth: bool,
                realtime_hz: float | None = None, nonce: str = "") -> list[str]:
     """The command line of robot ``robot`` (``python -m fleet_emu.agents ARGV``), here or on a host; ``nonce``:
     the run's, in hex."""
@@ -195,7 +196,7 @@ def spawn_nodes(sup: Supervisor, scenario: Scenario, run_id: str, endpoint: str,
         sup.spawn(BASE, "fleet_emu.agents.base_node", [*common, *truth, *at_base, *auth], secret(BASE))
     for r in robots:
         if where[r] is None:
-            sup.spawn(r, "fleet_emu.agents", agent_argv(r, run_id, endpoint, work / "scenario.json", bool(creds),
+            sup.spawn(r, "fleet_emu.agents", robot_argv(r, run_id, endpoint, work / "scenario.json", bool(creds),
                                                         realtime_hz, nonce), secret(r))
     plan = {h: [r for r in robots if where[r] == h] for h in hosts}
     if remote is not None:

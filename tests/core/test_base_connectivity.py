@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fleet_emu.core.base_connectivity import BaseConnectivity, base_connected, reachable
 from fleet_emu.core.grid import OCCUPIED, from_ascii
 from fleet_emu.core.radio import RadioConfig, link_matrix
-from fleet_emu.core.reach import BaseConnectivity, base_connected, reachable
 
 DISK = RadioConfig(comm="disk", comm_range=2.0)  # 4 cells of 0.5 m
 

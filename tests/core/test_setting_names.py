@@ -8,9 +8,9 @@ import pytest
 
 import fleet_emu as fe
 from fleet_emu.core.errors import ConfigError
-from fleet_emu.core.spelling import cli_spelling, option
+from fleet_emu.core.setting_names import cli_spelling, option
 from fleet_emu.launch.outdir import refuse_held
-from tests.conftest import run_cli
+from tests.harness.cli import run_cli
 
 
 @pytest.mark.parametrize("flags, keyword, flag", [
@@ -111,7 +111,7 @@ def test_a_name_far_from_every_known_one_gets_only_the_list() -> None:
 
 
 def test_plural_forms() -> None:
-    from fleet_emu.core.spelling import plural
+    from fleet_emu.core.setting_names import plural
 
     assert [plural(n, "job") for n in (0, 1, 2)] == ["0 jobs", "1 job", "2 jobs"]
     assert plural(1, "policy", "policies") == "1 policy" and plural(3, "policy", "policies") == "3 policies"
