@@ -30,12 +30,10 @@ from fleet_emu.core.codec import (
 )
 from fleet_emu.core.codec import _to_obj as to_obj
 from fleet_emu.core.codec import _unpack as unpack
-from fleet_emu.core.version import SCHEMA_VERSION
 
 # --- radio (inside bundles) --------------------------------------------------------------------------
-
-MAX_TTL = 16
-MAX_PAYLOAD_BYTES = 16 * 1024 * 1024
+from fleet_emu.core.limits import MAX_PAYLOAD_BYTES, MAX_TTL
+from fleet_emu.core.version import SCHEMA_VERSION
 
 #: Payload kinds that are bulk map data: a bandwidth-limited radio sends them after everything else a robot
 #: queued (``netem/medium.py``), and sends them compact (:func:`seal`).

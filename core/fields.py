@@ -16,6 +16,7 @@ checks it, and its flags are written by hand.
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import math
 from collections.abc import Callable
@@ -203,3 +204,13 @@ def merge(config: T, table: Any, section: str, where: str = "") -> T:
     if bad:
         raise ConfigError(f"{prefix}unknown key(s) in {section}: {', '.join(bad)} (known: {', '.join(names)})")
     return dataclasses.replace(config, **table)  # type: ignore[type-var]
+
+
+def cell_arg(text: str) -> tuple[int, int]:
+    """An argparse type: ``ROW,COL`` as a cell (here, not in the node shell, so that building a parser loads
+    neither Zenoh nor numpy)."""
+    try:
+        row, col = (int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected ROW,COL, got {text!r}") from None
+    return (row, col)

@@ -15,6 +15,11 @@ from typing import Any
 
 from fleet_emu.core.errors import ConfigError
 
+#: The most hops a relayed message may still take (an envelope's ``ttl``), and the largest payload an envelope
+#: carries: bus limits, kept here so that the scenario can name them without loading the codec.
+MAX_TTL = 16
+MAX_PAYLOAD_BYTES = 16 * 1024 * 1024
+
 #: The largest scenario (or study) file read: a shipped scenario is under 2 KB.
 MAX_FILE_BYTES = 1 << 20
 #: The deepest nesting of brackets (``[``, ``{``) a file may have; a scenario uses 3.

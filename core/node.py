@@ -21,6 +21,7 @@ from fleet_emu.core.access import Credential, allowed_src
 from fleet_emu.core.bus import Inbox, Publisher, client_config, publisher
 from fleet_emu.core.codec import Context, DecodeError, Message, decode
 from fleet_emu.core.errors import FleetError
+from fleet_emu.core.fields import cell_arg
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.malloc_tuning import keep_heap
@@ -201,15 +202,6 @@ def add_base_cell(parser: argparse.ArgumentParser, required: bool) -> None:
     these processes do not import the world's code."""
     parser.add_argument("--base-cell", type=cell_arg, required=required, default=None, metavar="ROW,COL",
                         help="the base station's cell (resolved by fleet run)")
-
-
-def cell_arg(text: str) -> tuple[int, int]:
-    """An argparse type: ``ROW,COL`` as a cell."""
-    try:
-        row, col = (int(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected ROW,COL, got {text!r}") from None
-    return (row, col)
 
 
 def node_main(prog: str, build: Callable[[argparse.Namespace], Any], argv: list[str] | None,

@@ -21,12 +21,14 @@ import dataclasses
 import functools
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from fleet_emu.core.fields import Setting, setting, settings
-from fleet_emu.core.grid import Cell
+
+if TYPE_CHECKING:  # numpy is loaded by the functions that use it: a parser built from the settings needs none
+    import numpy as np
+
+    from fleet_emu.core.grid import Cell
 
 COMM_MODELS = ("wall", "disk", "full", "ideal")
 
@@ -147,6 +149,8 @@ def link_matrix(occupied: np.ndarray, cells: Sequence[Cell], cell_size: float,
     ``shadow`` (dB per pair, symmetric: the correlated shadowing of :mod:`fleet_emu.core.shadowing`) when given;
     the link follows the model: that strength's threshold (``wall``), distance within ``comm_range``
     (``disk``), or every pair (``full``, ``ideal``)."""
+    import numpy as np
+
     from fleet_emu.core.kernels import count_walls  # numba: imported on first use, not with the CLI
 
     n = len(cells)
@@ -173,6 +177,8 @@ def link_matrix(occupied: np.ndarray, cells: Sequence[Cell], cell_size: float,
 
 def connected(link: np.ndarray) -> bool:
     """Whether the undirected link graph is connected (one robot, or none, counts as connected)."""
+    import numpy as np
+
     n = len(link)
     if n <= 1:
         return True

@@ -23,8 +23,7 @@ from fleet_emu.core.faults import Fault, check_faults, parse_faults
 from fleet_emu.core.fields import Setting, check_all, merge, setting, settings
 from fleet_emu.core.files import read_regular
 from fleet_emu.core.keys import HOST_ID
-from fleet_emu.core.limits import MAX_FILE_BYTES, MAX_NAME, check_size, check_text, check_values
-from fleet_emu.core.messages import MAX_TTL
+from fleet_emu.core.limits import MAX_FILE_BYTES, MAX_NAME, MAX_TTL, check_size, check_text, check_values
 from fleet_emu.core.radio import RadioConfig, radio_settings
 from fleet_emu.core.radio_profile import radio_of_profile
 from fleet_emu.core.scenario_checks import check_names

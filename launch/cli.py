@@ -121,7 +121,7 @@ def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
     (``launch/setting_flags.py``), and by hand those of the fields that hold a table or a choice of forms: the
     allocator and its parameters, the base station, the faults (``--hosts`` is with the bus's flags)."""
     # here, not at the top: the dispatcher's signal handler is in place
-    from fleet_emu.core.node import cell_arg
+    from fleet_emu.core.fields import cell_arg
     from fleet_emu.core.scenario import scenario_settings
     from fleet_emu.launch.radio_flags import add_radio_flags
     from fleet_emu.launch.setting_flags import add_setting_flags

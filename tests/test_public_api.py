@@ -38,6 +38,16 @@ def test_importing_the_package_loads_no_engine() -> None:
     assert out.strip() == "[]"
 
 
+def test_the_cli_s_parser_loads_no_bus_and_no_arrays() -> None:
+    """Every ``fleet`` command builds the whole parser first (``--help``, a refused flag, a listing): built from
+    the settings' declarations, it must not load Zenoh, numpy or the codec, which cost a start-up its time."""
+    code = "import sys; from fleet_emu.cli import build_parser; build_parser(); print(sorted(m for m in " \
+           "sys.modules if m.split('.')[0] in ('zenoh', 'numpy', 'numba', 'msgspec', 'matplotlib') or m in " \
+           "('fleet_emu.core.codec', 'fleet_emu.core.node', 'fleet_emu.core.messages')))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
 def test_scenario_api_loads_overrides_and_rejects() -> None:
     s = fe.Scenario.from_dict({"robots": 2, "map": "hall", "radio": {"comm": "disk", "loss": 0.2}})
     assert (s.robots, s.map, s.radio.comm, s.radio.loss) == (2, "hall", "disk", 0.2)
