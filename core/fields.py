@@ -213,4 +213,6 @@ def cell_arg(text: str) -> tuple[int, int]:
         row, col = (int(v) for v in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected ROW,COL, got {text!r}") from None
+    if row < 0 or col < 0:
+        raise argparse.ArgumentTypeError(f"expected ROW,COL, each a whole number >= 0, got {text!r}")
     return (row, col)

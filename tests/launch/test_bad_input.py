@@ -137,3 +137,9 @@ def test_a_users_file_of_mode_600_is_read(tmp_path: Path) -> None:
     assert read_users(_users(tmp_path, 0o600)) == {"launcher": "secret", "host0": "secret"}
     with pytest.raises(ConfigError, match="cannot read it"):
         read_users(tmp_path / "absent.txt")
+
+
+def test_a_negative_base_cell_names_its_flag() -> None:
+    code, _, err = run_cli(["run", "--engine", "memory", "--base-cell=-1,2"])
+    assert code == 2 and err.count("\n") == 1, err
+    assert "argument --base-cell: expected ROW,COL, each a whole number >= 0, got '-1,2'" in err, err
