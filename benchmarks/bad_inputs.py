@@ -15,22 +15,22 @@ loopback socket that accepts and never answers.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import io
 import os
 import signal
-import socket
 import statistics
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 import zipfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+
+from tests.harness.files import crafted
+from tests.harness.peers import silent_peer
 
 RUN = ["run", "--engine", "memory", "--map", "office", "--robots", "2", "--max-ticks", "30", "--quiet"]
 POLICY = [*RUN, "--allocator", "policy", "--param"]
@@ -99,18 +99,8 @@ def _huge_study(folder: Path) -> Path:
 
 def _recording(folder: Path, name: str, scenario: object) -> Path:
     """An MCAP file of a few hundred bytes: only the ``scenario`` metadata a recording starts with."""
-    import json
-
-    from mcap.writer import Writer
-
     path = folder / name
-    if not path.exists():
-        with open(path, "wb") as f:
-            w = Writer(f)
-            w.start(profile="", library="adversary")
-            w.add_metadata("scenario", {"run_id": "x", "scenario": json.dumps(scenario)})
-            w.finish()
-    return path
+    return path if path.exists() else crafted(path, scenario)
 
 
 def _cut_run(folder: Path) -> Path:
@@ -152,31 +142,6 @@ CASES: dict[str, Callable[[Path, str], list[str]]] = {
     "stop-sigterm-memory-run": lambda d, _: [*RUN[:-3], "--max-ticks", "100000", "--target-coverage", "1.0",
                                              "--quiet", "--no-record"],
 }
-
-
-@contextlib.contextmanager
-def silent_peer() -> Iterator[str]:
-    """A loopback listener that accepts every connection and never answers: its ``tcp://`` address."""
-    server = socket.create_server(("127.0.0.1", 0))
-    server.settimeout(0.2)
-    held: list[socket.socket] = []
-    stop = threading.Event()
-
-    def accept() -> None:
-        while not stop.is_set():
-            with contextlib.suppress(OSError):
-                held.append(server.accept()[0])
-
-    thread = threading.Thread(target=accept, daemon=True)
-    thread.start()
-    try:
-        yield f"tcp://127.0.0.1:{server.getsockname()[1]}"
-    finally:
-        stop.set()
-        thread.join()
-        for conn in held:
-            conn.close()
-        server.close()
 
 
 #: Runs the command and prints its peak RSS (kB): a small parent, as a child's peak RSS counts what it was a copy

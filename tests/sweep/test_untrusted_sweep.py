@@ -5,13 +5,10 @@ runs it would be, before a single point is built."""
 
 from __future__ import annotations
 
-import contextlib
 import signal
 import socket
 import subprocess
 import sys
-import threading
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -19,35 +16,10 @@ import pytest
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.sweep.study import MAX_POINTS, Study
 from tests.harness.cli import ROOT, fleet
+from tests.harness.peers import silent_peer
 from tests.harness.procs import wait_for
 
 pytest.importorskip("distributed")
-
-
-@contextlib.contextmanager
-def silent_peer(accepted: list[socket.socket] | None = None) -> Iterator[str]:
-    """A loopback listener that accepts every connection (kept in ``accepted``) and never sends a byte: its
-    ``tcp://`` address."""
-    server = socket.create_server(("127.0.0.1", 0))
-    accepted = [] if accepted is None else accepted
-    stop = threading.Event()
-
-    def accept() -> None:
-        server.settimeout(0.2)
-        while not stop.is_set():
-            with contextlib.suppress(OSError):
-                accepted.append(server.accept()[0])
-
-    thread = threading.Thread(target=accept, daemon=True)
-    thread.start()
-    try:
-        yield f"tcp://127.0.0.1:{server.getsockname()[1]}"
-    finally:
-        stop.set()
-        thread.join()
-        for conn in accepted:
-            conn.close()
-        server.close()
 
 
 def test_a_peer_that_accepts_and_stays_silent_is_refused_within_the_deadline() -> None:
