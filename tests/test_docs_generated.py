@@ -3,21 +3,18 @@ that they read on the repository as on the site, and are current: ``python docs/
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 from types import ModuleType
 
 import pytest
 
+from tests.harness.docs import load_script
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _hooks() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("docs_hooks", ROOT / "docs" / "hooks.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROOT / "docs" / "hooks.py", "docs_hooks")
 
 
 HOOKS = _hooks()

@@ -4,8 +4,10 @@ markers mean: ``tests/test_docs.py``)."""
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import re
 from pathlib import Path
+from types import ModuleType
 
 from tests.harness.cli import ROOT
 
@@ -54,3 +56,13 @@ def blocks(page: Path) -> list[Block]:
         out.append(Block(page, i + 1, m["lang"].lower(), "\n".join(body) + "\n", tuple(reversed(marks))))
         i = j + 1
     return out
+
+
+def load_script(path: Path, name: str) -> ModuleType:
+    """A script shipped with the docs (``docs/hooks.py``, an example) imported as the module ``name``, without
+    running its ``__main__`` block."""
+    spec = importlib.util.spec_from_file_location(name, path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -4,24 +4,20 @@ The site is fetched through a mirror of the measurements kept beside the reposit
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 from types import ModuleType
 
 import pytest
 
 from fleet_emu.launch.radio_plots import HISTOGRAM, SCATTER, carried_digest, digest
+from tests.harness.docs import load_script
 from tests.radio.mirror import fetched
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def _generator() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("radio_measured", ROOT / "docs" / "radio_measured.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROOT / "docs" / "radio_measured.py", "radio_measured")
 
 
 @pytest.mark.slow  # the whole fit of 22,277 readings: about 12 s of CPU

@@ -3,11 +3,12 @@ table in which every run missed the target is called out."""
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 from types import ModuleType
 
 import pytest
+
+from tests.harness.docs import load_script
 
 pytest.importorskip("pettingzoo")
 
@@ -15,11 +16,7 @@ EXAMPLE = Path(__file__).resolve().parents[2] / "docs" / "examples" / "train_pol
 
 
 def _example() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("train_policy_example", EXAMPLE)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(EXAMPLE, "train_policy_example")
 
 
 @pytest.mark.slow  # trains a tiny policy; the policy allocator by default
