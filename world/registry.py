@@ -39,8 +39,25 @@ class MapFile:
         return PurePosixPath(self.path).name
 
 
+class Upstream:
+    """The addresses of an entry kept at ``repo`` pinned to ``commit`` (a map here, a radio site in
+    ``world/sites.py``); the dataclasses that inherit it declare the two fields."""
+
+    repo: str
+    commit: str
+
+    def url(self, f: MapFile) -> str:
+        """The file's upstream address, pinned to the commit."""
+        return RAW_URL.format(repo=self.repo, commit=self.commit, path=f.path)
+
+    @property
+    def source(self) -> str:
+        """``owner/repo@commit`` (the commit abbreviated), for listings."""
+        return f"{self.repo}@{self.commit[:10]}"
+
+
 @dataclasses.dataclass(frozen=True)
-class RegistryMap:
+class RegistryMap(Upstream):
     """A public map: where it comes from (``repo`` at ``commit``), its licence, its files, and how it becomes a
     grid: a bitmap at ``resolution`` m/px (square pixels), or, with ``yaml``, the ROS map_server YAML among its
     files. ``pixels`` is (width, height); ``world_size`` Stage's floorplan size in metres, when a world file
@@ -60,15 +77,6 @@ class RegistryMap:
     #: What it is, as errors name it, and its folder under the user cache (:func:`cache_dir`).
     kind: ClassVar[str] = "map"
     cache: ClassVar[str] = "maps"
-
-    def url(self, f: MapFile) -> str:
-        """The file's upstream address, pinned to the commit."""
-        return RAW_URL.format(repo=self.repo, commit=self.commit, path=f.path)
-
-    @property
-    def source(self) -> str:
-        """``owner/repo@commit`` (the commit abbreviated), for listings."""
-        return f"{self.repo}@{self.commit[:10]}"
 
     @property
     def size_m(self) -> tuple[float, float]:

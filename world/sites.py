@@ -25,7 +25,7 @@ from typing import ClassVar
 import numpy as np
 
 from fleet_emu.core.errors import ConfigError
-from fleet_emu.world.registry import RAW_URL, MapFile, cache_dir, verified
+from fleet_emu.world.registry import MapFile, Upstream, cache_dir, verified
 
 SITES_FILE = Path(__file__).resolve().parent / "sites.toml"
 #: The three files of a site given as a folder.
@@ -37,7 +37,7 @@ MAX_ROWS = 200_000
 
 
 @dataclasses.dataclass(frozen=True)
-class RadioSite:
+class RadioSite(Upstream):
     """A public measured site: where it comes from (``repo`` at ``commit``), its licence and citation, its three
     files (anchors, layout, readings, in that order) and the transmitter's height when the readings give none."""
 
@@ -51,15 +51,6 @@ class RadioSite:
     tag_height: float
     kind: ClassVar[str] = "radio site"
     cache: ClassVar[str] = "radio"
-
-    def url(self, f: MapFile) -> str:
-        """The file's upstream address, pinned to the commit."""
-        return RAW_URL.format(repo=self.repo, commit=self.commit, path=f.path)
-
-    @property
-    def source(self) -> str:
-        """``owner/repo@commit`` (the commit abbreviated), for listings."""
-        return f"{self.repo}@{self.commit[:10]}"
 
 
 @functools.cache
