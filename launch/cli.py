@@ -129,7 +129,7 @@ def _add_scenario_flags(r: argparse.ArgumentParser) -> None:
     r.add_argument("scenario_file", nargs="?", type=Path, metavar="SCENARIO",
                    help="a scenario TOML or a run's scenario.json, as --scenario")
     r.add_argument("--scenario", type=Path, help="a scenario TOML, a run's scenario.json, or a shipped scenario's name "
-                                                 "(default, connectivity; default: default)")
+                                                 "(`default` or `connectivity`; default: the one named `default`)")
     group = r.add_argument_group("scenario", "the scenario's settings, one flag per field (docs/reference/scenario.md)")
     add_setting_flags(group, scenario_settings())
     group.add_argument("--allocator", help="allocator name (see `fleet allocators`) (default minpos, or the "
