@@ -8,7 +8,6 @@ result from a recording.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
 import numpy as np
 
@@ -222,13 +221,6 @@ class Monitor:
     def failed(self) -> list[str]:
         """The robots that left the run (not live at the last state), sorted."""
         return sorted(set(self.robots) - set(self.state.live)) if self.state else []
-
-    def result(self, scenario: dict[str, Any], run_id: str, target: float) -> dict[str, Any]:
-        """The ``result.json`` keys this fold gives (:func:`fleet_emu.recording.result.fold_keys`, where every
-        key of ``result.json`` is written)."""
-        from fleet_emu.recording.result import fold_keys
-
-        return fold_keys(self, scenario, run_id, target)
 
     def dropped_by(self) -> dict[str, int]:
         """Messages each process dropped as malformed or spoofed: the launcher's own count, the world's and

@@ -21,6 +21,7 @@ from fleet_emu.core.keys import Keys, robot_ids
 from fleet_emu.core.messages import Command, Stop, WorldState
 from fleet_emu.core.node import NodeShell
 from fleet_emu.recording.monitor import Monitor
+from fleet_emu.recording.result import fold_keys
 
 K = Keys("run1")
 
@@ -116,8 +117,8 @@ def test_the_monitor_never_folds_a_spoofed_state_and_counts_it() -> None:
     m.feed(K.state, spoof.encode())
     m.feed(K.state, b"\x93garbage")
     assert m.tick == 5 and m.coverage == pytest.approx(0.2)
-    res = m.result({"seed": 0, "map": "m", "allocator": {"type": "nearest"}, "robots": 1,
-                    "radio": {"loss": 0.0, "comm": "full"}}, "run1", 0.9)
+    res = fold_keys(m, {"seed": 0, "map": "m", "allocator": {"type": "nearest"}, "robots": 1,
+                        "radio": {"loss": 0.0, "comm": "full"}}, "run1", 0.9)
     assert res["malformed_dropped_by"] == {"launcher": 2, "world": 2, "netem": 0}
     assert res["malformed_dropped"] == 4
     assert np.isfinite(res["coverage"])

@@ -11,6 +11,7 @@ from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import BaseReport, Links
 from fleet_emu.netem.channel import Counters, links_message
 from fleet_emu.recording.monitor import Monitor
+from fleet_emu.recording.result import fold_keys
 
 K = Keys("run1")
 ROBOTS = ("r0", "r1", "r2")
@@ -40,8 +41,8 @@ def test_the_fold_over_given_link_graphs() -> None:
         m.feed(K.links, lk.encode())
     m.feed(K.report("base"), BaseReport(src="base", tick=3, seq=1, cell=(2, 3), known_cells=50, cells=200,
                                         merged=7, ticks=3, dropped=1, peak_rss_kb=1).encode())
-    res = m.result({"seed": 0, "map": "m", "allocator": {"type": "nearest"}, "robots": 3,
-                    "radio": {"loss": 0.0, "comm": "disk"}}, "run1", 0.99)
+    res = fold_keys(m, {"seed": 0, "map": "m", "allocator": {"type": "nearest"}, "robots": 3,
+                        "radio": {"loss": 0.0, "comm": "disk"}}, "run1", 0.99)
     frac = res["base_connected_fraction"]
     assert frac["overall"] == pytest.approx(round((2 / 3 + 1 + 0) / 3, 6))
     assert frac["all_ticks"] == pytest.approx(round(1 / 3, 6))
@@ -59,8 +60,8 @@ def test_a_run_without_a_base_has_no_base_keys_and_links_without_base_fields() -
     lk = links_message(0, 1, nodes, np.zeros((3, 3)), ~np.eye(3, dtype=bool), Counters())
     assert lk.base_link is None and lk.base_strength is None
     m.feed(K.links, lk.encode())
-    res = m.result({"seed": 0, "map": "m", "allocator": {"type": "nearest"}, "robots": 3,
-                    "radio": {"loss": 0.0, "comm": "disk"}}, "run1", 0.99)
+    res = fold_keys(m, {"seed": 0, "map": "m", "allocator": {"type": "nearest"}, "robots": 3,
+                        "radio": {"loss": 0.0, "comm": "disk"}}, "run1", 0.99)
     assert "base_connected_fraction" not in res and "base" not in res
 
 

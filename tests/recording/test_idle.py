@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from fleet_emu.core.messages import Command, WorldState
 from fleet_emu.recording.monitor import Monitor
+from fleet_emu.recording.result import fold_keys
 
 ROBOTS = ("r0", "r1", "r2")
 
@@ -28,8 +29,8 @@ def test_a_robot_with_something_to_do_that_stays_is_idle() -> None:
     m.fold(_cmd("r1", 1, "WAITING"))
     m.fold(_cmd("r2", 1, "WAITING"))
     m.fold(_state(2, {"r0": (1, 1), "r1": (2, 2), "r2": (1, 3)}, live=("r0", "r1")))  # r2 failed
-    res = m.result({"seed": 0, "map": "m", "allocator": {"type": "trade"}, "robots": 3,
-                    "radio": {"loss": 0.0, "comm": "full"}}, "run", 0.99)
+    res = fold_keys(m, {"seed": 0, "map": "m", "allocator": {"type": "trade"}, "robots": 3,
+                        "radio": {"loss": 0.0, "comm": "full"}}, "run", 0.99)
     assert res["idle_by_status"] == {"ASSIGNED": 1, "WAITING": 2}
     assert res["idle_robot_ticks"] == 3
 
