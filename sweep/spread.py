@@ -47,15 +47,19 @@ def spread(points: Sequence[P], labels: dict[str, list[Any]], seeds: Sequence[in
     """``points`` (each with its grid labels and ``seed`` in ``params``) in the spread order; ``labels``: each
     grid axis's values as the points label them, in the grid's order; ``seeds``: the study's seeds in order."""
     others = [k for k in labels if k != COMPARED]
-    settings = sorted({tuple(p.params[k] for k in others) for p in points},
-                      key=lambda s: [labels[k].index(v) for k, v in zip(others, s, strict=True)])
+
+    def setting(p: P) -> tuple[int, ...]:
+        """The point's place on each other axis: indices, as a value may be a list (a start cell) or a table."""
+        return tuple(labels[k].index(p.params[k]) for k in others)
+
+    settings = sorted({setting(p) for p in points})
     scale = {k: max(len(labels[k]) - 1, 1) for k in others}
-    cells = [tuple(labels[k].index(v) / scale[k] for k, v in zip(others, s, strict=True)) for s in settings]
+    cells = [tuple(i / scale[k] for k, i in zip(others, s, strict=True)) for s in settings]
     rank = {settings[i]: n for n, i in enumerate(farthest_first(cells))}
     compared = labels.get(COMPARED, [])
 
     def key(p: P) -> tuple[int, int, int]:
         c = compared.index(p.params[COMPARED]) if COMPARED in labels else 0
-        return seeds.index(p.params["seed"]), rank[tuple(p.params[k] for k in others)], c
+        return seeds.index(p.params["seed"]), rank[setting(p)], c
 
     return sorted(points, key=key)

@@ -42,6 +42,17 @@ def test_a_papers_first_runs_compare_every_allocator_at_far_apart_fleets() -> No
     assert len({(p.params["allocator"], p.params["robots"]) for p in order[:40]}) == 40
 
 
+@pytest.mark.parametrize("name", ["mukhija-fig5", "benavides"])
+def test_a_study_whose_replicate_is_a_start_cell_is_spread_too(name: str) -> None:
+    """A grid value may be a list (a start cell ``[ROW, COL]``): the spread orders it like any other."""
+    study = Study.load(name)
+    order = spread(_points(study.grid, study.seeds), study.grid, study.seeds)
+    assert len(order) == len(study.points())
+    first = order[:len(study.grid["allocator"])]  # every allocator at the first setting, side by side
+    assert {str(p.params["allocator"]) for p in first} == {str(a) for a in study.grid["allocator"]}
+    assert len({str(p.params["start"]) for p in first}) == 1
+
+
 def test_farthest_first_starts_at_the_ends() -> None:
     cells = [(i / 9,) for i in range(10)]
     assert farthest_first(cells)[:3] == [0, 9, 4]
