@@ -9,12 +9,15 @@ import contextlib
 import functools
 import http.server
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
+from typing import TypeVar
 
 import pytest
 
-from fleet_emu.world.registry import registry
+from fleet_emu.world.registry import MapFile, Pinned, registry
+
+E = TypeVar("E", bound=Pinned)
 
 SHARED_MAPS = Path(__file__).resolve().parents[2].parent / "shared" / "maps"
 #: Where each upstream repository's files are kept under SHARED_MAPS.
@@ -22,19 +25,27 @@ FOLDERS = {"rtv/Stage": "stage", "ROBOTIS-GIT/turtlebot3": "ros/turtlebot3_world
            "ros-navigation/navigation2": "ros/nav2_bringup"}
 
 
-def build_mirror(root: Path) -> Path:
-    """``root`` made a mirror of every registry map, symlinks into SHARED_MAPS; a skip when they are absent."""
-    if not SHARED_MAPS.is_dir():
-        pytest.skip(f"the public maps are not beside the repository ({SHARED_MAPS} is absent); the tests that "
-                    "fetch them through --mirror need them")
-    for entry in registry().values():
+def link_mirror(root: Path, shared: Path, entries: Iterable[E], source: Callable[[E, MapFile], Path],
+                what: str) -> Path:
+    """``root`` made a mirror of ``entries`` (``<root>/<name>/<file name>``), each file a symlink to
+    ``source(entry, file)`` under ``shared``, the data kept beside the repository; a skip when it is absent."""
+    if not shared.is_dir():
+        pytest.skip(f"the {what} are not beside the repository ({shared} is absent); the tests that fetch them "
+                    "through --mirror need them")
+    for entry in entries:
         (root / entry.name).mkdir(parents=True, exist_ok=True)
         for f in entry.files:
-            source = SHARED_MAPS / FOLDERS[entry.repo] / f.name
-            if not source.is_file():
-                pytest.skip(f"{source} is absent from the public maps beside the repository")
-            (root / entry.name / f.name).symlink_to(source)
+            target = source(entry, f)
+            if not target.is_file():
+                pytest.skip(f"{target} is absent from the {what} beside the repository")
+            (root / entry.name / f.name).symlink_to(target)
     return root
+
+
+def build_mirror(root: Path) -> Path:
+    """``root`` made a mirror of every registry map, symlinks into SHARED_MAPS; a skip when they are absent."""
+    return link_mirror(root, SHARED_MAPS, registry().values(),
+                       lambda entry, f: SHARED_MAPS / FOLDERS[entry.repo] / f.name, "public maps")
 
 
 def files_in(folder: Path) -> list[Path]:

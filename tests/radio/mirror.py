@@ -10,24 +10,15 @@ from pathlib import Path
 import pytest
 
 from fleet_emu.world.sites import sites
+from tests.harness.map_mirror import link_mirror
 
 SHARED_RADIO = Path(__file__).resolve().parents[2].parent / "shared" / "radio"
 
 
 def build_mirror(root: Path) -> Path:
     """``root`` made a mirror of every registry site, symlinks into SHARED_RADIO; a skip when they are absent."""
-    if not SHARED_RADIO.is_dir():
-        pytest.skip(f"the measured radio sites are not beside the repository ({SHARED_RADIO} is absent); the "
-                    "tests that fetch them through --mirror need them")
-    for entry in sites().values():
-        (root / entry.name).mkdir(parents=True, exist_ok=True)
-        for f in entry.files:
-            name = Path(f.path).name
-            source = SHARED_RADIO / entry.name / name
-            if not source.is_file():
-                pytest.skip(f"{source} is absent from the measured sites beside the repository")
-            (root / entry.name / name).symlink_to(source)
-    return root
+    return link_mirror(root, SHARED_RADIO, sites().values(), lambda entry, f: SHARED_RADIO / entry.name / f.name,
+                       "measured radio sites")
 
 
 def fetched(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
