@@ -8,6 +8,7 @@ import dataclasses
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import Command, RobotTiming, WorldClock, WorldState
 from fleet_emu.recording.monitor import Monitor
+from fleet_emu.recording.result import fold_keys
 
 ROBOTS = ("r0", "r1")
 SCENARIO = {"seed": 0, "map": "m", "allocator": {"type": "greedy"}, "robots": 2, "radio": {"loss": 0.0, "comm": "full"}}
@@ -29,7 +30,7 @@ def test_a_lockstep_run_has_no_real_time_keys() -> None:
     m = Monitor(ROBOTS)
     m.feed(K.state, _state(0).encode())
     m.feed(K.cmd("r0"), Command(src="r0", tick=0, seq=1, move=(0, 1), status="ASSIGNED", decision_ms=2.0).encode())
-    res = m.result(SCENARIO, "run", 0.99)
+    res = fold_keys(m, SCENARIO, "run", 0.99)
     assert "realtime" not in res and "realtime_hz" not in res
     assert res["decision_ms"]["mean"] == 2.0
 
@@ -46,7 +47,7 @@ def test_a_real_time_run_reports_late_commands_overruns_and_decision_times_per_r
     m.feed(K.timing("r0"), _timing("r0", 7).encode())
     m.feed(K.cmd("r0"), Command(src="r0", tick=40, seq=4, move=(0, 1), status="STALE").encode())  # no decision
     m.feed(K.cmd("r0"), Command(src="r0", tick=38, seq=5, move=(0, 1), status="ASSIGNED", decision_ms=9.0).encode())
-    res = m.result(SCENARIO, "run", 0.99)
+    res = fold_keys(m, SCENARIO, "run", 0.99)
     assert res["realtime_hz"] == 10.0
     rt = res["realtime"]
     assert rt["world_overruns"] == 1 and rt["late_commands"] == 5 and rt["ticks_per_second"] == 10.0
@@ -72,6 +73,6 @@ def test_the_wall_seconds_to_90_and_99_percent_come_from_the_clock_of_that_tick(
         # the world ran slower than asked: tick k at 0.25 k s, not 0.1 k s
         m.feed(K.clock, WorldClock(src="world", tick=tick, seq=tick, hz=10.0, elapsed=0.25 * tick, overruns=tick,
                                     late={}, late_steps={}, missed={}).encode())
-    rt = m.result(SCENARIO, "run", 0.99)["realtime"]
+    rt = fold_keys(m, SCENARIO, "run", 0.99)["realtime"]
     assert (m.t90, m.t99) == (4, 6)
     assert (rt["t90_s"], rt["t99_s"]) == (1.0, 1.5)
