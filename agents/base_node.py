@@ -20,10 +20,10 @@ ends it at once. A base process that dies fails the run like the world or netem 
 from __future__ import annotations
 
 import asyncio
-import dataclasses
 import resource
 import time
 
+import msgspec
 import zenoh
 
 from fleet_emu.agents.allocators.mhm.station import station_planner
@@ -73,7 +73,7 @@ class BaseStationNode(NodeShell):
                 await self._final(inbox, stop.tick)
             rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
             report = base_report(self.station, stop.tick, self.dropped, rss)
-            pub_report.put(dataclasses.replace(report, foreign=self.foreign).encode())
+            pub_report.put(msgspec.structs.replace(report, foreign=self.foreign).encode())
             await asyncio.sleep(0.05)
         finally:
             undeclare(handles)

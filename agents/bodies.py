@@ -16,7 +16,6 @@ around it too, and one that senses the cell empty tells the others to forget it.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Protocol
 
@@ -41,8 +40,7 @@ RESEND = 10
 MAX_WRECKS = 256
 
 
-@dataclasses.dataclass(frozen=True)
-class WreckNotice(Payload):
+class WreckNotice(Payload, kw_only=True, frozen=True):
     """A robot's wrecks (flat cell indices, ascending) and the cells it last listed that it has since sensed with
     no body on them (``cleared``): a receiver plans around the first and forgets the second."""
 

@@ -23,13 +23,13 @@ lets a line of robots advance in the same tick.
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import operator
 import threading
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import msgspec
 import numpy as np
 
 from fleet_emu.agents.allocators import (
@@ -43,18 +43,17 @@ from fleet_emu.agents.allocators import (
 from fleet_emu.agents.belief import Belief
 from fleet_emu.agents.bodies import SILENT_AFTER, WreckNotice, Wrecks, as_cells, clear_of
 from fleet_emu.agents.clusters import FrontierClusters
-from fleet_emu.agents.hearing import Beacon, Delta, Fill, Hearing, as_heard, hear
+from fleet_emu.agents.hearing import Heard, hear
 from fleet_emu.agents.mapsync import MapSync, SyncConfig
 from fleet_emu.agents.navigation import next_move
 from fleet_emu.agents.protocol import MapDelta, MapFill, PoseBeacon
 from fleet_emu.agents.relay import Relay
 from fleet_emu.core.codec import Context
-from fleet_emu.core.envelope import AnyEnvelope, as_envelope
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import FREE, MOVES, STAY, Cell
 from fleet_emu.core.kernels import wavefront, wavefront_into
 from fleet_emu.core.keys import BASE, robot_ids
-from fleet_emu.core.messages import Command, Envelope, Observation, RadioMsg, open_envelope, seal
+from fleet_emu.core.messages import Command, Envelope, Observation, RadioMsg, seal
 from fleet_emu.core.scenario import Scenario
 
 #: The stages of :meth:`Brain.step` whose thread CPU ``Brain.cpu_ms`` sums: the allocator (``decision``), belief
@@ -193,35 +192,24 @@ class _Stage:
 
 
 class _Merges:
-    """Teammates' map deltas and fills of one step, merged together (:meth:`Belief.merge_parts`, the ``merge``
+    """Teammates' map deltas and fills of one step, merged together (:meth:`Belief.merge_many`, the ``merge``
     stage) in the order they came, once every message is read or before anything reads the belief (a whole
-    map for a teammate): the same belief as merging each as it comes. Each part is ``(cells, values, start,
-    end)``, its cells and values ``start:end`` of those arrays: a run of deltas heard together
-    (:class:`~fleet_emu.agents.hearing.Delta`) is merged from their arrays as they are."""
+    map for a teammate): the same belief as merging each as it comes."""
 
     __slots__ = ("belief", "brain", "pending")
 
     def __init__(self, brain: Brain, belief: Belief) -> None:
         self.brain, self.belief = brain, belief
-        self.pending: list[tuple[np.ndarray, np.ndarray, int, int]] = []
+        self.pending: list[tuple[np.ndarray, np.ndarray]] = []
 
     def add(self, cells: np.ndarray, values: np.ndarray) -> None:
-        self.pending.append((cells, values, 0, len(cells)))
+        self.pending.append((cells, values))
 
     def flush(self) -> None:
-        parts = self.pending
-        if not parts:
-            return
-        with self.brain._stage("merge"):
-            cells, values, start, _ = parts[0]
-            end = parts[-1][3]
-            if len(parts) > 1 and all(p[0] is cells and p[2] == q[3] for q, p in itertools.pairwise(parts)):
-                bounds = np.array([p[2] for p in parts] + [end], dtype=np.int64) - start  # one run: no copies
-                self.belief.merge_parts(cells[start:end], values[start:end], bounds)
-            else:
-                self.belief.merge_many([(c, v) if a == 0 and b == len(c) else (c[a:b], v[a:b])
-                                        for c, v, a, b in parts])
-            parts.clear()
+        if self.pending:
+            with self.brain._stage("merge"):
+                self.belief.merge_many(self.pending)
+            self.pending.clear()
 
 
 class Brain:
@@ -280,35 +268,22 @@ class Brain:
         decision ran); it goes out as map news with the next step's."""
         self._belief(obs).merge(obs.cells, obs.values)
 
-    def open(self, inbox: Sequence[AnyEnvelope]) -> Hearing:
-        """Decode what the radio delivered, checked against the grid and the team, in the order it came
-        (:func:`~fleet_emu.agents.hearing.hear`: teammates' beacons and map deltas as light structs, every
-        other kind as a :class:`RadioMsg`). When a message does not validate (an unknown payload kind
-        included), the inbox is opened message by message: what does not validate is dropped and reported to
-        ``on_drop``, which counts it."""
+    def open(self, inbox: Sequence[Envelope]) -> list[Heard]:
+        """What the radio delivered, checked against the grid and the team and decoded, in the order it came
+        (:func:`~fleet_emu.agents.hearing.hear`); what does not validate (an unknown payload kind included) is
+        dropped and reported to ``on_drop``, which counts it."""
         assert self.ctx is not None
-        heard = hear(inbox, self.ctx, self.me, self.shared_inbox)
-        if heard is not None:
-            return heard
-        out = []
-        for env in map(as_envelope, inbox):
-            try:
-                env.validate(self.ctx)
-                out.append(open_envelope(env, self.ctx))
-            except DecodeError as exc:
-                if self.on_drop is not None:
-                    self.on_drop(f"radio/{env.payload_kind}", str(exc))
-        return as_heard(out, self.me)
+        return hear(inbox, self.ctx, self.on_drop, self.shared_inbox)
 
-    def relay_inbox(self, inbox: Sequence[AnyEnvelope]) -> tuple[list[AnyEnvelope], list[Envelope]]:
+    def relay_inbox(self, inbox: Sequence[Envelope]) -> tuple[list[Envelope], list[Envelope]]:
         """With relaying on: the envelopes of ``inbox`` to deliver (first copies for this robot or everyone)
         and the copies to forward (:meth:`Relay.handle`); a header that does not validate is dropped and
         counted, never forwarded. Without relaying, the inbox as it is and nothing to forward."""
         if self.relay is None:
             return list(inbox), []
-        deliver: list[AnyEnvelope] = []
+        deliver: list[Envelope] = []
         forward: list[Envelope] = []
-        for env in map(as_envelope, inbox):
+        for env in inbox:
             try:
                 env.validate(self.ctx)
             except DecodeError as exc:
@@ -322,13 +297,13 @@ class Brain:
                 forward.append(d.forward)
         return deliver, forward
 
-    def step(self, obs: Observation, inbox: Sequence[AnyEnvelope]) -> tuple[Command, tuple[Envelope, ...]]:
+    def step(self, obs: Observation, inbox: Sequence[Envelope]) -> tuple[Command, tuple[Envelope, ...]]:
         """Decide the move for ``obs.tick`` and the radio messages to send (with relaying on, the copies it
         forwards go out after its own): :meth:`perceive`, then :meth:`act` with the allocator's decision. Each
         stage's thread CPU is added to ``cpu_ms`` (:data:`STAGES`), the whole step's to ``step_cpu_ms``."""
         return self.act(self.perceive(obs, inbox))
 
-    def perceive(self, obs: Observation, inbox: Sequence[AnyEnvelope]) -> Percept:
+    def perceive(self, obs: Observation, inbox: Sequence[Envelope]) -> Percept:
         """The first half of :meth:`step`: merge the observation and what the radio delivered, hear teammates,
         cluster frontiers; the :class:`Percept` holds the allocator's problem (a learned policy reads it)."""
         c0 = time.thread_time()
@@ -376,7 +351,7 @@ class Brain:
         """A ``with`` block whose thread CPU counts to the stage ``name`` of ``cpu_ms``."""
         return _Stage(self, name)
 
-    def _read(self, opened: Hearing, t: int, belief: Belief, outbox: list[RadioMsg]
+    def _read(self, opened: list[Heard], t: int, belief: Belief, outbox: list[RadioMsg]
               ) -> tuple[list[RadioMsg], list[str]]:
         """Teammates' messages of the tick, in the order they came: beacons (:meth:`_beacon`, the usual one
         inline), map deltas and fills (merged into the belief: the ``merge`` stage), and the rest, the
@@ -385,39 +360,27 @@ class Brain:
         peers = sync.peers if sync is not None else {}
         teammates = self.teammates
         merges = _Merges(self, belief)
-        pending = merges.pending
         protocol: list[RadioMsg] = []
         rejoined: list[str] = []
         joined = False
-        asks = opened.asks if sync is not None else None
-        for i, (origin, tick, body) in enumerate(opened.messages):
+        for env, body in opened:
+            origin, tick = env.origin, env.tick
             if origin == me:
                 continue
-            kind = type(body)
-            if kind is RadioMsg:  # opened message by message: its record's class says what it is
-                if isinstance(body.body, WreckNotice):  # a teammate's wrecks (agents/bodies.py)
-                    self.wrecks.hear(body.body)
-                    continue
-                if not isinstance(body.body, (PoseBeacon, MapDelta, MapFill)):
-                    protocol.append(body)
-                    continue
-                body = body.body
-                kind = Beacon if isinstance(body, PoseBeacon) else MapDelta if isinstance(body, MapDelta) else MapFill
-            if kind is Delta or kind is MapDelta:
-                pending.append((body.all_cells, body.all_values, body.start, body.end) if kind is Delta
-                               else (body.cells, body.values, 0, len(body.cells)))
+            if isinstance(body, MapDelta):
+                merges.add(body.cells, body.values)
                 if sync is not None and body.n is not None:
                     peer = peers.get(origin) or sync.peer(origin)
                     peer.received(body.n)
                     if body.covers:
                         peer.filled(body.covers, 0)
-            elif kind is Fill or kind is MapFill:
+            elif isinstance(body, MapFill):
                 merges.add(body.cells, body.values)
                 if sync is not None:
                     sync.peer(origin).filled(body.seqs, body.upto)
-            else:
+            elif isinstance(body, PoseBeacon):
                 prev = teammates.get(origin)
-                seqs = asks.get(i) if asks else None
+                seqs = body.want.get(me) if sync is not None and body.want else None
                 if prev is None or t - prev.heard > resync or seqs is not None:
                     joined = joined or prev is None
                     if self._beacon(origin, tick, body, t, outbox, merges, seqs):
@@ -427,16 +390,21 @@ class Brain:
                     prev.cell, prev.heard, prev.next = body.cell, max(t, tick), body.next
                 if sync is not None and body.maps is not None:
                     (peers.get(origin) or sync.peer(origin)).exists(body.maps)
+            elif isinstance(body, WreckNotice):  # a teammate's wrecks (agents/bodies.py)
+                self.wrecks.hear(body)
+            else:
+                protocol.append(RadioMsg(body, dst=env.dst, ttl=env.ttl, src=env.src, origin=origin, tick=tick,
+                                         seq=env.seq))
         merges.flush()
         if joined:  # new teammates: the dict in id order again
             self.teammates = dict(sorted(teammates.items()))
         return protocol, rejoined
 
-    def _beacon(self, origin: str, tick: int, beacon: Beacon | PoseBeacon, t: int, outbox: list[RadioMsg],
+    def _beacon(self, origin: str, tick: int, beacon: PoseBeacon, t: int, outbox: list[RadioMsg],
                 merges: _Merges, asks: tuple[int, ...] | None) -> bool:
         """A teammate's beacon: its pose (:meth:`_heard`; True when it rejoined), and with map sync the deltas
-        it numbered so far and ``asks``, those it asks this robot for again (:attr:`Hearing.asks`). The pending
-        merges go in first whenever the belief is about to be sent."""
+        it numbered so far and ``asks``, those it asks this robot for again (its :attr:`~PoseBeacon.want`). The
+        pending merges go in first whenever the belief is about to be sent."""
         prev = self.teammates.get(origin)
         if prev is not None and t - prev.heard <= self.config.resync_after:  # heard lately: its pose only
             if tick >= prev.heard:
@@ -558,13 +526,13 @@ class Brain:
         sealed = tuple(seal(m, self.me, obs.tick, self.next_seq(), deflate) for m in news + outbox)
         if self.relay is not None:
             ttl = self.config.relay_ttl
-            sealed = tuple(e if e.ttl >= ttl else dataclasses.replace(e, ttl=ttl) for e in sealed)
+            sealed = tuple(e if e.ttl >= ttl else msgspec.structs.replace(e, ttl=ttl) for e in sealed)
             for e in sealed:
                 self.relay.sent(e)
             sealed += tuple(forwards)
         return sealed
 
-    def _heard(self, origin: str, tick: int, beacon: Beacon | PoseBeacon, t: int, outbox: list[RadioMsg]) -> bool:
+    def _heard(self, origin: str, tick: int, beacon: PoseBeacon, t: int, outbox: list[RadioMsg]) -> bool:
         """A teammate's pose; one heard for the first time, or again after a silence, gets our whole map
         (True then; with map sync as a fill that stands for every delta so far)."""
         prev = self.teammates.get(origin)

@@ -50,10 +50,10 @@ from typing import Any
 # imported: no session, no runtime thread exists until a robot opens one).
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import allocator_config
-from fleet_emu.agents.hearing_kernels import warm_up
 from fleet_emu.agents.node import main as agent_main
 from fleet_emu.core.errors import FleetError
 from fleet_emu.core.files import create_new
+from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.scenario import Scenario
 
 #: Modules a node imports on use, loaded here only when the run's allocator needs them (mhm: the base planner's

@@ -10,24 +10,23 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import dataclasses
 import resource
 import threading
 import time
 from collections.abc import Callable
 from typing import Any, cast
 
+import msgspec
 import zenoh
 
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.brain import Brain, allocator_config, brain_config, radio_team
-from fleet_emu.agents.hearing_kernels import warm_up
 from fleet_emu.agents.outputs import first_cpu_ms, robot_outputs, robot_report
 from fleet_emu.agents.realtime import Timing, percentiles
 from fleet_emu.core.bus import Inbox
 from fleet_emu.core.codec import Context
-from fleet_emu.core.envelope import AnyEnvelope, RxWire, read_rx
 from fleet_emu.core.faults import crashes
+from fleet_emu.core.kernels import warm_up
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import Command, Envelope, Observation, RobotTiming, RxBundle, Stop
 from fleet_emu.core.node import Declared, NodeShell, node_main, undeclare
@@ -89,7 +88,7 @@ class RobotNode(NodeShell):
             report = robot_report(
                 self.brain, tick, self.dropped, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
                 process_cpu_ms=process_ms, loop_cpu_ms=loop_ms, first=self.first_cpu_ms)
-            pub_report.put(dataclasses.replace(report, foreign=self.foreign).encode())
+            pub_report.put(msgspec.structs.replace(report, foreign=self.foreign).encode())
             await asyncio.sleep(0.05)
         finally:
             undeclare(handles)
@@ -99,7 +98,7 @@ class RobotNode(NodeShell):
         a tick's rx bundle comes its observation (which comes first, as a rule) does not wake the loop: the
         bundle's wake-up takes both (:attr:`Inbox.quiet`), one wake-up a tick instead of two."""
         obs: dict[int, Observation] = {}
-        rx: dict[int, RxBundle | RxWire] = {}
+        rx: dict[int, RxBundle] = {}
         tick = 0
         obs_key = self.keys.obs(self.robot)
         while True:
@@ -130,19 +129,15 @@ class RobotNode(NodeShell):
                 self._act(obs.pop(tick), rx.pop(tick))
                 tick += 1
 
-    def _act(self, obs: Observation, bundle: RxBundle | RxWire) -> None:
+    def _act(self, obs: Observation, bundle: RxBundle) -> None:
         """One tick: the brain's decision, then the tx bundle, the command and (every few ticks) the belief."""
         self._start_clocks()
         self._send(obs, *self.brain.step(obs, bundle.msgs))
 
-    def _rx(self, key: str, data: bytes) -> RxBundle | RxWire | None:
-        """An rx bundle, its envelopes as read (:func:`~fleet_emu.core.envelope.read_rx`: the brain builds an
-        ``Envelope`` only for one it opens message by message or relays), or decoded and checked as any other
-        message when its bytes are in another form; None when dropped."""
-        wire = read_rx(data)
-        if wire is None:
-            return self.decode(key, data, RxBundle)
-        return wire if self.may_write(key, wire.src) else None
+    def _rx(self, key: str, data: bytes) -> RxBundle | None:
+        """An rx bundle, checked loosely (its envelopes' senders are checked by the brain, against the team);
+        None when dropped."""
+        return self.decode(key, data, RxBundle)
 
     def _start_clocks(self) -> None:
         """Start the report's CPU clocks when the first step begins."""
@@ -180,7 +175,7 @@ class RobotNode(NodeShell):
         stop; the last tick seen plus one."""
         latest = -1
         absorbed: list[Observation] = []  # came while a decision ran: merged at the start of the next
-        received: list[AnyEnvelope] = []  # radio messages for the next decision
+        received: list[Envelope] = []  # radio messages for the next decision
         worker: asyncio.Future | None = None
         getter = asyncio.ensure_future(inbox.get())
         try:
@@ -230,7 +225,7 @@ class RobotNode(NodeShell):
         finally:
             getter.cancel()
 
-    def _decide(self, obs: Observation, absorbed: list[Observation], received: list[AnyEnvelope]) -> asyncio.Future:
+    def _decide(self, obs: Observation, absorbed: list[Observation], received: list[Envelope]) -> asyncio.Future:
         """One decision in a worker thread: merge ``absorbed``, step on ``obs`` with ``received``. The future
         gives ``(obs, command, tx messages, wall ms)``."""
         self._start_clocks()

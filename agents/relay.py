@@ -33,6 +33,8 @@ import dataclasses
 from collections import OrderedDict
 from collections.abc import Mapping
 
+import msgspec
+
 from fleet_emu.core.messages import Envelope
 
 POLICIES = ("flood", "tree")
@@ -139,4 +141,4 @@ class Relay:
             return RelayDecision(deliver, None, "hop limit")
         if self.policy == "tree" and not forwards_on_tree(self.routes, self.me, env.origin, env.dst):
             return RelayDecision(deliver, None, "not on the tree path")
-        return RelayDecision(deliver, dataclasses.replace(env, src=self.me, ttl=env.ttl - 1), "forward")
+        return RelayDecision(deliver, msgspec.structs.replace(env, src=self.me, ttl=env.ttl - 1), "forward")

@@ -76,7 +76,7 @@ def measure(robots: int, ticks: int, map_name: str, period: float, extra: list[s
             print(f"{robots} robots: fleet run exited {proc.returncode}: {err.strip()[-300:]}", file=sys.stderr)
             return None
         res = json.loads((out / "result.json").read_text())
-    agents = set(res["pids"]["agents"])
+    agents = set(res["pids"]["robots"])
     others = {res["pids"]["world"], res["pids"]["netem"]}
     server = [p for p in peak if p not in agents and p not in others]
     summed, at = max(((sum(v for p, v in s.items() if p in agents or p in server), s) for s in samples),

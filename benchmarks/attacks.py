@@ -31,8 +31,8 @@ import numpy as np
 import zenoh
 
 Put = Callable[[str, bytes], None]
-VOLATILE = {"run_id", "pids", "recording", "decision_ms", "wall_seconds", "ticks_per_second", "agent_peak_rss_kb",
-            "malformed_dropped", "malformed_dropped_by", "authenticated", "signal", "bus"}
+VOLATILE = {"run_id", "pids", "recording", "decision_ms", "wall_seconds", "ticks_per_second", "robot_peak_rss_kb",
+            "agent_peak_rss_kb", "malformed_dropped", "malformed_dropped_by", "authenticated", "signal", "bus"}
 
 
 def _msg(kind: str, src: str, tick: int, **fields: object) -> bytes:

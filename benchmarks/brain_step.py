@@ -15,16 +15,16 @@ its first tick):
 - ``clusters``: frontier detection and clustering;
 - ``merge``: writing the observation and teammates' map deltas into the belief;
 - ``decode``: the radio messages' decode and validation, headers and payloads (``Brain.open``:
-  ``agents/hearing.py``; each robot decodes its own copy, as over Zenoh: the memory engine's sharing of a
-  decoded broadcast, ``Brain.shared_inbox``, is turned off here unless ``--shared``);
+  each robot decodes its own copy, as over Zenoh, unless ``--shared``: the memory engine's
+  one decode of a broadcast envelope that every teammate hears);
 - ``nav``: the wavefront descent and unsticking;
 - ``news``: the robot's own map delta, beacon and envelopes;
 - ``other``: the rest of ``Brain.step`` (teammates' poses, map sync's bookkeeping and whole maps for teammates
   heard again, the problem, the command); ``outside``: everything but ``decide`` (the target is at most
   1 ms); ``step``: the whole of ``Brain.step``;
 - ``rx codec``: what an agent process also does per tick before its brain runs (not in ``step``): reading its
-  rx bundle from bytes (``core.envelope.read_rx``), timed on the bundle netem would send it; without
-  ``--shared`` the brain then hears those envelopes as read, as an agent process does.
+  rx bundle from bytes (``core.codec.decode``), timed on the bundle netem would send it; without
+  ``--shared`` the brain then hears those envelopes, as an agent process does.
 
 The last column is the 1-minute load average at the end of the row. Progress goes to stderr.
 """
@@ -35,7 +35,6 @@ import argparse
 import os
 import sys
 import time
-from typing import Any, cast
 
 from benchmarks import scale  # the maps, the start and the scenario
 from benchmarks._common import REAL_MAP, FittedMap, fail, fitted_maps, machine, parser
@@ -48,18 +47,16 @@ COLUMNS = ["decide", "clusters", "merge", "decode", "nav", "news", "other", "out
 def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
     """One map's fleet stepped ``a.ticks`` ticks; ms of thread CPU per robot-tick by stage."""
     from fleet_emu.agents.brain import STAGES
-    from fleet_emu.agents.hearing_kernels import warm_up
-    from fleet_emu.core.envelope import read_rx
     from fleet_emu.core.errors import FleetError
-    from fleet_emu.core.messages import RxBundle
+    from fleet_emu.core.kernels import warm_up
+    from fleet_emu.core.malloc_tuning import collect_less
+    from fleet_emu.core.messages import RxBundle, decode
     from fleet_emu.launch.memory import Fleet
 
     warm_up()  # as an agent process does before its first tick: no kernel loads (or compiles) in a counted tick
+    collect_less()  # and with an agent process's collector threshold (core/malloc_tuning.py)
     fleet = Fleet(scale.scenario_for(m, robots, a))
     fleet.reset()
-    if not a.shared:
-        for brain in fleet.brains.values():
-            brain.shared_inbox = False  # each decodes its own copy (of its rx bundle's envelopes), as over Zenoh
     for _ in range(a.skip):  # tick 0 at least: the kernels warm_up leaves out (the allocator's) load then
         if not fleet.done:
             fleet.step()
@@ -72,12 +69,11 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
         for r in fleet.agents:  # the agent process's read of its rx bundle, which the brain does not count
             data = RxBundle(src="netem", tick=0, seq=1, dst=r, msgs=fleet.rx.get(r, ())).encode()
             c = time.thread_time()
-            wire = read_rx(data)
+            bundle = decode(data, None, RxBundle)
             rx_cpu += time.thread_time() - c
-            if wire is None:
-                raise FleetError(f"{r}'s rx bundle does not read as an agent process reads it")
-            if not a.shared:  # the brain hears them as read, as over Zenoh
-                fleet.rx[r] = cast(Any, tuple(wire.msgs))  # Fleet.rx holds built envelopes otherwise
+            if not a.shared:  # each robot hears its own copy, as over Zenoh (shared: one decode of a broadcast)
+                fleet.rx[r] = bundle.msgs
+                fleet.brains[r].shared_inbox = False
         robot_ticks += len(fleet.agents)
         fleet.step()
     if not robot_ticks:

@@ -6,7 +6,7 @@ Runs ``engine_speed``'s two office scenarios (3 robots minpos on the wall radio 
 the full radio at 30 % loss) at each bandwidth, and times the code a limited radio adds, with this process's CPU
 clock around each call: the senders' queues and the media (``Medium.enqueue`` with the envelopes already
 encoded, which an unlimited radio does too, and ``Medium.serve``), the compact form of map data
-(``compact``) and its expansion (``unpack_payload`` of compact payloads). Prints, per bandwidth, that CPU time,
+(``compact``) and its expansion (``expand`` of compact payloads). Prints, per bandwidth, that CPU time,
 the rest of the runs' CPU time (the probe's own cost taken out), and their ratio: how much longer a run takes
 than it would without the radio's bookkeeping. A ratio within one run is steadier than two runs' times
 compared on a machine whose speed drifts (``engine_speed --memory-only`` between bandwidths also compares
@@ -84,8 +84,7 @@ def install(probe: Probe) -> None:
     from fleet_emu.netem.medium import Medium
 
     wrapped = {(envelope, "compact"): probe.wrap(envelope.compact),  # seal looks it up at each call
-               (envelope, "unpack_payload"): probe.wrap(envelope.unpack_payload,
-                                                        when=lambda p: bool(p) and p[0] == 0x78),
+               (envelope, "expand"): probe.wrap(envelope.expand, when=lambda p: bool(p) and p[0] == 0x78),
                (Medium, "enqueue"): probe.wrap(Medium.enqueue, before=_encode_first),
                (Medium, "serve"): probe.wrap(Medium.serve)}
     for (owner, name), fn in wrapped.items():

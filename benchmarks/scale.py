@@ -109,7 +109,7 @@ class Sampler:
     monitor: Any = None
 
     def spawned(self, pids: dict[str, Any]) -> None:
-        agents = pids["agents"]
+        agents = pids["robots"]
         self.pids = {"world": pids["world"], "netem": pids["netem"], "launcher": os.getpid(),
                      **({"router": pids["router"]} if "router" in pids else {}),
                      **{f"r{i}": p for i, p in enumerate(agents)}}

@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> None:
                 continue
             print(f"[{done}/{total}] {n} robots: {r['ticks']} ticks in {r['wall_seconds']:.1f} s", file=sys.stderr,
                   flush=True)
-            rss = list(r["agent_peak_rss_kb"].values()) or [0]
+            rss = list(r["robot_peak_rss_kb"].values()) or [0]
             print(f"{n:>6} {r['ticks']:>6} {r['wall_seconds']:>8.1f} {r['ticks_per_second'] or 0:>8.1f} "
                   f"{r['coverage']:>9.3f} {max(rss) / 1024:>17.1f} {sum(rss) / len(rss) / 1024:>8.1f} "
                   f"{r['decision_ms']['mean']:>12.3f}")

@@ -1,22 +1,25 @@
-"""A small typed msgpack codec for frozen dataclasses.
+"""Every message declared once, as a :class:`msgspec.Struct`, and its codec derived from that declaration.
 
-Each message type is a frozen dataclass with a ``KIND`` class variable; subclasses register themselves
-by kind. Field types drive encoding and validation: ``int``, ``float``, ``str``, ``bool``, ``Cell``
-(two ints), ``np.ndarray`` (packed as bytes + dtype + shape), ``dict[str, Cell]``, ``dict[str, float]``,
-``tuple[str, ...]``, nested message tuples and ``X | None``. Decoding never raises anything but
-:class:`DecodeError`.
+A message type is a frozen struct with a ``KIND``: a :class:`Message` on the bus (``kind``, ``v`` the schema
+version, ``src``, ``tick``, ``seq``, then its own fields) or a :class:`Payload` carried inside a radio envelope
+(its fields only: the kind travels in the envelope). Its fields and their types are its wire format
+(``docs/reference/protocol.md``): msgspec encodes a record as a msgpack map of its fields in their order and
+decodes and type-checks one in a single pass in C, unknown keys refused; a record's :meth:`Record.validate` adds
+what needs several fields or the receiver's :class:`Context`. ``np.ndarray`` fields travel packed (dtype, shape,
+bytes) and decode as read-only views of the message's bytes. A payload declared with ``omit_defaults=True``
+leaves out the fields still at their defaults (so that one without an optional field keeps the bytes it had
+before the field existed). Every record class is declared ``kw_only=True`` (its fields follow its base's, in the
+order written). Decoding only ever raises :class:`DecodeError`.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-import types
-import typing
-from collections.abc import Callable
-from typing import Any, ClassVar, TypeVar, cast
+import itertools
+from typing import Annotated, Any, ClassVar, TypeVar, cast
 
-import msgpack
+import msgspec
 import numpy as np
 
 from fleet_emu.core.errors import DecodeError
@@ -25,58 +28,69 @@ from fleet_emu.core.version import SCHEMA_VERSION
 ALLOWED_DTYPES = frozenset({"int8", "uint8", "int16", "int32", "int64", "float32", "float64", "bool"})
 MAX_ARRAY_BYTES = 64 * 1024 * 1024
 M = TypeVar("M", bound="Message")
+R = TypeVar("R", bound="Record")
+
+#: Each message class's kind by class name: msgspec's tag for it (the ``kind`` key of its map).
+_TAGS: dict[str, str] = {}
 
 
-R = TypeVar("R")
-
-
-class Record:
-    """A typed, frozen dataclass that encodes to a msgpack map. Each family root (:class:`Message`,
+class Record(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """A typed, frozen record that encodes to a msgpack map. Each family root (:class:`Message`,
     :class:`Payload`) keeps its own registry by ``KIND``; a subclass with a ``KIND`` registers in its family's."""
 
     KIND: ClassVar[str] = ""
     REGISTRY: ClassVar[dict[str, type[Record]]] = {}
-    __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]  # every record class is a dataclass
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        if "REGISTRY" in cls.__dict__ or not cls.__dict__.get("KIND"):
+        kind = cls.__dict__.get("KIND")
+        if "REGISTRY" in cls.__dict__ or not kind:
             return
-        registry = cls.REGISTRY  # the nearest family root's
-        if cls.KIND in registry:
-            raise TypeError(f"{cls.family_name()} kind {cls.KIND!r} defined twice")
-        registry[cls.KIND] = cls
-
-    @classmethod
-    def family_name(cls) -> str:
-        return next(c.__name__ for c in cls.__mro__ if "REGISTRY" in c.__dict__)
+        if kind in cls.REGISTRY:  # the nearest family root's
+            raise TypeError(f"{cls.__mro__[1].__name__} kind {kind!r} defined twice")
+        cls.REGISTRY[kind] = cls
+        _TAGS[cls.__name__] = kind
 
     def validate(self, ctx: Context | None) -> None:
-        """Check cross-field constraints; raise DecodeError. Subclasses extend this."""
+        """Check what the field types cannot (several fields, the receiver's context); raise DecodeError."""
 
-    def fields_obj(self) -> dict[str, Any]:
-        """The msgpack-ready map of this record's fields (nested records become maps)."""
-        names = _names(type(self))  # type: ignore[arg-type]  # mypy#11470: to it a type[X] variable is unhashable
-        return {name: _to_obj(getattr(self, name)) for name in names}
+    @classmethod
+    def validate_many(cls, records: list[Any], ctx: Context | None, arrays: dict[str, np.ndarray]) -> None:
+        """:meth:`validate` of each of ``records`` (:func:`decode_many`'s), whose array fields are slices of
+        ``arrays``, each field's arrays one after the other: a class may check those at once."""
+        for r in records:
+            r.validate(ctx)
 
     def to_obj(self) -> dict[str, Any]:
-        """:meth:`fields_obj` with the record's ``kind``."""
-        return {"kind": self.KIND, **self.fields_obj()}
+        """The record as msgpack-ready builtins (its arrays packed), as :meth:`encode` writes it."""
+        return cast(dict[str, Any], msgspec.to_builtins(self, enc_hook=_enc_hook, builtin_types=(bytes,)))
+
+    def fields_obj(self) -> dict[str, Any]:
+        """:meth:`to_obj` without a message's ``kind`` and ``v``: its own fields."""
+        obj = self.to_obj()
+        obj.pop("kind", None)
+        obj.pop("v", None)
+        return obj
 
     def encode(self) -> bytes:
-        return msgpack.packb(self.to_obj(), use_bin_type=True)
+        return _ENCODER.encode(self)
 
 
-@dataclasses.dataclass(frozen=True)
-class Message(Record):
-    """A message on the bus. Envelope shared by every message: ``kind`` (class-level), ``src``, ``tick``,
-    ``seq`` (one counter per sender), and ``v``, the schema version."""
+def _tag(name: str) -> str:
+    """A message class's kind (msgspec asks once per class, after :meth:`Record.__init_subclass__`)."""
+    return _TAGS.get(name, f"\0{name}")  # an abstract one: a tag no map carries
+
+
+class Message(Record, tag_field="kind", tag=_tag, kw_only=True, frozen=True):
+    """A message on the bus: ``kind``, ``v`` (the schema version it was written with), ``src``, ``tick``,
+    ``seq`` (one counter per sender)."""
 
     REGISTRY: ClassVar[dict[str, type[Record]]] = {}
 
+    v: Annotated[int, msgspec.Meta(le=SCHEMA_VERSION)] = SCHEMA_VERSION
     src: str
-    tick: int
-    seq: int
+    tick: Annotated[int, msgspec.Meta(ge=0)]
+    seq: Annotated[int, msgspec.Meta(ge=0)]
 
     def validate(self, ctx: Context | None) -> None:
         if self.tick < 0 or self.seq < 0:
@@ -84,20 +98,12 @@ class Message(Record):
         if ctx is not None and ctx.senders is not None and self.src not in ctx.senders:
             raise DecodeError(f"unknown sender {self.src!r}")
 
-    def to_obj(self) -> dict[str, Any]:
-        return {"kind": self.KIND, "v": SCHEMA_VERSION, **self.fields_obj()}
 
-
-@dataclasses.dataclass(frozen=True)
-class Payload(Record):
+class Payload(Record, kw_only=True, frozen=True, gc=False):
     """The body of a radio message: opaque bytes to netem and relays, decoded only by the robot protocol that
-    owns its ``KIND`` (the brain's pose and map sharing, an allocator's messages). Encoded without its kind,
-    which travels in the envelope."""
+    owns its ``KIND``. Encoded without its kind, which travels in the envelope."""
 
     REGISTRY: ClassVar[dict[str, type[Record]]] = {}
-
-    def encode(self) -> bytes:
-        return msgpack.packb(self.fields_obj(), use_bin_type=True)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,401 +114,227 @@ class Context:
     shape: tuple[int, int] | None = None
 
 
-@functools.cache
-def _names(cls: type[Record]) -> tuple[str, ...]:
-    """A record class's field names, in order."""
-    return tuple(f.name for f in dataclasses.fields(cls))
+# --- arrays ----------------------------------------------------------------------------------------------
+
+_DTYPES = {name: np.dtype(name) for name in ALLOWED_DTYPES}
+_DTYPE_NAMES = {dt: name for name, dt in _DTYPES.items()}  # dtype.name is a slow property
+_PACKED = frozenset({"dtype", "shape", "data"})
 
 
-def _to_obj(value: Any) -> Any:
-    if isinstance(value, Record):
-        return value.to_obj()
+def _enc_hook(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         arr = np.ascontiguousarray(value)
-        dt = arr.dtype
-        return {"dtype": _DTYPE_NAMES.get(dt) or dt.name, "shape": list(arr.shape), "data": arr.tobytes()}
-    if isinstance(value, tuple):
-        return [_to_obj(v) for v in value]
-    if isinstance(value, dict):
-        return {k: _to_obj(v) for k, v in value.items()}
+        return {"dtype": _DTYPE_NAMES.get(arr.dtype) or arr.dtype.name, "shape": list(arr.shape),
+                "data": arr.tobytes()}
     if isinstance(value, np.generic):
         return value.item()
-    return value
+    for base in (float, int, str):  # a subclass of one (a marked default), as msgpack packs it
+        if isinstance(value, base):
+            return base(value)
+    raise NotImplementedError(f"cannot encode {type(value).__name__}")
 
 
-Convert = Callable[[Any, str, "Context | None"], Any]
-
-
-def _from_obj(hint: Any, value: Any, name: str, ctx: Context | None) -> Any:
-    """``value`` (as msgpack decoded it) checked against the field type ``hint``; DecodeError otherwise."""
-    return _converter(hint)(value, name, ctx)
-
-
-@functools.cache
-def _converter(hint: Any) -> Convert:
-    """The checking converter of one field type, built once per type (decoding a message then costs a call per
-    field, not a walk of its type hints)."""
-    origin = typing.get_origin(hint)
-    if origin in (types.UnionType, typing.Union):
-        args = typing.get_args(hint)
-        optional = type(None) in args
-        inner = _converter(next(a for a in args if a is not type(None)))
-
-        def union(value: Any, name: str, ctx: Context | None) -> Any:
-            if value is None and optional:
-                return None
-            return inner(value, name, ctx)
-        return union
-    if hint in _SCALARS:
-        return _SCALARS[hint]
-    if hint is np.ndarray:
-        return lambda value, name, ctx: _array(value, name)
-    if isinstance(hint, type) and issubclass(hint, Message):
-        return lambda value, name, ctx: _decode_obj(value, ctx, expected=hint)
-    if origin is tuple:
-        return _tuple_converter(typing.get_args(hint))
-    if origin is dict:
-        key_c, val_c = (_converter(a) for a in typing.get_args(hint))
-
-        str_keys = key_c is _str
-
-        def mapping(value: Any, name: str, ctx: Context | None) -> Any:
-            if not isinstance(value, dict):
-                raise DecodeError(f"{name}: expected a map")
-            if str_keys and _all_of(value, str):
-                return {k: val_c(v, name, ctx) for k, v in value.items()}
-            return {key_c(k, name, ctx): val_c(v, name, ctx) for k, v in value.items()}
-        return mapping
-    if hint is Any:
-        return lambda value, name, ctx: value
-
-    def unsupported(value: Any, name: str, ctx: Context | None) -> Any:
-        raise DecodeError(f"{name}: unsupported field type {hint!r}")
-    return unsupported
-
-
-def _tuple_converter(args: tuple[Any, ...]) -> Convert:
-    if len(args) == 2 and args[1] is Ellipsis:
-        item = _converter(args[0])
-        exact = _EXACT.get(item)  # a list of exactly that scalar type is checked in one pass
-
-        def homogeneous(value: Any, name: str, ctx: Context | None) -> Any:
-            if not isinstance(value, (list, tuple)):
-                raise DecodeError(f"{name}: expected a list")
-            if exact is not None and _all_of(value, exact):
-                return tuple(value)
-            return tuple(item(v, name, ctx) for v in value)
-        return homogeneous
-    items = [_converter(a) for a in args]
-    fixed = fixed_of(items)
-    exact_items = [_EXACT.get(c) for c in items]
-    if items and all(e is int for e in exact_items):  # a Cell (or any tuple of ints): the common case in one pass
-        n = len(items)
-
-        def ints(value: Any, name: str, ctx: Context | None) -> Any:
-            if type(value) is list and len(value) == n and _all_of(value, int):
-                return tuple(value)
-            return fixed(value, name, ctx)
-        return ints
-    return fixed
-
-
-def fixed_of(items: list[Convert]) -> Convert:
-    """The converter of a fixed-length tuple whose items have the converters ``items``."""
-    def fixed(value: Any, name: str, ctx: Context | None) -> Any:
-        if not isinstance(value, (list, tuple)):
-            raise DecodeError(f"{name}: expected a list")
-        if len(value) != len(items):
-            raise DecodeError(f"{name}: expected {len(items)} items")
-        return tuple(c(v, name, ctx) for c, v in zip(items, value, strict=True))
-    return fixed
-
-
-def _all_of(values: Any, kind: type) -> bool:
-    """Every item of ``values`` is exactly of type ``kind`` (not a subclass: never a bool for an int): one pass
-    in C, the fast path of the checking converters, which fall back to their item-by-item check otherwise."""
-    return set(map(type, values)) <= {kind}
-
-
-def _bool(value: Any, name: str, ctx: Context | None) -> bool:
-    if not isinstance(value, bool):
-        raise DecodeError(f"{name}: expected bool")
-    return value
-
-
-def _int(value: Any, name: str, ctx: Context | None) -> int:
-    if type(value) is int:
-        return value
-    if not isinstance(value, int) or isinstance(value, bool):
-        raise DecodeError(f"{name}: expected int")
-    return value
-
-
-def _float(value: Any, name: str, ctx: Context | None) -> float:
-    if not isinstance(value, (int, float)) or isinstance(value, bool):
-        raise DecodeError(f"{name}: expected number")
-    return float(value)
-
-
-def _str(value: Any, name: str, ctx: Context | None) -> str:
-    if type(value) is str:
-        return value
-    if not isinstance(value, str):
-        raise DecodeError(f"{name}: expected str")
-    return value
-
-
-def _bytes(value: Any, name: str, ctx: Context | None) -> bytes:
-    if not isinstance(value, bytes) or len(value) > MAX_ARRAY_BYTES:
-        raise DecodeError(f"{name}: expected bytes")
-    return value
-
-
-_SCALARS: dict[Any, Convert] = {bool: _bool, int: _int, float: _float, str: _str, bytes: _bytes}
-#: The scalar converters that accept a value of exactly this type as it is (their fast path).
-_EXACT: dict[Convert, type] = {_int: int, _str: str}
-
-
-def _array(value: Any, name: str) -> np.ndarray:
-    if not isinstance(value, dict) or set(value) != {"dtype", "shape", "data"}:
-        raise DecodeError(f"{name}: expected a packed array")
+def unpack_array(value: Any) -> np.ndarray:
+    """A packed array (a map of ``dtype``, ``shape`` and ``data``) as a read-only view of its bytes; ValueError
+    when it is not one."""
+    if type(value) is not dict or value.keys() != _PACKED:
+        raise ValueError("expected a packed array")
     dtype, shape, data = value["dtype"], value["shape"], value["data"]
-    if dtype not in ALLOWED_DTYPES or not isinstance(data, bytes) or not isinstance(shape, list):
-        raise DecodeError(f"{name}: bad packed array")
-    if not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in shape) or len(shape) > 3:
-        raise DecodeError(f"{name}: bad array shape")
-    dt = _DTYPES[dtype]
+    dt = _DTYPES.get(dtype) if type(dtype) is str else None
+    if (dt is not None and type(data) is bytes and type(shape) is list and len(shape) == 1  # the common case
+            and type(shape[0]) is int and shape[0] * dt.itemsize == len(data) <= MAX_ARRAY_BYTES):
+        return np.frombuffer(data, dtype=dt)
+    if dt is None or type(data) is not bytes or type(shape) is not list or len(shape) > 3:
+        raise ValueError("bad packed array")
     count = 1
     for s in shape:  # Python ints: no overflow for any shape
+        if type(s) is not int or s < 0:
+            raise ValueError("bad array shape")
         count *= s
     if count * dt.itemsize != len(data) or len(data) > MAX_ARRAY_BYTES:
-        raise DecodeError(f"{name}: array data does not match its shape")
+        raise ValueError("array data does not match its shape")
     arr = np.frombuffer(data, dtype=dt)
     return arr if len(shape) == 1 else arr.reshape(shape)
 
 
-_DTYPES = {name: np.dtype(name) for name in ALLOWED_DTYPES}
-#: The allowed dtypes' names (``dtype.name`` is a Python property of numpy's, slow for every array encoded).
-_DTYPE_NAMES = {dt: name for name, dt in _DTYPES.items()}
+def _dec_hook(kind: type, value: Any) -> Any:
+    if kind is np.ndarray:
+        return unpack_array(value)
+    raise NotImplementedError(f"cannot decode {kind!r}")
 
 
-#: Fast decoders, by record class: a function of the record's msgpack map (a message's with
-#: ``kind`` and ``v``, a payload's without) and the context that returns the record when the map is well formed
-#: and valid in the common way, and None otherwise, in which case the generic, checking decode runs (and
-#: raises the error). So a fast decoder decides nothing: it only accepts sooner what the generic decode
-#: accepts (``tests/core/test_fast_decode.py`` checks the two agree on mutated maps). Registered with
-#: :func:`fast_decoder` by the module that defines the record.
-FastDecoder = Callable[[dict, "Context | None"], "Record | None"]
-_FAST: dict[type, FastDecoder] = {}
-
-#: Typed decoders, by record class: a function of the record's encoded bytes and the context that returns the
-#: record when the bytes are well formed and valid, and None otherwise (or raises anything: it is treated as
-#: None), in which case the dict decode above runs (fast decoder, then the generic one, which raises the
-#: error). They decode the msgpack bytes straight into typed structs (msgspec: one pass in C, the types and
-#: ranges checked there), the hot path of the messages a robot hears from every teammate every tick; like the
-#: fast decoders they decide nothing, only accept sooner (``tests/core/test_fast_decode.py`` checks them the
-#: same way). Registered with :func:`typed_decoder`; :func:`generic_decode` turns them off too.
-TypedDecoder = Callable[[bytes, "Context | None"], "Record | None"]
-_TYPED: dict[type, TypedDecoder] = {}
+_ENCODER = msgspec.msgpack.Encoder(enc_hook=_enc_hook)
 
 
-F = TypeVar("F", bound=FastDecoder)
+# --- decoding ----------------------------------------------------------------------------------------------
 
-
-def fast_decoder(cls: type[Record]) -> Callable[[F], F]:
-    """Register the decorated function as ``cls``'s fast decoder (see :data:`_FAST`)."""
-    def register(fn: F) -> F:
-        _FAST[cls] = fn
-        return fn
-    return register
-
-
-T = TypeVar("T", bound=TypedDecoder)
-
-
-def typed_decoder(cls: type[Record]) -> Callable[[T], T]:
-    """Register the decorated function as ``cls``'s typed decoder (see :data:`_TYPED`)."""
-    def register(fn: T) -> T:
-        _TYPED[cls] = fn
-        return fn
-    return register
-
-
-def _typed(cls: type[Record], data: bytes, ctx: Context | None) -> Record | None:
-    """``cls``'s typed decode of ``data``, or None (no typed decoder, or it did not accept the bytes)."""
-    fn = _TYPED.get(cls)
-    if fn is None:
-        return None
-    try:
-        return fn(data, ctx)
-    except Exception:  # msgspec's errors, or anything odd: the checking decode decides and says why
-        return None
-
-
-def generic_decode(data: bytes, ctx: Context | None = None, expected: type[M] | None = None,
-                   kind: str | None = None) -> Any:
-    """:func:`decode` (or, with ``kind``, :func:`decode_payload`) without the fast decoders: the definition
-    they are tested against."""
-    saved, saved_typed = dict(_FAST), dict(_TYPED)
-    _FAST.clear()
-    _TYPED.clear()
-    try:
-        return decode_payload(kind, data, ctx) if kind is not None else decode(data, ctx, expected)
-    finally:
-        _FAST.update(saved)
-        _TYPED.update(saved_typed)
-
-
-def packed_array(value: Any) -> np.ndarray | None:
-    """A packed array (:func:`_to_obj`'s form) as a read-only view of its bytes, or None when ``value`` is not
-    a valid one (for fast decoders, which leave the error to the generic decode)."""
-    if type(value) is dict and len(value) == 3:  # a 1-D array, the common case, checked in one expression
-        dtype, shape, data = value.get("dtype"), value.get("shape"), value.get("data")
-        dt = _DTYPES.get(dtype) if type(dtype) is str else None
-        if (dt is not None and type(data) is bytes and type(shape) is list and len(shape) == 1
-                and type(shape[0]) is int and shape[0] * dt.itemsize == len(data) <= MAX_ARRAY_BYTES):
-            return np.frombuffer(data, dtype=dt)
-    try:
-        return _array(value, "")
-    except DecodeError:
-        return None
-
-
-def array_of(dtype: str, shape: list[int], data: bytes) -> np.ndarray | None:
-    """A packed array from its three parts as a typed decoder has them (``shape`` a list of ints), as
-    :func:`packed_array` gives it: a read-only view of ``data``, or None when they are not a valid one."""
-    dt = _DTYPES.get(dtype)
-    if dt is not None and len(shape) == 1 and shape[0] >= 0 and shape[0] * dt.itemsize == len(data) <= MAX_ARRAY_BYTES:
-        return np.frombuffer(data, dtype=dt)
-    return packed_array({"dtype": dtype, "shape": shape, "data": data})
-
-
-def _decode_obj(obj: Any, ctx: Context | None, expected: type[Message] | None = None) -> Record:
-    if not isinstance(obj, dict):
-        raise DecodeError("message is not a map")
-    kind = obj.get("kind")
-    cls = Message.REGISTRY.get(kind) if isinstance(kind, str) else None
-    if cls is None:
-        raise DecodeError(f"unknown message kind {kind!r}")
-    fast = _FAST.get(cls)
-    if fast is not None and (expected is None or issubclass(cls, expected)):
-        record = fast(obj, ctx)
-        if record is not None:
-            return record
-    if expected is not None and not issubclass(cls, expected):
-        raise DecodeError(f"expected {expected.KIND or expected.__name__}, got {kind!r}")
-    version = obj.get("v", 1)
-    if not isinstance(version, int) or isinstance(version, bool) or version > SCHEMA_VERSION:
-        raise DecodeError(f"{kind}: schema version {version!r} is newer than this fleet_emu's {SCHEMA_VERSION}")
-    return _build(cls, {k: v for k, v in obj.items() if k not in ("kind", "v")}, ctx)
-
-
-@dataclasses.dataclass(frozen=True)
-class _Field:
-    name: str
-    label: str  # ``kind.name``, for the error messages
-    optional: bool  # it has a default
-    convert: Convert
+class NoMessage(Message, kw_only=True, frozen=True):
+    """No message: a union with it makes msgspec require a message's ``kind`` even when one kind is expected
+    (a field of messages of one kind is declared so: ``tuple[Envelope | NoMessage, ...]``)."""
 
 
 @functools.cache
-def _fields(cls: type[Record]) -> tuple[tuple[_Field, ...], frozenset[str]]:
-    """The decoding plan of a record class: each field's converter, and the set of field names."""
-    hints = typing.get_type_hints(cls)
-    plan = tuple(_Field(f.name, f"{cls.KIND}.{f.name}", f.default is not dataclasses.MISSING
-                        or f.default_factory is not dataclasses.MISSING, _converter(hints[f.name]))
-                 for f in dataclasses.fields(cls))
-    return plan, frozenset(f.name for f in plan)
+def decoder(cls: type[Record]) -> msgspec.msgpack.Decoder[Any]:
+    """The msgspec decoder of ``cls`` (a message's requires its ``kind``); TypeError for a class whose fields
+    do not follow its base's (declared without ``kw_only=True``)."""
+    for base in cls.__mro__[1:]:
+        names = base.__struct_fields__ if issubclass(base, Record) else ()
+        if cls.__struct_fields__[:len(names)] != names:
+            raise TypeError(f"{cls.__name__} must be declared with kw_only=True: its fields would precede its base's")
+    return msgspec.msgpack.Decoder(cls | NoMessage if issubclass(cls, Message) else cls, dec_hook=_dec_hook)
 
 
-def _build(cls: type[Record], fields: dict[Any, Any], ctx: Context | None) -> Record:
-    """A record of ``cls`` from its decoded field map, every field checked against its type, then validated."""
-    names = _fields(cls)[1]  # type: ignore[arg-type]  # mypy#11470
-    if not names.issuperset(fields):
-        extra = set(fields) - names
-        raise DecodeError(f"{cls.KIND}: unexpected fields {sorted(map(str, extra))}")
-    values = {}
-    for name, label, optional, convert in _steps(cls):  # type: ignore[arg-type]  # mypy#11470
-        if name in fields:
-            values[name] = convert(fields[name], label, ctx)
-        elif not optional:
-            raise DecodeError(f"{cls.KIND}: missing field {name!r}")
-    record = cls(**values)
-    record.validate(ctx)
+@functools.cache
+def _any_message(kinds: frozenset[str]) -> msgspec.msgpack.Decoder[Any]:
+    for cls in Message.REGISTRY.values():
+        decoder(cls)  # the layout check
+    return msgspec.msgpack.Decoder(functools.reduce(lambda a, b: a | b, Message.REGISTRY.values()),  # type: ignore
+                                   dec_hook=_dec_hook)
+
+
+def _checked(record: R, ctx: Context | None, what: str) -> R:
+    try:
+        record.validate(ctx)
+    except DecodeError:
+        raise
+    except Exception as exc:  # a validator tripped on odd but well-typed data
+        raise DecodeError(f"{what}: invalid message: {exc}") from None
     return record
 
 
-@functools.cache
-def _steps(cls: type[Record]) -> tuple[tuple[str, str, bool, Convert], ...]:
-    """:func:`_fields`'s plan as plain tuples (the decoding loop unpacks them rather than read attributes)."""
-    plan = _fields(cls)[0]  # type: ignore[arg-type]  # mypy#11470
-    return tuple((f.name, f.label, f.optional, f.convert) for f in plan)
+def _error(what: str, exc: Exception) -> DecodeError:
+    if str(exc).endswith(".v`"):  # the schema version, above this fleet_emu's
+        return DecodeError(f"{what}: schema version is newer than this fleet_emu's {SCHEMA_VERSION} ({exc})")
+    return DecodeError(f"{what}: {exc}")
 
 
-def _guarded(build: Callable[..., R], *args: Any) -> R:
-    """``build(*args)``, a decoder; anything but DecodeError (a constructor or validator tripped on odd but
-    well-typed data) becomes a DecodeError."""
+class _Peek(msgspec.Struct):
+    kind: Any = None
+    tick: Any = None
+
+
+_PEEK = msgspec.msgpack.Decoder(_Peek)
+
+
+def _peek(data: bytes) -> _Peek:
+    """A message's ``kind`` and ``tick`` as its bytes claim them (None where they are not a map)."""
     try:
-        return build(*args)
-    except DecodeError:
-        raise
-    except Exception as exc:
-        raise DecodeError(f"invalid message: {exc}") from None
-
-
-def _unpack(data: bytes) -> Any:
-    try:
-        return msgpack.unpackb(data, raw=False, strict_map_key=True)
-    except Exception as exc:  # msgpack raises several unrelated types on garbage
-        raise DecodeError(f"not msgpack: {type(exc).__name__}") from None
+        return _PEEK.decode(data)
+    except (msgspec.MsgspecError, UnicodeDecodeError):
+        return _Peek()
 
 
 def decode(data: bytes, ctx: Context | None = None, expected: type[M] | None = None) -> M:
-    """Decode bytes into a registered message, validating it; only ever raises DecodeError."""
-    if expected is not None:
-        record = _typed(expected, data, ctx)
-        if record is not None:
-            return cast(M, record)
-    obj = _unpack(data)
-    # a Message: Message.REGISTRY holds only message classes, and _decode_obj checks ``expected``
-    return cast(M, _guarded(_decode_obj, obj, ctx, expected))
+    """Decode bytes into a registered message (of ``expected``, when given), validating it."""
+    cls = expected if expected is not None and expected.KIND else None
+    try:
+        msg = (decoder(cls) if cls is not None else _any_message(frozenset(Message.REGISTRY))).decode(data)
+    except (msgspec.MsgspecError, UnicodeDecodeError) as exc:
+        claimed = _peek(data).kind
+        kind = claimed if type(claimed) is str else None
+        if cls is not None and kind is not None and kind != cls.KIND:
+            raise DecodeError(f"expected {cls.KIND}, got {kind!r}") from None
+        raise _error(cls.KIND if cls is not None else kind or "message", exc) from None
+    if expected is not None and not isinstance(msg, expected):
+        raise DecodeError(f"expected {expected.__name__}, got {msg.KIND!r}")
+    return cast(M, _checked(msg, ctx, msg.KIND))
 
 
 def decode_payload(kind: str, data: bytes, ctx: Context | None = None) -> Payload:
-    """Decode a radio payload of ``kind``; only ever raises DecodeError (an unknown kind included)."""
+    """Decode a radio payload of ``kind`` (an unknown kind is a DecodeError too)."""
     cls = Payload.REGISTRY.get(kind)
     if cls is None:
         raise DecodeError(f"unknown payload kind {kind!r}")
-    typed = _TYPED.get(cls)
-    if typed is not None:  # :func:`_typed`, inlined: every teammate's beacon and delta of every tick come here
-        try:
-            record = typed(data, ctx)
-        except Exception:
-            record = None
-        if record is not None:
-            return cast(Payload, record)
-    return decode_payload_obj(kind, _unpack(data), ctx)
+    try:
+        body = decoder(cls).decode(data)
+    except (msgspec.MsgspecError, UnicodeDecodeError) as exc:
+        raise _error(kind, exc) from None
+    return cast(Payload, _checked(body, ctx, kind))
 
 
-def decode_payload_obj(kind: str, obj: Any, ctx: Context | None = None) -> Payload:
-    """:func:`decode_payload` of a payload already unpacked from msgpack (``obj``)."""
+class Packed(msgspec.Struct, forbid_unknown_fields=True):
+    """An array field as :func:`decode_many` reads it: the packed array's parts, its bytes not yet viewed."""
+
+    dtype: str
+    shape: list[int]
+    data: bytes
+
+
+@functools.cache
+def _array_fields(cls: type[Record]) -> tuple[str, ...]:
+    return tuple(f.name for f in msgspec.structs.fields(cls) if f.type is np.ndarray)
+
+
+@functools.cache
+def _packed_form(cls: type[Record]) -> type[msgspec.Struct]:
+    """``cls``'s fields with each array as :class:`Packed` (``cls`` itself when it has no array)."""
+    fields = msgspec.structs.fields(cls)
+    if not _array_fields(cls):
+        return cls
+    spec = [(f.name, Packed if f.type is np.ndarray else f.type,
+             msgspec.field(default=f.default) if f.default is not msgspec.NODEFAULT
+             else msgspec.field(default_factory=f.default_factory) if f.default_factory is not msgspec.NODEFAULT
+             else msgspec.NODEFAULT) for f in fields]
+    return msgspec.defstruct(f"{cls.__name__}Packed", spec, kw_only=True, forbid_unknown_fields=True)
+
+
+@functools.cache
+def _list_decoder(form: type[msgspec.Struct]) -> msgspec.msgpack.Decoder[Any]:
+    return msgspec.msgpack.Decoder(list[form], dec_hook=_dec_hook)  # type: ignore[valid-type]
+
+
+_RAWS = msgspec.msgpack.Decoder(list[msgspec.Raw])
+
+
+def _array_header(n: int) -> bytes:
+    """msgpack's header of an array of ``n`` items."""
+    return bytes([0x90 + n]) if n < 16 else (b"\xdc" + n.to_bytes(2, "big") if n < 1 << 16
+                                            else b"\xdd" + n.to_bytes(4, "big"))
+
+
+def _viewed(cls: type[R], items: list[Any]) -> tuple[list[R], dict[str, np.ndarray]] | None:
+    """Records of ``cls`` from items of its :func:`_packed_form`: each array field's bytes of every item
+    viewed at once and sliced (1-D arrays of one dtype per field; None for anything else)."""
+    rows = list(map(msgspec.structs.asdict, items))
+    arrays = {}
+    for name in _array_fields(cls):
+        dtypes, shapes, datas = zip(*map(msgspec.structs.astuple, [row[name] for row in rows]), strict=True)
+        dt = _DTYPES.get(dtypes[0])
+        if dt is None or dtypes.count(dtypes[0]) != len(dtypes) or set(map(len, shapes)) != {1}:
+            return None
+        counts = [shape[0] for shape in shapes]
+        if list(map(len, datas)) != [n * dt.itemsize for n in counts] or sum(counts) * dt.itemsize > MAX_ARRAY_BYTES:
+            return None
+        arrays[name] = whole = np.frombuffer(b"".join(datas), dt)
+        bounds = list(itertools.accumulate(counts, initial=0))
+        for row, view in zip(rows, map(whole.__getitem__, map(slice, bounds, bounds[1:])), strict=False):
+            row[name] = view
+    return [cls(**row) for row in rows], arrays
+
+
+def decode_many(kind: str, payloads: list[bytes], ctx: Context | None = None) -> list[Payload] | None:
+    """Radio payloads of one ``kind`` decoded and validated together, in one pass of msgspec over them all
+    (a robot hears each teammate's beacon and map delta every tick): what :func:`decode_payload` gives each,
+    or None when one of them is not accepted so (each is then decoded on its own, to drop and count it)."""
     cls = Payload.REGISTRY.get(kind)
-    if cls is None:
-        raise DecodeError(f"unknown payload kind {kind!r}")
-    if type(obj) is not dict:
-        raise DecodeError(f"{kind}: payload is not a map")
-    fast = _FAST.get(cls)
-    record = _guarded(fast, obj, ctx) if fast is not None else None
-    if record is None:
-        record = _guarded(_build, cls, obj, ctx)
-    return cast(Payload, record)  # Payload.REGISTRY holds only payload classes
+    if cls is None or not payloads:
+        return None if cls is None else []
+    data = _array_header(len(payloads)) + b"".join(payloads)
+    try:  # each payload one msgpack item of its own bytes, not a part of its neighbours'
+        if list(map(len, _RAWS.decode(data))) != list(map(len, payloads)):
+            return None
+        form = _packed_form(cls)
+        items = _list_decoder(form).decode(data)
+        got = _viewed(cls, items) if form is not cls else (items, {})
+        if got is None:
+            return None
+        cls.validate_many(got[0], ctx, got[1])
+    except Exception:  # msgspec's errors, a DecodeError, an odd value: one by one, each says why
+        return None
+    return cast(list[Payload], got[0])
 
 
 def peek_tick(data: bytes) -> int | None:
-    """The envelope tick of an encoded message, or None (used by the recorder for log times)."""
-    try:
-        obj = msgpack.unpackb(data, raw=False)
-    except Exception:
-        return None
-    tick = obj.get("tick") if isinstance(obj, dict) else None
-    return tick if isinstance(tick, int) and not isinstance(tick, bool) and tick >= 0 else None
+    """The tick of an encoded message, or None (the recorder's log time)."""
+    tick = _peek(data).tick
+    return tick if type(tick) is int and tick >= 0 else None

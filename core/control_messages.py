@@ -5,8 +5,9 @@ name here.
 
 from __future__ import annotations
 
-import dataclasses
 import re
+
+import msgspec
 
 from fleet_emu.core.access import Credential
 from fleet_emu.core.codec import Context, DecodeError, Message
@@ -15,15 +16,13 @@ from fleet_emu.core.keys import HOST_ID, ROBOT_ID, RUN_ID
 
 # --- control ---------------------------------------------------------------------------------------------
 
-@dataclasses.dataclass(frozen=True)
-class Hello(Message):
+class Hello(Message, kw_only=True, frozen=True):
     """The world's start handshake (ctl/hello): every node answers with :class:`Ready`."""
 
     KIND = "hello"
 
 
-@dataclasses.dataclass(frozen=True)
-class Ready(Message):
+class Ready(Message, kw_only=True, frozen=True):
     """A node's answer to :class:`Hello` (ctl/ready/<id>): its subscriptions are in place."""
 
     KIND = "ready"
@@ -37,8 +36,7 @@ def ready(node_id: str, role: str, pid: int) -> Ready:
     return Ready(src=node_id, tick=0, seq=0, role=role, pid=pid)
 
 
-@dataclasses.dataclass(frozen=True)
-class Failed(Message):
+class Failed(Message, kw_only=True, frozen=True):
     """The launcher saw a robot's process exit (ctl/failed/<robot>): the world fails it at once, even
     before its liveliness token existed."""
 
@@ -47,16 +45,14 @@ class Failed(Message):
     reason: str
 
 
-@dataclasses.dataclass(frozen=True)
-class Stop(Message):
+class Stop(Message, kw_only=True, frozen=True):
     """The run is over (ctl/stop): nodes report and exit."""
 
     KIND = "stop"
     reason: str
 
 
-@dataclasses.dataclass(frozen=True)
-class RobotReport(Message):
+class RobotReport(Message, kw_only=True, frozen=True):
     """A robot's summary when it stops (ctl/report/<robot>): counters the launcher puts in result.json."""
 
     KIND = "report"
@@ -73,15 +69,14 @@ class RobotReport(Message):
     # the event loop's thread CPU over the same span (lockstep: its steps included): process_cpu_ms minus this is
     # Zenoh's own threads, this minus step_cpu_ms the Python shell's (decode, encode, asyncio) (scale.py)
     loop_cpu_ms: float = 0.0
-    stage_cpu_ms: dict[str, float] = dataclasses.field(default_factory=dict)  # step_cpu_ms by stage (Brain.cpu_ms)
+    stage_cpu_ms: dict[str, float] = msgspec.field(default_factory=dict)  # step_cpu_ms by stage (Brain.cpu_ms)
     # the first step's share of the sums above (``process``, ``loop``, ``step``, ``decision`` and each stage): tick
     # 0 merges every teammate's first map and clusters the whole belief, a start-up cost scale.py reports apart
-    first_cpu_ms: dict[str, float] = dataclasses.field(default_factory=dict)
+    first_cpu_ms: dict[str, float] = msgspec.field(default_factory=dict)
     foreign: int = 0  # messages dropped for not carrying the run's nonce (another run's, a replayed recording's)
 
 
-@dataclasses.dataclass(frozen=True)
-class BaseReport(Message):
+class BaseReport(Message, kw_only=True, frozen=True):
     """The base station's summary when it stops (ctl/report/base): what its team map holds
     (``agents/base.py``): known cells of ``cells``, the map deltas and fills merged, the ticks heard."""
 
@@ -103,8 +98,7 @@ NONCE_HEX = re.compile(r"(?:[0-9a-f]{2}){0,32}")  # a run nonce in hex (empty: n
 HOST_EVENTS = frozenset({"accepted", "busy", "spawned", "exited", "ended"})
 
 
-@dataclasses.dataclass(frozen=True)
-class HostAssign(Message):
+class HostAssign(Message, kw_only=True, frozen=True):
     """The launcher's request to host ``host`` (fleet-host/<host>/spawn): start ``robots`` of run ``run``, whose
     scenario (as ``scenario.json``) is ``scenario``; ``secrets`` maps each robot to its bus credential (JSON,
     user and password: the host adds its own TLS CA), empty on an unauthenticated bus; ``realtime_hz`` the
@@ -117,7 +111,7 @@ class HostAssign(Message):
     run: str
     robots: tuple[str, ...] = ()
     scenario: str = ""
-    secrets: dict[str, str] = dataclasses.field(default_factory=dict)
+    secrets: dict[str, str] = msgspec.field(default_factory=dict)
     fork_server: bool = True
     end: bool = False
     realtime_hz: float = 0.0
@@ -144,8 +138,7 @@ class HostAssign(Message):
                 raise DecodeError(f"host_assign: {robot}'s credential is {cred.user!r}'s")
 
 
-@dataclasses.dataclass(frozen=True)
-class HostStatus(Message):
+class HostStatus(Message, kw_only=True, frozen=True):
     """A host's report (fleet-host/<host>/status) about run ``run``: ``accepted`` (or ``busy`` with another run),
     ``spawned`` (``robot`` with its ``pid``), ``exited`` (``robot`` with its exit ``code``), ``ended`` (every
     robot of the run is gone)."""

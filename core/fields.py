@@ -184,6 +184,28 @@ def _declared(cls: type) -> tuple[Setting, ...]:
     return tuple(out)
 
 
+def json_schema(spec: Setting) -> dict[str, Any] | None:
+    """The JSON Schema of a setting's values, from its declaration (its kind, range or choices); None for a
+    table or a value of another shape, which its own code checks."""
+    if spec.table or spec.shape is not None or spec.kind not in _KINDS.values():
+        return None
+    out: dict[str, Any]
+    if spec.choices:
+        out = {"enum": list(spec.choices)}
+    elif spec.kind is bool:
+        out = {"type": "boolean"}
+    else:
+        string = spec.kind is str
+        out = {"type": "string" if string else "integer" if spec.kind is int else "number"}
+        low, high = ("minLength", "maxLength") if string else ("exclusiveMinimum" if spec.low_open else "minimum",
+                                                              "maximum")
+        out |= {low: spec.low} if math.isfinite(spec.low) else {}
+        out |= {high: spec.high} if math.isfinite(spec.high) else {}
+        out = {k: int(v) if isinstance(v, float) and v.is_integer() and (string or spec.kind is int) else v
+               for k, v in out.items()}
+    return {"anyOf": [out, {"type": "null"}]} if spec.optional else out
+
+
 def check_all(config: Any) -> None:
     """Check every declared field of the dataclass instance ``config``; ConfigError on the first bad one."""
     for spec in settings(type(config)):

@@ -11,23 +11,11 @@ module for its messages), and netem routes envelopes without decoding them. Enco
 
 from __future__ import annotations
 
-import dataclasses
-from typing import Annotated, Any, Literal
-
 import msgspec
 import numpy as np
 
-from fleet_emu.core.codec import (
-    Context,
-    DecodeError,
-    Message,
-    Payload,
-    array_of,
-    decode,
-    decode_payload,
-    peek_tick,
-    typed_decoder,
-)
+from fleet_emu.core import jit, kernels
+from fleet_emu.core.codec import Context, DecodeError, Message, Payload, decode, decode_payload, peek_tick
 from fleet_emu.core.control_messages import (
     HOST_EVENTS,
     MAX_REALTIME_HZ,
@@ -55,7 +43,6 @@ from fleet_emu.core.envelope import (
     seal,
 )
 from fleet_emu.core.grid import MOVES, STAY, Cell
-from fleet_emu.core.version import SCHEMA_VERSION
 
 __all__ = [
     "Context", "DecodeError", "Message", "Payload", "decode", "decode_payload", "peek_tick",
@@ -70,10 +57,16 @@ VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
 _VALID_BYTE = np.zeros(256, dtype=np.bool_)  # indexed by an int8 value's byte: True for -1, 0 and 100
 _VALID_BYTE[VALID_CELL_VALUES.view(np.uint8)] = True
 VALID_MOVES = frozenset(MOVES) | {STAY}
+_KERNEL_CELLS = (np.dtype(np.int32), np.dtype(np.int64))  # the cell index types cells_valid is warmed up for
 
 
 def check_cells(cells: np.ndarray, values: np.ndarray, shape: tuple[int, int] | None, what: str) -> None:
-    """Flat cell indices inside a grid of ``shape`` and occupancy values (-1, 0, 100), of equal length."""
+    """Flat cell indices inside a grid of ``shape`` and occupancy values (-1, 0, 100), of equal length (a
+    robot checks every teammate's map delta every tick: in one compiled pass once its kernels are loaded)."""
+    if (shape is not None and jit.loaded() and cells.dtype in _KERNEL_CELLS and values.dtype == np.int8
+            and cells.ndim == 1 and values.ndim == 1 and len(cells) == len(values)
+            and kernels.cells_valid(cells, values, shape[0] * shape[1])):
+        return
     if cells.ndim != 1 or values.ndim != 1 or len(cells) != len(values):
         raise DecodeError(f"{what}: cells and values differ in length")
     if cells.dtype.kind not in "iu" or values.dtype != np.int8:
@@ -115,8 +108,7 @@ NO_BODIES: np.ndarray = np.zeros(0, dtype=np.int32)
 NO_BODIES.flags.writeable = False
 
 
-@dataclasses.dataclass(frozen=True)
-class Observation(Message):
+class Observation(Message, kw_only=True, frozen=True):
     """What one robot's sensor saw at ``tick``, and its true pose (world/obs/<robot>). ``values`` are the map's
     (a robot's body is not written into them: it moves on); ``bodies`` are the cells among ``cells`` where the
     sensor found another robot's body this tick, a teammate's or a failed robot's (flat indices)."""
@@ -128,7 +120,7 @@ class Observation(Message):
     cell_size: float
     cells: np.ndarray
     values: np.ndarray
-    bodies: np.ndarray = dataclasses.field(default_factory=lambda: NO_BODIES)
+    bodies: np.ndarray = msgspec.field(default_factory=lambda: NO_BODIES)
 
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)
@@ -141,55 +133,7 @@ class Observation(Message):
             raise DecodeError("obs: a body's cell outside the grid")
 
 
-class _PackedWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
-    dtype: str
-    shape: list[int]
-    data: bytes
-
-
-class _ObsWire(msgspec.Struct, forbid_unknown_fields=True, gc=False, kw_only=True):
-    """An observation's map as the wire has it (``cell_size`` left untyped: msgspec would take an int for a
-    float, which the checking decode keeps as it is)."""
-
-    kind: Literal["obs"]
-    v: Annotated[int, msgspec.Meta(le=SCHEMA_VERSION)] = 1
-    src: str
-    tick: Annotated[int, msgspec.Meta(ge=0)]
-    seq: Annotated[int, msgspec.Meta(ge=0)]
-    robot: str
-    cell: tuple[int, int]
-    shape: tuple[int, int]
-    cell_size: Any
-    cells: _PackedWire
-    values: _PackedWire
-    bodies: _PackedWire | msgspec.UnsetType = msgspec.UNSET  # absent: none (as the checking decode reads it)
-
-
-_OBS_DECODER = msgspec.msgpack.Decoder(_ObsWire)
-
-
-@typed_decoder(Observation)
-def _typed_obs(data: bytes, ctx: Context | None) -> Observation | None:
-    """A robot's observation of every tick decoded in one pass (``core.codec``'s typed decoders: it decides
-    nothing, the checking decode does whatever this one does not accept)."""
-    w = _OBS_DECODER.decode(data)
-    if type(w.cell_size) is not float or (ctx is not None and ctx.senders is not None and w.src not in ctx.senders):
-        return None
-    c, v = w.cells, w.values
-    cells, values = array_of(c.dtype, c.shape, c.data), array_of(v.dtype, v.shape, v.data)
-    b = w.bodies
-    bodies = NO_BODIES if b is msgspec.UNSET else array_of(b.dtype, b.shape, b.data)
-    if cells is None or values is None or bodies is None:
-        return None
-    obs = object.__new__(Observation)
-    obs.__dict__.update(src=w.src, tick=w.tick, seq=w.seq, robot=w.robot, cell=w.cell, shape=w.shape,
-                        cell_size=w.cell_size, cells=cells, values=values, bodies=bodies)
-    obs.validate(ctx)  # the shape, the cell and the cells (raises: then the checking decode says why)
-    return obs
-
-
-@dataclasses.dataclass(frozen=True)
-class WorldState(Message):
+class WorldState(Message, kw_only=True, frozen=True):
     """All true poses, coverage and the run's status at ``tick`` (world/state); ``dropped`` counts the
     messages the world has dropped so far (malformed, or from a sender that may not write on their key),
     ``foreign`` those it dropped for not carrying the run's nonce (another run's, a replayed recording's);
@@ -205,7 +149,7 @@ class WorldState(Message):
     reason: str | None = None
     dropped: int = 0
     foreign: int = 0
-    blocked: dict[str, int] = dataclasses.field(default_factory=dict)
+    blocked: dict[str, int] = msgspec.field(default_factory=dict)
 
 
 # --- agent -> world -----------------------------------------------------------------------------------
@@ -215,8 +159,7 @@ class WorldState(Message):
 STALE = "STALE"
 
 
-@dataclasses.dataclass(frozen=True)
-class Command(Message):
+class Command(Message, kw_only=True, frozen=True):
     """A robot's move for ``tick`` (robot/<robot>/cmd), with what it decided, for the record, and ``known``: the
     cells its belief holds after the tick (0 in a real-time step without a decision), which the world's stall
     rule reads (``world/sim.py``)."""
@@ -240,8 +183,7 @@ class Command(Message):
 
 # --- netem -> everyone ---------------------------------------------------------------------------------
 
-@dataclasses.dataclass(frozen=True)
-class Links(Message):
+class Links(Message, kw_only=True, frozen=True):
     """The link graph at ``tick`` (netem/links): signal P_ij in dB, links, and cumulative radio counters
     (``dropped``: the messages netem itself dropped as malformed or spoofed, not radio losses; ``foreign``: those
     it dropped for not carrying the run's nonce)."""
@@ -269,10 +211,10 @@ class Links(Message):
     queued_max_bytes: int = 0
     delays: tuple[int, ...] = ()
     medium_load: tuple[int, ...] = ()
-    medium_of: dict[str, int] = dataclasses.field(default_factory=dict)
+    medium_of: dict[str, int] = msgspec.field(default_factory=dict)
     medium_capacity: int = 0
     # each sender's part of ``bytes_sent`` (cumulative; the base station's too)
-    bytes_by: dict[str, int] = dataclasses.field(default_factory=dict)
+    bytes_by: dict[str, int] = msgspec.field(default_factory=dict)
     # with shadowing (``[radio] shadowing_db``), cumulative over the robots' pairs and ticks: the pairs, those
     # eq. 4 without the field (the connectivity allocator's model) called linked that were not, and the reverse
     pair_ticks: int = 0
@@ -289,8 +231,7 @@ class Links(Message):
                 raise DecodeError(f"links: {name} of shape {arr.shape} for {n} robots")
 
 
-@dataclasses.dataclass(frozen=True)
-class BeliefSnapshot(Message):
+class BeliefSnapshot(Message, kw_only=True, frozen=True):
     """A robot's whole belief grid (robot/<robot>/belief), every few ticks, for the recording only."""
 
     KIND = "belief"
@@ -306,8 +247,7 @@ class BeliefSnapshot(Message):
 
 # --- real-time mode only (``fleet run --realtime HZ``) ---------------------------------------------------------
 
-@dataclasses.dataclass(frozen=True)
-class WorldClock(Message):
+class WorldClock(Message, kw_only=True, frozen=True):
     """The world's wall clock at ``tick`` (world/clock), published with every state of a real-time run and never
     in lockstep. Counters are cumulative: ``late`` per robot the decisions whose command arrived after the tick
     it was stamped for had ended (each applied at the next tick), ``late_steps`` the same for the steps along
@@ -324,8 +264,7 @@ class WorldClock(Message):
     missed: dict[str, int]
 
 
-@dataclasses.dataclass(frozen=True)
-class RobotTiming(Message):
+class RobotTiming(Message, kw_only=True, frozen=True):
     """A robot's real-time summary when it stops (robot/<robot>/timing), sent just before its report and never
     in lockstep: ``decisions`` made, ``plan_steps`` (ticks it stepped along its last plan while a decision
     ran), ``waits`` (ticks a decision ran and it had no plan yet: it stood still), and percentiles of the wall

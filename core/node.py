@@ -24,7 +24,7 @@ from fleet_emu.core.errors import FleetError
 from fleet_emu.core.fields import cell_arg
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import Keys
-from fleet_emu.core.malloc_tuning import keep_heap
+from fleet_emu.core.malloc_tuning import collect_less, keep_heap
 from fleet_emu.core.messages import Hello, ready
 from fleet_emu.core.scenario import Scenario
 
@@ -214,6 +214,7 @@ def node_main(prog: str, build: Callable[[argparse.Namespace], Any], argv: list[
     args = parse_child(parser, argv, map_file)
     setup_logging()
     keep_heap()  # the same map-sized arrays every tick: no page faults for them (core/malloc_tuning.py)
+    collect_less()  # and the many small decoded messages of a tick not scanned again and again
     try:
         node = build(args).bind(args.nonce)
     except FleetError as exc:  # arguments that do not fit together (the launcher's, or a hand-made run's)

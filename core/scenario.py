@@ -22,15 +22,13 @@ from fleet_emu.core.errors import ConfigError, MapError
 from fleet_emu.core.faults import Fault, check_faults, parse_faults
 from fleet_emu.core.fields import Setting, check_all, merge, setting, settings
 from fleet_emu.core.files import read_regular
-from fleet_emu.core.keys import HOST_ID
+from fleet_emu.core.host_plan import MAX_HOSTS, MAX_ROBOTS, HostPlan
 from fleet_emu.core.limits import MAX_FILE_BYTES, MAX_NAME, MAX_TTL, check_size, check_text, check_values
 from fleet_emu.core.radio import RadioConfig, radio_settings
 from fleet_emu.core.radio_profile import radio_of_profile
 from fleet_emu.core.scenario_checks import check_names
 from fleet_emu.core.setting_names import file_spelling, option
 
-MAX_ROBOTS = 256
-MAX_HOSTS = 64
 RELAY_POLICIES = ("none", "flood", "tree")
 #: Allocators that plan at the base station: a run with one needs ``base``, the base joins
 #: netem's lockstep as a sender (``radio/tx/base``), and the robots relay (``tree`` by default, below).
@@ -82,63 +80,6 @@ class _DefaultCellSize(float):
 
 
 DEFAULT_CELL_SIZE: float = _DefaultCellSize(0.5)
-
-
-@dataclasses.dataclass(frozen=True)
-class HostPlan:
-    """The scenario's ``[hosts]``: robots on ``count`` other machines (``fleet host``), as ``fleet run --hosts
-    count`` does. ``names``: which hosts (``hostK`` logins; default the first ``count`` that come, by number);
-    ``robots``: how many robots each of them runs, in that order, the rest running here (default: robots dealt
-    round-robin over this machine and the hosts). Placement is dealt one robot at a time round the machines that
-    still have room (``launch.host_client.placement``)."""
-
-    count: int
-    names: tuple[str, ...] = ()
-    robots: tuple[int, ...] = ()
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any], where: str) -> HostPlan | None:
-        """``[hosts]``: ``count``, ``names``, ``robots`` (None for ``count = 0`` alone: no hosts)."""
-        bad = set(d) - {"count", "names", "robots"}
-        if bad:
-            raise ConfigError(f"{where}: unknown key(s) in [hosts]: {', '.join(sorted(bad))} (count, names, robots)")
-        lists = {}
-        for key in ("names", "robots"):
-            value = d.get(key, [])
-            if not isinstance(value, list | tuple):
-                raise ConfigError(f"{where}: [hosts] {key} must be a list (got {value!r})")
-            lists[key] = tuple(value)
-        if "count" not in d and not lists["names"]:
-            raise ConfigError(f"{where}: [hosts] needs count = N or names = [\"host0\", ...]")
-        count = d.get("count", len(lists["names"]))
-        if count == 0 and not isinstance(count, bool) and not lists["names"] and not lists["robots"]:
-            return None
-        return cls(count, lists["names"], lists["robots"])
-
-    def to_dict(self) -> dict[str, Any]:
-        """The ``[hosts]`` table, with only the keys given."""
-        return {"count": self.count, **({"names": list(self.names)} if self.names else {}),
-                **({"robots": list(self.robots)} if self.robots else {})}
-
-    def validate(self, fleet: int) -> None:
-        """A ConfigError on the first bad value; ``fleet`` is the scenario's number of robots."""
-        _integer("[hosts] count", self.count, 1, MAX_HOSTS)
-        if self.names:
-            if len(self.names) != self.count:
-                raise ConfigError(f"[hosts] names lists {len(self.names)} host(s) but count is {self.count}")
-            bad = [n for n in self.names if not isinstance(n, str) or not HOST_ID.fullmatch(n)]
-            if bad:
-                raise ConfigError(f"[hosts] names must be host0, host1, ... (the hosts' logins; got {bad[0]!r})")
-            if len(set(self.names)) != len(self.names):
-                raise ConfigError(f"[hosts] names lists a host twice ({', '.join(self.names)})")
-        if self.robots:
-            if len(self.robots) != self.count:
-                raise ConfigError(f"[hosts] robots gives {len(self.robots)} number(s) for {self.count} host(s)")
-            for n in self.robots:
-                _integer("[hosts] robots (each host's)", n, 0, MAX_ROBOTS)
-            if sum(self.robots) > fleet:
-                raise ConfigError(f"[hosts] robots puts {sum(self.robots)} robots on hosts, more than the fleet's "
-                                  f"{fleet} (--robots)")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -483,10 +424,3 @@ def _move(section: dict[str, Any], flat: dict[str, Any], keys: tuple[str, ...], 
             flat[key] = section.pop(key)
     if section:
         raise ConfigError(f"unknown key(s) in [{name}]: {', '.join(sorted(section))}")
-
-
-def _integer(field: str, value: Any, low: int, high: int) -> None:
-    if not isinstance(value, int) or isinstance(value, bool):
-        raise ConfigError(f"{field} must be a whole number from {low} to {high} (got {value!r})")
-    if not low <= value <= high:
-        raise ConfigError(f"{field} must be from {low} to {high} (got {value})")

@@ -26,6 +26,7 @@ import contextlib
 import importlib
 import inspect
 import io
+import json
 import os
 import re
 import sys
@@ -104,18 +105,29 @@ def _signature(obj: Any, name: str) -> str:
     except (TypeError, ValueError):
         return name
     params: list[str] = []
+    written = _written_annotations(obj)
     for p in sig.parameters.values():
         if p.name in ("self", "cls"):
             continue
         if p.kind is p.KEYWORD_ONLY and not any(q.startswith("*") for q in params):
             params.append("*")
-        params.append(_param(p))
+        params.append(_param(p.replace(annotation=written[p.name]) if p.name in written else p))
     ret = "" if sig.return_annotation is inspect.Signature.empty or inspect.isclass(obj) else \
         f" -> {_annotation(sig.return_annotation)}"
     one = f"{name}({', '.join(params)}){ret}"
     if len(one) <= 100:
         return one
     return f"{name}(\n" + "".join(f"    {p},\n" for p in params) + f"){ret}"
+
+
+def _written_annotations(obj: Any) -> dict[str, str]:
+    """A class's field annotations as its source writes them (a msgspec struct's signature has them evaluated)."""
+    if not inspect.isclass(obj):
+        return {}
+    out: dict[str, str] = {}
+    for base in reversed(obj.__mro__):
+        out.update({k: v for k, v in vars(base).get("__annotations__", {}).items() if isinstance(v, str)})
+    return out
 
 
 def _annotation(a: Any) -> str:
@@ -308,16 +320,41 @@ def on_page_markdown(markdown: str, **_: Any) -> str:
     return refresh(markdown)
 
 
+SCHEMA = ROOT / "recording" / "result.schema.json"
+
+
+def compact_json(value: Any, indent: int = 0, width: int = 118) -> str:
+    """JSON as the repository writes it: a value on one line when it fits in ``width``, else one member a line."""
+    flat = json.dumps(value)
+    if len(flat) + indent <= width or not isinstance(value, dict | list) or not value:
+        return flat
+    pad = " " * (indent + 2)
+    if isinstance(value, dict):
+        items = [f"{pad}{json.dumps(k)}: {compact_json(v, indent + 2, width)}" for k, v in value.items()]
+        return "{\n" + ",\n".join(items) + "\n" + " " * indent + "}"
+    return "[\n" + ",\n".join(pad + compact_json(v, indent + 2, width) for v in value) + "\n" + " " * indent + "]"
+
+
+def result_schema_text() -> str:
+    """``result.schema.json`` with its ``$defs.scenario`` from the declared settings
+    (:func:`fleet_emu.recording.result.scenario_schema`)."""
+    from fleet_emu.recording.result import scenario_schema
+
+    schema = json.loads(SCHEMA.read_text())
+    schema["$defs"]["scenario"] = scenario_schema(schema["$defs"]["scenario_tables"])
+    return compact_json(schema) + "\n"
+
+
 def main() -> int:
-    """``python docs/hooks.py``: rewrite the generated parts of :data:`PAGES`; print the pages that changed.
+    """``python docs/hooks.py``: rewrite the generated parts of :data:`PAGES` and of ``result.schema.json``; print
+    the files that changed.
     ``python docs/hooks.py --keep RESULTS``: first keep a paper study's results for its claims table."""
     if sys.argv[1:2] == ["--keep"]:
         for results in sys.argv[2:]:
             print(f"kept {keep(Path(results)).relative_to(ROOT)}")
-    for page in PAGES:
-        path = ROOT / "docs" / page
+    for path, make in [*((ROOT / "docs" / page, refresh) for page in PAGES), (SCHEMA, lambda _: result_schema_text())]:
         text = path.read_text()
-        new = refresh(text)
+        new = make(text)
         if new != text:
             path.write_text(new)
             print(f"wrote {path.relative_to(ROOT)}")

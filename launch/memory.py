@@ -31,6 +31,7 @@ from fleet_emu.agents.outputs import base_report, base_tx, first_cpu_ms, robot_o
 from fleet_emu.core.errors import RunError
 from fleet_emu.core.grid import Cell, MapData
 from fleet_emu.core.keys import BASE, Keys, robot_ids
+from fleet_emu.core.malloc_tuning import collecting_less
 from fleet_emu.core.messages import Envelope, Message, Observation, WorldState, ready
 from fleet_emu.core.pace import Pacer
 from fleet_emu.core.rng import generator
@@ -201,12 +202,14 @@ class Fleet:
         return self.result()
 
     def _play(self, seed: int | None = None, on_tick: Callable[[Monitor], None] | None = None) -> None:
-        """Reset and step to the end, ``on_tick`` told after every tick."""
-        self.reset(seed)
-        while not self.done:
-            self.step()
-            if on_tick is not None:
-                on_tick(self.monitor)
+        """Reset and step to the end, ``on_tick`` told after every tick (the collector run less often meanwhile,
+        as in a node process: ``core/malloc_tuning.py``)."""
+        with collecting_less():
+            self.reset(seed)
+            while not self.done:
+                self.step()
+                if on_tick is not None:
+                    on_tick(self.monitor)
 
     def result(self, ending: Ending | None = None, recording: Path | None = None, messages: int = 0,
                signal: str | None = None) -> Result:
@@ -216,7 +219,7 @@ class Fleet:
         s = self.scenario
         elapsed = time.perf_counter() - (self._started or time.perf_counter())
         pid = os.getpid()
-        pids = {"world": pid, "netem": pid, "agents": [pid] * s.robots} | ({BASE: pid} if s.has_base else {})
+        pids = {"world": pid, "netem": pid, "robots": [pid] * s.robots} | ({BASE: pid} if s.has_base else {})
         data = build_result(self.monitor, s.to_dict(), self.run_id, ending or Ending(), engine="memory", pids=pids,
                             recording=str(recording) if recording else None, messages=messages,
                             launcher=Launcher(elapsed, signal, None))

@@ -280,14 +280,14 @@ class _Run:
             self.nodes_thread = _start_in_process(scenario, self.map_data, self.run_id, self.endpoint, self.creds,
                                                   self.base, opts.realtime_hz,
                                                   opts.live.hz if opts.live is not None else None, self.nonce)
-            self.pids = {"world": os.getpid(), "netem": os.getpid(), "agents": [os.getpid()] * len(robots)}
+            self.pids = {"world": os.getpid(), "netem": os.getpid(), "robots": [os.getpid()] * len(robots)}
             self.pids |= {BASE: os.getpid()} if scenario.has_base else {}
         else:
             plan = spawn_nodes(self.sup, scenario, self.run_id, self.endpoint, self.work, self.creds, self.remote,
                                self.requested, opts.realtime_hz, self.base,
                                opts.live.hz if opts.live is not None else None, self.nonce.hex())
             p = self.sup.pids()
-            pids = {"world": p["world"], "netem": p["netem"], "agents": [p[r] for r in robots]}
+            pids = {"world": p["world"], "netem": p["netem"], "robots": [p[r] for r in robots]}
             pids |= {BASE: p[BASE]} if BASE in p else {}
             pids |= ({"fork_server": p["fork_server"]} if "fork_server" in p else {}) | \
                 ({"router": self.router_child.proc.pid} if self.router_child is not None else {}) | \

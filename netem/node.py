@@ -15,9 +15,9 @@ of t as for a live robot's (lockstep), and sends it from the base's cell, after 
 
 from __future__ import annotations
 
-import dataclasses
 import time
 
+import msgspec
 import numpy as np
 import zenoh
 
@@ -213,7 +213,7 @@ class NetemNode(NodeShell):
         s = self.scenario
         tick = radio_tick(self.channel, self.occupied, self.robots, self.base, s.cell_size, s.radio, state,
                           self.next_seq, self.dropped)
-        links = dataclasses.replace(tick.links, foreign=self.foreign) if self.foreign else tick.links
+        links = msgspec.structs.replace(tick.links, foreign=self.foreign) if self.foreign else tick.links
         self.pub_links.put(links.encode())
         for bundle in tick.rx:
             self.pub_rx[bundle.dst].put(bundle.encode())

@@ -250,7 +250,7 @@ class RunMetrics:
         """The process ids the nodes' ready messages gave (None for a node whose ready was not recorded: the
         world sends none)."""
         return {"world": self.pids.get("world"), "netem": self.pids.get("netem"),
-                "agents": [self.pids.get(r) for r in self.robots]}
+                "robots": [self.pids.get(r) for r in self.robots]}
 
     def result(self, recording_path: str | None = None, messages: int | None = None) -> dict[str, Any]:
         """result.json, recomputed (:func:`~fleet_emu.recording.result.build_result`; but :data:`NOT_RECORDED`);

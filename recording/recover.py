@@ -118,7 +118,7 @@ def crashed_result(run: Run, wall_seconds: float) -> dict[str, Any]:
     node's was recorded, ``wall_seconds`` as the recording's wall clock spans."""
     fold = run.fold
     pids = fold.recorded_pids()
-    whole = None not in (pids["world"], pids["netem"], *pids["agents"])
+    whole = None not in (pids["world"], pids["netem"], *pids["robots"])
     return build_result(fold.monitor, fold.scenario, fold.run_id, Ending(crashed=True), engine=fold.engine,
                         pids=pids if whole else {}, recording=str(run.path), messages=run.messages,
                         launcher=Launcher(wall_seconds, signal=None, authenticated=None))

@@ -22,7 +22,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from fleet_emu.core.radio import RadioConfig
+from fleet_emu.core.fields import Setting
+from fleet_emu.core.radio import RadioConfig, radio_settings
 from fleet_emu.core.version import SCHEMA_VERSION, __version__
 
 if TYPE_CHECKING:
@@ -31,7 +32,8 @@ if TYPE_CHECKING:
 
 #: ``result.json`` keys that depend on the clock, the processes, the engine or the bus, not on the seed: every
 #: other key is the same for a seed whatever the engine (docs/design/determinism.md).
-UNTIMED = frozenset({"run_id", "decision_ms", "agent_peak_rss_kb", "ticks_per_second", "pids", "recording",
+UNTIMED = frozenset({"run_id", "decision_ms", "robot_peak_rss_kb", "agent_peak_rss_kb", "ticks_per_second", "pids",
+                     "recording",
                      "wall_seconds", "engine", "authenticated", "signal", "bus"})
 
 
@@ -71,6 +73,11 @@ class Launcher:
 NOT_RECORDED = tuple(f.name for f in dataclasses.fields(Launcher))
 
 
+#: Keys renamed, old name -> new (``outer.inner`` for a key inside another): ``result.json`` writes the old
+#: name too, with the same value, until the next release; the schema marks it deprecated.
+RENAMED = {"agent_peak_rss_kb": "robot_peak_rss_kb", "pids.agents": "pids.robots"}
+
+
 def build_result(monitor: Monitor, scenario: dict[str, Any], run_id: str, ending: Ending, *,
                  engine: str | None, pids: dict[str, Any], recording: str | None, messages: int,
                  launcher: Launcher | None, realtime_hz: float | None = None) -> dict[str, Any]:
@@ -83,6 +90,12 @@ def build_result(monitor: Monitor, scenario: dict[str, Any], run_id: str, ending
         data.setdefault("realtime_hz", realtime_hz)
     data |= ({"engine": engine} if engine is not None else {}) | {
         "pids": pids, "recording": {"path": recording, "messages": messages}, "scenario": scenario}
+    for old, new in RENAMED.items():  # the old name beside the new, for one release
+        outer, _, inner = new.partition(".")
+        if inner and inner in data[outer]:
+            data[outer] = {**data[outer], old.partition(".")[2]: data[outer][inner]}
+        elif not inner and new in data:
+            data[old] = data[new]
     if launcher is not None:
         data |= {"wall_seconds": round(max(launcher.wall_seconds, 0.0), 3), "signal": launcher.signal,
                  "authenticated": launcher.authenticated} | ({"bus": launcher.bus} if launcher.bus is not None
@@ -119,7 +132,7 @@ def fold_keys(m: Monitor, scenario: dict[str, Any], run_id: str, target: float,
         "decision_ms": {"mean": round(float(ms.mean()), 4), "p95": round(float(np.percentile(ms, 95)), 4)},
         "failed": m.failed(),
         "malformed_dropped": sum(m.dropped_by().values()), "malformed_dropped_by": m.dropped_by(),
-        "agent_peak_rss_kb": {r: rep.peak_rss_kb for r, rep in sorted(m.reports.items())},
+        "robot_peak_rss_kb": {r: rep.peak_rss_kb for r, rep in sorted(m.reports.items())},
         "ticks_per_second": m.ticks_per_second(),
         "schema_version": SCHEMA_VERSION, "fleet_emu": __version__,
     } | (_realtime(m) if m.clock is not None else {}) | (_base(m) if m.base else {}) | (
@@ -289,6 +302,20 @@ class Result(Mapping[str, Any]):
 def _schema_file(name: str) -> dict[str, Any]:
     schema: dict[str, Any] = json.loads((resources.files("fleet_emu.recording") / name).read_text())
     return schema
+
+
+def scenario_schema(tables: dict[str, Any]) -> dict[str, Any]:
+    """The schema of ``result.json``'s ``scenario`` (its ``$defs.scenario``), from the scenario's and the radio's
+    declared settings (``core.fields.json_schema``: a field declared once is in it, with its range); ``tables``:
+    the schema of each setting whose own code checks it (``$defs.scenario_tables``). ``python docs/hooks.py``
+    writes it into ``result.schema.json``, and a test keeps the two equal."""
+    from fleet_emu.core.fields import json_schema
+    from fleet_emu.core.scenario import scenario_settings
+
+    def table(specs: tuple[Setting, ...], given: dict[str, Any]) -> dict[str, Any]:
+        return {"type": "object", "additionalProperties": False, "required": [s.name for s in specs if not s.quiet],
+                "properties": {s.name: json_schema(s) or given[s.name] for s in specs}}
+    return table(scenario_settings(), {**tables, "radio": table(radio_settings(), {})})
 
 
 def result_schema() -> dict[str, Any]:

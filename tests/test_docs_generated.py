@@ -3,6 +3,7 @@ that they read on the repository as on the site, and are current: ``python docs/
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from types import ModuleType
 
@@ -38,3 +39,12 @@ def test_docstrings_render_as_markdown() -> None:
     assert "```text\nwaf: float = setting(3.1)\n```" in md and "literal``:\n" in md
     api = HOOKS.api_page()
     assert ":meth:" not in api and ":class:" not in api and "### `fleet_emu.Scenario`" in api
+
+
+def test_the_result_schema_s_scenario_is_written_from_the_declared_settings() -> None:
+    """``result.schema.json``'s ``$defs.scenario`` is the scenario's and the radio's settings as declared (a field
+    declared once is in it, with its range), and the file is current: ``python docs/hooks.py`` rewrites it."""
+    assert HOOKS.SCHEMA.read_text() == HOOKS.result_schema_text(), "run `python docs/hooks.py`"
+    scenario = json.loads(HOOKS.SCHEMA.read_text())["$defs"]["scenario"]
+    assert scenario["properties"]["robots"] == {"type": "integer", "minimum": 1, "maximum": 256}
+    assert scenario["properties"]["radio"]["properties"]["loss"] == {"type": "number", "minimum": 0.0, "maximum": 1.0}

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import dataclasses
 import time
 
+import msgspec
 import zenoh
 
 from fleet_emu.core.bus import Inbox, Publisher
@@ -161,7 +161,7 @@ class WorldNode(NodeShell):
         obs, state = tick_messages(self.world, readings, self.scenario.cell_size, self.next_seq, self.dropped)
         for r, o in obs.items():
             self.pub_obs[r].put(o.encode())
-        self.pub_state.put((dataclasses.replace(state, foreign=self.foreign) if self.foreign else state).encode())
+        self.pub_state.put((msgspec.structs.replace(state, foreign=self.foreign) if self.foreign else state).encode())
 
     async def _lockstep(self, inbox: Inbox, readings: dict[str, Reading]) -> None:
         """Tick when every live robot has answered, until the run is done (or the launcher stops it)."""

@@ -89,8 +89,7 @@ class Held:
     since: int
 
 
-@dataclasses.dataclass(frozen=True)
-class Assignment(Payload):
+class Assignment(Payload, kw_only=True, frozen=True):
     """A coordinator's assignment for round ``round``: each robot's target cell (broadcast)."""
 
     KIND = "assign"

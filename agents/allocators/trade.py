@@ -81,8 +81,7 @@ from fleet_emu.core.messages import RadioMsg, check_cell, check_robot_cells
 # --- the protocol's messages (section 4), sealed in radio envelopes by the brain -----------------------------
 
 
-@dataclasses.dataclass(frozen=True)
-class TradeNumber(Payload):
+class TradeNumber(Payload, kw_only=True, frozen=True):
     """Role allocation (Algorithm 1): a robot not in a task broadcasts its number every tick."""
 
     KIND = "trade_num"
@@ -93,8 +92,7 @@ class TradeNumber(Payload):
             raise DecodeError("trade_num: negative robot number")
 
 
-@dataclasses.dataclass(frozen=True)
-class TradePurchase(Payload):
+class TradePurchase(Payload, kw_only=True, frozen=True):
     """A buyer's purchase message ``pums_r = {r, m, c}`` (eq. 3) to the seller: ``r`` is the sender, ``m`` the
     task (a frontier cluster's target cell), ``c`` its wavefront cost (eq. 2)."""
 
@@ -108,8 +106,7 @@ class TradePurchase(Payload):
             raise DecodeError("trade_buy: cost out of range")
 
 
-@dataclasses.dataclass(frozen=True)
-class TradeAllocation(Payload):
+class TradeAllocation(Payload, kw_only=True, frozen=True):
     """A seller's task-allocation messages ``tams = {r, m}`` (eq. 4) of one round, as one broadcast: the sender
     is the seller, ``awards`` maps each robot allocated a task to that task's cell."""
 
@@ -120,8 +117,7 @@ class TradeAllocation(Payload):
         check_robot_cells(self.awards, ctx, "trade_alloc")
 
 
-@dataclasses.dataclass(frozen=True)
-class TradeDone(Payload):
+class TradeDone(Payload, kw_only=True, frozen=True):
     """A completed (or abandoned) task, broadcast so that teammates update their task lists (section 4.2)."""
 
     KIND = "trade_done"

@@ -12,7 +12,6 @@ memory engine (``tests/test_docs.py`` runs every example of the pages).
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
@@ -25,8 +24,7 @@ from fleet_emu.core.grid import Cell
 from fleet_emu.core.messages import RadioMsg, check_cell
 
 
-@dataclasses.dataclass(frozen=True)
-class Claim(Payload):
+class Claim(Payload, kw_only=True, frozen=True):
     """A robot's claim on a frontier: the target cell it heads for and its wavefront cost to it (cells).
 
     ``KIND`` names the payload on the radio: it must be unique among every payload kind (the brain's ``pose``,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import msgspec
 import numpy as np
 
 from fleet_emu.agents.base import BaseStation
@@ -67,12 +68,11 @@ def test_a_planner_hook_gets_the_station_after_the_merge() -> None:
 
 
 def test_relayed_copies_are_merged_once_under_their_origin_and_others_mail_is_ignored() -> None:
-    import dataclasses
     st = _station()
     cells, values = _cells((1, 1), (1, 2))
     delta = seal(RadioMsg(MapDelta(cells=cells, values=values), ttl=2), "r0", 3, 7)
     beacon = seal(RadioMsg(PoseBeacon(cell=(1, 2)), ttl=2), "r0", 3, 8)
-    via_r1 = [dataclasses.replace(e, src="r1", ttl=1) for e in (delta, beacon)]
+    via_r1 = [msgspec.structs.replace(e, src="r1", ttl=1) for e in (delta, beacon)]
     for_r1 = seal(RadioMsg(MapDelta(cells=cells, values=values), dst="r1", ttl=2), "r0", 3, 9)
     st.step(4, [*via_r1, delta, for_r1])  # the relay's copies first, then the direct ones (and r1's mail)
     assert st.merged == 1 and st.known_cells == 2

@@ -48,8 +48,8 @@ HANG = 180.0  # seconds a run may take before the trial calls it hung
 ORPHAN_GRACE = 5.0  # seconds the fleet's processes get to be gone after the launcher exited
 CRASH_SIGNS = ("Traceback", "Fatal Python error", "Segmentation fault", "core dumped", "corrupted",
                "Bus error", "panicked", "Aborted")
-VOLATILE = {"run_id", "pids", "recording", "decision_ms", "wall_seconds", "ticks_per_second", "agent_peak_rss_kb",
-            "malformed_dropped", "malformed_dropped_by", "authenticated"}
+VOLATILE = {"run_id", "pids", "recording", "decision_ms", "wall_seconds", "ticks_per_second", "robot_peak_rss_kb",
+            "agent_peak_rss_kb", "malformed_dropped", "malformed_dropped_by", "authenticated"}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -42,7 +42,7 @@ def all_pids(res: dict) -> list[int]:
     """Every process of the run: world, netem, the agents, and the fork server, the router and the base (when
     there were)."""
     more = [res["pids"][k] for k in ("fork_server", "router", "base") if k in res["pids"]]
-    return sorted({res["pids"]["world"], res["pids"]["netem"], *res["pids"]["agents"], *more})
+    return sorted({res["pids"]["world"], res["pids"]["netem"], *res["pids"]["robots"], *more})
 
 
 def nothing_left(pids: Sequence[int], timeout: float = 15) -> None:

@@ -1,6 +1,6 @@
 """Decoder test material: a team's decode context, well-formed payloads of each kind (:data:`SAMPLES`), their
 mutations (a field removed, added, of another type, out of range) and an equality of decode outcomes, shared by
-the codec's tests and the hearing's."""
+the codec's tests."""
 
 from __future__ import annotations
 
@@ -32,8 +32,8 @@ def equal(a: Any, b: Any) -> bool:
             and np.array_equal(a, b)
     if type(a) is not type(b):
         return False
-    if hasattr(a, "__dataclass_fields__"):
-        return all(equal(getattr(a, f), getattr(b, f)) for f in a.__dataclass_fields__)
+    if hasattr(a, "__struct_fields__"):
+        return all(equal(getattr(a, f), getattr(b, f)) for f in a.__struct_fields__)
     if isinstance(a, (tuple, list)):
         return len(a) == len(b) and all(equal(x, y) for x, y in zip(a, b, strict=True))
     if isinstance(a, dict):

@@ -49,7 +49,7 @@ def test_a_base_run_over_processes_gives_the_memory_engines_result(small_map: Pa
     assert deterministic(in_memory.data) == deterministic(over_zenoh.data) == deterministic(in_process.data)
     assert in_memory.curve == over_zenoh.curve
     pids = over_zenoh["pids"]
-    assert pids["base"] not in (pids["world"], pids["netem"], *pids["agents"])  # its own OS process
+    assert pids["base"] not in (pids["world"], pids["netem"], *pids["robots"])  # its own OS process
     assert not [p for p in all_pids(over_zenoh.data) if pid_alive(p)]
     assert (tmp_path / "p" / "base.log").exists()
     code, out, err = run_cli(["report", str(tmp_path / "p"), "--no-plots"])

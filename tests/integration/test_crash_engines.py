@@ -43,6 +43,6 @@ def test_a_crash_over_zenoh_is_the_memory_engines(tmp_path: Path, engine: str) -
     assert code == 0, err
     assert result["engine"] == engine and result["faults"] == [{"robot": "r1", "tick": 30, "kind": "crash"}]
     assert result["failed"] == ["r1"] and result["completed"]
-    assert "r1" not in result["agent_peak_rss_kb"]  # killed at tick 30 (left alone, it would report at the stop)
+    assert "r1" not in result["robot_peak_rss_kb"]  # killed at tick 30 (left alone, it would report at the stop)
     in_memory = Fleet(Scenario.load(file)).run()
     assert deterministic(in_memory.data) == deterministic(result)

@@ -11,11 +11,11 @@ for those only the presence and type are compared (a dict: its keys, and the typ
 from __future__ import annotations
 
 import collections
-import dataclasses
 import json
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import numpy as np
 from mcap.reader import make_reader
 
@@ -73,16 +73,17 @@ def test_the_comparison_sees_a_dropped_or_changed_field() -> None:
     report = dict(src="r0", tick=3, seq=9, decisions=3, decision_ms_mean=0.1, decision_ms_p95=0.2, dropped=0,
                   peak_rss_kb=1, stage_cpu_ms={"merge": 0.5}, first_cpu_ms={"step": 0.1})
     a = RobotReport(**report)
-    assert _compare_key("k", [a], [dataclasses.replace(a, decision_ms_mean=7.0, peak_rss_kb=2)]) == []
-    assert _compare_key("k", [a], [dataclasses.replace(a, stage_cpu_ms={})]) == [
+    assert _compare_key("k", [a], [msgspec.structs.replace(a, decision_ms_mean=7.0, peak_rss_kb=2)]) == []
+    assert _compare_key("k", [a], [msgspec.structs.replace(a, stage_cpu_ms={})]) == [
         "k tick 3 seq 9 report.stage_cpu_ms: {'merge': 0.5} vs {}"]
-    assert _compare_key("k", [a], [dataclasses.replace(a, decisions=2)]) == ["k tick 3 seq 9 report.decisions: 3 vs 2"]
-    assert _compare_key("k", [a], [dataclasses.replace(a, peak_rss_kb=1.0)]) == [
+    assert _compare_key("k", [a], [msgspec.structs.replace(a, decisions=2)]) == [
+        "k tick 3 seq 9 report.decisions: 3 vs 2"]
+    assert _compare_key("k", [a], [msgspec.structs.replace(a, peak_rss_kb=1.0)]) == [
         "k tick 3 seq 9 report.peak_rss_kb: 1 vs 1.0"]
     assert _compare_key("k", [a], []) == ["k: (tick, seq) only in processes [(3, 9)], only in memory []"]
     state = WorldState(src="world", tick=0, seq=1, poses={"r0": (1, 1)}, live=("r0",), coverage=0.5,
                        path_length={"r0": 0}, dropped=2)
-    assert _compare_key("s", [state], [dataclasses.replace(state, dropped=0)]) == [
+    assert _compare_key("s", [state], [msgspec.structs.replace(state, dropped=0)]) == [
         "s tick 0 seq 1 state.dropped: 2 vs 0"]
 
 
@@ -114,7 +115,7 @@ def _compare_key(key: str, procs: list[Message], mem: list[Message]) -> list[str
             diffs.append(f"{key} tick {tick} seq {seq}: {type(p).__name__} vs {type(m).__name__}")
             continue
         measured = MEASURED.get(p.KIND, frozenset())
-        for field in dataclasses.fields(p):
+        for field in msgspec.structs.fields(p):
             x, y = getattr(p, field.name), getattr(m, field.name)
             if not (_alike(x, y) if field.name in measured else _same(x, y)):
                 diffs.append(f"{key} tick {tick} seq {seq} {p.KIND}.{field.name}: {_show(x)} vs {_show(y)}")
@@ -124,7 +125,7 @@ def _compare_key(key: str, procs: list[Message], mem: list[Message]) -> list[str
 def _distinct(msgs: list[Message]) -> set[str]:
     """A handshake key's distinct messages, measured fields left out."""
     measured = MEASURED.get(msgs[0].KIND, frozenset()) if msgs else frozenset()
-    return {repr({f.name: getattr(m, f.name) for f in dataclasses.fields(m) if f.name not in measured})
+    return {repr({f.name: getattr(m, f.name) for f in msgspec.structs.fields(m) if f.name not in measured})
             for m in msgs}
 
 
@@ -133,8 +134,8 @@ def _same(a: Any, b: Any) -> bool:
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         return (isinstance(a, np.ndarray) and isinstance(b, np.ndarray) and a.dtype == b.dtype
                 and a.shape == b.shape and bool(np.array_equal(a, b)))
-    if dataclasses.is_dataclass(a):
-        return type(a) is type(b) and all(_same(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a))
+    if isinstance(a, msgspec.Struct):
+        return type(a) is type(b) and all(_same(getattr(a, f), getattr(b, f)) for f in a.__struct_fields__)
     if isinstance(a, tuple | list):
         return type(a) is type(b) and len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
     if isinstance(a, dict):

@@ -92,7 +92,7 @@ def test_robots_are_forked_each_in_its_own_session_and_sigint_tears_the_fleet_do
     assert "Traceback" not in err
     res = result(out)
     assert res["reason"] == "interrupted" and res["completed"] is False
-    assert res["pids"]["fork_server"] == server and sorted(res["pids"]["agents"]) == sorted(robots)
+    assert res["pids"]["fork_server"] == server and sorted(res["pids"]["robots"]) == sorted(robots)
     assert sorted(nodes) == sorted([res["pids"]["world"], res["pids"]["netem"]])
     with open(out / "run.mcap", "rb") as f:
         summary = make_reader(f).get_summary()

@@ -293,7 +293,7 @@ def test_a_host_on_another_machine_runs_its_robots_and_the_result_is_the_one_mac
         f"joined run {split['run_id']}: robots r1, r3 (logs in ") and said[-1].startswith(
         f"left run {split['run_id']} (exit codes: r1 "), host_err
     assert deterministic(split) == deterministic(_one_machine(small_map, tmp_path / "one"))
-    for pid in split["pids"]["agents"]:
+    for pid in split["pids"]["robots"]:
         assert not pid_alive(pid)
 
 

@@ -101,7 +101,7 @@ def venv(tmp_path_factory: pytest.TempPathFactory) -> Venv:
 
 
 def _one_process_per_robot(res: dict, robots: int) -> None:
-    agents = res["pids"]["agents"]
+    agents = res["pids"]["robots"]
     assert len(agents) == robots and all(isinstance(p, int) and p > 0 for p in agents)
     assert len({*agents, res["pids"]["world"], res["pids"]["netem"]}) == robots + 2
 

@@ -5,13 +5,13 @@ runs are made), and the schema refuses what breaks the contract."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import re
 import signal
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import pytest
 
 import fleet_emu as fe
@@ -27,7 +27,14 @@ from fleet_emu.launch.signals import Interrupts
 from fleet_emu.recording import recover as recording_recover
 from fleet_emu.recording.metrics import DEPRECATED_GROUPS
 from fleet_emu.recording.monitor import Monitor
-from fleet_emu.recording.result import build_result, metrics_schema, result_schema, validate_metrics, validate_result
+from fleet_emu.recording.result import (
+    RENAMED,
+    build_result,
+    metrics_schema,
+    result_schema,
+    validate_metrics,
+    validate_result,
+)
 
 
 def _scenario(**kw: Any) -> Scenario:
@@ -136,7 +143,7 @@ def test_a_report_from_a_robot_the_run_does_not_have_is_dropped() -> None:
     rep = RobotReport(src="r-1", tick=1, seq=1, decisions=1, decision_ms_mean=1.0, decision_ms_p95=1.0, dropped=0,
                       peak_rss_kb=1)
     assert mon.feed(keys.report("r-1"), rep.encode()) is None and mon.malformed == 1 and mon.reports == {}
-    assert mon.feed(keys.report("r1"), dataclasses.replace(rep, src="r1").encode()) is not None
+    assert mon.feed(keys.report("r1"), msgspec.structs.replace(rep, src="r1").encode()) is not None
     assert set(mon.reports) == {"r1"} and mon.dropped_by()["launcher"] == 1
 
 
@@ -160,7 +167,7 @@ def test_the_metrics_schema_marks_the_former_groups_deprecated_and_refuses_a_bro
     ``result.json`` requires is refused."""
     schema = metrics_schema()
     deprecated = {k for k, v in schema["properties"].items() if v.get("deprecated")}
-    assert deprecated == set(DEPRECATED_GROUPS)
+    assert deprecated == set(DEPRECATED_GROUPS) | {old for old in RENAMED if "." not in old}  # and renamed keys
     for group, names in DEPRECATED_GROUPS.items():
         said = schema["properties"][group]["description"]
         assert all(new.split(".")[0] in said for new in names.values()), group
@@ -169,3 +176,13 @@ def test_the_metrics_schema_marks_the_former_groups_deprecated_and_refuses_a_bro
     with pytest.raises(ValueError, match=re.escape("\n  radio: 'delivered' is a required property")):
         validate_metrics({"radio": {"sent": 1}})
 
+
+def test_a_renamed_key_is_written_under_its_old_name_too_and_the_schema_marks_it(memory_run: dict[str, Any]) -> None:
+    """``robot_peak_rss_kb`` and ``pids.robots`` were ``agent_peak_rss_kb`` and ``pids.agents``: a reader of the
+    old names keeps working for one release, and the schema says which are deprecated."""
+    assert memory_run["agent_peak_rss_kb"] == memory_run["robot_peak_rss_kb"] and memory_run["robot_peak_rss_kb"]
+    assert memory_run["pids"]["agents"] == memory_run["pids"]["robots"] and memory_run["pids"]["robots"]
+    props = result_schema()["properties"]
+    for old in RENAMED:
+        outer, _, inner = old.partition(".")
+        assert (props[outer]["properties"][inner] if inner else props[outer]).get("deprecated") is True, old

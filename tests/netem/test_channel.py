@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import subprocess
 import sys
 from pathlib import Path
 
+import msgspec
 import numpy as np
 import pytest
 
@@ -130,7 +130,7 @@ def test_a_radio_tick_publishes_the_links_then_each_endpoint_s_rx_bundle() -> No
     assert [(b.dst, b.seq, b.tick, [m.src for m in b.msgs]) for b in tick.rx] == \
         [("r0", 2, 1, []), ("r2", 3, 1, ["r0"]), ("base", 4, 1, ["r0"])]
     over = radio_tick(ch, occupied, ROBOTS, None, 0.5, RadioConfig(comm="full"),
-                      dataclasses.replace(state, tick=2, done=True), lambda: next(counter), 0)
+                      msgspec.structs.replace(state, tick=2, done=True), lambda: next(counter), 0)
     assert over.rx == () and over.nodes == ("r0", "r2") and over.links.seq == 5
 
 

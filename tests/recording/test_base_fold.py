@@ -3,6 +3,7 @@ every engine, and recomputed from a recording by ``fleet report``."""
 
 from __future__ import annotations
 
+import msgspec
 import numpy as np
 import pytest
 
@@ -68,7 +69,7 @@ def test_a_run_without_a_base_has_no_base_keys_and_links_without_base_fields() -
 def test_links_whose_base_fields_do_not_match_the_robots_do_not_decode() -> None:
     lk = _links(0, ROBOTS, [("r0", "base")])
     assert decode(lk.encode(), expected=Links).base_link.tolist() == [True, False, False]  # type: ignore[union-attr]
-    bad = Links(**{**lk.__dict__, "base_link": np.zeros(2, dtype=bool)})
+    bad = msgspec.structs.replace(lk, **{"base_link": np.zeros(2, dtype=bool)})
     with pytest.raises(DecodeError, match="base_link"):
         decode(bad.encode())
     m = Monitor(ROBOTS, base=True)

@@ -9,12 +9,13 @@ from pathlib import Path
 from typing import Any
 
 import jsonschema
+import msgspec
 import numpy as np
 import pytest
 from mcap.reader import make_reader
 
 from fleet_emu.core.grid import from_ascii
-from fleet_emu.core.messages import BeliefSnapshot, Links, Stop
+from fleet_emu.core.messages import BeliefSnapshot, Stop
 from fleet_emu.recording.clock import RunClock
 from fleet_emu.recording.foxglove import (
     LAG,
@@ -221,7 +222,7 @@ def test_the_base_station_is_drawn_at_its_cell_with_its_links() -> None:
     fold = FoxgloveFold(scenario(), truth, grid_every=2, run_id="t", base_cell=(3, 1))
     poses = {"r0": (1, 1), "r1": (3, 5)}
     lk = links(0, ("r0", "r1"), False)
-    lk = Links(**{**lk.__dict__, "base_link": np.array([True, False]),
+    lk = msgspec.structs.replace(lk, **{"base_link": np.array([True, False]),
                   "base_strength": np.array([8.0, -3.0], np.float32)})
     out = fold.fold(state(0, poses, ("r0", "r1"), 0.3)) + fold.fold(lk)
     out += fold.fold(state(1, poses, ("r0", "r1"), 0.3)) + fold.finish()

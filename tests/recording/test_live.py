@@ -14,6 +14,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import pytest
 from mcap.writer import Writer
 
@@ -212,7 +213,7 @@ def test_every_fold_message_becomes_the_sdks_typed_message() -> None:
     import numpy as np
 
     from fleet_emu.core.grid import from_ascii
-    from fleet_emu.core.messages import BeliefSnapshot, Links, Stop
+    from fleet_emu.core.messages import BeliefSnapshot, Stop
     from fleet_emu.recording.clock import RunClock
     from fleet_emu.recording.foxglove import FoxgloveFold
     from fleet_emu.recording.live import LiveServer, parse_live
@@ -222,7 +223,7 @@ def test_every_fold_message_becomes_the_sdks_typed_message() -> None:
     fold = FoxgloveFold(scenario(), truth, grid_every=1, run_id="t", base_cell=(3, 1))
     poses = {"r0": (1, 1), "r1": (3, 5)}
     lk = links(0, ("r0", "r1"), True)
-    lk = Links(**{**lk.__dict__, "base_link": np.array([True, False]), "base_strength": np.array([8.0, -3.0])})
+    lk = msgspec.structs.replace(lk, **{"base_link": np.array([True, False]), "base_strength": np.array([8.0, -3.0])})
     out = fold.fold(obs("r0", 0, (1, 1), [8, 9], truth)) + fold.fold(state(0, poses, ("r0", "r1"), 0.3))
     out += fold.fold(lk) + fold.fold(cmd("r0", 0, (1, 5)))
     out += fold.fold(BeliefSnapshot(src="r0", tick=0, seq=0, grid=truth.copy()))

@@ -36,7 +36,7 @@ def test_a_real_run_reads_back_as_its_result(small_run: Path, capsys: pytest.Cap
     assert set(run.result) == set(live) - set(NOT_RECORDED)  # the launcher's clock and signals are not on the bus
     for key, value in live.items():
         if key == "pids":  # the world sends no Ready; netem and every agent do
-            assert run.result[key]["agents"] == value["agents"] and run.result[key]["netem"] == value["netem"]
+            assert run.result[key]["robots"] == value["robots"] and run.result[key]["netem"] == value["netem"]
         elif key not in NOT_RECORDED:
             assert run.result[key] == value, key
     for k, v in run.result.items():  # metrics.json says every key of the result alike; its groups add to radio's

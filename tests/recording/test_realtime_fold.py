@@ -3,7 +3,7 @@ summaries (and so recomputed from a recording); a lockstep run, which publishes 
 
 from __future__ import annotations
 
-import dataclasses
+import msgspec
 
 from fleet_emu.core.keys import Keys
 from fleet_emu.core.messages import Command, RobotTiming, WorldClock, WorldState
@@ -69,7 +69,7 @@ def test_a_spoofed_clock_is_never_folded() -> None:
 def test_the_wall_seconds_to_90_and_99_percent_come_from_the_clock_of_that_tick() -> None:
     m = Monitor(ROBOTS)
     for tick, cov in ((3, 0.5), (4, 0.95), (5, 0.97), (6, 0.995)):
-        m.feed(K.state, dataclasses.replace(_state(tick), coverage=cov).encode())
+        m.feed(K.state, msgspec.structs.replace(_state(tick), coverage=cov).encode())
         # the world ran slower than asked: tick k at 0.25 k s, not 0.1 k s
         m.feed(K.clock, WorldClock(src="world", tick=tick, seq=tick, hz=10.0, elapsed=0.25 * tick, overruns=tick,
                                     late={}, late_steps={}, missed={}).encode())

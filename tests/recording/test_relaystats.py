@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 from collections import Counter
+
+import msgspec
 
 from fleet_emu.core.messages import Envelope, RxBundle, TxBundle
 from fleet_emu.recording.relaystats import RelayStats, relay_line
@@ -18,9 +19,9 @@ def env(origin: str, seq: int, dst: str, ttl: int, src: str | None = None, kind:
 # r0 - r1 - r2: r0's broadcast (ttl 1) reaches r1 at tick 3 and, relayed by r1, r2 at tick 4; r0 hears r1's
 # copy back (an echo, not a delivery); r0's message for r2 (ttl 1) is overheard by r1 and relayed, but lost.
 B = env("r0", 1, "*", 1)
-B1 = dataclasses.replace(B, src="r1", ttl=0)
+B1 = msgspec.structs.replace(B, src="r1", ttl=0)
 A = env("r0", 2, "r2", 1, kind="map")
-A1 = dataclasses.replace(A, src="r1", ttl=0)
+A1 = msgspec.structs.replace(A, src="r1", ttl=0)
 SAMPLES = [
     TxBundle(src="r0", tick=2, seq=1, msgs=(B, A)),
     TxBundle(src="r1", tick=3, seq=1, msgs=(B1, A1)),
@@ -54,7 +55,7 @@ def test_the_fold_does_not_depend_on_arrival_order() -> None:
 
 
 def test_a_duplicate_arrival_counts_once_with_its_first_tick() -> None:
-    late = RxBundle(src="netem", tick=6, seq=4, dst="r2", msgs=(dataclasses.replace(B, src="r1", ttl=0),))
+    late = RxBundle(src="netem", tick=6, seq=4, dst="r2", msgs=(msgspec.structs.replace(B, src="r1", ttl=0),))
     assert fold((*SAMPLES, late))["pose"] == fold(tuple(SAMPLES))["pose"]
 
 
@@ -67,11 +68,11 @@ def long_run(horizon: int, ticks: int = 300) -> tuple[RelayStats, dict]:
         b = Envelope(src="r0", tick=t, seq=t, origin="r0", dst="*", ttl=1, payload_kind="pose", payload=b"x")
         st.fold_tx(TxBundle(src="r0", tick=t, seq=t, msgs=(b,)))
         if t >= 1:
-            prev = dataclasses.replace(b, tick=t - 1, seq=t - 1)
+            prev = msgspec.structs.replace(b, tick=t - 1, seq=t - 1)
             st.fold_rx(RxBundle(src="netem", tick=t, seq=2 * t, dst="r1", msgs=(prev,)))
-            st.fold_tx(TxBundle(src="r1", tick=t, seq=t, msgs=(dataclasses.replace(prev, src="r1", ttl=0),)))
+            st.fold_tx(TxBundle(src="r1", tick=t, seq=t, msgs=(msgspec.structs.replace(prev, src="r1", ttl=0),)))
         if t >= 2 and (t - 2) % 5:
-            two = dataclasses.replace(b, src="r1", tick=t - 2, seq=t - 2, ttl=0)
+            two = msgspec.structs.replace(b, src="r1", tick=t - 2, seq=t - 2, ttl=0)
             st.fold_rx(RxBundle(src="netem", tick=t, seq=2 * t + 1, dst="r2", msgs=(two,)))
         peak = max(peak, len(st.made) + len(st.arrivals))
     return st, {"peak": peak, "result": st.result()}

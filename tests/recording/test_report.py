@@ -128,7 +128,7 @@ def test_metrics_fold_on_hand_made_messages() -> None:
     assert rd["per_robot"]["r1"]["msgs_received"] == 1
     dt = r["decision_ms"]
     assert dt["calls"] == 3 and dt["mean"] == 2.0 and dt["per_robot_mean"] == {"r0": 2.0, "r1": 2.0}
-    assert r["pids"]["agents"] == [11, None] and r["undecodable"] == 1
+    assert r["pids"]["robots"] == [11, None] and r["undecodable"] == 1
     assert r["recording"] == {"path": "x.mcap", "messages": 17}
     # the first layout's groups, written beside for one release: each old key reads its quantity's one name
     assert r["exploration_time"] == {"t90": 1, "t99": None, "t100": None}
@@ -162,7 +162,7 @@ def test_report_metrics_equal_result_json(small_run: Path, reported) -> None:
         if key in NOT_RECORDED:  # the launcher's clock and signals: not on the bus
             assert key not in metrics
         elif key == "pids":  # the world sends no Ready; netem and every agent do
-            assert metrics[key]["agents"] == value["agents"] and metrics[key]["netem"] == value["netem"]
+            assert metrics[key]["robots"] == value["robots"] and metrics[key]["netem"] == value["netem"]
         elif key in ("radio", "decision_ms"):  # one name for a quantity: the report's groups add to the run's
             assert {k: metrics[key][k] for k in value} == value, key
         else:

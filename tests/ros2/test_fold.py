@@ -3,6 +3,7 @@ paths and coverage every ``grid_every`` ticks, the radio links coloured by stren
 
 from __future__ import annotations
 
+import msgspec
 import numpy as np
 import pytest
 
@@ -71,5 +72,5 @@ def test_links_are_coloured_by_strength() -> None:
     (marker,) = o.msg.markers
     assert marker.type == 5 and len(marker.points) == 2 and marker.header.frame_id == "map"
     assert marker.colors[0].g == pytest.approx(0.5) and marker.colors[0].r == pytest.approx(0.5)  # 10 dB above
-    lk2 = Links(**{**lk.__dict__, "link": np.zeros((2, 2), dtype=bool)})
+    lk2 = msgspec.structs.replace(lk, **{"link": np.zeros((2, 2), dtype=bool)})
     assert fold.fold(lk2)[0].msg.markers[0].points == []

@@ -20,8 +20,6 @@ every role against :data:`ROLES`, so a malformed order is counted and dropped by
 
 from __future__ import annotations
 
-import dataclasses
-
 from fleet_emu.core.codec import Context, Payload
 from fleet_emu.core.errors import DecodeError
 from fleet_emu.core.grid import Cell
@@ -37,8 +35,7 @@ def _check_robot(robot: str, ctx: Context | None, what: str) -> None:
         raise DecodeError(f"mhm: {what} names {robot!r}, not a robot of the team")
 
 
-@dataclasses.dataclass(frozen=True)
-class MhmOrders(Payload):
+class MhmOrders(Payload, kw_only=True, frozen=True):
     """The base's orders of ``plan_tick`` (module docstring)."""
 
     KIND = "mhm"
@@ -73,8 +70,7 @@ class MhmOrders(Payload):
             check_cell(cell, shape, "mhm")
 
 
-@dataclasses.dataclass(frozen=True)
-class MhmAck(Payload):
+class MhmAck(Payload, kw_only=True, frozen=True):
     """A robot's answer to the base: it follows the orders of ``plan_tick``, and stands on ``cell``."""
 
     KIND = "mhm_ack"

@@ -4,8 +4,7 @@ routes to its relay. Grids are ASCII art: ``B`` is where the base station stands
 
 from __future__ import annotations
 
-import dataclasses
-
+import msgspec
 import numpy as np
 import pytest
 
@@ -207,7 +206,7 @@ def test_orders_round_trip_and_bad_ones_do_not_decode(change: dict) -> None:
     good = _orders()
     env = seal(RadioMsg(good), "base", 3, 1)
     assert open_envelope(env, ctx).body == good
-    bad = dataclasses.replace(good, **change)
+    bad = msgspec.structs.replace(good, **change)
     with pytest.raises(DecodeError, match="mhm"):
         open_envelope(seal(RadioMsg(bad), "base", 3, 2), ctx)
 
