@@ -24,7 +24,8 @@ Heard = tuple[Envelope, Payload]
 def hear(inbox: Sequence[Envelope], ctx: Context, on_drop: Callable[[str, str], None] | None = None,
          shared: bool = False) -> list[Heard]:
     """The messages of ``inbox`` that validate against ``ctx``, each with its payload, in the order they came;
-    each that does not is reported to ``on_drop`` (its key, why) and left out. With ``shared`` (the memory
+    each that does not is reported to ``on_drop`` (its key, why; a bad header first, then bad payloads in the order
+    they came) and left out. With ``shared`` (the memory
     engine, whose receivers of a broadcast hear one envelope object), each payload decoded is kept on its
     envelope for the next receiver of the same team and grid, and one kept is used."""
     senders = ctx.senders
@@ -33,7 +34,8 @@ def hear(inbox: Sequence[Envelope], ctx: Context, on_drop: Callable[[str, str], 
         kept = [e for e in kept if _valid(e, ctx, on_drop)]
     kinds = list(map(_kind, kept))
     bodies: list[Payload | None] = [_kept(e, ctx) for e in kept] if shared else [None] * len(kept)
-    for kind in set(kinds):
+    failed: list[tuple[int, DecodeError]] = []
+    for kind in dict.fromkeys(kinds):
         places = [i for i, k in enumerate(kinds) if k == kind and bodies[i] is None]
         if not places:
             continue
@@ -46,7 +48,9 @@ def hear(inbox: Sequence[Envelope], ctx: Context, on_drop: Callable[[str, str], 
             try:
                 bodies[i] = open_envelope(kept[i], ctx).body
             except DecodeError as exc:
-                _drop(on_drop, kept[i], exc)
+                failed.append((i, exc))
+    for i, exc in sorted(failed, key=lambda f: f[0]):  # reported in the order they came
+        _drop(on_drop, kept[i], exc)
     if shared:
         for env, body in zip(kept, bodies, strict=True):
             env.__dict__[_KEPT] = (ctx, body)

@@ -1,17 +1,13 @@
-"""Every message declared once, as a :class:`msgspec.Struct`, and its codec derived from that declaration.
+"""Every message declared once, as a frozen :class:`msgspec.Struct`, and its codec derived from the declaration.
 
-A message type is a frozen struct with a ``KIND``: a :class:`Message` on the bus (``kind``, ``v`` the schema
-version, ``src``, ``tick``, ``seq``, then its own fields) or a :class:`Payload` carried inside a radio envelope
-(its fields only: the kind travels in the envelope). Its fields and their types are its wire format
-(``docs/reference/protocol.md``): msgspec encodes a record as a msgpack map of its fields in their order and
-decodes and type-checks one in a single pass in C, unknown keys refused; a record's :meth:`Record.validate` adds
-what needs several fields or the receiver's :class:`Context`. ``np.ndarray`` fields travel packed (dtype, shape,
-bytes) and decode as read-only views of the message's bytes. A payload declared with ``omit_defaults=True``
-leaves out the fields still at their defaults (so that one without an optional field keeps the bytes it had
-before the field existed). Every record class is declared ``kw_only=True`` (its fields follow its base's, in the
-order written). Decoding only ever raises :class:`DecodeError`.
+A :class:`Message` (on the bus: ``kind``, ``v`` the schema version, ``src``, ``tick``, ``seq``, then its own fields)
+or a :class:`Payload` (inside a radio envelope: its fields only) is encoded by msgspec as a msgpack map of its
+fields in their order, and decoded and type-checked in one pass in C, unknown keys refused, ranges as declared on
+the fields; :meth:`Record.validate` adds what needs several fields or the receiver's :class:`Context`. Arrays
+travel packed (dtype, shape, bytes) and decode as read-only views. Each class is declared ``kw_only=True`` (its
+fields after its base's); ``omit_defaults=True`` leaves fields at their defaults out of its bytes. Decoding only
+ever raises :class:`DecodeError` (``docs/reference/protocol.md``).
 """
-
 from __future__ import annotations
 
 import dataclasses
@@ -77,8 +73,8 @@ class Record(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tr
 
 
 def _tag(name: str) -> str:
-    """A message class's kind (msgspec asks once per class, after :meth:`Record.__init_subclass__`)."""
-    return _TAGS.get(name, f"\0{name}")  # an abstract one: a tag no map carries
+    """A message class's kind, msgspec's tag (an abstract class's is one no map carries)."""
+    return _TAGS.get(name, f"\0{name}")
 
 
 class Message(Record, tag_field="kind", tag=_tag, kw_only=True, frozen=True):
