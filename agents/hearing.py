@@ -49,8 +49,8 @@ def hear(inbox: Sequence[Envelope], ctx: Context, on_drop: Callable[[str, str], 
                 bodies[i] = open_envelope(kept[i], ctx).body
             except DecodeError as exc:
                 failed.append((i, exc))
-    for i, exc in sorted(failed, key=lambda f: f[0]):  # reported in the order they came
-        _drop(on_drop, kept[i], exc)
+    for i, why in sorted(failed, key=lambda f: f[0]):  # reported in the order they came
+        _drop(on_drop, kept[i], why)
     if shared:
         for env, body in zip(kept, bodies, strict=True):
             env.__dict__[_KEPT] = (ctx, body)
