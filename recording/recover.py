@@ -21,7 +21,7 @@ from mcap.writer import CompressionType, Writer
 
 from fleet_emu.core.errors import ReportError
 from fleet_emu.core.files import write_atomic
-from fleet_emu.recording.read import MAGIC, Run
+from fleet_emu.recording.read import Run, open_mcap
 from fleet_emu.recording.recorder import CHUNK_SIZE
 from fleet_emu.recording.result import Ending, Launcher, build_result
 
@@ -45,10 +45,7 @@ def is_whole(path: Path) -> bool:
 def rewrite(src: Path, dst: Path) -> Rewritten:
     """Every complete record of the cut MCAP ``src`` written again, indexed, into ``dst`` (atomically);
     ReportError when ``src`` is not an MCAP file or holds nothing."""
-    with open(src, "rb") as f:
-        if f.read(len(MAGIC)) != MAGIC:
-            raise ReportError(f"{src} is not an MCAP file")
-        f.seek(0)
+    with open_mcap(src) as f:
         carried: list[Rewritten] = []
         try:
             write_atomic(dst, lambda tmp: carried.append(_copy(f, src.stat().st_size, tmp)))
@@ -105,7 +102,7 @@ def readable(path: Path) -> tuple[int, int, int]:
     """How much of the MCAP file ``path`` reads front to back: its messages, the bytes up to its last complete
     record, and its size."""
     messages = read = 0
-    with open(path, "rb") as f:
+    with open_mcap(path) as f:
         for rec in _records(f, path.stat().st_size):
             messages += isinstance(rec, McapMessage)
             read = f.tell()
@@ -127,7 +124,7 @@ def crashed_result(run: Run, wall_seconds: float) -> dict[str, Any]:
 def wall_span(path: Path) -> float:
     """Seconds between the first and the last message's publish time (the wall clock) in the recording."""
     first, last = None, 0
-    with open(path, "rb") as f:
+    with open_mcap(path) as f:
         for rec in _records(f, path.stat().st_size):
             if isinstance(rec, McapMessage):
                 first = rec.publish_time if first is None else min(first, rec.publish_time)
