@@ -135,6 +135,9 @@ def test_fleet_allocators_lists_plugins_and_broken_ones(install: Install) -> Non
      "'range', which is not a parameter"),
     (LARGEST.replace("Param(0.0, ge=0)", "Param(-1.0, ge=0)").format(registration=""), "Largest",
      "default of weight must be >= 0"),
+    ("import dataclasses\nfrom fleet_emu.core.codec import Payload\n\n@dataclasses.dataclass(frozen=True)\n"
+     "class Bid(Payload):\n    KIND = 'bid-old'\n    cost: int\n" + LARGEST.format(registration=""), "Largest",
+     r"declared `class Bid\(Payload, kw_only=True, frozen=True\)`, not with @dataclasses.dataclass"),
 ])
 def test_a_plugin_that_does_not_fit_is_a_config_error(source: str, target: str, match: str,
                                                       install: Install) -> None:
