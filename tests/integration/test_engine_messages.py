@@ -1,6 +1,6 @@
-"""Both engines publish the same messages (DESIGN.md "Engines"): one run over Zenoh and the memory engine's run
-of the same scenario, both recorded, every message of ``run.mcap`` decoded and compared field by field, for every
-kind, and the Foxglove channels derived from them too.
+"""Both engines publish the same messages (docs/design/architecture.md, "Engines"): one run over Zenoh and the memory
+engine's run of the same scenario, both recorded, every message of ``run.mcap`` decoded and compared field by field,
+for every kind, and the Foxglove channels derived from them too.
 
 The scenario is small but has every kind the lockstep sends: a planning base station (``mhm``: the base's
 tx bundles and its report), relaying and loss (envelopes in the rx bundles), belief snapshots, the start

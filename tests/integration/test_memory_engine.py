@@ -1,8 +1,8 @@
-"""The memory engine gives the multi-process fleet's result (DESIGN.md "Engines": all engines agree for a seed):
-the deterministic keys of ``result.json`` are equal. Over processes once per transport concern (here the radio at
-its hardest: a protocol allocator, whose auction crosses the bus each round, at loss, on a bandwidth-limited
-shared medium with queues and jitter, on a short disk radio that robots flood-relay over; a plain fleet at loss in
-``test_fleet_run.py``, a base in ``test_base.py``, a planning base relaying over its tree in
+"""The memory engine gives the multi-process fleet's result (docs/design/architecture.md, "Engines": every engine gives
+the same result for a seed): the deterministic keys of ``result.json`` are equal. Over processes once per transport
+concern (here the radio at its hardest: a protocol allocator, whose auction crosses the bus each round, at loss, on a
+bandwidth-limited shared medium with queues and jitter, on a short disk radio that robots flood-relay over; a plain
+fleet at loss in ``test_fleet_run.py``, a base in ``test_base.py``, a planning base relaying over its tree in
 ``test_engine_messages.py``), and for every allocator across interpreters, as a robot's own process would show:
 another hash seed (state that one fleet leaves behind for the next is ``seed_test``'s, in
 ``tests/launch/test_memory.py``)."""
