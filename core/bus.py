@@ -16,6 +16,7 @@ from typing import Any
 import zenoh
 
 from fleet_emu.core.access import Credential
+from fleet_emu.core.errors import ConfigError
 
 # Zenoh's default lease. A killed process is still noticed at once (its TCP link closes); a frozen one is caught by
 # the barrier timeout. A 1 s lease expired under load here (load average 8 on 2 cores) and failed healthy robots.
@@ -77,6 +78,25 @@ def client_config(endpoint: str, credential: Credential | None = None) -> zenoh.
         if credential.tls_ca is not None:
             conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(credential.tls_ca))
     return conf
+
+
+def open_client(endpoint: str, credential: Credential | None, timeout_s: float, *, example: str, refused: str = "",
+                hint: str = "") -> zenoh.Session:
+    """A client session to the router at ``endpoint`` (``--connect``) that stops trying after ``timeout_s``; a
+    ConfigError of one line when ``endpoint`` is not a Zenoh endpoint (``example``: one that is) or no router
+    answered in time (the line adds ``refused`` and then ``hint``: what the credentials may have to do with it)."""
+    try:
+        conf = client_config(endpoint, credential)
+        ms = int(timeout_s * 1000)
+        conf.insert_json5("connect/timeout_ms", f'{{"router": -1, "peer": -1, "client": {ms}}}')
+    except zenoh.ZError:
+        raise ConfigError(f"--connect {endpoint!r} is not a Zenoh endpoint (expected <protocol>/<address>, "
+                          f"e.g. {example})") from None
+    try:
+        return zenoh.open(conf)
+    except zenoh.ZError:
+        raise ConfigError(f"--connect {endpoint}: no Zenoh router answered{refused} (gave up after "
+                          f"{timeout_s:g} s){hint}") from None
 
 
 def router_locators(session: zenoh.Session) -> list[str]:

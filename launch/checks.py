@@ -11,13 +11,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import zenoh
-
 from fleet_emu.agents.allocators import make_allocator
 from fleet_emu.agents.allocators.policy import pin_policy
 from fleet_emu.agents.brain import allocator_config
 from fleet_emu.core.access import LAUNCHER, Credential, fleet_nodes, make_credentials, read_users
-from fleet_emu.core.bus import client_config, shm_enabled
+from fleet_emu.core.bus import open_client, shm_enabled
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.grid import MapData
 from fleet_emu.core.keys import RUN_ID, robot_ids
@@ -134,20 +132,9 @@ def check_options(opts: RunOptions, creds: dict[str, Credential] | None = None, 
         raise ConfigError(f"{option('tls_ca')} {opts.tls_ca}: no such file")
     if opts.connect is None:
         return
-    try:
-        conf = client_config(opts.connect, creds[LAUNCHER] if creds else None)
-        timeout_ms = int(CONNECT_TIMEOUT * 1000)
-        conf.insert_json5("connect/timeout_ms", f'{{"router": -1, "peer": -1, "client": {timeout_ms}}}')
-    except zenoh.ZError:
-        raise ConfigError(f"--connect {opts.connect!r} is not a Zenoh endpoint (expected <protocol>/<address>, "
-                          f"e.g. tcp/127.0.0.1:7447)") from None
-    try:
-        session = zenoh.open(conf)
-    except zenoh.ZError:
-        refused = " or it refused the credentials" if creds else ""
-        hint = "" if creds else "; a router with authentication needs --credentials"
-        raise ConfigError(f"--connect {opts.connect}: no Zenoh router answered{refused} (gave up after "
-                          f"{CONNECT_TIMEOUT:g} s){hint}") from None
+    session = open_client(opts.connect, creds[LAUNCHER] if creds else None, CONNECT_TIMEOUT,
+                          example="tcp/127.0.0.1:7447", refused=" or it refused the credentials" if creds else "",
+                          hint="" if creds else "; a router with authentication needs --credentials")
     with contextlib.closing(session):
         check_run_id_free(session, opts.run_id, opts.connect)
 

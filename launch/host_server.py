@@ -30,7 +30,7 @@ from pathlib import Path
 import zenoh
 
 from fleet_emu.core.access import Credential, read_users, role_of
-from fleet_emu.core.bus import client_config, publisher
+from fleet_emu.core.bus import open_client, publisher
 from fleet_emu.core.codec import DecodeError, decode
 from fleet_emu.core.errors import ConfigError
 from fleet_emu.core.files import write_atomic
@@ -221,20 +221,9 @@ def cmd_host(args: argparse.Namespace, interrupts: Interrupts) -> int:
     if cred is None:
         print("fleet: warning: fleet host without --credentials: only an unauthenticated router lets it in",
               file=sys.stderr)
-    try:
-        conf = client_config(args.connect, cred)
-        ms = int(args.connect_timeout * 1000)
-        conf.insert_json5("connect/timeout_ms", f'{{"router": -1, "peer": -1, "client": {ms}}}')
-    except zenoh.ZError:
-        raise ConfigError(f"--connect {args.connect!r} is not a Zenoh endpoint (expected <protocol>/<address>, "
-                          f"e.g. tcp/192.0.2.1:7447)") from None
-    try:
-        session = zenoh.open(conf)
-    except zenoh.ZError:
-        refused = f" or it refused {name}'s credentials" if cred else "; a router with authentication needs " \
-                                                                      "--credentials"
-        raise ConfigError(f"--connect {args.connect}: no Zenoh router answered{refused} (gave up after "
-                          f"{args.connect_timeout:g} s)") from None
+    session = open_client(args.connect, cred, args.connect_timeout, example="tcp/192.0.2.1:7447",
+                          refused=f" or it refused {name}'s credentials" if cred
+                          else "; a router with authentication needs --credentials")
     out = args.out if args.out is not None else Path("runs")
     with session:
         host = Host(session, name, args.connect, cred.tls_ca if cred else None, out, args.fork_server, interrupts)
