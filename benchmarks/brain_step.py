@@ -57,6 +57,9 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
     collect_less()  # and with an agent process's collector threshold (core/malloc_tuning.py)
     fleet = Fleet(scale.scenario_for(m, robots, a))
     fleet.reset()
+    if not a.shared:
+        for brain in fleet.brains.values():
+            brain.shared_inbox = False  # each decodes its own copy (of its rx bundle's envelopes), as over Zenoh
     for _ in range(a.skip):  # tick 0 at least: the kernels warm_up leaves out (the allocator's) load then
         if not fleet.done:
             fleet.step()
@@ -73,7 +76,6 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
             rx_cpu += time.thread_time() - c
             if not a.shared:  # each robot hears its own copy, as over Zenoh (shared: one decode of a broadcast)
                 fleet.rx[r] = bundle.msgs
-                fleet.brains[r].shared_inbox = False
         robot_ticks += len(fleet.agents)
         fleet.step()
     if not robot_ticks:
