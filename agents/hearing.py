@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 from typing import cast
 
 from fleet_emu.core.codec import Context, Payload, decode_many
-from fleet_emu.core.envelope import Envelope, open_envelope
+from fleet_emu.core.envelope import Envelope, keep_opened, open_envelope, opened
 from fleet_emu.core.errors import DecodeError
 
 #: One message heard: its envelope and its decoded payload.
@@ -27,7 +27,7 @@ def hear(inbox: Sequence[Envelope], ctx: Context, on_drop: Callable[[str, str], 
     each that does not is reported to ``on_drop`` (its key, why; a bad header first, then bad payloads in the order
     they came) and left out. With ``shared`` (the memory
     engine, whose receivers of a broadcast hear one envelope object), each payload decoded is kept on its
-    envelope for the next receiver of the same team and grid, and one kept is used."""
+    envelope as :func:`~fleet_emu.core.envelope.open_envelope` keeps it, and one kept is used."""
     senders = ctx.senders
     kept = list(inbox)
     if senders is None or not senders.issuperset(map(_src, kept)) or not senders.issuperset(map(_origin, kept)):
@@ -43,6 +43,8 @@ def hear(inbox: Sequence[Envelope], ctx: Context, on_drop: Callable[[str, str], 
         if batch is not None:
             for i, decoded in zip(places, batch, strict=True):
                 bodies[i] = decoded
+                if shared:  # kept as open_envelope, the one-by-one way below, keeps what it opens
+                    keep_opened(kept[i], ctx, decoded)
             continue
         for i in places:  # one by one (compact ones expanded): each that does not decode is dropped and counted
             try:
@@ -51,24 +53,18 @@ def hear(inbox: Sequence[Envelope], ctx: Context, on_drop: Callable[[str, str], 
                 failed.append((i, exc))
     for i, why in sorted(failed, key=lambda f: f[0]):  # reported in the order they came
         _drop(on_drop, kept[i], why)
-    if shared:
-        for env, body in zip(kept, bodies, strict=True):
-            env.__dict__[_KEPT] = (ctx, body)
     if None not in bodies:
         return list(zip(kept, cast(list[Payload], bodies), strict=True))
     return [(env, body) for env, body in zip(kept, bodies, strict=True) if body is not None]
 
 
 _src, _origin, _kind = (operator.attrgetter(name) for name in ("src", "origin", "payload_kind"))
-_KEPT = "_heard"
 
 
 def _kept(env: Envelope, ctx: Context) -> Payload | None:
-    """The payload :func:`hear` kept on ``env`` for a context of the same team and grid as ``ctx``, or None."""
-    kept = env.__dict__.get(_KEPT)
-    if kept is not None and (kept[0] is ctx or (kept[0].senders is ctx.senders and kept[0].shape == ctx.shape)):
-        return cast(Payload | None, kept[1])
-    return None
+    """The payload kept on ``env`` for a receiver of the same team and grid (:func:`opened`), or None."""
+    msg = opened(env, ctx)
+    return msg.body if msg is not None else None
 
 
 def _valid(env: Envelope, ctx: Context, on_drop: Callable[[str, str], None] | None) -> bool:

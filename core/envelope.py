@@ -143,15 +143,27 @@ def expand(payload: bytes) -> bytes:
 
 def open_envelope(env: Envelope, ctx: Context | None = None) -> RadioMsg:
     """Decode an envelope's payload; raises DecodeError (an unknown kind included). The message is kept on the
-    envelope with the context it was checked against, and given as it is (immutable) to the next receiver with
-    an equal context: in the memory engine one broadcast envelope object reaches every teammate."""
+    envelope with the context it was checked against (:func:`keep_opened`), and given as it is (immutable) to
+    the next receiver with an equal context: in the memory engine one broadcast envelope object reaches every
+    teammate."""
+    msg = opened(env, ctx)
+    return msg if msg is not None else keep_opened(env, ctx, decode_payload(env.payload_kind, expand(env.payload),
+                                                                             ctx))
+
+
+def opened(env: Envelope, ctx: Context | None) -> RadioMsg | None:
+    """The message kept on ``env`` for a context of the same team and grid as ``ctx``, or None."""
     cached = env.__dict__.get("_opened")
-    if cached is not None:
-        seen = cached[0]
-        if seen is ctx or (seen is not None and ctx is not None and seen.senders is ctx.senders
-                           and seen.shape == ctx.shape) or seen == ctx:
-            return cast(RadioMsg, cached[1])  # the message too is immutable: every receiver gets the same
-    body = decode_payload(env.payload_kind, expand(env.payload), ctx)
+    if cached is None:
+        return None
+    seen = cached[0]
+    same = seen is ctx or (seen is not None and ctx is not None and seen.senders is ctx.senders
+                           and seen.shape == ctx.shape) or seen == ctx
+    return cast(RadioMsg, cached[1]) if same else None
+
+
+def keep_opened(env: Envelope, ctx: Context | None, body: Payload) -> RadioMsg:
+    """``env``'s message with its decoded ``body``, kept on it for the next receiver with a context like ``ctx``."""
     msg = object.__new__(RadioMsg)  # RadioMsg(...) without the frozen dataclass's setattr per field
     msg.__dict__.update(body=body, dst=env.dst, ttl=env.ttl, src=env.src, origin=env.origin, tick=env.tick,
                         seq=env.seq)
