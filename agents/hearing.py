@@ -1,11 +1,7 @@
-"""What a robot hears in a tick: every envelope of its inbox checked against the team, and the payloads of each
-kind decoded together (:func:`~fleet_emu.core.codec.decode_many`: one pass of msgspec over all of a kind's, the
-map deltas' cells viewed at once), in the order they came.
-
-At 100 robots a robot hears about 75 beacons and 75 map deltas a tick: decoding each on its own cost more than
-the merge it feeds. This decides nothing: a kind whose batch does not pass is decoded message by message
-(:func:`~fleet_emu.core.envelope.open_envelope`), which drops and counts exactly what does not validate.
-"""
+"""What a robot hears in a tick: its inbox's envelopes checked against the team, and each kind's payloads
+decoded together (:func:`~fleet_emu.core.codec.decode_many`; at 100 robots a robot hears about 75 beacons and
+75 map deltas a tick). A kind whose batch does not pass is decoded message by message
+(:func:`~fleet_emu.core.envelope.open_envelope`), which drops and counts exactly what does not validate."""
 
 from __future__ import annotations
 
@@ -24,29 +20,29 @@ Heard = tuple[Envelope, Payload]
 def hear(inbox: Sequence[Envelope], ctx: Context, on_drop: Callable[[str, str], None] | None = None,
          shared: bool = False) -> list[Heard]:
     """The messages of ``inbox`` that validate against ``ctx``, each with its payload, in the order they came;
-    each that does not is reported to ``on_drop`` (its key, why; a bad header first, then bad payloads in the order
-    they came) and left out. With ``shared`` (the memory
-    engine, whose receivers of a broadcast hear one envelope object), each payload decoded is kept on its
-    envelope as :func:`~fleet_emu.core.envelope.open_envelope` keeps it, and one kept is used."""
+    each that does not is reported to ``on_drop`` (its key, why: bad headers, then bad payloads in the order
+    they came) and left out. With ``shared`` (the memory engine: a broadcast is one envelope object), a payload
+    is kept on its envelope as :func:`~fleet_emu.core.envelope.open_envelope` keeps it, and one kept is used."""
     senders = ctx.senders
     kept = list(inbox)
     if senders is None or not senders.issuperset(map(_src, kept)) or not senders.issuperset(map(_origin, kept)):
         kept = [e for e in kept if _valid(e, ctx, on_drop)]
-    kinds = list(map(_kind, kept))
-    bodies: list[Payload | None] = [_kept(e, ctx) for e in kept] if shared else [None] * len(kept)
+    bodies: list[Payload | None] = ([getattr(opened(e, ctx), "body", None) for e in kept] if shared
+                                    else [None] * len(kept))
+    places: dict[str, list[int]] = {}  # each kind's envelopes still to decode, in the order they came
+    for i, kind in enumerate(map(_kind, kept)):
+        if bodies[i] is None:
+            places.setdefault(kind, []).append(i)
     failed: list[tuple[int, DecodeError]] = []
-    for kind in dict.fromkeys(kinds):
-        places = [i for i, k in enumerate(kinds) if k == kind and bodies[i] is None]
-        if not places:
-            continue
-        batch = decode_many(kind, [kept[i].payload for i in places], ctx) if len(places) > 1 else None
+    for kind, these in places.items():
+        batch = decode_many(kind, [kept[i].payload for i in these], ctx) if len(these) > 1 else None
         if batch is not None:
-            for i, decoded in zip(places, batch, strict=True):
+            for i, decoded in zip(these, batch, strict=True):
                 bodies[i] = decoded
                 if shared:  # kept as open_envelope, the one-by-one way below, keeps what it opens
                     keep_opened(kept[i], ctx, decoded)
             continue
-        for i in places:  # one by one (compact ones expanded): each that does not decode is dropped and counted
+        for i in these:  # one by one (compact ones expanded): each that does not decode is dropped and counted
             try:
                 bodies[i] = open_envelope(kept[i], ctx).body
             except DecodeError as exc:
@@ -59,12 +55,6 @@ def hear(inbox: Sequence[Envelope], ctx: Context, on_drop: Callable[[str, str], 
 
 
 _src, _origin, _kind = (operator.attrgetter(name) for name in ("src", "origin", "payload_kind"))
-
-
-def _kept(env: Envelope, ctx: Context) -> Payload | None:
-    """The payload kept on ``env`` for a receiver of the same team and grid (:func:`opened`), or None."""
-    msg = opened(env, ctx)
-    return msg.body if msg is not None else None
 
 
 def _valid(env: Envelope, ctx: Context, on_drop: Callable[[str, str], None] | None) -> bool:

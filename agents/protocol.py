@@ -26,17 +26,16 @@ MAX_SEQS = 64
 
 #: Delta numbers as declared: each >= 1, at most :data:`MAX_SEQS`, and strictly ascending (:func:`ascending`).
 Seqs = Annotated[tuple[Annotated[int, msgspec.Meta(ge=1)], ...], msgspec.Meta(max_length=MAX_SEQS)]
+#: A move from a cell to the next: a step or none (:attr:`PoseBeacon.next`).
+_STEPS = frozenset({(0, 0), (0, 1), (0, -1), (1, 0), (-1, 0)})
 #: A count, 0 or more, as declared.
 NonNegative = Annotated[int, msgspec.Meta(ge=0)]
 
 
 def ascending(lists: list[tuple[int, ...]]) -> bool:
     """Whether each of ``lists`` is strictly ascending (most hold one number: only the others are compared)."""
-    lengths = list(map(len, lists))
-    if not lengths or max(lengths) < 2:
-        return True
-    longer = itertools.compress(lists, map(operator.lt, itertools.repeat(1), lengths))
-    return all(all(map(operator.lt, seqs, seqs[1:])) for seqs in longer)
+    longer = [seqs for seqs in lists if len(seqs) > 1]
+    return not longer or all(all(map(operator.lt, seqs, seqs[1:])) for seqs in longer)
 
 
 class PoseBeacon(Payload, kw_only=True, frozen=True, omit_defaults=True):
@@ -62,24 +61,21 @@ class PoseBeacon(Payload, kw_only=True, frozen=True, omit_defaults=True):
         """Where the robot stands once its command of the beacon's tick is applied, if the move succeeds."""
         return self.cell if self.next is None else self.next
 
-    def validate(self, ctx: Context | None) -> None:
-        PoseBeacon.validate_many([self], ctx, {})
-
     @classmethod
     def validate_many(cls, records: list[Any], ctx: Context | None, arrays: dict[str, np.ndarray]) -> None:
         """Every beacon of ``records`` checked in a few passes over them all (a robot hears every teammate's
         each tick): its cells on the grid, ``next`` a step from ``cell``, its requests to teammates."""
         shape, senders = (ctx.shape, ctx.senders) if ctx is not None else (None, None)
-        cells, nexts = list(map(_cell, records)), list(map(_next, records))
-        moves = [(n, c) for n, c in zip(nexts, cells, strict=True) if n is not None]
+        cells = list(map(_cell, records))
+        moves = [(n, c) for n, c in zip(map(_next, records), cells, strict=True) if n is not None]
         if shape is not None:
             rows, cols = zip(*cells, *(n for n, _ in moves), strict=True)
             if min(rows) < 0 or min(cols) < 0 or max(rows) >= shape[0] or max(cols) >= shape[1]:
                 for cell in (*cells, *(n for n, _ in moves)):
                     check_cell(cell, shape, "pose")  # raises, naming it
-        bad = next((m for m in moves if abs(m[0][0] - m[1][0]) + abs(m[0][1] - m[1][1]) > 1), None)
-        if bad is not None:
-            raise DecodeError(f"pose: next cell {bad[0]} is not one step from {bad[1]}")
+        if moves and not {(n[0] - c[0], n[1] - c[1]) for n, c in moves} <= _STEPS:
+            n, c = next(m for m in moves if (m[0][0] - m[1][0], m[0][1] - m[1][1]) not in _STEPS)
+            raise DecodeError(f"pose: next cell {n} is not one step from {c}")
         wants = [w for w in map(_want, records) if w]
         if senders is not None and not all(map(senders.issuperset, wants)):
             robot = next(r for w in wants for r in w if r not in senders)
@@ -99,9 +95,6 @@ class MapDelta(Payload, kw_only=True, frozen=True, omit_defaults=True):
     values: np.ndarray
     n: Annotated[int, msgspec.Meta(ge=1)] | None = None
     covers: Seqs | None = None
-
-    def validate(self, ctx: Context | None) -> None:
-        MapDelta.validate_many([self], ctx, {"cells": self.cells, "values": self.values})
 
     @classmethod
     def validate_many(cls, records: list[Any], ctx: Context | None, arrays: dict[str, np.ndarray]) -> None:
@@ -125,9 +118,6 @@ class MapFill(Payload, kw_only=True, frozen=True):
     values: np.ndarray
     seqs: Seqs = ()
     upto: NonNegative = 0
-
-    def validate(self, ctx: Context | None) -> None:
-        MapFill.validate_many([self], ctx, {"cells": self.cells, "values": self.values})
 
     @classmethod
     def validate_many(cls, records: list[Any], ctx: Context | None, arrays: dict[str, np.ndarray]) -> None:

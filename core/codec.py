@@ -13,8 +13,10 @@ from __future__ import annotations
 import dataclasses
 import functools
 import itertools
+import math
 from typing import Annotated, Any, ClassVar, TypeVar, cast
 
+import msgpack
 import msgspec
 import numpy as np
 
@@ -48,12 +50,16 @@ class Record(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tr
         _TAGS[cls.__name__] = kind
 
     def validate(self, ctx: Context | None) -> None:
-        """Check what the field types cannot (several fields, the receiver's context); raise DecodeError."""
+        """Check what the field types cannot (several fields, the receiver's context); raise DecodeError. A class
+        that defines :meth:`validate_many` instead is checked by it, as a batch of one."""
+        cls = type(self)
+        if cls.validate_many.__func__ is not Record.validate_many.__func__:  # type: ignore[attr-defined]
+            cls.validate_many([self], ctx, {name: getattr(self, name) for name in _array_fields(cls)})
 
     @classmethod
     def validate_many(cls, records: list[Any], ctx: Context | None, arrays: dict[str, np.ndarray]) -> None:
         """:meth:`validate` of each of ``records`` (:func:`decode_many`'s), whose array fields are slices of
-        ``arrays``, each field's arrays one after the other: a class may check those at once."""
+        ``arrays``, each field's arrays one after the other: a class may check those at once instead."""
         for r in records:
             r.validate(ctx)
 
@@ -63,10 +69,7 @@ class Record(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tr
 
     def fields_obj(self) -> dict[str, Any]:
         """:meth:`to_obj` without a message's ``kind`` and ``v``: its own fields."""
-        obj = self.to_obj()
-        obj.pop("kind", None)
-        obj.pop("v", None)
-        return obj
+        return {key: value for key, value in self.to_obj().items() if key not in ("kind", "v")}
 
     def encode(self) -> bytes:
         return _ENCODER.encode(self)
@@ -89,8 +92,6 @@ class Message(Record, tag_field="kind", tag=_tag, kw_only=True, frozen=True):
     seq: Annotated[int, msgspec.Meta(ge=0)]
 
     def validate(self, ctx: Context | None) -> None:
-        if self.tick < 0 or self.seq < 0:
-            raise DecodeError("negative tick or seq")
         if ctx is not None and ctx.senders is not None and self.src not in ctx.senders:
             raise DecodeError(f"unknown sender {self.src!r}")
 
@@ -132,22 +133,16 @@ def _enc_hook(value: Any) -> Any:
 
 def unpack_array(value: Any) -> np.ndarray:
     """A packed array (a map of ``dtype``, ``shape`` and ``data``) as a read-only view of its bytes; ValueError
-    when it is not one."""
+    when it is not one (a shape of at most 3 sizes, as many bytes as it says)."""
     if type(value) is not dict or value.keys() != _PACKED:
         raise ValueError("expected a packed array")
     dtype, shape, data = value["dtype"], value["shape"], value["data"]
     dt = _DTYPES.get(dtype) if type(dtype) is str else None
-    if (dt is not None and type(data) is bytes and type(shape) is list and len(shape) == 1  # the common case
-            and type(shape[0]) is int and shape[0] * dt.itemsize == len(data) <= MAX_ARRAY_BYTES):
-        return np.frombuffer(data, dtype=dt)
     if dt is None or type(data) is not bytes or type(shape) is not list or len(shape) > 3:
         raise ValueError("bad packed array")
-    count = 1
-    for s in shape:  # Python ints: no overflow for any shape
-        if type(s) is not int or s < 0:
-            raise ValueError("bad array shape")
-        count *= s
-    if count * dt.itemsize != len(data) or len(data) > MAX_ARRAY_BYTES:
+    if not all(type(s) is int and s >= 0 for s in shape):  # Python ints: no overflow for any shape
+        raise ValueError("bad array shape")
+    if math.prod(shape) * dt.itemsize != len(data) or len(data) > MAX_ARRAY_BYTES:
         raise ValueError("array data does not match its shape")
     arr = np.frombuffer(data, dtype=dt)
     return arr if len(shape) == 1 else arr.reshape(shape)
@@ -280,12 +275,7 @@ def _list_decoder(form: type[msgspec.Struct]) -> msgspec.msgpack.Decoder[Any]:
 
 
 _RAWS = msgspec.msgpack.Decoder(list[msgspec.Raw])
-
-
-def _array_header(n: int) -> bytes:
-    """msgpack's header of an array of ``n`` items."""
-    return bytes([0x90 + n]) if n < 16 else (b"\xdc" + n.to_bytes(2, "big") if n < 1 << 16
-                                            else b"\xdd" + n.to_bytes(4, "big"))
+_array_header = msgpack.Packer().pack_array_header  # msgpack's header of an array of n items
 
 
 def _viewed(cls: type[R], items: list[Any]) -> tuple[list[R], dict[str, np.ndarray]] | None:

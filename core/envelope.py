@@ -1,11 +1,6 @@
-"""The radio envelope and the bundles that carry it (docs/reference/protocol.md; split out of
-``core/messages.py``, which re-exports every name here).
-
-An :class:`Envelope` carries one radio message: its header (who sent this hop, who made it, for whom, hops
-left, the message id) and an opaque payload that only the protocol owning its kind decodes
-(:func:`open_envelope`). A robot's :class:`TxBundle` holds what it sends in a tick, netem's :class:`RxBundle`
-what reaches a robot; both are packed from each envelope's kept bytes.
-"""
+"""The radio envelope, which carries one message's header and its opaque payload (:func:`open_envelope`), and
+the bundles of envelopes a robot sends (:class:`TxBundle`) and netem delivers (:class:`RxBundle`) in a tick
+(docs/reference/protocol.md; ``core/messages.py`` re-exports every name here)."""
 
 from __future__ import annotations
 
@@ -17,7 +12,7 @@ import msgpack
 import msgspec
 import numpy as np
 
-from fleet_emu.core.codec import Context, DecodeError, Message, NoMessage, Payload, decode_payload
+from fleet_emu.core.codec import Context, DecodeError, Message, NoMessage, Payload, decode_payload, unpack_array
 from fleet_emu.core.limits import MAX_PAYLOAD_BYTES, MAX_TTL
 
 #: Payload kinds that are bulk map data: a bandwidth-limited radio sends them after everything else a robot
@@ -46,10 +41,6 @@ class Envelope(Message, kw_only=True, frozen=True, dict=True):
 
     def validate(self, ctx: Context | None) -> None:
         super().validate(ctx)
-        if not 0 <= self.ttl <= MAX_TTL:
-            raise DecodeError("radio: ttl out of range")
-        if len(self.payload) > MAX_PAYLOAD_BYTES:
-            raise DecodeError("radio: payload too large")
         if ctx is not None and ctx.senders is not None and self.origin not in ctx.senders:
             raise DecodeError(f"radio: unknown origin {self.origin!r}")
 
@@ -84,20 +75,14 @@ def seal(msg: RadioMsg, src: str, tick: int, seq: int, deflate: bool = False) ->
                     payload=payload)
 
 
-_CELL_DTYPES: dict[Any, np.dtype] = {"int32": np.dtype(np.int32), "int64": np.dtype(np.int64)}
-
-
-def _cells_of(obj: Any) -> tuple[dict[str, Any], np.dtype] | None:
-    """A payload map's ``cells`` when they are a packed 1-D array of flat indices (int32 or int64), with its
-    dtype: the array :func:`compact` delta-codes."""
-    cells = obj.get("cells") if type(obj) is dict else None
-    if type(cells) is not dict:
+def _cells_of(obj: Any) -> np.ndarray | None:
+    """A payload map's ``cells`` when they are a packed 1-D array of flat indices (int32 or int64): the array
+    :func:`compact` delta-codes."""
+    try:
+        cells = unpack_array(obj.get("cells") if type(obj) is dict else None)
+    except ValueError:
         return None
-    dt = _CELL_DTYPES.get(cells.get("dtype"))
-    shape, data = cells.get("shape"), cells.get("data")
-    if dt is None or type(shape) is not list or len(shape) != 1 or type(data) is not bytes:
-        return None
-    return (cells, dt) if len(data) == shape[0] * dt.itemsize else None
+    return cells if cells.ndim == 1 and cells.dtype in (np.int32, np.int64) else None
 
 
 def compact(payload: bytes) -> bytes:
@@ -105,13 +90,11 @@ def compact(payload: bytes) -> bytes:
     less the one before, wrapping in its own type: sorted cells become runs of small numbers), then deflated
     (zlib, level 1: within 2 % of level 6's size at half its time on map deltas)."""
     obj = msgpack.unpackb(payload, raw=False)
-    found = _cells_of(obj)
-    if found is not None:
-        cells, dt = found
-        a = np.frombuffer(cells["data"], dt)
-        d = a.copy()
-        d[1:] -= a[:-1]
-        obj["cells"] = {**cells, "data": d.tobytes()}
+    cells = _cells_of(obj)
+    if cells is not None:
+        steps = cells.copy()
+        steps[1:] -= cells[:-1]
+        obj["cells"] = {**obj["cells"], "data": steps.tobytes()}
     packed = zlib.compress(msgpack.packb(obj, use_bin_type=True), _DEFLATE_LEVEL)
     return packed if len(packed) < len(payload) else payload
 
@@ -134,10 +117,9 @@ def expand(payload: bytes) -> bytes:
         obj = msgpack.unpackb(data, raw=False, strict_map_key=True)
     except Exception as exc:  # msgpack raises several unrelated types on garbage
         raise DecodeError(f"radio: compact payload is not msgpack ({type(exc).__name__})") from None
-    found = _cells_of(obj)
-    if found is not None:
-        cells, dt = found
-        obj["cells"] = {**cells, "data": np.cumsum(np.frombuffer(cells["data"], dt), dtype=dt).tobytes()}
+    cells = _cells_of(obj)
+    if cells is not None:
+        obj["cells"] = {**obj["cells"], "data": np.cumsum(cells, dtype=cells.dtype).tobytes()}
     return msgpack.packb(obj, use_bin_type=True)
 
 

@@ -1,13 +1,8 @@
-"""Every message of the lockstep protocol, defined once (docs/reference/protocol.md): the one module to import
-them from.
-
-The barrier messages (world -> robots, netem -> robots, robots -> world/netem), netem's links, the belief snapshots
-and the real-time messages are defined here; the radio envelope and its bundles in ``core/envelope.py``, the
-control messages and the hosts' lobby in ``core/control_messages.py``, and re-exported here. Radio payloads are
-not defined here: each protocol owns its own (``agents/protocol.py`` for poses and map deltas, each allocator's
-module for its messages), and netem routes envelopes without decoding them. Encode with ``msg.encode()``; decode with
-:func:`fleet_emu.core.codec.decode`.
-"""
+"""Every message of the lockstep protocol (docs/reference/protocol.md), the one module to import them from:
+the barrier messages, netem's links, the belief snapshots and the real-time messages defined here, the radio
+envelope (``core/envelope.py``) and the control messages (``core/control_messages.py``) re-exported. Radio
+payloads are each protocol's own (``agents/protocol.py``, each allocator's module). Encode with
+``msg.encode()``; decode with :func:`fleet_emu.core.codec.decode`."""
 
 from __future__ import annotations
 
@@ -54,8 +49,6 @@ __all__ = [
 ]
 
 VALID_CELL_VALUES = np.array([-1, 0, 100], dtype=np.int8)
-_VALID_BYTE = np.zeros(256, dtype=np.bool_)  # indexed by an int8 value's byte: True for -1, 0 and 100
-_VALID_BYTE[VALID_CELL_VALUES.view(np.uint8)] = True
 VALID_MOVES = frozenset(MOVES) | {STAY}
 _KERNEL_CELLS = (np.dtype(np.int32), np.dtype(np.int64))  # the cell index types cells_valid is warmed up for
 
@@ -73,17 +66,12 @@ def check_cells(cells: np.ndarray, values: np.ndarray, shape: tuple[int, int] | 
         raise DecodeError(f"{what}: wrong dtypes")
     if len(cells) and _out_of_range(cells, shape):
         raise DecodeError(f"{what}: cell index out of range")
-    if len(values) and not _VALID_BYTE[values.view(np.uint8)].all():
+    if not np.isin(values, VALID_CELL_VALUES).all():
         raise DecodeError(f"{what}: cell value not in (-1, 0, 100)")
 
 
 def _out_of_range(cells: np.ndarray, shape: tuple[int, int] | None) -> bool:
-    """Whether a cell index of ``cells`` (not empty) is negative or (with a shape) past the grid's last cell.
-    Signed indices are seen as unsigned of the same width, so that one maximum finds both: a negative one
-    becomes larger than any grid."""
-    if shape is not None and cells.dtype.kind == "i" and cells.dtype.itemsize >= 4:
-        size = shape[0] * shape[1]
-        return size <= 0 or int(cells.view(f"u{cells.dtype.itemsize}").max()) >= size
+    """Whether a cell index of ``cells`` (not empty) is negative or (with a shape) past the grid's last cell."""
     return bool(cells.min() < 0 or (shape is not None and cells.max() >= shape[0] * shape[1]))
 
 
