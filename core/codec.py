@@ -32,7 +32,15 @@ R = TypeVar("R", bound="Record")
 _TAGS: dict[str, str] = {}
 
 
-class Record(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+class _RecordMeta(msgspec.StructMeta):
+    def __setattr__(cls, name: str, value: Any) -> None:
+        if name == "__dataclass_params__":  # the first thing @dataclasses.dataclass sets
+            raise TypeError(f"{cls.__name__} is declared `class {cls.__name__}({cls.__mro__[1].__name__}, kw_only=True,"
+                            " frozen=True)`, not with @dataclasses.dataclass (docs/writing-an-allocator.md)")
+        super().__setattr__(name, value)
+
+
+class Record(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True, metaclass=_RecordMeta):
     """A typed, frozen record that encodes to a msgpack map. Each family root (:class:`Message`,
     :class:`Payload`) keeps its own registry by ``KIND``; a subclass with a ``KIND`` registers in its family's."""
 

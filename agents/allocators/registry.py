@@ -55,11 +55,6 @@ def allocator_class(name: object) -> type[Allocator]:
     raise ConfigError(f"unknown allocator {name!r}{near(name, known)} (known: {', '.join(known)})")
 
 
-#: What a plugin written for an older fleet_emu meets when it declares a radio payload as a dataclass.
-_DATACLASS_PAYLOAD = (" (a radio payload is declared `class Bid(Payload, kw_only=True, frozen=True)`, not with"
-                      " @dataclasses.dataclass: docs/writing-an-allocator.md)")
-
-
 def _load(name: str) -> type[Allocator]:
     if name in _broken:
         raise ConfigError(_broken[name])
@@ -73,8 +68,7 @@ def _load(name: str) -> type[Allocator]:
         elif obj.plugin_name != name:
             raise TypeError(f"the class registers itself as {obj.plugin_name!r}")
     except Exception as exc:  # whatever a third-party import raises, it is that plugin's failure only
-        _broken[name] = f"allocator plugin {name!r} ({ep.value}) failed to load: {type(exc).__name__}: {exc}" + (
-            _DATACLASS_PAYLOAD if isinstance(exc, AttributeError) and str(exc) == "readonly attribute" else "")
+        _broken[name] = f"allocator plugin {name!r} ({ep.value}) failed to load: {type(exc).__name__}: {exc}"
         raise ConfigError(_broken[name]) from None
     return obj
 

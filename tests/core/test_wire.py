@@ -147,6 +147,17 @@ def test_a_record_declared_without_kw_only_is_refused() -> None:
         del Message.REGISTRY["stray-test"]
 
 
+def test_a_payload_declared_as_a_dataclass_says_how_it_is_declared() -> None:
+    """A script written for an older fleet_emu meets one line that names the declaration, not msgspec's
+    'readonly attribute'."""
+    with pytest.raises(TypeError, match=r"Bid is declared `class Bid\(Payload, kw_only=True, frozen=True\)`"):
+        @dataclasses.dataclass(frozen=True)
+        class Bid(Payload):
+            KIND = "bid-dataclass-test"
+            cost: int = 0
+    Payload.REGISTRY.pop("bid-dataclass-test", None)
+
+
 def test_a_broadcast_is_opened_once_for_receivers_of_one_team() -> None:
     """The memory engine hands one envelope object to every receiver: the message opened for one is given as it
     is to the next whose context has the same team set (or an equal one), and decoded afresh for a receiver
