@@ -14,7 +14,7 @@ import dataclasses
 import functools
 import itertools
 import math
-from typing import Annotated, Any, ClassVar, TypeVar, cast
+from typing import Annotated, Any, ClassVar, TypeVar, Union, cast
 
 import msgpack
 import msgspec
@@ -185,10 +185,8 @@ def decoder(cls: type[Record]) -> msgspec.msgpack.Decoder[Any]:
 
 @functools.cache
 def _any_message(kinds: frozenset[str]) -> msgspec.msgpack.Decoder[Any]:
-    for cls in Message.REGISTRY.values():
-        decoder(cls)  # the layout check
-    return msgspec.msgpack.Decoder(functools.reduce(lambda a, b: a | b, Message.REGISTRY.values()),  # type: ignore
-                                   dec_hook=_dec_hook)
+    classes = tuple(cls for cls in Message.REGISTRY.values() if decoder(cls))  # decoder: the layout check
+    return msgspec.msgpack.Decoder(Union[classes], dec_hook=_dec_hook)  # noqa: UP007 (a union of a tuple)
 
 
 def _checked(record: R, ctx: Context | None, what: str) -> R:
@@ -271,9 +269,8 @@ def _packed_form(cls: type[Record]) -> type[msgspec.Struct]:
     if not _array_fields(cls):
         return cls
     spec = [(f.name, Packed if f.type is np.ndarray else f.type,
-             msgspec.field(default=f.default) if f.default is not msgspec.NODEFAULT
-             else msgspec.field(default_factory=f.default_factory) if f.default_factory is not msgspec.NODEFAULT
-             else msgspec.NODEFAULT) for f in fields]
+             msgspec.field(default=f.default, default_factory=f.default_factory))  # type: ignore[call-overload]
+            for f in fields]
     return msgspec.defstruct(f"{cls.__name__}Packed", spec, kw_only=True, forbid_unknown_fields=True)
 
 

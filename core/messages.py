@@ -40,10 +40,9 @@ from fleet_emu.core.envelope import (
 from fleet_emu.core.grid import MOVES, STAY, Cell
 
 __all__ = [
-    "Context", "DecodeError", "Message", "Payload", "decode", "decode_payload", "peek_tick",
-    "Observation", "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope", "compact", "expand",
-    "BULK_KINDS", "MAX_TTL", "MAX_PAYLOAD_BYTES", "check_cell", "check_cells", "check_robot_cells", "TxBundle",
-    "RxBundle", "Links",
+    "Context", "DecodeError", "Message", "Payload", "decode", "decode_payload", "peek_tick", "Observation",
+    "WorldState", "Command", "Envelope", "RadioMsg", "seal", "open_envelope", "compact", "expand", "BULK_KINDS",
+    "MAX_TTL", "MAX_PAYLOAD_BYTES", "check_cell", "check_cells", "check_robot_cells", "TxBundle", "RxBundle", "Links",
     "Hello", "Ready", "ready", "Failed", "Stop", "RobotReport", "BaseReport", "BeliefSnapshot", "HostAssign",
     "HostStatus", "HOST_EVENTS", "MAX_REALTIME_HZ", "WorldClock", "RobotTiming", "STALE",
 ]

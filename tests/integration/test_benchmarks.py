@@ -170,6 +170,25 @@ def test_brain_step_reports_a_row_per_map(small_bitmap: Path, capsys: pytest.Cap
     assert sum("robot-ticks in" in ln for ln in progress) == 2 and len(progress) == 4
 
 
+def test_hearing_splits_each_kinds_decode_by_stage(capsys: pytest.CaptureFixture[str]) -> None:
+    """A row per payload kind of the stages of its batch decode, then ``hear``'s line; only a kind with arrays
+    builds records; a bad argument is one line."""
+    code, out, err = bench("hearing", "--robots", "3", "--ticks", "8", "--cells", "40", "--sample", "0.5",
+                           "--repeat", "1", capsys=capsys)
+    assert code == 0, err[-2000:]
+    lines = out.strip().splitlines()
+    assert lines[0].startswith("# benchmarks/hearing.py: ") and "inboxes kept" in lines[1]
+    labels = ["kind", "payloads", "concatenate", "bounds", "msgspec", "records", "checks", "decode_many"]
+    rows = {r["kind"]: r for r in (fields(lines[2], ln, labels) for ln in lines[3:5])}
+    assert set(rows) == {"pose", "map"}
+    assert all(float(v) >= 0 for r in rows.values() for k, v in r.items() if k != "kind"), rows
+    assert float(rows["pose"]["payloads"]) > 0 and float(rows["pose"]["records"]) == 0.0
+    assert float(rows["map"]["payloads"]) > 0 and float(rows["map"]["records"]) > 0
+    assert lines[5].startswith("hear: ") and lines[5].endswith(" µs per inbox")
+    code, _, err = bench("hearing", "--sample", "0", capsys=capsys)
+    assert code == 2 and err.count("\n") == 1 and "--sample" in err
+
+
 def test_brain_step_bad_input_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = bench("brain_step", "--maps", "/no/such/map.png", capsys=capsys)
     assert code == 2 and err.count("\n") == 1 and "map /no/such/map.png" in err
