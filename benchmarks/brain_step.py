@@ -35,6 +35,8 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Sequence
+from typing import Any
 
 from benchmarks import scale  # the maps, the start and the scenario
 from benchmarks._common import REAL_MAP, FittedMap, fail, fitted_maps, machine, parser
@@ -44,22 +46,40 @@ PROG = "brain_step"
 COLUMNS = ["decide", "clusters", "merge", "decode", "nav", "news", "other", "outside", "step", "rx codec"]
 
 
+def fleet_for(m: FittedMap, robots: int, a: argparse.Namespace, shared: bool) -> Any:
+    """The memory engine's fleet of ``robots`` on ``m`` with ``scale``'s scenario, reset; unless ``shared``, each
+    brain decodes its own copy of what it hears (:func:`read_rx`), as over Zenoh."""
+    from fleet_emu.launch.memory import Fleet
+
+    fleet = Fleet(scale.scenario_for(m, robots, a))
+    fleet.reset()
+    if not shared:
+        for brain in fleet.brains.values():
+            brain.shared_inbox = False
+    return fleet
+
+
+def read_rx(dst: str, msgs: Sequence[Any]) -> tuple[tuple[Any, ...], float]:
+    """``msgs`` as the agent process of ``dst`` reads them: its rx bundle encoded, then decoded into envelopes of
+    its own; with the thread CPU of the decode, in seconds."""
+    from fleet_emu.core.messages import RxBundle, decode
+
+    data = RxBundle(src="netem", tick=0, seq=1, dst=dst, msgs=tuple(msgs)).encode()
+    start = time.thread_time()
+    bundle = decode(data, None, RxBundle)
+    return bundle.msgs, time.thread_time() - start
+
+
 def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
     """One map's fleet stepped ``a.ticks`` ticks; ms of thread CPU per robot-tick by stage."""
     from fleet_emu.agents.brain import STAGES
     from fleet_emu.core.errors import FleetError
     from fleet_emu.core.kernels import warm_up
     from fleet_emu.core.malloc_tuning import collect_less
-    from fleet_emu.core.messages import RxBundle, decode
-    from fleet_emu.launch.memory import Fleet
 
     warm_up()  # as an agent process does before its first tick: no kernel loads (or compiles) in a counted tick
     collect_less()  # and with an agent process's collector threshold (core/malloc_tuning.py)
-    fleet = Fleet(scale.scenario_for(m, robots, a))
-    fleet.reset()
-    if not a.shared:
-        for brain in fleet.brains.values():
-            brain.shared_inbox = False  # each decodes its own copy (of its rx bundle's envelopes), as over Zenoh
+    fleet = fleet_for(m, robots, a, a.shared)
     for _ in range(a.skip):  # tick 0 at least: the kernels warm_up leaves out (the allocator's) load then
         if not fleet.done:
             fleet.step()
@@ -70,12 +90,10 @@ def run(m: FittedMap, robots: int, a: argparse.Namespace) -> dict[str, float]:
     robot_ticks = 0
     while not fleet.done:
         for r in fleet.agents:  # the agent process's read of its rx bundle, which the brain does not count
-            data = RxBundle(src="netem", tick=0, seq=1, dst=r, msgs=fleet.rx.get(r, ())).encode()
-            c = time.thread_time()
-            bundle = decode(data, None, RxBundle)
-            rx_cpu += time.thread_time() - c
+            msgs, seconds = read_rx(r, fleet.rx.get(r, ()))
+            rx_cpu += seconds
             if not a.shared:  # each robot hears its own copy, as over Zenoh (shared: one decode of a broadcast)
-                fleet.rx[r] = bundle.msgs
+                fleet.rx[r] = msgs
         robot_ticks += len(fleet.agents)
         fleet.step()
     if not robot_ticks:

@@ -30,7 +30,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from benchmarks import scale
+from benchmarks import brain_step
 from benchmarks._common import FittedMap, fail, fitted_maps, machine, parser
 
 PROG = "hearing"
@@ -39,19 +39,12 @@ COLUMNS = ["payloads", "concatenate", "bounds", "msgspec", "records", "checks", 
 
 def record(m: FittedMap, a: Any) -> list[tuple[list[Any], Any]]:
     """The kept inboxes (each robot's envelopes and its context) of a run of ``a.ticks`` ticks on ``m``."""
-    from fleet_emu.core.messages import RxBundle, decode
-    from fleet_emu.launch.memory import Fleet
-
-    fleet = Fleet(scale.scenario_for(m, a.robots, a))
-    fleet.reset()
-    for brain in fleet.brains.values():
-        brain.shared_inbox = False
+    fleet = brain_step.fleet_for(m, a.robots, a, shared=False)
     rng = random.Random(a.seed)
     kept = []
     while not fleet.done:
         for r in fleet.agents:  # each robot's own copy, as an agent process reads its rx bundle
-            data = RxBundle(src="netem", tick=0, seq=1, dst=r, msgs=fleet.rx.get(r, ())).encode()
-            fleet.rx[r] = msgs = decode(data, None, RxBundle).msgs
+            fleet.rx[r] = msgs = brain_step.read_rx(r, fleet.rx.get(r, ()))[0]
             if fleet.world.tick >= 1 and msgs and rng.random() < a.sample:
                 kept.append((list(msgs), fleet.brains[r].ctx))
         fleet.step()
@@ -94,7 +87,6 @@ def main(argv: list[str] | None = None) -> None:
     from fleet_emu.core.errors import FleetError
     from fleet_emu.core.kernels import warm_up
     from fleet_emu.core.malloc_tuning import collect_less
-    from fleet_emu.core.messages import RxBundle, decode
 
     p = parser("benchmarks.hearing", __doc__)
     p.add_argument("--robots", type=int, default=100)
@@ -131,8 +123,7 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{kind:>8} " + " ".join(f"{row[c]:>11.1f}" for c in COLUMNS), flush=True)
     whole = 0.0
     for _ in range(a.repeat):  # fresh envelopes each time: one opened alone keeps what it decoded (open_envelope)
-        fresh = [(decode(RxBundle(src="netem", tick=0, seq=1, dst="r", msgs=tuple(e)).encode(), None, RxBundle).msgs,
-                  ctx) for e, ctx in inboxes]
+        fresh = [(brain_step.read_rx("r", e)[0], ctx) for e, ctx in inboxes]
         whole += _cpu_us(lambda e, c: hear(e, c), fresh, 1, len(inboxes)) / a.repeat
     print(f"hear: {whole:.1f} µs per inbox, of which {whole - batched:.1f} outside the rows above (the headers, "
           "the grouping, and the kinds decoded one by one: a fill, an allocator's messages)")
