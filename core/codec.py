@@ -185,8 +185,9 @@ def decoder(cls: type[Record]) -> msgspec.msgpack.Decoder[Any]:
 
 @functools.cache
 def _any_message(kinds: frozenset[str]) -> msgspec.msgpack.Decoder[Any]:
-    classes = tuple(cls for cls in Message.REGISTRY.values() if decoder(cls))  # decoder: the layout check
-    return msgspec.msgpack.Decoder(Union[classes], dec_hook=_dec_hook)  # noqa: UP007 (a union of a tuple)
+    for cls in Message.REGISTRY.values():
+        decoder(cls)  # the layout check
+    return msgspec.msgpack.Decoder(Union[tuple(Message.REGISTRY.values())], dec_hook=_dec_hook)  # noqa: UP007
 
 
 def _checked(record: R, ctx: Context | None, what: str) -> R:
